@@ -1,0 +1,1 @@
+"""AOASS: a single mobile anchor sweeping a sensor field along a square spiral."""

@@ -1,0 +1,234 @@
+"""One validated configuration for the whole simulator.
+
+Every tunable number of the simulation core lives in :class:`AOASSConfig`. Each field carries its
+unit, its valid range and a one-line description as dataclass metadata; validation reads that
+metadata, so the documentation and the checks cannot drift apart. Build a config from user
+keywords with :meth:`AOASSConfig.from_kwargs`, which rejects unknown keywords with a
+did-you-mean suggestion.
+
+Defaults follow Table 1 of the paper where it gives a figure (R = 25 m, Δs = 2 m beacon interval,
+E_0 = 2 J per node, 50 nJ/bit radio, 0.8 J/m anchor motion) and are documented choices where the
+paper is silent (docs/interpretations.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+
+class ConfigError(ValueError):
+    """A configuration value is missing, of the wrong type or out of its valid range."""
+
+
+def _p(default: Any, doc: str, *, unit: str = "", low: float | None = None,
+       high: float | None = None, low_open: bool = False, high_open: bool = False,
+       kind: str = "float", optional: bool = False) -> Any:
+    """A config field with its documentation and valid range as metadata."""
+    meta = {"doc": doc, "unit": unit, "low": low, "high": high, "low_open": low_open,
+            "high_open": high_open, "kind": kind, "optional": optional}
+    if isinstance(default, (list, tuple)):
+        return field(default=tuple(default), metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class AOASSConfig:
+    """All parameters of the simulation core (units in each field's metadata and docs/env.md)."""
+
+    # --- field and map -------------------------------------------------------------------
+    field_size: float = _p(100.0, "side of the square field", unit="m", low=10.0, high=5000.0)
+    n_nodes: int = _p(100, "number of static sensor nodes", low=1, high=100_000, kind="int")
+    obstacle_density: float = _p(
+        0.2, "obstacle area / field area of a generated map", low=0.0, high=0.6)
+    map: str | None = _p(
+        None, "None: generate a map per episode; else a map file path or a shipped map name",
+        kind="str", optional=True)
+    map_clearance: float = _p(
+        1.5, "narrowest passage a generated map keeps open for the anchor", unit="m",
+        low=0.0, high=20.0, low_open=True)
+
+    # --- moving obstacles ----------------------------------------------------------------
+    n_moving_obstacles: int = _p(3, "number of moving obstacles", low=0, high=200, kind="int")
+    moving_obstacle_radius: float = _p(
+        1.0, "radius of a moving obstacle", unit="m", low=0.0, high=10.0, low_open=True)
+    moving_obstacle_speed: tuple[float, float] = _p(
+        (0.3, 1.0), "(min, max) speed of moving obstacles", unit="m/s", low=0.0, high=10.0,
+        kind="range")
+    moving_obstacle_turn_rate: float = _p(
+        0.1, "mean number of random heading changes per second (Poisson)", unit="1/s",
+        low=0.0, high=10.0)
+
+    # --- anchor dynamics and sensing -----------------------------------------------------
+    anchor_radius: float = _p(0.5, "anchor body radius", unit="m", low=0.0, high=5.0,
+                              low_open=True)
+    anchor_nominal_speed: float = _p(
+        1.0, "cruise speed of the path follower", unit="m/s", low=0.0, high=20.0, low_open=True)
+    anchor_max_speed: float = _p(2.0, "speed limit", unit="m/s", low=0.0, high=20.0,
+                                 low_open=True)
+    anchor_max_accel: float = _p(1.0, "acceleration limit", unit="m/s^2", low=0.0, high=50.0,
+                                 low_open=True)
+    anchor_max_turn_rate: float = _p(
+        math.pi / 2, "turn-rate limit", unit="rad/s", low=0.0, high=20.0, low_open=True)
+    dt: float = _p(0.5, "control period (one env step)", unit="s", low=0.0, high=10.0,
+                   low_open=True)
+    physics_substeps: int = _p(5, "pymunk steps per control period", low=1, high=100,
+                               kind="int")
+    n_rays: int = _p(16, "range-sensor rays, evenly spread over 360 deg", low=1, high=360,
+                     kind="int")
+    sensing_range: float = _p(10.0, "range-sensor reach", unit="m", low=0.0, high=200.0,
+                              low_open=True)
+
+    # --- spiral and beacons --------------------------------------------------------------
+    beacon_interval: float = _p(
+        2.0, "distance travelled between beacons (Table 1's step size)", unit="m", low=0.0,
+        high=100.0, low_open=True)
+    spiral_spacing: float | None = _p(
+        None, "distance between parallel spiral passes (Eq. 2 leg increment); None = derived "
+        "from R (planning.square_spiral.default_spacing)", unit="m", low=0.0, high=1000.0,
+        low_open=True, optional=True)
+    spiral_origin: tuple[float, float] | None = _p(
+        None, "(x0, y0) of the spiral; None = field centre", unit="m", kind="point",
+        optional=True)
+    waypoint_step: float | None = _p(
+        None, "distance between waypoints along a leg (Eq. 1 step); None = beacon_interval",
+        unit="m", low=0.0, high=1000.0, low_open=True, optional=True)
+    edge_margin: float = _p(
+        1.5, "inset of the outermost spiral pass from the field border", unit="m", low=0.0,
+        high=100.0)
+
+    # --- radio ---------------------------------------------------------------------------
+    radio_range: float = _p(25.0, "communication range R", unit="m", low=0.0, high=1000.0,
+                            low_open=True)
+    line_of_sight: bool = _p(True, "obstacles block radio links", kind="bool")
+    doi: float = _p(0.0, "degree of irregularity of the radio range (0 = unit disk)",
+                    low=0.0, high=0.5)
+    packet_bits: int = _p(256, "size of a beacon packet", unit="bit", low=1, high=1_000_000,
+                          kind="int")
+    e_elec: float = _p(50e-9, "radio electronics energy (Table 1)", unit="J/bit", low=0.0,
+                       high=1e-3)
+    e_amp: float = _p(10e-12, "transmit amplifier energy (free-space, d^2)", unit="J/bit/m^2",
+                      low=0.0, high=1e-6)
+    node_initial_energy: float = _p(2.0, "initial energy of a node (Table 1)", unit="J",
+                                    low=0.0, high=1e6, low_open=True)
+    anchor_motion_energy: float = _p(0.8, "anchor motion cost (Table 1)", unit="J/m",
+                                     low=0.0, high=1e3)
+    collinearity_tol: float = _p(
+        1.0, "Eq. 18: heard beacons count as non-collinear when their root-sum-square distance "
+        "from the best-fit line is at least this", unit="m", low=0.0, high=100.0, low_open=True)
+
+    # --- reward (Eq. 14) -----------------------------------------------------------------
+    w1: float = _p(100.0, "Eq. 14 weight of the coverage gain", low=0.0, high=1e6)
+    w2: float = _p(0.01, "Eq. 14 weight of the energy imbalance", low=0.0, high=1e6)
+    w3: float = _p(0.005, "Eq. 14 weight of the online localization RMSE", unit="1/m",
+                   low=0.0, high=1e6)
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, _validate(f, getattr(self, f.name)))
+        if self.anchor_nominal_speed > self.anchor_max_speed:
+            raise ConfigError(
+                f"anchor_nominal_speed={self.anchor_nominal_speed} must not exceed "
+                f"anchor_max_speed={self.anchor_max_speed}")
+        lo, hi = self.moving_obstacle_speed
+        if lo > hi:
+            raise ConfigError(f"moving_obstacle_speed=({lo}, {hi}): min must be <= max")
+        if self.spiral_origin is not None:
+            x, y = self.spiral_origin
+            if not (0.0 <= x <= self.field_size and 0.0 <= y <= self.field_size):
+                raise ConfigError(
+                    f"spiral_origin={self.spiral_origin} must lie inside the field "
+                    f"[0, {self.field_size}] x [0, {self.field_size}] m")
+        if 2 * self.edge_margin >= self.field_size:
+            raise ConfigError(f"edge_margin={self.edge_margin} must be less than half of "
+                              f"field_size={self.field_size}")
+
+    # ---------------------------------------------------------------------------------
+    @classmethod
+    def from_kwargs(cls, **kwargs: Any) -> AOASSConfig:
+        """Build a config from keywords; unknown keywords get a did-you-mean error."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        for key in kwargs:
+            if key not in names:
+                close = difflib.get_close_matches(key, names, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                raise ConfigError(f"unknown config keyword {key!r}{hint} "
+                                  f"(valid: {', '.join(names)})")
+        return cls(**kwargs)
+
+    def replace(self, **kwargs: Any) -> AOASSConfig:
+        """A copy with some fields changed (validated like :meth:`from_kwargs`)."""
+        return self.from_kwargs(**{**self.to_dict(), **kwargs})
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def describe(cls) -> list[tuple[str, Any, str, str]]:
+        """(name, default, unit, doc) of every field, for docs and `--help` tables."""
+        return [(f.name, f.default, f.metadata["unit"], f.metadata["doc"])
+                for f in dataclasses.fields(cls)]
+
+    # --- derived quantities ----------------------------------------------------------
+    @property
+    def substep_dt(self) -> float:
+        """Physics step (s)."""
+        return self.dt / self.physics_substeps
+
+
+def _range_text(meta: dict[str, Any]) -> str:
+    lo, hi = meta["low"], meta["high"]
+    left = "(" if meta["low_open"] else "["
+    right = ")" if meta["high_open"] else "]"
+    return f"{left}{lo}, {hi}{right}"
+
+
+def _check_number(name: str, value: Any, meta: dict[str, Any], integer: bool) -> float | int:
+    unit = f" {meta['unit']}" if meta["unit"] else ""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (
+            integer and not float(value).is_integer()):
+        want = "an integer" if integer else "a number"
+        raise ConfigError(f"{name}={value!r} must be {want} in {_range_text(meta)}{unit}")
+    v = int(value) if integer else float(value)
+    lo, hi = meta["low"], meta["high"]
+    bad = not math.isfinite(v)
+    if lo is not None:
+        bad |= v <= lo if meta["low_open"] else v < lo
+    if hi is not None:
+        bad |= v >= hi if meta["high_open"] else v > hi
+    if bad:
+        raise ConfigError(f"{name}={value!r} is out of range: valid is {_range_text(meta)}{unit}"
+                          f" ({meta['doc']})")
+    return v
+
+
+def _validate(f: dataclasses.Field, value: Any) -> Any:
+    meta, name, kind = f.metadata, f.name, f.metadata["kind"]
+    if value is None:
+        if meta["optional"]:
+            return None
+        raise ConfigError(f"{name} must not be None ({meta['doc']})")
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ConfigError(f"{name}={value!r} must be True or False")
+        return value
+    if kind == "str":
+        if not isinstance(value, (str, Path)):
+            raise ConfigError(f"{name}={value!r} must be a path or a map name")
+        return str(value)
+    if kind in ("range", "point"):
+        if not isinstance(value, (list, tuple)) or len(value) != 2:
+            raise ConfigError(f"{name}={value!r} must be a pair of numbers")
+        if kind == "point":
+            free = {**meta, "low": None, "high": None}
+            return tuple(_check_number(name, v, free, False) for v in value)
+        return tuple(_check_number(name, v, meta, False) for v in value)
+    return _check_number(name, value, meta, integer=(kind == "int"))
