@@ -1,0 +1,49 @@
+"""Path arithmetic: distance travelled and beacon points along a travelled path."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def path_length(points: np.ndarray) -> float:
+    """Length (m) of the polyline through (P, 2) points."""
+    pts = np.asarray(points, dtype=np.float64)
+    if len(pts) < 2:
+        return 0.0
+    return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+
+
+def beacons_along(path: np.ndarray, start_distance: float,
+                  interval: float) -> tuple[np.ndarray, float]:
+    """Beacon broadcasts along one piece of the anchor's path.
+
+    A beacon is sent each time the odometer passes a multiple of ``interval`` (m), at the exact
+    point of the path where it does so (linear interpolation between the path samples, in time
+    too).
+
+    Args:
+        path: (P, 3) samples (t [s], x [m], y [m]) of the path, in order; ``path[0]`` is where the
+            odometer reads ``start_distance``.
+        start_distance: odometer reading at ``path[0]`` (m).
+        interval: beacon interval (m), > 0.
+
+    Returns:
+        ``(beacons, end_distance)``: (B, 3) rows (t, x, y) of the beacons whose odometer mark lies
+        in ``(start_distance, end_distance]``, and the odometer reading at ``path[-1]``.
+    """
+    if not interval > 0:
+        raise ValueError(f"interval={interval!r} must be a positive distance (m)")
+    p = np.asarray(path, dtype=np.float64).reshape(-1, 3)
+    seg = np.linalg.norm(np.diff(p[:, 1:], axis=0), axis=1)
+    odo = start_distance + np.r_[0.0, np.cumsum(seg)]
+    end = float(odo[-1])
+    first = np.floor(start_distance / interval + 1e-9) + 1
+    last = np.floor(end / interval + 1e-9)
+    marks = np.arange(first, last + 1) * interval
+    if len(marks) == 0:
+        return np.zeros((0, 3)), end
+    # segment k runs from sample k to k+1; the mark falls in the first segment reaching it
+    k = np.clip(np.searchsorted(odo, marks, side="left"), 1, len(p) - 1) - 1
+    frac = np.clip((marks - odo[k]) / np.where(seg[k] > 0, seg[k], 1.0), 0.0, 1.0)
+    out = p[k] + frac[:, None] * (p[k + 1] - p[k])
+    return out, end

@@ -1,0 +1,73 @@
+import math
+
+import pytest
+
+from aoass_env.config import AOASSConfig, ConfigError
+
+
+def test_defaults_follow_table1():
+    c = AOASSConfig()
+    assert c.radio_range == 25.0
+    assert c.beacon_interval == 2.0
+    assert c.node_initial_energy == 2.0
+    assert c.e_elec == 50e-9
+    assert c.anchor_motion_energy == 0.8
+    assert c.field_size == 100.0 and c.n_nodes == 100
+
+
+@pytest.mark.parametrize("key,value,fragment", [
+    ("field_size", -5, "field_size=-5"),
+    ("field_size", float("nan"), "field_size"),
+    ("obstacle_density", 0.7, "[0.0, 0.6]"),
+    ("n_nodes", 0, "n_nodes=0"),
+    ("n_nodes", 2.5, "integer"),
+    ("radio_range", 0.0, "(0.0, 1000.0]"),
+    ("radio_range", "25", "must be a number"),
+    ("line_of_sight", 1, "True or False"),
+    ("moving_obstacle_speed", (1.0,), "pair"),
+    ("spiral_spacing", -1.0, "spiral_spacing"),
+])
+def test_bad_values_name_parameter_and_range(key, value, fragment):
+    with pytest.raises(ConfigError) as err:
+        AOASSConfig.from_kwargs(**{key: value})
+    assert key in str(err.value)
+    assert fragment in str(err.value)
+
+
+def test_unknown_keyword_suggests_close_match():
+    with pytest.raises(ConfigError, match="did you mean 'radio_range'"):
+        AOASSConfig.from_kwargs(radio_rang=20)
+
+
+def test_cross_field_checks():
+    with pytest.raises(ConfigError, match="anchor_nominal_speed"):
+        AOASSConfig(anchor_nominal_speed=3.0, anchor_max_speed=2.0)
+    with pytest.raises(ConfigError, match="min must be <= max"):
+        AOASSConfig(moving_obstacle_speed=(2.0, 1.0))
+    with pytest.raises(ConfigError, match="spiral_origin"):
+        AOASSConfig(spiral_origin=(150.0, 10.0))
+
+
+def test_integer_valued_float_accepted_and_normalised():
+    c = AOASSConfig.from_kwargs(n_nodes=300.0, field_size=200)
+    assert c.n_nodes == 300 and isinstance(c.n_nodes, int)
+    assert c.field_size == 200.0 and isinstance(c.field_size, float)
+
+
+def test_replace_and_json_round_trip():
+    c = AOASSConfig().replace(n_nodes=500, spiral_origin=[10, 20])
+    assert c.n_nodes == 500 and c.spiral_origin == (10.0, 20.0)
+    import json
+    again = AOASSConfig.from_kwargs(**json.loads(c.to_json()))
+    assert again == c
+
+
+def test_describe_lists_every_field_with_doc():
+    rows = AOASSConfig.describe()
+    assert {r[0] for r in rows} >= {"field_size", "n_nodes", "w1", "w2", "w3"}
+    assert all(r[3] for r in rows)
+
+
+def test_substep_dt():
+    c = AOASSConfig(dt=0.5, physics_substeps=5)
+    assert math.isclose(c.substep_dt, 0.1)
