@@ -50,7 +50,8 @@ class AOASSConfig:
         None, "None: generate a map per episode; else a map file path or a shipped map name",
         kind="str", optional=True)
     map_clearance: float = _p(
-        1.5, "narrowest passage a generated map keeps open for the anchor", unit="m",
+        2.5, "narrowest passage a map must keep open for the anchor (generated maps are built "
+        "so; loaded maps are checked)", unit="m",
         low=0.0, high=20.0, low_open=True)
 
     # --- moving obstacles ----------------------------------------------------------------
@@ -135,6 +136,10 @@ class AOASSConfig:
             raise ConfigError(
                 f"anchor_nominal_speed={self.anchor_nominal_speed} must not exceed "
                 f"anchor_max_speed={self.anchor_max_speed}")
+        if self.map_clearance < 2 * self.anchor_radius:
+            raise ConfigError(
+                f"map_clearance={self.map_clearance} m must be at least the anchor diameter "
+                f"2 * anchor_radius = {2 * self.anchor_radius} m")
         lo, hi = self.moving_obstacle_speed
         if lo > hi:
             raise ConfigError(f"moving_obstacle_speed=({lo}, {hi}): min must be <= max")

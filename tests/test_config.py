@@ -44,6 +44,8 @@ def test_cross_field_checks():
         AOASSConfig(anchor_nominal_speed=3.0, anchor_max_speed=2.0)
     with pytest.raises(ConfigError, match="min must be <= max"):
         AOASSConfig(moving_obstacle_speed=(2.0, 1.0))
+    with pytest.raises(ConfigError, match="map_clearance"):
+        AOASSConfig(anchor_radius=1.0, map_clearance=1.5)
     with pytest.raises(ConfigError, match="spiral_origin"):
         AOASSConfig(spiral_origin=(150.0, 10.0))
 

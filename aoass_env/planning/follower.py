@@ -2,15 +2,19 @@
 
 The follower is the zero-action behaviour of the environment (DESIGN.md section 3): it steers
 toward the next waypoint that is not blocked, skipping waypoints inside obstacles and resuming the
-path after them (Section 3.3 of the paper). It holds only its progress along the list.
+path after them (Section 3.3 of the paper). When an obstacle stands between the anchor and its
+target, an optional :class:`~aoass_env.planning.detour.DetourPlanner` supplies intermediate points
+around it; without a planner the follower steers straight (and relies on a safety layer).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+from aoass_env.planning.detour import DetourPlanner
 
 
 @dataclass
@@ -22,8 +26,9 @@ class WaypointFollower:
         blocked: waypoints to skip.
         capture_radius: a waypoint counts as reached within this distance (m).
         cruise_speed: commanded speed on straight stretches (m/s).
-        stall_time: a target not reached within this time (s) is skipped, so a follower pushed
-            against an obstacle does not wait forever.
+        stall_time: a target (spiral or detour point) not reached within this time (s) is
+            skipped, so a follower pushed against an obstacle does not wait forever.
+        planner: detour planner used when the straight line to the target is obstructed.
     """
 
     waypoints: np.ndarray
@@ -31,11 +36,16 @@ class WaypointFollower:
     capture_radius: float
     cruise_speed: float
     stall_time: float = 30.0
+    planner: DetourPlanner | None = None
     index: int = 0
-    _time_on_target: float = 0.0
+    _clock: float = 0.0
+    _budget: float = 0.0
+    _planned: bool = False
+    _detour: list[np.ndarray] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.index = self._next_free(self.index)
+        self._budget = self.stall_time
 
     @property
     def done(self) -> bool:
@@ -56,17 +66,44 @@ class WaypointFollower:
             i += 1
         return i
 
-    def command(self, position: np.ndarray, dt: float) -> tuple[float, float]:
+    def _advance(self) -> None:
+        self.index = self._next_free(self.index + 1)
+        self._budget = self._clock + self.stall_time
+        self._planned = False
+        self._detour.clear()
+
+    def command(self, position: np.ndarray, heading: float, dt: float) -> tuple[float, float]:
         """(speed [m/s], heading [rad]) toward the current target after advancing past reached
-        waypoints; ``dt`` (s) is the time since the last call, for stall detection."""
-        self._time_on_target += dt
+        waypoints. ``heading`` (rad) is the anchor's current heading: the speed is scaled by the
+        cosine of the heading error (zero beyond 90 deg, so sharp turns happen in place);
+        ``dt`` (s) is the time since the last call, for stall detection.
+
+        With a planner, an obstructed target gets one detour (intermediate points, then the
+        target); the time allowed for the target grows by twice the detour's travel time.
+        """
+        self._clock += dt
         while not self.done:
-            reached = np.hypot(*(self.waypoints[self.index] - position)) <= self.capture_radius
-            if not (reached or self._time_on_target > self.stall_time):
+            target = self.waypoints[self.index]
+            if (np.hypot(*(target - position)) <= self.capture_radius
+                    or self._clock > self._budget):
+                self._advance()
+                continue
+            while self._detour and np.hypot(*(self._detour[0] - position)) <= self.capture_radius:
+                self._detour.pop(0)
+            if self.planner is None or self._planned or self.planner.visible(position, target):
                 break
-            self.index = self._next_free(self.index + 1)
-            self._time_on_target = 0.0
+            path = self.planner.path(position, target)
+            if path is None:
+                self._advance()      # unreachable from here: skip it, as if inside an obstacle
+                continue
+            self._planned = True
+            self._detour = list(path[1:-1])
+            length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+            self._budget = self._clock + self.stall_time + 2.0 * length / self.cruise_speed
+            break
         if self.done:
             return 0.0, 0.0
-        dx, dy = self.waypoints[self.index] - position
-        return self.cruise_speed, math.atan2(dy, dx)
+        aim = self._detour[0] if self._detour else self.waypoints[self.index]
+        dx, dy = aim - position
+        bearing = math.atan2(dy, dx)
+        return self.cruise_speed * max(0.0, math.cos(bearing - heading)), bearing

@@ -1,0 +1,49 @@
+"""The paper's evaluation metrics (Eq. 15-19) as pure functions."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, float]:
+    """Eq. 15: RMSE (m) over the nodes that have an estimate, and the localized fraction.
+
+    Nodes whose estimate is NaN are left out of the RMSE; the fraction of nodes that were
+    localized is returned beside it so that the two are always reported together.
+    """
+    t = np.asarray(true_xy, dtype=np.float64).reshape(-1, 2)
+    e = np.asarray(est_xy, dtype=np.float64).reshape(-1, 2)
+    if t.shape != e.shape:
+        raise ValueError(f"true_xy {t.shape} and est_xy {e.shape} must have the same shape")
+    ok = np.all(np.isfinite(e), axis=1)
+    if not ok.any():
+        return float("nan"), 0.0
+    err2 = np.sum((t[ok] - e[ok]) ** 2, axis=1)
+    return float(np.sqrt(err2.mean())), float(ok.mean())
+
+
+def energy_per_beacon(energy_total: float, n_beacons: int) -> float:
+    """Eq. 16: E_norm = E_total / N_beacons (J per beacon); inf without beacons."""
+    return float(energy_total) / n_beacons if n_beacons > 0 else float("inf")
+
+
+def energy_efficiency_ratio(energy_total: float, n_beacons: int) -> float:
+    """Eq. 17: EER = 1 / E_norm (beacons per J)."""
+    return float(n_beacons) / energy_total if energy_total > 0 else float("inf")
+
+
+def coverage_ratio(covered: np.ndarray) -> float:
+    """Eq. 18: share of nodes (in [0, 1]; x 100 for %) that heard >= 3 non-collinear beacons."""
+    c = np.asarray(covered, dtype=bool)
+    return float(c.mean()) if c.size else 0.0
+
+
+def trajectory_efficiency(l_ideal: float, l_actual: float, t_ideal: float,
+                          t_actual: float) -> float:
+    """Eq. 19: eta_traj = (L_ideal / L_actual) * (T_ideal / T_actual), lengths in m, times in s.
+
+    Zero when the anchor did not move (no path, no efficiency).
+    """
+    if l_actual <= 0 or t_actual <= 0:
+        return 0.0
+    return (l_ideal / l_actual) * (t_ideal / t_actual)

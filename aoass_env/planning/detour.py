@@ -1,0 +1,119 @@
+"""Detours around static obstacles: shortest paths on a clearance-weighted occupancy grid.
+
+The nominal follower steers straight at the next spiral waypoint. When an obstacle stands in the
+way, :class:`DetourPlanner` finds a collision-free path for a disc of the anchor's radius: the
+field is rasterised, scipy's Euclidean distance transform gives each cell its clearance, cells
+with too little clearance are removed, and Dijkstra (scipy.sparse.csgraph) on the 8-connected
+grid, with a cost that prefers open space, finds the path. The path is then shortened by string
+pulling (keep only the points needed for straight, obstacle-free legs).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import shapely
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from aoass_env.maps import ObstacleMap
+
+
+class DetourPlanner:
+    """Collision-free paths for a disc among the static obstacles of a map.
+
+    Args:
+        obstacle_map: the field and obstacles.
+        radius: disc radius to keep clear of obstacles and border (m).
+        resolution: grid cell size (m).
+    """
+
+    def __init__(self, obstacle_map: ObstacleMap, radius: float, resolution: float = 0.5):
+        if not (radius > 0 and resolution > 0):
+            raise ValueError(f"radius={radius} and resolution={resolution} must be positive (m)")
+        self.map, self.radius, self.res = obstacle_map, float(radius), float(resolution)
+        nx = max(1, math.ceil(obstacle_map.width / resolution))
+        ny = max(1, math.ceil(obstacle_map.height / resolution))
+        self.shape = (nx, ny)
+        xs, ys = (np.arange(nx) + 0.5) * resolution, (np.arange(ny) + 0.5) * resolution
+        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        self.centres = np.stack([gx.ravel(), gy.ravel()], axis=1)
+        occupied = obstacle_map.inside_obstacle(self.centres).reshape(nx, ny)
+        padded = np.pad(~occupied, 1, constant_values=False)   # the border is an obstacle
+        clearance = ndimage.distance_transform_edt(padded)[1:-1, 1:-1] * resolution
+        clearance = np.minimum(clearance, np.minimum(np.minimum(gx, obstacle_map.width - gx),
+                                                     np.minimum(gy, obstacle_map.height - gy)))
+        self.free = clearance > radius + 0.5 * resolution
+        # nearest free cell of every cell, to snap starts and goals onto the grid
+        _, nearest = ndimage.distance_transform_edt(~self.free, return_indices=True)
+        self._nearest = np.ravel_multi_index((nearest[0], nearest[1]), self.shape).ravel()
+        self._graph = self._build_graph(1.0 + 1.0 / np.maximum(clearance, 1e-3))
+        self._blocker = shapely.buffer(obstacle_map.union, radius) if obstacle_map.polygons \
+            else shapely.Polygon()
+        shapely.prepare(self._blocker)
+        self._tree: tuple[int, np.ndarray, np.ndarray] | None = None
+
+    def _build_graph(self, cost: np.ndarray):
+        nx, ny = self.shape
+        idx = np.arange(nx * ny).reshape(nx, ny)
+        rows, cols, weights = [], [], []
+        for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
+            i0, i1 = max(0, -dx), nx - max(0, dx)
+            j0, j1 = max(0, -dy), ny - max(0, dy)
+            a = idx[i0:i1, j0:j1]
+            b = idx[i0 + dx:i1 + dx, j0 + dy:j1 + dy]
+            a, b = a.ravel(), b.ravel()
+            ok = self.free.ravel()[a] & self.free.ravel()[b]
+            a, b = a[ok], b[ok]
+            step = math.hypot(dx, dy) * self.res
+            rows.append(a)
+            cols.append(b)
+            weights.append(step * 0.5 * (cost.ravel()[a] + cost.ravel()[b]))
+        n = nx * ny
+        return coo_matrix((np.concatenate(weights), (np.concatenate(rows),
+                           np.concatenate(cols))), shape=(n, n)).tocsr()
+
+    def _cell(self, point: np.ndarray) -> int:
+        i = min(max(int(point[0] / self.res), 0), self.shape[0] - 1)
+        j = min(max(int(point[1] / self.res), 0), self.shape[1] - 1)
+        return int(self._nearest[i * self.shape[1] + j])
+
+    def visible(self, a: np.ndarray, b: np.ndarray) -> bool:
+        """True when a disc of the planner's radius can move straight from ``a`` to ``b``."""
+        if np.array_equal(a, b):
+            return not shapely.intersects_xy(self._blocker, a[0], a[1])
+        return not shapely.intersects(self._blocker, shapely.LineString([a, b]))
+
+    def path(self, start: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
+        """Shortened collision-free path (K, 2) from ``start`` to ``goal`` (both included), or
+        None when no path exists (the goal lies in a pocket the disc cannot enter).
+
+        The shortest-path tree of the last start cell is kept, so trying several goals from
+        one place (a follower skipping unreachable waypoints) costs one search.
+        """
+        s, g = self._cell(start), self._cell(goal)
+        if self._tree is None or self._tree[0] != s:
+            dist, pred = dijkstra(self._graph, directed=False, indices=s,
+                                  return_predecessors=True)
+            self._tree = (s, dist, pred)
+        _, dist, pred = self._tree
+        if not np.isfinite(dist[g]):
+            return None
+        cells = [g]
+        while cells[-1] != s:
+            cells.append(int(pred[cells[-1]]))
+        pts = np.vstack([start, self.centres[cells[::-1]], goal])
+        return self._pull(pts)
+
+    def _pull(self, pts: np.ndarray) -> np.ndarray:
+        """String pulling: from each kept point, jump to the last point still visible."""
+        out, i = [pts[0]], 0
+        while i < len(pts) - 1:
+            j = i + 1
+            while j + 1 < len(pts) and self.visible(pts[i], pts[j + 1]):
+                j += 1
+            out.append(pts[j])
+            i = j
+        return np.array(out)

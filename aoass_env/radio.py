@@ -1,0 +1,305 @@
+"""Link model: which nodes hear a beacon, and which node pairs hear each other.
+
+A link between two points exists when they are within radio range and, with line of sight on,
+no obstacle blocks the straight segment between them (docs/radio.md).
+
+**Line of sight.** A segment is *blocked* when its open interior meets the interior of an
+obstacle polygon, i.e. shapely's ``relate(segment, polygon)`` matches ``'T********'``. In the
+generic case this means the segment properly crosses an obstacle edge. Touching a vertex from
+outside, running along an edge, or ending on an obstacle's boundary does not block; a segment
+through an obstacle from vertex to vertex (a square's diagonal) or lying inside an obstacle does.
+:class:`LineOfSight` decides this exactly: an STRtree over the edges gives candidate
+(segment, edge) pairs, an orientation test with Shewchuk's floating-point error bound settles
+every pair whose signs are certain, and the rare segments with an uncertain or degenerate contact
+(a vertex on the segment, collinear overlap) are handed to shapely's exact ``relate``.
+
+**Radio irregularity** (DOI model, He et al. 2003): each transmitter has range factors K(theta)
+at 1 degree resolution, a closed random walk with ``|K_i - K_{i-1}| <= doi`` (also from 359 to
+0 degrees) clipped to ``[1 - doi, 1 + doi]``; a receiver in direction theta hears it up to
+``R * K(theta)``. ``doi = 0`` is the unit disk exactly.
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import ObstacleMap
+
+__all__ = ["LineOfSight", "Radio", "doi_pattern", "range_factor"]
+
+_UNIT_ROUNDOFF = np.finfo(np.float64).eps / 2
+#: Shewchuk's static error bound for the 2D orientation determinant (ccwerrboundA): when
+#: |det| exceeds this times (|detleft| + |detright|), the sign of the float determinant is exact.
+_ORIENT_ERRBOUND = (3.0 + 16.0 * _UNIT_ROUNDOFF) * _UNIT_ROUNDOFF
+
+#: Relative slack of kd-tree queries; candidates are then filtered with the exact criterion.
+_QUERY_SLACK = 1e-9
+
+
+def _points(value: object, name: str, *, single: bool = False) -> np.ndarray:
+    """Finite float64 points: (M, 2), or (2,) when ``single``; errors name ``name``."""
+    try:
+        pts = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be numeric coordinates in metres: {exc}") from None
+    if pts.shape != (2,) if single else (pts.ndim != 2 or pts.shape[1] != 2):
+        shape = "(2,)" if single else "(M, 2)"
+        raise ValueError(f"{name} must have shape {shape}, got {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError(f"{name} must be finite coordinates in metres")
+    return pts
+
+
+def _orientation(dax: np.ndarray, day: np.ndarray, dbx: np.ndarray,
+                 dby: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sign-certain orientation of (a, b, c) from the differences a - c and b - c.
+
+    Returns ``(positive, certain)``: ``det > 0`` and whether that sign (and non-zeroness) is
+    exact under Shewchuk's error bound. An exactly zero determinant is never certain.
+    """
+    left = dax * dby
+    right = day * dbx
+    det = left - right
+    certain = np.abs(det) > _ORIENT_ERRBOUND * (np.abs(left) + np.abs(right))
+    return det > 0, certain
+
+
+class LineOfSight:
+    """Exact, vectorised line-of-sight test against the obstacles of one map.
+
+    Args:
+        obstacle_map: the static obstacles; its edges and polygons are indexed once (STRtree).
+    """
+
+    def __init__(self, obstacle_map: ObstacleMap) -> None:
+        if not isinstance(obstacle_map, ObstacleMap):
+            raise TypeError(f"obstacle_map must be an ObstacleMap, got {type(obstacle_map)!r}")
+        edges = obstacle_map.edges
+        self._px, self._py = edges[:, 0, 0].copy(), edges[:, 0, 1].copy()
+        self._qx, self._qy = edges[:, 1, 0].copy(), edges[:, 1, 1].copy()
+        self._edge_tree = shapely.STRtree(shapely.linestrings(edges))
+        self._polygons = obstacle_map.shapes
+        self._polygon_tree = shapely.STRtree(self._polygons)
+
+    def inside(self, points: np.ndarray) -> np.ndarray:
+        """Mask of points (M, 2) [m] strictly inside some obstacle polygon.
+
+        Unlike :meth:`ObstacleMap.inside_obstacle` (interior of the union clipped to the field)
+        this is per polygon and unclipped, matching the line-of-sight semantics.
+        """
+        pts = _points(points, "points")
+        mask = np.zeros(len(pts), dtype=bool)
+        if len(pts) and len(self._polygons):
+            hit, _ = self._polygon_tree.query(shapely.points(pts), predicate="within")
+            mask[hit] = True
+        return mask
+
+    def blocked(self, starts: np.ndarray, ends: np.ndarray, *,
+                start_inside: np.ndarray | None = None) -> np.ndarray:
+        """Mask (M,) of segments ``starts[m] -> ends[m]`` [m] that an obstacle blocks.
+
+        ``starts`` and ``ends`` are (M, 2), or one of them a single point (2,) shared by all
+        segments. ``start_inside`` optionally gives :meth:`inside` of the start points (M,)
+        when the caller has it cached.
+        """
+        a, b = (np.asarray(v, dtype=np.float64) for v in (starts, ends))
+        a = _points(a, "starts", single=a.ndim == 1)
+        b = _points(b, "ends", single=b.ndim == 1)
+        if a.ndim == b.ndim == 2 and len(a) != len(b):
+            raise ValueError(f"starts {a.shape} and ends {b.shape} must have the same length")
+        m = len(b) if b.ndim == 2 else len(a) if a.ndim == 2 else 1
+        a, b = np.broadcast_to(a, (m, 2)), np.broadcast_to(b, (m, 2))
+        if start_inside is None:
+            start_inside = self.inside(a)
+        else:
+            start_inside = np.asarray(start_inside, dtype=bool)
+            if start_inside.shape != (m,):
+                raise ValueError(f"start_inside must have shape ({m},), got {start_inside.shape}")
+        return self._blocked(a, b, start_inside)
+
+    def _blocked(self, a: np.ndarray, b: np.ndarray, a_inside: np.ndarray) -> np.ndarray:
+        m = len(a)
+        if m == 0 or len(self._polygons) == 0:
+            return np.zeros(m, dtype=bool)
+        segs = np.stack([a, b], axis=1)
+        seg, edge = self._edge_tree.query(shapely.linestrings(segs))
+        ax, ay, bx, by = a[seg, 0], a[seg, 1], b[seg, 0], b[seg, 1]
+        px, py, qx, qy = self._px[edge], self._py[edge], self._qx[edge], self._qy[edge]
+        apx, apy, aqx, aqy = ax - px, ay - py, ax - qx, ay - qy
+        bpx, bpy, bqx, bqy = bx - px, by - py, bx - qx, by - qy
+        s1, c1 = _orientation(apx, apy, bpx, bpy)   # p relative to line a-b
+        s2, c2 = _orientation(aqx, aqy, bqx, bqy)   # q relative to line a-b
+        s3, c3 = _orientation(apx, apy, aqx, aqy)   # a relative to line p-q
+        s4, c4 = _orientation(bpx, bpy, bqx, bqy)   # b relative to line p-q
+        cross = c1 & c2 & c3 & c4 & (s1 != s2) & (s3 != s4)
+        apart = (c1 & c2 & (s1 == s2)) | (c3 & c4 & (s3 == s4))
+        blocked = np.zeros(m, dtype=bool)
+        blocked[seg[cross]] = True
+        contact = np.zeros(m, dtype=bool)
+        contact[seg[~cross & ~apart]] = True
+        contact &= ~blocked
+        # No contact with any edge: the closed segment lies wholly inside or outside each
+        # obstacle, like its start point.
+        clean = ~blocked & ~contact
+        blocked[clean] = a_inside[clean]
+        if contact.any():
+            blocked[contact] = self._blocked_exact(segs[contact])
+        return blocked
+
+    def _blocked_exact(self, segs: np.ndarray) -> np.ndarray:
+        """shapely's exact answer for the few segments (K, 2, 2) with a degenerate contact."""
+        point = np.all(segs[:, 0] == segs[:, 1], axis=1)
+        geoms = np.where(point, shapely.points(segs[:, 0]), shapely.linestrings(segs))
+        seg, poly = self._polygon_tree.query(geoms)
+        hit = shapely.relate_pattern(geoms[seg], self._polygons[poly], "T********")
+        blocked = np.zeros(len(segs), dtype=bool)
+        blocked[seg[hit]] = True
+        return blocked
+
+
+def doi_pattern(doi: float, rng: np.random.Generator | None, n: int = 1) -> np.ndarray:
+    """Range factors K (n, 360) of ``n`` transmitters, one per degree (DOI model).
+
+    Each row is a closed random walk: steps uniform in ``[-doi, doi]``, the steps of the
+    dominant sign shrunk proportionally so they sum to zero (the walk closes at 360 degrees),
+    centred on 1 and clipped to ``[1 - doi, 1 + doi]``. Clipping is 1-Lipschitz, so
+    ``|K_i - K_{i-1}| <= doi`` holds for every i, 359 -> 0 included (up to float rounding).
+    ``doi = 0`` gives all ones without touching ``rng``.
+    """
+    try:
+        d = float(doi)
+    except (TypeError, ValueError):
+        d = float("nan")
+    if isinstance(doi, bool) or not (np.isfinite(d) and 0.0 <= d < 1.0):
+        raise ValueError(f"doi={doi!r} must be a number in [0, 1)")
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+        raise ValueError(f"n={n!r} must be a non-negative integer")
+    if d == 0.0:
+        return np.ones((int(n), 360))
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError("doi > 0 needs rng, a numpy.random.Generator")
+    steps = rng.uniform(-d, d, size=(int(n), 360))
+    pos = np.clip(steps, 0.0, None).sum(axis=1, keepdims=True)
+    neg = np.clip(steps, None, 0.0).sum(axis=1, keepdims=True)
+    total = pos + neg
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shrink_pos = np.where(total > 0, -neg / pos, 1.0)
+        shrink_neg = np.where(total < 0, -pos / neg, 1.0)
+    steps = np.where(steps > 0, steps * shrink_pos, steps * shrink_neg)
+    walk = np.concatenate([np.zeros((int(n), 1)), np.cumsum(steps[:, :-1], axis=1)], axis=1)
+    walk += 1.0 - walk.mean(axis=1, keepdims=True)
+    return np.clip(walk, 1.0 - d, 1.0 + d)
+
+
+def range_factor(pattern: np.ndarray, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """K of ``pattern`` (360,) or (M, 360) toward directions (dx, dy), nearest whole degree."""
+    deg = np.rint(np.degrees(np.arctan2(dy, dx))).astype(np.int64) % 360
+    if pattern.ndim == 1:
+        return pattern[deg]
+    return pattern[np.arange(len(deg)), deg]
+
+
+class Radio:
+    """Who hears whom among static nodes, the mobile anchor and the obstacles of one map.
+
+    Args:
+        nodes: (N, 2) node positions [m].
+        obstacle_map: the static obstacles.
+        radio_range: R [m]; a receiver at squared distance <= (R K(theta))^2 hears the
+            transmitter (K = 1 without irregularity).
+        line_of_sight: obstacles block links (see :class:`LineOfSight`).
+        doi: degree of irregularity in [0, 1); 0 is the unit disk.
+        rng: source of the DOI patterns, needed when ``doi > 0``: the anchor's pattern is drawn
+            first, then one per node.
+
+    Attributes:
+        anchor_pattern: the anchor's K (360,), world frame, index = whole degrees from +x.
+        node_patterns: each node's K (N, 360), or None when ``doi == 0``.
+    """
+
+    def __init__(self, nodes: np.ndarray, obstacle_map: ObstacleMap, radio_range: float, *,
+                 line_of_sight: bool = True, doi: float = 0.0,
+                 rng: np.random.Generator | None = None) -> None:
+        pts = _points(nodes, "nodes").copy()
+        pts.flags.writeable = False
+        if not isinstance(obstacle_map, ObstacleMap):
+            raise TypeError(f"obstacle_map must be an ObstacleMap, got {type(obstacle_map)!r}")
+        try:
+            r = float(radio_range)
+        except (TypeError, ValueError):
+            r = float("nan")
+        if isinstance(radio_range, bool) or not (np.isfinite(r) and r > 0):
+            raise ValueError(f"radio_range={radio_range!r} must be a positive number of metres")
+        self.nodes = pts
+        self.obstacle_map = obstacle_map
+        self.radio_range = r
+        self.line_of_sight = bool(line_of_sight)
+        self.anchor_pattern = doi_pattern(doi, rng, 1)[0]
+        self.doi = float(doi)
+        self.node_patterns = doi_pattern(doi, rng, len(pts)) if self.doi > 0 else None
+        for pattern in (self.anchor_pattern, self.node_patterns):
+            if pattern is not None:
+                pattern.flags.writeable = False
+        self._tree = cKDTree(pts)
+        self._los = LineOfSight(obstacle_map) if self.line_of_sight else None
+        self._node_inside = self._los.inside(pts) if self._los is not None else None
+
+    @classmethod
+    def from_config(cls, nodes: np.ndarray, obstacle_map: ObstacleMap, config: AOASSConfig,
+                    rng: np.random.Generator | None = None) -> Radio:
+        """A radio with ``radio_range``, ``line_of_sight`` and ``doi`` from ``config``."""
+        return cls(nodes, obstacle_map, config.radio_range,
+                   line_of_sight=config.line_of_sight, doi=config.doi, rng=rng)
+
+    @property
+    def max_range(self) -> float:
+        """Farthest possible link, R (1 + doi) [m]."""
+        return self.radio_range * (1.0 + self.doi)
+
+    def receivers(self, point: np.ndarray) -> np.ndarray:
+        """Sorted int64 indices of the nodes that hear a beacon broadcast at ``point`` (2,) [m]."""
+        p = _points(point, "point", single=True)
+        cand = np.asarray(self._tree.query_ball_point(p, self.max_range * (1 + _QUERY_SLACK),
+                                                      return_sorted=True), dtype=np.int64)
+        dx = self.nodes[cand, 0] - p[0]
+        dy = self.nodes[cand, 1] - p[1]
+        reach = self.radio_range
+        if self.doi > 0:
+            reach = reach * range_factor(self.anchor_pattern, dx, dy)
+        cand = cand[dx * dx + dy * dy <= reach * reach]
+        if self._los is not None and len(cand):
+            cand = cand[~self._los.blocked(self.nodes[cand], p,
+                                           start_inside=self._node_inside[cand])]
+        return cand
+
+    def node_links(self) -> np.ndarray:
+        """(E, 2) int64 node pairs i < j that hear each other, sorted (read-only, cached).
+
+        With ``doi > 0`` a link needs both directions: each node within the other's range.
+        """
+        return self._links
+
+    @cached_property
+    def _links(self) -> np.ndarray:
+        pairs = self._tree.query_pairs(self.max_range * (1 + _QUERY_SLACK),
+                                       output_type="ndarray").astype(np.int64).reshape(-1, 2)
+        i, j = pairs[:, 0], pairs[:, 1]
+        d = self.nodes[j] - self.nodes[i]
+        d2 = d[:, 0] ** 2 + d[:, 1] ** 2
+        reach = np.full(len(pairs), self.radio_range)
+        if self.node_patterns is not None:
+            reach *= np.minimum(range_factor(self.node_patterns[i], d[:, 0], d[:, 1]),
+                                range_factor(self.node_patterns[j], -d[:, 0], -d[:, 1]))
+        pairs = pairs[d2 <= reach * reach]
+        if self._los is not None and len(pairs):
+            i, j = pairs[:, 0], pairs[:, 1]
+            pairs = pairs[~self._los.blocked(self.nodes[i], self.nodes[j],
+                                             start_inside=self._node_inside[i])]
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+        pairs.flags.writeable = False
+        return pairs

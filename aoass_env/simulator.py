@@ -1,0 +1,164 @@
+"""One episode of the simulation core, wired together.
+
+:class:`Simulator` builds an episode from a config and a random generator -- obstacle map, sensor
+nodes, square spiral, pymunk world, radio, network state and beacon-log recorder -- and advances
+it one control period at a time from (speed, heading) commands. It holds no geometry, radio or
+energy maths of its own: each part lives in its module. The Gymnasium environment wraps it.
+
+Random draws happen in a fixed order (map, nodes, moving obstacles, radio irregularity, then the
+moving obstacles' motion), all from the one generator, so a seed fixes the whole episode.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from aoass_env.beacon_log import BeaconLog, BeaconLogRecorder, episode_config_json
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import MapError, ObstacleMap, generate_map, load_map
+from aoass_env.network import Network
+from aoass_env.planning import SquareSpiral, WaypointFollower, default_spacing, square_spiral
+from aoass_env.planning.detour import DetourPlanner
+from aoass_env.radio import Radio
+from aoass_env.trajectory import beacons_along
+from aoass_env.world import World
+
+#: Extra clearance (m) the nominal follower's detours keep from obstacles beyond the anchor radius,
+#: room for the turn-rate-limited anchor to round the corners of a detour.
+DETOUR_MARGIN = 0.3
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """What one control period produced.
+
+    Attributes:
+        beacons: (B, 3) rows (t [s], x [m], y [m]) broadcast during the period.
+        newly_covered: nodes that became covered (Eq. 18) during the period.
+        distance: distance the anchor travelled (m).
+    """
+
+    beacons: np.ndarray
+    newly_covered: int
+    distance: float
+
+
+def episode_map(config: AOASSConfig, rng: np.random.Generator) -> ObstacleMap:
+    """The episode's obstacle map: ``config.map`` if set, else a fresh generated one."""
+    if config.map is None:
+        return generate_map(config.field_size, config.obstacle_density, rng,
+                            clearance=config.map_clearance)
+    return load_map(config.map, field_size=config.field_size)
+
+
+def episode_spiral(config: AOASSConfig, obstacle_map: ObstacleMap) -> SquareSpiral:
+    """The square spiral of the config over the map, blocked waypoints marked."""
+    w, h = obstacle_map.width, obstacle_map.height
+    spacing = config.spiral_spacing or default_spacing(
+        w, h, config.radio_range, config.beacon_interval, config.edge_margin,
+        config.spiral_origin)
+    step = config.waypoint_step or config.beacon_interval
+    spiral = square_spiral(w, h, spacing, step, origin=config.spiral_origin,
+                           margin=config.edge_margin)
+    return spiral.with_obstacles(obstacle_map, config.anchor_radius)
+
+
+class Simulator:
+    """One episode: map, nodes, spiral, world, radio, network and beacon log.
+
+    Args:
+        config: the validated configuration.
+        rng: the episode's only source of randomness.
+        obstacle_map: use this map instead of ``config.map`` / a generated one.
+        seed: recorded in the beacon log's config (the seed that made ``rng``).
+        method: recorded in the beacon log's config (the method that drives the anchor).
+    """
+
+    def __init__(self, config: AOASSConfig, rng: np.random.Generator, *,
+                 obstacle_map: ObstacleMap | None = None, seed: int | None = None,
+                 method: str = "spiral") -> None:
+        self.config = config
+        self.map = obstacle_map if obstacle_map is not None else episode_map(config, rng)
+        self.map.check_traversable(config.map_clearance)
+        self.nodes = self.map.sample_free_points(config.n_nodes, rng)
+        self.spiral = episode_spiral(config, self.map)
+        free = np.flatnonzero(~self.spiral.blocked)
+        if len(free) == 0:
+            raise MapError("every spiral waypoint lies inside an obstacle; nowhere to start")
+        start = self.spiral.waypoints[free[0]]
+        self.world = World(config, self.map, rng, tuple(start))
+        self.radio = Radio.from_config(self.nodes, self.map, config, rng)
+        self.network = Network(config.n_nodes, config)
+        self.recorder = BeaconLogRecorder(
+            config_json=episode_config_json(config, seed=seed, method=method),
+            obstacle_map=self.map, nodes=self.nodes, radio_range=config.radio_range)
+        self._odometer = 0.0
+        self.recorder.add_path_point(0.0, start)
+        self._broadcast(np.array([[0.0, *start]]))
+
+    def _broadcast(self, beacons: np.ndarray) -> int:
+        newly = 0
+        for t, x, y in beacons:
+            pos = np.array([x, y])
+            receivers = self.radio.receivers(pos)
+            newly += self.network.record_beacon(pos, receivers)
+            self.recorder.add_beacon(t, pos, receivers)
+        return newly
+
+    def step(self, speed_cmd: float, heading_cmd: float) -> StepRecord:
+        """Advance one control period with a commanded speed (m/s) and heading (rad)."""
+        path = self.world.step(speed_cmd, heading_cmd)
+        beacons, odometer = beacons_along(path, self._odometer, self.config.beacon_interval)
+        distance = odometer - self._odometer
+        self._odometer = odometer
+        self.network.charge_motion(distance)
+        newly = self._broadcast(beacons)
+        self.recorder.add_path_point(path[-1, 0], path[-1, 1:])
+        return StepRecord(beacons, newly, distance)
+
+    @functools.cached_property
+    def planner(self) -> DetourPlanner:
+        """Detour planner for the anchor on this episode's map (built on first use)."""
+        return DetourPlanner(self.map, self.config.anchor_radius + DETOUR_MARGIN)
+
+    def follower(self) -> WaypointFollower:
+        """A nominal follower of this episode's spiral (the zero action of the environment)."""
+        c = self.config
+        return WaypointFollower(self.spiral.waypoints, self.spiral.blocked,
+                                capture_radius=max(c.anchor_radius, 0.5 * c.anchor_nominal_speed
+                                                   * c.dt),
+                                cruise_speed=c.anchor_nominal_speed, planner=self.planner)
+
+    def nominal_steps(self) -> int:
+        """Control periods the ideal spiral takes at nominal speed."""
+        return math.ceil(self.spiral.nominal_time(self.config.anchor_nominal_speed)
+                         / self.config.dt)
+
+    def run(self, max_steps: int | None = None) -> BeaconLog:
+        """Drive the nominal follower until the spiral is done (or ``max_steps``, default three
+        times the nominal duration); return the finished beacon log."""
+        follower = self.follower()
+        limit = max_steps if max_steps is not None else 3 * self.nominal_steps()
+        for _ in range(limit):
+            speed, heading = follower.command(self.world.position, self.world.heading,
+                                              self.config.dt)
+            if follower.done:
+                break
+            self.step(speed, heading)
+        return self.finish()
+
+    @property
+    def collisions(self) -> int:
+        """Anchor contacts with static obstacles, walls and moving obstacles."""
+        return self.world.contacts
+
+    def finish(self) -> BeaconLog:
+        """The episode's beacon log with final energies, contacts and node links."""
+        return self.recorder.finish(node_energy=self.network.node_energy,
+                                    anchor_energy=self.network.anchor_energy,
+                                    collisions=self.collisions,
+                                    node_links=self.radio.node_links())

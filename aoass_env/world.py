@@ -1,0 +1,508 @@
+"""The pymunk world: anchor dynamics, static and moving obstacles, range sensing, contacts.
+
+Frame and units: world frame in metres, x to the right, y up, the field is
+``[0, width] x [0, height]`` of the :class:`~aoass_env.maps.ObstacleMap`; angles in radians,
+counter-clockwise from +x, wrapped to ``(-pi, pi]``; time in seconds. docs/world.md describes the
+model (dynamics, moving obstacles, sensing, contact semantics) in full.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any
+
+import numpy as np
+import pymunk
+import shapely
+
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import ObstacleMap
+from aoass_env.trajectory import path_length
+
+# Collision types (pymunk handlers) and filter categories (queries) of the four kinds of shape.
+_ANCHOR, _STATIC, _WALL, _MOVING = 1, 2, 3, 4
+_CAT_ANCHOR, _CAT_STATIC, _CAT_WALL, _CAT_MOVING = 1, 2, 4, 8
+_SENSED = pymunk.ShapeFilter(mask=_CAT_STATIC | _CAT_WALL | _CAT_MOVING)
+_STATIC_ONLY = pymunk.ShapeFilter(mask=_CAT_STATIC | _CAT_WALL)
+
+_SLOP_FRACTION = 0.01   # allowed anchor overlap (pymunk collision_slop) / anchor radius
+_APPROACH_TOL = 1e-6    # a touched shape stops a disc moving into it faster than this * speed
+_MAX_BOUNCES = 4        # reflections of one moving obstacle within one physics substep
+_SPAWN_TRIES = 1000     # random candidates per moving obstacle before giving up
+
+
+def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
+    """Angle(s) (rad) wrapped to ``(-pi, pi]``."""
+    return math.pi - (math.pi - angle) % (2.0 * math.pi)
+
+
+def _ramp(speed: float, heading: float, speed_target: float, heading_target: float,
+          max_dv: float, max_dh: float) -> tuple[float, float]:
+    """One substep of the bounded command filter.
+
+    Speed (m/s) moves toward ``speed_target`` by at most ``max_dv``; heading (rad) turns toward
+    ``heading_target`` the shorter way round by at most ``max_dh`` (counter-clockwise when the
+    target is exactly opposite).
+    """
+    speed += min(max(speed_target - speed, -max_dv), max_dv)
+    turn = wrap_angle(heading_target - heading)
+    return speed, wrap_angle(heading + min(max(turn, -max_dh), max_dh))
+
+
+def _real(name: str, value: Any, unit: str) -> float:
+    """``value`` as a finite float, or a ValueError naming the parameter."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) \
+            or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite real number ({unit}), got {value!r}")
+    return float(value)
+
+
+def _obstacle_ids(obstacle_map: ObstacleMap) -> np.ndarray:
+    """Obstacle index of every convex part: parts of one connected obstacle share an index.
+
+    Obstacles are the connected components of the obstacle union inside the field (overlapping
+    or touching polygons form one obstacle); a part wholly outside the field gets its own index.
+    """
+    parts = obstacle_map.convex_parts
+    if not parts:
+        return np.zeros(0, dtype=np.int64)
+    comps = shapely.get_parts(obstacle_map.union)
+    comps = comps[shapely.get_type_id(comps) == shapely.GeometryType.POLYGON]
+    inside = shapely.intersection(np.array([shapely.Polygon(p) for p in parts]),
+                                  obstacle_map.field_polygon)
+    part_i, comp_i = shapely.STRtree(comps).query(shapely.point_on_surface(inside),
+                                                  predicate="intersects")
+    ids = np.full(len(parts), -1, dtype=np.int64)
+    ids[part_i[::-1]] = comp_i[::-1]          # the first matching component wins
+    outside = ids < 0
+    ids[outside] = len(comps) + np.arange(int(outside.sum()))
+    return ids
+
+
+class World:
+    """The simulated field: one anchor robot, static obstacles, moving obstacles.
+
+    Args:
+        config: simulation parameters (anchor limits, dt, substeps, sensing, moving obstacles).
+        obstacle_map: the field and its static obstacles; the field is ``obstacle_map.width``
+            x ``obstacle_map.height`` (m).
+        rng: the only source of randomness (moving-obstacle spawn, speeds, heading changes);
+            the world keeps drawing from it while it steps.
+        start: anchor start position (x, y) (m); the anchor disc must lie inside the field and
+            must not overlap a static obstacle.
+        start_heading: initial heading (rad); the anchor starts at rest.
+
+    Raises:
+        TypeError: an argument of the wrong type.
+        ValueError: a bad start, or no room to place the moving obstacles.
+    """
+
+    def __init__(self, config: AOASSConfig, obstacle_map: ObstacleMap,
+                 rng: np.random.Generator, start: tuple[float, float],
+                 start_heading: float = 0.0) -> None:
+        for name, value, kind in (("config", config, AOASSConfig),
+                                  ("obstacle_map", obstacle_map, ObstacleMap),
+                                  ("rng", rng, np.random.Generator)):
+            if not isinstance(value, kind):
+                raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
+        self.config = config
+        self.obstacle_map = obstacle_map
+        self._rng = rng
+        self._sdt = config.substep_dt
+        self._skin = 0.5 * _SLOP_FRACTION * config.anchor_radius
+        self._space = space = pymunk.Space()
+        space.collision_slop = _SLOP_FRACTION * config.anchor_radius
+        # shape -> (kind, obstacle index); kind is the contact counter the shape belongs to
+        self._owner: dict[pymunk.Shape, tuple[str, int]] = {}
+        self._add_walls()
+        self._add_static_obstacles()
+
+        x0, y0 = self._check_start(start)
+        self._heading = wrap_angle(_real("start_heading", start_heading, "rad"))
+        self._speed = 0.0
+        self._velocity_cmd = (0.0, 0.0)
+        self._anchor = pymunk.Body(1.0, math.inf)
+        self._anchor.position = (x0, y0)
+        self._anchor.velocity_func = self._apply_velocity_command
+        self._anchor_disc = disc = pymunk.Circle(self._anchor, config.anchor_radius)
+        disc.friction, disc.elasticity = 0.0, 0.0
+        disc.collision_type = _ANCHOR
+        disc.filter = pymunk.ShapeFilter(categories=_CAT_ANCHOR)
+        space.add(self._anchor, disc)
+
+        self._spawn_moving((x0, y0))
+
+        self._touching: dict[tuple[str, int], int] = {}  # touching parts per obstacle
+        self._released_at: dict[tuple[str, int], int] = {}  # substep an obstacle was let go
+        self._contacts = {"static": 0, "wall": 0, "moving": 0}
+        space.on_collision(_ANCHOR, _STATIC, begin=self._begin, separate=self._separate)
+        space.on_collision(_ANCHOR, _WALL, begin=self._begin, separate=self._separate)
+        space.on_collision(_ANCHOR, _MOVING, begin=self._begin, pre_solve=self._bounce_off_anchor,
+                           separate=self._separate)
+        self._substeps_done = 0
+        self._distance = 0.0
+        self._ray_offsets = 2.0 * math.pi * np.arange(config.n_rays) / config.n_rays
+
+    # --- construction ---------------------------------------------------------------------
+    def _add_walls(self) -> None:
+        """The field border: four static boxes outside the field, one obstacle for contacts."""
+        w, h = self.obstacle_map.width, self.obstacle_map.height
+        t = max(w, h)   # thick enough that nothing can tunnel through
+        boxes = ((-t, -t, w + t, 0.0), (-t, h, w + t, h + t),
+                 (-t, 0.0, 0.0, h), (w, 0.0, w + t, h))
+        for x0, y0, x1, y1 in boxes:
+            shape = pymunk.Poly(self._space.static_body, [(x0, y0), (x1, y0), (x1, y1), (x0, y1)])
+            self._add_static(shape, _WALL, _CAT_WALL, ("wall", 0))
+
+    def _add_static_obstacles(self) -> None:
+        ids = _obstacle_ids(self.obstacle_map)
+        for part, k in zip(self.obstacle_map.convex_parts, ids.tolist(), strict=True):
+            shape = pymunk.Poly(self._space.static_body, part.tolist())
+            self._add_static(shape, _STATIC, _CAT_STATIC, ("static", k))
+
+    def _add_static(self, shape: pymunk.Shape, ctype: int, category: int,
+                    owner: tuple[str, int]) -> None:
+        shape.collision_type = ctype
+        shape.filter = pymunk.ShapeFilter(categories=category)
+        shape.friction, shape.elasticity = 0.0, 0.0
+        self._owner[shape] = owner
+        self._space.add(shape)
+
+    def _check_start(self, start: Any) -> tuple[float, float]:
+        try:
+            xy = np.asarray(start, dtype=np.float64)
+        except (TypeError, ValueError):
+            xy = np.full(0, np.nan)
+        if xy.shape != (2,) or not np.all(np.isfinite(xy)):
+            raise ValueError(f"start must be a finite (x, y) position in m, got {start!r}")
+        r = self.config.anchor_radius
+        m = self.obstacle_map
+        if not m.bounds_contain(xy, margin=r)[0]:
+            raise ValueError(
+                f"start={tuple(xy.tolist())}: the anchor (radius {r} m) must lie inside the "
+                f"field, i.e. x in [{r}, {m.width - r}] and y in [{r}, {m.height - r}] m")
+        hit = self._space.point_query_nearest(tuple(xy.tolist()), r, _STATIC_ONLY)
+        if hit is not None:
+            raise ValueError(
+                f"start={tuple(xy.tolist())}: the anchor (radius {r} m) overlaps a static "
+                f"obstacle: its centre is {hit.distance:.3g} m from the obstacle's surface "
+                f"(negative: inside), it must be at least {r} m")
+        return float(xy[0]), float(xy[1])
+
+    def _spawn_moving(self, anchor_start: tuple[float, float]) -> None:
+        """Place the moving obstacles at random in free space (rejection sampling).
+
+        Every obstacle keeps a gap of one obstacle radius from static obstacles, walls, the
+        other moving obstacles and the anchor at its start.
+        """
+        cfg, rng = self.config, self._rng
+        n, r = cfg.n_moving_obstacles, cfg.moving_obstacle_radius
+        w, h = self.obstacle_map.width, self.obstacle_map.height
+        lo = 2.0 * r   # radius + gap
+        if n and (w <= 2 * lo or h <= 2 * lo):
+            raise ValueError(f"moving_obstacle_radius={r} m is too large for a {w} x {h} m field")
+        placed: list[tuple[float, float]] = []
+        for i in range(n):
+            for _ in range(_SPAWN_TRIES):
+                p = tuple(rng.uniform((lo, lo), (w - lo, h - lo)).tolist())
+                if self._space.point_query_nearest(p, lo, _STATIC_ONLY) is None \
+                        and math.dist(p, anchor_start) >= cfg.anchor_radius + lo \
+                        and all(math.dist(p, q) >= 3.0 * r for q in placed):
+                    placed.append(p)
+                    break
+            else:
+                raise ValueError(
+                    f"could not place moving obstacle {i + 1} of n_moving_obstacles={n} "
+                    f"(radius {r} m) in free space after {_SPAWN_TRIES} random tries; use fewer "
+                    f"or smaller moving obstacles or a less crowded map")
+        lo_v, hi_v = cfg.moving_obstacle_speed
+        speed = rng.uniform(lo_v, hi_v, size=n)
+        heading = rng.uniform(0.0, 2.0 * math.pi, size=n)
+        rate = cfg.moving_obstacle_turn_rate
+        next_turn = rng.exponential(1.0 / rate, size=n) if rate > 0 else np.full(n, np.inf)
+        # moving-obstacle state as plain floats: the substep loop runs on them
+        self._mpos = placed
+        self._mspeed: list[float] = speed.tolist()
+        self._mvel: list[tuple[float, float]] = list(zip(
+            (speed * np.cos(heading)).tolist(), (speed * np.sin(heading)).tolist(), strict=True))
+        self._next_turn: list[float] = next_turn.tolist()
+        self._mbodies: list[pymunk.Body] = []
+        for i, p in enumerate(placed):
+            body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            body.position = p
+            disc = pymunk.Circle(body, r)
+            disc.friction, disc.elasticity = 0.0, 0.0
+            disc.collision_type = _MOVING
+            disc.filter = pymunk.ShapeFilter(categories=_CAT_MOVING)
+            self._owner[disc] = ("moving", i)
+            self._space.add(body, disc)
+            self._mbodies.append(body)
+
+    # --- pymunk callbacks -----------------------------------------------------------------
+    def _apply_velocity_command(self, body: pymunk.Body, gravity: Any, damping: float,
+                                dt: float) -> None:
+        """Velocity phase of a pymunk step: the commanded velocity, before contacts are solved."""
+        body.velocity = self._velocity_cmd
+
+    def _begin(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
+        """A part starts touching the anchor: a new contact unless its obstacle is touched
+        already or was let go less than one control period ago."""
+        key = self._owner[arbiter.shapes[1]]
+        touching = self._touching.get(key, 0)
+        self._touching[key] = touching + 1
+        released = self._released_at.get(key)
+        if touching == 0 and (released is None or
+                              self._substeps_done - released >= self.config.physics_substeps):
+            self._contacts[key[0]] += 1
+
+    def _separate(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
+        key = self._owner.get(arbiter.shapes[1])
+        if key is None:     # the space is being torn down
+            return
+        self._touching[key] -= 1
+        if self._touching[key] == 0:
+            self._released_at[key] = self._substeps_done
+
+    def _bounce_off_anchor(self, arbiter: pymunk.Arbiter, space: pymunk.Space,
+                           data: Any) -> None:
+        """A moving obstacle touching the anchor reflects its velocity if it moves toward it."""
+        shape = arbiter.shapes[1]
+        (ax, ay), (mx, my) = self._anchor.position, shape.body.position
+        norm = math.hypot(mx - ax, my - ay)
+        if norm > 0.0:
+            i = self._owner[shape][1]
+            self._mvel[i] = _reflect(self._mvel[i], ((mx - ax) / norm, (my - ay) / norm))
+
+    # --- stepping -------------------------------------------------------------------------
+    def step(self, speed_cmd: float, heading_cmd: float) -> np.ndarray:
+        """Advance one control period ``config.dt`` (s) in ``config.physics_substeps`` steps.
+
+        Args:
+            speed_cmd: commanded speed (m/s), clipped to ``[0, anchor_max_speed]``.
+            heading_cmd: commanded heading (rad, world frame; any real value).
+
+        Returns:
+            (substeps + 1, 3) float64 array of (t [s], x [m], y [m]) of the anchor centre,
+            starting with the position before the period.
+        """
+        cfg = self.config
+        target = min(max(_real("speed_cmd", speed_cmd, "m/s"), 0.0), cfg.anchor_max_speed)
+        heading_target = _real("heading_cmd", heading_cmd, "rad")
+        max_dv, max_dh = cfg.anchor_max_accel * self._sdt, cfg.anchor_max_turn_rate * self._sdt
+        n = cfg.physics_substeps
+        traj = np.empty((n + 1, 3))
+        traj[0] = (self.time, *self._anchor.position)
+        for k in range(1, n + 1):
+            self._speed, self._heading = _ramp(self._speed, self._heading, target,
+                                               heading_target, max_dv, max_dh)
+            self._velocity_cmd = (self._speed * math.cos(self._heading),
+                                  self._speed * math.sin(self._heading))
+            self._limit_anchor_move()
+            self._turn_moving()
+            self._move_moving()
+            self._space.step(self._sdt)
+            self._substeps_done += 1
+            self._mpos = [tuple(body.position) for body in self._mbodies]
+            traj[k] = (self.time, *self._anchor.position)
+        self._distance += path_length(traj[:, 1:])
+        return traj
+
+    def _turn_moving(self) -> None:
+        """Apply the Poisson heading changes that fell due: a new uniform heading, same speed."""
+        t, rate, rng = self.time, self.config.moving_obstacle_turn_rate, self._rng
+        for i, due in enumerate(self._next_turn):
+            if due > t:
+                continue
+            while due <= t:
+                heading = rng.uniform(0.0, 2.0 * math.pi)
+                due += rng.exponential(1.0 / rate)
+            self._next_turn[i] = due
+            speed = self._mspeed[i]
+            self._mvel[i] = (speed * math.cos(heading), speed * math.sin(heading))
+
+    def _move_moving(self) -> None:
+        """Set each moving obstacle's velocity for the coming substep.
+
+        The disc is swept along its move: it reflects off walls and static obstacles at the
+        exact moment of contact and goes on for the rest of the substep; on reaching the anchor
+        (where the anchor will be after the substep) it stops ``skin`` inside it, so that pymunk
+        registers the contact, and reflects off it. (Once touching, :meth:`_bounce_off_anchor`
+        reflects it.) So a moving obstacle never pushes the anchor deeper than ``skin``, and
+        cannot squeeze it into a static obstacle.
+        """
+        r, sdt = self.config.moving_obstacle_radius, self._sdt
+        r_meet = max(r - self._skin, 0.0)
+        ux, uy = self._anchor.velocity
+        ox, oy = ux * sdt, uy * sdt      # the anchor's coming move
+        for i, body in enumerate(self._mbodies):
+            x0, y0 = x, y = self._mpos[i]
+            vx, vy = self._mvel[i]
+            rest = sdt
+            for _ in range(_MAX_BOUNCES):
+                if rest <= 0.0 or (vx == 0.0 and vy == 0.0):
+                    break
+                ex, ey = x + vx * rest, y + vy * rest
+                hit = self._first_hit((x, y), (ex, ey), r, (vx, vy), _STATIC_ONLY)
+                meet = self._anchor_disc.segment_query((x - ox, y - oy), (ex - ox, ey - oy),
+                                                       r_meet)
+                if _blocks(meet, (vx, vy)) and (hit is None or meet.alpha < hit.alpha):
+                    x, y = x + (ex - x) * meet.alpha, y + (ey - y) * meet.alpha
+                    vx, vy = _reflect((vx, vy), meet.normal)
+                    break
+                if hit is None:
+                    x, y = ex, ey
+                    break
+                x, y = x + (ex - x) * hit.alpha, y + (ey - y) * hit.alpha
+                vx, vy = _reflect((vx, vy), hit.normal)
+                rest *= 1.0 - hit.alpha
+            self._mvel[i] = (vx, vy)
+            body.velocity = ((x - x0) / sdt, (y - y0) / sdt)
+
+    def _first_hit(self, start: tuple[float, float], end: tuple[float, float], radius: float,
+                   v: tuple[float, float], shape_filter: pymunk.ShapeFilter,
+                   ) -> pymunk.SegmentQueryInfo | None:
+        """First shape that blocks a disc of ``radius`` (m) swept from ``start`` to ``end`` with
+        velocity ``v`` (see :func:`_blocks`).
+
+        The broadphase of Space.segment_query ignores the radius (Chipmunk2D issue #138), so
+        the candidates come from a box query of the swept disc and each is tested exactly.
+        """
+        (x0, y0), (x1, y1) = start, end
+        box = pymunk.BB(min(x0, x1) - radius, min(y0, y1) - radius,
+                        max(x0, x1) + radius, max(y0, y1) + radius)
+        best = None
+        for shape in self._space.bb_query(box, shape_filter):
+            hit = shape.segment_query(start, end, radius)
+            if _blocks(hit, v) and (best is None or hit.alpha < best.alpha):
+                best = hit
+        return best
+
+    def _limit_anchor_move(self) -> None:
+        """Stop the anchor's coming move just inside the first shape it would reach.
+
+        pymunk detects contacts after moving, so a fast anchor could sink deep into, or tunnel
+        through, an obstacle it reaches mid-substep; the move is shortened to end ``skin`` inside
+        that shape, and pymunk's solver takes over from the contact. A shape already touched
+        stops the anchor only if the solved velocity still points into it (pymunk cannot always
+        satisfy a contact with a kinematic moving obstacle and a static one at once).
+        """
+        body = self._anchor
+        (x, y), (vx, vy) = body.position, body.velocity
+        length = math.hypot(vx, vy) * self._sdt
+        if length == 0.0:
+            return
+        end = (x + vx * self._sdt, y + vy * self._sdt)
+        hit = self._first_hit((x, y), end, self.config.anchor_radius, (vx, vy), _SENSED)
+        if hit is not None:
+            allowed = hit.alpha * length + self._skin
+            if allowed < length:
+                body.velocity = (vx * allowed / length, vy * allowed / length)
+
+    # --- sensing --------------------------------------------------------------------------
+    def ray_angles(self) -> np.ndarray:
+        """(n_rays,) world-frame angles (rad) of the range-sensor rays; ray 0 is the heading,
+        the others follow counter-clockwise at equal spacing."""
+        return wrap_angle(self._heading + self._ray_offsets)
+
+    def ray_distances(self) -> np.ndarray:
+        """(n_rays,) distances (m) from the anchor centre to the first wall, static or moving
+        obstacle along each ray of :meth:`ray_angles`; ``sensing_range`` where none is hit."""
+        reach = self.config.sensing_range
+        x, y = self._anchor.position
+        angles = self._heading + self._ray_offsets
+        ends = np.column_stack([x + reach * np.cos(angles), y + reach * np.sin(angles)])
+        out = np.full(len(angles), reach)
+        for i, end in enumerate(ends.tolist()):
+            hit = self._space.segment_query_first((x, y), tuple(end), 0.0, _SENSED)
+            if hit is not None:
+                out[i] = hit.alpha * reach
+        return out
+
+    def nearest_obstacle_distance(self) -> float:
+        """d_obs (m): gap between the anchor's surface and the nearest wall, static or moving
+        obstacle; 0 while touching, ``sensing_range`` when nothing is closer."""
+        r, reach = self.config.anchor_radius, self.config.sensing_range
+        hit = self._space.point_query_nearest(self._anchor.position, r + reach, _SENSED)
+        return reach if hit is None else min(max(hit.distance - r, 0.0), reach)
+
+    # --- state ----------------------------------------------------------------------------
+    @property
+    def position(self) -> np.ndarray:
+        """Anchor centre (x, y) (m)."""
+        return np.array(self._anchor.position)
+
+    @property
+    def heading(self) -> float:
+        """Commanded-filter heading (rad, world frame): the anchor's orientation."""
+        return self._heading
+
+    @property
+    def speed(self) -> float:
+        """Commanded-filter speed (m/s): what the drive asks for, before contacts."""
+        return self._speed
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """Actual anchor velocity (vx, vy) (m/s) after contacts were solved."""
+        return np.array(self._anchor.velocity)
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._substeps_done * self._sdt
+
+    @property
+    def distance_travelled(self) -> float:
+        """Length (m) of the anchor's path so far (sum of the trajectory segments)."""
+        return self._distance
+
+    @property
+    def moving_positions(self) -> np.ndarray:
+        """(M, 2) centres of the moving obstacles (m)."""
+        return np.array(self._mpos, dtype=np.float64).reshape(-1, 2)
+
+    @property
+    def moving_velocities(self) -> np.ndarray:
+        """(M, 2) velocities of the moving obstacles (m/s); a bounce or a random turn changes
+        the direction, never the speed."""
+        return np.array(self._mvel, dtype=np.float64).reshape(-1, 2)
+
+    @property
+    def static_contacts(self) -> int:
+        """Touching episodes of the anchor with static obstacles (walls excluded)."""
+        return self._contacts["static"]
+
+    @property
+    def wall_contacts(self) -> int:
+        """Touching episodes of the anchor with the field border."""
+        return self._contacts["wall"]
+
+    @property
+    def moving_contacts(self) -> int:
+        """Touching episodes of the anchor with moving obstacles."""
+        return self._contacts["moving"]
+
+    @property
+    def contacts(self) -> int:
+        """All touching episodes: static + wall + moving."""
+        return sum(self._contacts.values())
+
+
+def _blocks(hit: pymunk.SegmentQueryInfo | None, v: tuple[float, float]) -> bool:
+    """Whether a swept-disc ``hit`` stops a disc moving with velocity ``v``.
+
+    A shape the disc already touches at the start of the sweep (``alpha = 0``) blocks only
+    while ``v`` points into it beyond the round-off of pymunk's solver.
+    """
+    if hit is None:
+        return False
+    return hit.alpha > 0.0 or hit.normal.dot(v) < -_APPROACH_TOL * math.hypot(*v)
+
+
+def _reflect(v: tuple[float, float], normal: tuple[float, float]) -> tuple[float, float]:
+    """Velocity ``v`` mirrored about the unit ``normal`` if it points against it."""
+    along = v[0] * normal[0] + v[1] * normal[1]
+    if along >= 0.0:
+        return v
+    return v[0] - 2.0 * along * normal[0], v[1] - 2.0 * along * normal[1]

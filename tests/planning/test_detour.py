@@ -1,0 +1,41 @@
+import numpy as np
+import shapely
+
+from aoass_env.maps import ObstacleMap
+from aoass_env.planning.detour import DetourPlanner
+
+WALL = [(40, 10), (45, 10), (45, 90), (40, 90)]
+# a C-shaped obstacle whose mouth (0.6 m) is too narrow for a 0.5 m disc
+C_SHAPE = [(60, 60), (80, 60), (80, 80), (60, 80), (60, 70.3), (61, 70.3), (61, 79), (79, 79),
+           (79, 61), (61, 61), (61, 69.7), (60, 69.7)]
+
+
+def test_path_goes_around_wall_and_keeps_clearance():
+    m = ObstacleMap(100, 100, [WALL])
+    p = DetourPlanner(m, radius=0.8)
+    start, goal = np.array([20.0, 50.0]), np.array([70.0, 50.0])
+    assert not p.visible(start, goal)
+    path = p.path(start, goal)
+    assert path is not None
+    np.testing.assert_array_equal(path[0], start)
+    np.testing.assert_array_equal(path[-1], goal)
+    line = shapely.LineString(path)
+    assert line.distance(shapely.Polygon(WALL)) >= 0.8 - 1e-9
+    # around the end of the wall: longer than straight, shorter than a wide loop
+    length = line.length
+    assert 50 < length < 2 * (np.hypot(25, 40) + np.hypot(25, 40))
+    # string pulling leaves only a few corners
+    assert len(path) <= 6
+
+
+def test_unreachable_goal_gives_none():
+    m = ObstacleMap(100, 100, [C_SHAPE])
+    p = DetourPlanner(m, radius=0.5)
+    assert p.path(np.array([10.0, 10.0]), np.array([70.0, 70.0])) is None
+
+
+def test_visible_in_open_field():
+    p = DetourPlanner(ObstacleMap(50, 50), radius=0.5)
+    assert p.visible(np.array([1.0, 1.0]), np.array([49.0, 49.0]))
+    path = p.path(np.array([5.0, 5.0]), np.array([45.0, 30.0]))
+    assert len(path) == 2

@@ -1,0 +1,369 @@
+"""Tests of aoass_env.radio: line of sight against shapely, receivers, node links, DOI."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import MapError, ObstacleMap
+from aoass_env.radio import LineOfSight, Radio, doi_pattern, range_factor
+
+SQUARE = [(2, 2), (4, 2), (4, 4), (2, 4)]
+# A "U" opening upwards: the pocket is 2 < x < 4, y > 2.
+U_SHAPE = [(0, 0), (6, 0), (6, 6), (4, 6), (4, 2), (2, 2), (2, 6), (0, 6)]
+
+
+def oracle_blocked(obstacle_map: ObstacleMap, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Reference: the open segment meets some polygon's interior (a point when a == b)."""
+    out = []
+    for s, e in zip(a, b, strict=True):
+        geom = shapely.Point(s) if np.array_equal(s, e) else shapely.LineString([s, e])
+        out.append(any(shapely.relate_pattern(geom, poly, "T********")
+                       for poly in obstacle_map.shapes))
+    return np.array(out, dtype=bool)
+
+
+def brute_receivers(radio: Radio, point: np.ndarray) -> np.ndarray:
+    """Reference receivers: squared distance <= (R K)^2 and oracle line of sight."""
+    d = radio.nodes - point
+    reach = radio.radio_range * range_factor(radio.anchor_pattern, d[:, 0], d[:, 1])
+    near = np.flatnonzero(d[:, 0] ** 2 + d[:, 1] ** 2 <= reach ** 2)
+    if radio.line_of_sight:
+        blocked = oracle_blocked(radio.obstacle_map, radio.nodes[near],
+                                 np.repeat(point[None], len(near), axis=0))
+        near = near[~blocked]
+    return near
+
+
+def brute_links(radio: Radio) -> np.ndarray:
+    i, j = np.triu_indices(len(radio.nodes), k=1)
+    d = radio.nodes[j] - radio.nodes[i]
+    reach = np.full(len(i), radio.radio_range)
+    if radio.node_patterns is not None:
+        reach *= np.minimum(range_factor(radio.node_patterns[i], d[:, 0], d[:, 1]),
+                            range_factor(radio.node_patterns[j], -d[:, 0], -d[:, 1]))
+    keep = d[:, 0] ** 2 + d[:, 1] ** 2 <= reach ** 2
+    i, j = i[keep], j[keep]
+    if radio.line_of_sight:
+        ok = ~oracle_blocked(radio.obstacle_map, radio.nodes[i], radio.nodes[j])
+        i, j = i[ok], j[ok]
+    return np.stack([i, j], axis=1).astype(np.int64)
+
+
+def random_map(rng: np.random.Generator, n_obstacles: int = 12) -> ObstacleMap:
+    """Rectangles, triangles and concave L shapes at random places in a 60 x 60 m field."""
+    polys = []
+    for _ in range(n_obstacles):
+        x, y = rng.uniform(0, 54, 2)
+        w, h = rng.uniform(1, 6, 2)
+        kind = rng.integers(3)
+        if kind == 0:
+            polys.append([(x, y), (x + w, y), (x + w, y + h), (x, y + h)])
+        elif kind == 1:
+            polys.append([(x, y), (x + w, y), (x + rng.uniform(0, w), y + h)])
+        else:
+            polys.append([(x, y), (x + w, y), (x + w, y + h / 3), (x + w / 3, y + h / 3),
+                          (x + w / 3, y + h), (x, y + h)])
+    return ObstacleMap(60, 60, polys)
+
+
+# --- line of sight: hand-made cases -----------------------------------------------------------
+CASES = [
+    # (polygon, start, end, blocked, what)
+    (SQUARE, (0, 3), (6, 3), True, "through a wall"),
+    (SQUARE, (3, 5), (5, 3), False, "grazing a vertex from outside"),
+    (SQUARE, (0, 2), (6, 2), False, "along an edge"),
+    (SQUARE, (3, 2), (3.5, 2), False, "inside an edge"),
+    (SQUARE, (0, 0), (6, 0), False, "fully outside"),
+    (SQUARE, (0, 3), (2, 3), False, "ending on the boundary"),
+    (SQUARE, (0, 3), (3, 3), True, "ending inside"),
+    (SQUARE, (2.5, 2.5), (3.5, 3.2), True, "fully inside"),
+    (SQUARE, (2, 2), (4, 4), True, "diagonal from vertex to vertex"),
+    (SQUARE, (0, 6), (6, 0), True, "through two vertices and the interior"),
+    (SQUARE, (3, 3), (3, 3), True, "zero length inside"),
+    (SQUARE, (2, 3), (2, 3), False, "zero length on the boundary"),
+    (U_SHAPE, (3, 3), (3, 9), False, "out of the pocket through its mouth"),
+    (U_SHAPE, (1, 7), (5, 7), False, "above the arms"),
+    (U_SHAPE, (-1, 5), (7, 5), True, "through both arms"),
+    (U_SHAPE, (2, 5), (4, 5), False, "across the pocket, ends on the arms"),
+    (U_SHAPE, (3, 3), (3, -1), True, "out of the pocket through the base"),
+    (U_SHAPE, (3, 3), (2, 2), False, "pocket to a reflex vertex"),
+    (U_SHAPE, (3, 3), (1, 1), True, "through a reflex vertex into the body"),
+    (U_SHAPE, (2, 7), (2, 6), False, "onto the tip of an arm"),
+    (U_SHAPE, (1, 2), (5, 2), True, "along the pocket floor through the arms"),
+    (U_SHAPE, (2, 2), (4, 2), False, "along the pocket floor"),
+]
+
+
+@pytest.mark.parametrize(("polygon", "start", "end", "expected", "what"), CASES,
+                         ids=[c[4] for c in CASES])
+def test_line_of_sight_hand_made(polygon, start, end, expected, what):
+    obstacle_map = ObstacleMap(10, 10, [polygon])
+    a, b = np.array([start], float), np.array([end], float)
+    assert oracle_blocked(obstacle_map, a, b)[0] == expected, what
+    los = LineOfSight(obstacle_map)
+    assert los.blocked(a, b)[0] == expected, what
+    assert los.blocked(b, a)[0] == expected, what
+
+
+def test_line_of_sight_all_cases_in_one_call_and_broadcast():
+    obstacle_map = ObstacleMap(10, 10, [SQUARE])
+    cases = [c for c in CASES if c[0] is SQUARE]
+    a = np.array([c[1] for c in cases], float)
+    b = np.array([c[2] for c in cases], float)
+    los = LineOfSight(obstacle_map)
+    np.testing.assert_array_equal(los.blocked(a, b), [c[3] for c in cases])
+    ends = np.array([(6, 3), (4, 3.5), (0, 0), (6, 4), (6, 6)], float)  # (6, 6): grazes (2, 4)
+    expected = [True, True, False, True, False]
+    np.testing.assert_array_equal(los.blocked(np.array([0.0, 3.0]), ends), expected)
+    np.testing.assert_array_equal(los.blocked(ends, np.array([0.0, 3.0])), expected)
+
+
+def test_line_of_sight_touching_obstacles_share_an_edge():
+    left = [(0, 0), (2, 0), (2, 2), (0, 2)]
+    right = [(2, 0), (4, 0), (4, 2), (2, 2)]
+    los = LineOfSight(ObstacleMap(10, 10, [left, right]))
+    a = np.array([(2, -1), (-1, 1), (2, 0.5)], float)
+    b = np.array([(2, 3), (5, 1), (2, 1.5)], float)
+    # Along the shared edge touches only boundaries; the others cross interiors.
+    np.testing.assert_array_equal(los.blocked(a, b), [False, True, False])
+
+
+def test_line_of_sight_empty_inputs_and_map():
+    los = LineOfSight(ObstacleMap(10, 10, [SQUARE]))
+    assert los.blocked(np.zeros((0, 2)), np.zeros((0, 2))).shape == (0,)
+    free = LineOfSight(ObstacleMap(10, 10))
+    assert not free.blocked(np.array([(0.0, 3.0)]), np.array([(6.0, 3.0)])).any()
+    assert not free.inside(np.array([(3.0, 3.0)])).any()
+
+
+def test_line_of_sight_inside():
+    los = LineOfSight(ObstacleMap(10, 10, [SQUARE]))
+    pts = np.array([(3, 3), (2, 3), (1, 1), (4, 4)], float)
+    np.testing.assert_array_equal(los.inside(pts), [True, False, False, False])
+
+
+def test_line_of_sight_bad_input():
+    los = LineOfSight(ObstacleMap(10, 10, [SQUARE]))
+    with pytest.raises(ValueError, match="ends must have shape"):
+        los.blocked(np.zeros((3, 2)), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="same length"):
+        los.blocked(np.zeros((3, 2)), np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="starts must be finite"):
+        los.blocked(np.array([[np.nan, 0.0]]), np.zeros((1, 2)))
+    with pytest.raises(ValueError, match="start_inside must have shape"):
+        los.blocked(np.zeros((3, 2)), np.ones((3, 2)), start_inside=np.zeros(2, bool))
+    with pytest.raises(TypeError, match="ObstacleMap"):
+        LineOfSight([SQUARE])
+
+
+# --- line of sight: property against the oracle -----------------------------------------------
+@st.composite
+def star_polygon(draw, coord):
+    """A star-shaped simple polygon: distinct points sorted by angle around their centroid."""
+    pts = np.array(draw(st.lists(st.tuples(coord, coord), min_size=3, max_size=7, unique=True)))
+    centre = pts.mean(axis=0)
+    order = np.argsort(np.arctan2(pts[:, 1] - centre[1], pts[:, 0] - centre[0]), kind="stable")
+    poly = pts[order]
+    try:
+        ObstacleMap(12, 12, [poly])
+    except MapError:
+        assume(False)
+    return poly
+
+
+def _check_against_oracle(polys, a, b):
+    obstacle_map = ObstacleMap(12, 12, polys)
+    got = LineOfSight(obstacle_map).blocked(a, b)
+    np.testing.assert_array_equal(got, oracle_blocked(obstacle_map, a, b))
+
+
+GRID = st.integers(0, 12).map(float)  # small integers: exact arithmetic, many degenerate contacts
+REAL = st.floats(0, 12, allow_nan=False, allow_subnormal=False)
+
+
+@settings(max_examples=150, deadline=None)
+@given(polys=st.lists(star_polygon(GRID), min_size=1, max_size=3),
+       segs=st.lists(st.tuples(GRID, GRID, GRID, GRID), min_size=1, max_size=25))
+def test_line_of_sight_matches_shapely_on_grid(polys, segs):
+    s = np.array(segs)
+    _check_against_oracle(polys, s[:, :2], s[:, 2:])
+
+
+@settings(max_examples=100, deadline=None)
+@given(polys=st.lists(star_polygon(REAL), min_size=1, max_size=3),
+       segs=st.lists(st.tuples(REAL, REAL, REAL, REAL), min_size=1, max_size=25))
+def test_line_of_sight_matches_shapely_on_reals(polys, segs):
+    s = np.array(segs)
+    _check_against_oracle(polys, s[:, :2], s[:, 2:])
+
+
+# --- receivers and links ----------------------------------------------------------------------
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_receivers_and_links_match_brute_force(seed):
+    rng = np.random.default_rng(seed)
+    obstacle_map = random_map(rng)
+    nodes = rng.uniform(0, 60, (150, 2))
+    radio = Radio(nodes, obstacle_map, 15.0)
+    for point in rng.uniform(0, 60, (15, 2)):
+        got = radio.receivers(point)
+        assert got.dtype == np.int64
+        np.testing.assert_array_equal(got, brute_receivers(radio, point))
+    links = radio.node_links()
+    assert links.dtype == np.int64
+    np.testing.assert_array_equal(links, brute_links(radio))
+
+
+def test_receivers_at_exact_range_and_past_corners():
+    obstacle_map = ObstacleMap(20, 20, [SQUARE])
+    nodes = np.array([(10, 5), (5, 15), (13, 5), (4, 4), (0, 3), (2, 2), (15, 5), (2, 5),
+                      (2, 6)], dtype=float)
+    radio = Radio(nodes, obstacle_map, 5.0)
+    # (15, 5) lies exactly at R.
+    np.testing.assert_array_equal(radio.receivers(np.array([10.0, 5.0])), [0, 2, 6])
+    # From (6, 3): (4, 4) sits on a corner, the path to (2, 5) grazes corner (4, 4), (2, 6) is
+    # exactly at R, and the path to (2, 2) cuts through the square.
+    np.testing.assert_array_equal(radio.receivers(np.array([6.0, 3.0])), [0, 3, 7, 8])
+
+
+def test_line_of_sight_off_is_the_unit_disk():
+    rng = np.random.default_rng(5)
+    obstacle_map = random_map(rng)
+    nodes = rng.uniform(0, 60, (200, 2))
+    radio = Radio(nodes, obstacle_map, 12.0, line_of_sight=False)
+    for point in rng.uniform(0, 60, (10, 2)):
+        d2 = ((nodes - point) ** 2).sum(axis=1)
+        np.testing.assert_array_equal(radio.receivers(point), np.flatnonzero(d2 <= 144.0))
+    i, j = radio.node_links().T
+    assert np.all(((nodes[i] - nodes[j]) ** 2).sum(axis=1) <= 144.0)
+    assert len(i) == np.count_nonzero(
+        ((nodes[:, None] - nodes[None]) ** 2).sum(axis=2)[np.triu_indices(200, 1)] <= 144.0)
+
+
+def test_node_links_structure():
+    rng = np.random.default_rng(3)
+    radio = Radio(rng.uniform(0, 60, (300, 2)), random_map(rng), 10.0)
+    links = radio.node_links()
+    assert links.ndim == 2 and links.shape[1] == 2 and len(links) > 0
+    assert np.all(links[:, 0] < links[:, 1])  # i < j, hence no self-links
+    assert len(np.unique(links, axis=0)) == len(links)
+    order = np.lexsort((links[:, 1], links[:, 0]))
+    np.testing.assert_array_equal(order, np.arange(len(links)))
+    assert not links.flags.writeable
+    assert radio.node_links() is links
+
+
+def test_no_nodes_and_no_obstacles():
+    empty = Radio(np.zeros((0, 2)), ObstacleMap(10, 10, [SQUARE]), 5.0)
+    assert empty.receivers(np.array([1.0, 1.0])).shape == (0,)
+    assert empty.node_links().shape == (0, 2)
+    nodes = np.array([(1.0, 1.0), (9.0, 9.0), (3.0, 1.0)])
+    free = Radio(nodes, ObstacleMap(10, 10), 3.0)
+    np.testing.assert_array_equal(free.receivers(np.array([2.0, 1.0])), [0, 2])
+    np.testing.assert_array_equal(free.node_links(), [[0, 2]])
+
+
+def test_from_config():
+    config = AOASSConfig(radio_range=7.0, line_of_sight=False, doi=0.1)
+    radio = Radio.from_config(np.zeros((2, 2)), ObstacleMap(10, 10), config,
+                              np.random.default_rng(0))
+    assert (radio.radio_range, radio.line_of_sight, radio.doi) == (7.0, False, 0.1)
+    assert radio.max_range == pytest.approx(7.7)
+
+
+def test_radio_bad_input():
+    m = ObstacleMap(10, 10)
+    with pytest.raises(ValueError, match="nodes must have shape"):
+        Radio(np.zeros(5), m, 5.0)
+    with pytest.raises(ValueError, match="nodes must be finite"):
+        Radio(np.array([[np.inf, 0.0]]), m, 5.0)
+    for bad in (0.0, -1.0, math.nan, "far", True):
+        with pytest.raises(ValueError, match="radio_range"):
+            Radio(np.zeros((1, 2)), m, bad)
+    with pytest.raises(ValueError, match="needs rng"):
+        Radio(np.zeros((1, 2)), m, 5.0, doi=0.1)
+    with pytest.raises(ValueError, match=r"doi=1\.5 must be a number in \[0, 1\)"):
+        Radio(np.zeros((1, 2)), m, 5.0, doi=1.5, rng=np.random.default_rng(0))
+    radio = Radio(np.zeros((1, 2)), m, 5.0)
+    with pytest.raises(ValueError, match=r"point must have shape \(2,\)"):
+        radio.receivers(np.zeros(3))
+    with pytest.raises(ValueError, match="point must be finite"):
+        radio.receivers(np.array([np.nan, 1.0]))
+
+
+# --- radio irregularity -----------------------------------------------------------------------
+def test_doi_zero_is_the_unit_disk():
+    np.testing.assert_array_equal(doi_pattern(0.0, None, 4), np.ones((4, 360)))
+    rng = np.random.default_rng(11)
+    obstacle_map = random_map(rng)
+    nodes = rng.uniform(0, 60, (200, 2))
+    plain = Radio(nodes, obstacle_map, 14.0)
+    zero = Radio(nodes, obstacle_map, 14.0, doi=0.0, rng=np.random.default_rng(1))
+    assert zero.node_patterns is None
+    for point in rng.uniform(0, 60, (10, 2)):
+        np.testing.assert_array_equal(zero.receivers(point), plain.receivers(point))
+    np.testing.assert_array_equal(zero.node_links(), plain.node_links())
+
+
+@settings(max_examples=30, deadline=None)
+@given(doi=st.floats(0.001, 0.9), seed=st.integers(0, 2**32 - 1))
+def test_doi_pattern_bounds_and_continuity(doi, seed):
+    k = doi_pattern(doi, np.random.default_rng(seed), 3)
+    assert k.shape == (3, 360)
+    assert np.all(k >= 1 - doi) and np.all(k <= 1 + doi)
+    steps = np.abs(np.diff(k, axis=1, append=k[:, :1]))  # includes 359 -> 0 degrees
+    assert np.all(steps <= doi + 1e-12)  # 1e-12: rounding of the cumulative sum
+    assert k.std() > 0
+
+
+def test_doi_pattern_reproducible():
+    a = doi_pattern(0.05, np.random.default_rng(7), 5)
+    b = doi_pattern(0.05, np.random.default_rng(7), 5)
+    c = doi_pattern(0.05, np.random.default_rng(8), 5)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_range_factor_directions():
+    pattern = np.arange(360, dtype=float)
+    dx = np.array([1.0, 0.0, -1.0, 0.0, 1.0, np.cos(np.radians(30.4))])
+    dy = np.array([0.0, 1.0, 0.0, -1.0, -1e-9, np.sin(np.radians(30.4))])
+    np.testing.assert_array_equal(range_factor(pattern, dx, dy), [0, 90, 180, 270, 0, 30])
+    rows = np.stack([pattern, pattern + 1000])
+    np.testing.assert_array_equal(range_factor(rows, dx[:2], dy[:2]), [0, 1090])
+
+
+@pytest.mark.parametrize("los", [True, False])
+def test_doi_receivers_and_links(los):
+    rng = np.random.default_rng(21)
+    obstacle_map = random_map(rng)
+    nodes = rng.uniform(0, 60, (250, 2))
+    r, doi = 12.0, 0.2
+    radio = Radio(nodes, obstacle_map, r, line_of_sight=los, doi=doi,
+                  rng=np.random.default_rng(99))
+    again = Radio(nodes, obstacle_map, r, line_of_sight=los, doi=doi,
+                  rng=np.random.default_rng(99))
+    no_doi = Radio(nodes, obstacle_map, r, line_of_sight=los)
+    wide = Radio(nodes, obstacle_map, r * (1 + doi), line_of_sight=los)
+    narrow = Radio(nodes, obstacle_map, r * (1 - doi), line_of_sight=los)
+    differs = False
+    for point in rng.uniform(0, 60, (15, 2)):
+        got = radio.receivers(point)
+        np.testing.assert_array_equal(got, brute_receivers(radio, point))
+        np.testing.assert_array_equal(got, again.receivers(point))
+        # Everyone within R (1 - doi) hears; nobody beyond R (1 + doi) does.
+        assert set(narrow.receivers(point)) <= set(got) <= set(wide.receivers(point))
+        differs |= not np.array_equal(got, no_doi.receivers(point))
+    assert differs
+    links = radio.node_links()
+    np.testing.assert_array_equal(links, brute_links(radio))
+    np.testing.assert_array_equal(links, again.node_links())
+    as_set = {tuple(p) for p in links}
+    assert {tuple(p) for p in narrow.node_links()} <= as_set
+    assert as_set <= {tuple(p) for p in wide.node_links()}

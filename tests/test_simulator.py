@@ -1,0 +1,87 @@
+import numpy as np
+import pytest
+
+from aoass_env.beacon_log import BeaconLog
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import ObstacleMap
+from aoass_env.network import Network
+from aoass_env.radio import Radio
+from aoass_env.simulator import Simulator, episode_spiral
+from aoass_env.trajectory import beacons_along
+
+
+@pytest.mark.parametrize("size", [100.0, 200.0])
+def test_default_spiral_covers_every_node_of_an_empty_field(size):
+    """Eq. 18 coverage of 100 % along the ideal spiral at the default spacing."""
+    config = AOASSConfig(field_size=size, n_nodes=3000)
+    empty = ObstacleMap(size, size)
+    rng = np.random.default_rng(7)
+    nodes = rng.uniform(0, size, size=(config.n_nodes, 2))
+    # the field's corners and border midpoints are the hardest places
+    nodes[:8] = [[0, 0], [size, 0], [0, size], [size, size],
+                 [size / 2, 0], [0, size / 2], [size, size / 2], [size / 2, size]]
+    spiral = episode_spiral(config, empty)
+    path = np.c_[spiral.arc_length, spiral.waypoints]
+    beacons, _ = beacons_along(path, 0.0, config.beacon_interval)
+    beacons = np.r_[path[:1], beacons]
+    radio = Radio(nodes, empty, config.radio_range)
+    net = Network(config.n_nodes, config)
+    for _, x, y in beacons:
+        net.record_beacon(np.array([x, y]), radio.receivers(np.array([x, y])))
+    assert net.coverage_ratio == 1.0
+
+
+def test_simulated_episode_in_empty_field_covers_all_nodes():
+    config = AOASSConfig(obstacle_density=0.0, n_nodes=300, n_moving_obstacles=0)
+    sim = Simulator(config, np.random.default_rng(3))
+    log = sim.run()
+    assert sim.network.coverage_ratio == 1.0
+    assert sim.collisions == 0
+    # the path is the spiral, within the follower's corner cutting
+    assert sim.network.distance_travelled == pytest.approx(sim.spiral.length, rel=0.02)
+    # one beacon at the start, then one per interval travelled
+    assert log.n_beacons == 1 + int(sim.network.distance_travelled // config.beacon_interval)
+    gaps = np.linalg.norm(np.diff(log.beacons[:, 1:], axis=0), axis=1)
+    assert gaps.max() <= config.beacon_interval + 1e-9
+
+
+def _episode(seed):
+    config = AOASSConfig(obstacle_density=0.2, n_nodes=150, n_moving_obstacles=2)
+    sim = Simulator(config, np.random.default_rng(seed), seed=seed)
+    return sim, sim.run(max_steps=400)
+
+
+def test_same_seed_same_map_nodes_and_log():
+    (s1, a), (s2, b) = _episode(11), _episode(11)
+    assert s1.map.polygons and len(s1.map.polygons) == len(s2.map.polygons)
+    for p, q in zip(s1.map.polygons, s2.map.polygons, strict=True):
+        np.testing.assert_array_equal(p, q)
+    for key, value in a.arrays().items():
+        np.testing.assert_array_equal(value, b.arrays()[key], err_msg=key)
+    _, c = _episode(12)
+    assert not np.array_equal(a.nodes, c.nodes)
+
+
+def test_log_is_consistent_with_the_ledger_and_round_trips(tmp_path):
+    sim, log = _episode(5)
+    net = sim.network
+    assert log.anchor_energy == pytest.approx(net.anchor_energy)
+    np.testing.assert_allclose(log.node_energy,
+                               np.bincount(log.receptions[:, 1], minlength=log.n_nodes)
+                               * net.rx_energy_per_beacon)
+    assert log.collisions == sim.collisions
+    assert len(log.anchor_path) == 401
+    assert log.config["seed"] == 5 and log.config["method"] == "spiral"
+    log.save(tmp_path / "ep.npz")
+    again = BeaconLog.load(tmp_path / "ep.npz")
+    for key, value in log.arrays().items():
+        np.testing.assert_array_equal(value, again.arrays()[key], err_msg=key)
+
+
+def test_nominal_follower_goes_around_obstacles():
+    config = AOASSConfig(obstacle_density=0.3, n_nodes=200, n_moving_obstacles=0)
+    sim = Simulator(config, np.random.default_rng(2))
+    sim.run()
+    # detours make the path longer than the ideal spiral, but coverage stays high
+    assert sim.network.distance_travelled > sim.spiral.length
+    assert sim.network.coverage_ratio >= 0.9
