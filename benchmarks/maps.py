@@ -16,7 +16,10 @@ import time
 
 import numpy as np
 
+from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap, generate_map
+
+CLEARANCE = AOASSConfig().map_clearance  # the default the shipped maps use (m)
 
 TARGET_S = 2.0
 
@@ -26,7 +29,8 @@ def timed_maps(size: float, density: float, seeds: int) -> tuple[float, Obstacle
     times = []
     for seed in range(seeds):
         start = time.perf_counter()
-        obstacle_map = generate_map(size, density, np.random.default_rng(seed))
+        obstacle_map = generate_map(size, density, np.random.default_rng(seed),
+                                    clearance=CLEARANCE)
         times.append(time.perf_counter() - start)
     return statistics.median(times), obstacle_map
 
@@ -43,7 +47,7 @@ def main() -> None:
     for _ in range(5):
         fresh = ObstacleMap(big_map.width, big_map.height, big_map.polygons)
         start = time.perf_counter()
-        fresh.check_traversable(1.5)
+        fresh.check_traversable(CLEARANCE)
         checks.append(time.perf_counter() - start)
     check = statistics.median(checks)
 
