@@ -54,6 +54,8 @@ class EpisodeRow:
     ideal_time: float
     eta_traj: float
     collisions: int
+    collisions_static: int
+    collisions_moving: int
     energy_total: float
     eer: float
     wall_seconds: float
@@ -80,7 +82,9 @@ def run_episode(map_name: str, n_nodes: int, seed: int,
         travel_time=sim.world.time, ideal_time=ideal_time,
         eta_traj=trajectory_efficiency(sim.spiral.length, net.distance_travelled, ideal_time,
                                        sim.world.time),
-        collisions=sim.collisions, energy_total=net.energy_total,
+        collisions=sim.collisions,
+        collisions_static=sim.world.static_contacts + sim.world.wall_contacts,
+        collisions_moving=sim.world.moving_contacts, energy_total=net.energy_total,
         eer=energy_efficiency_ratio(net.energy_total, net.beacons_sent),
         wall_seconds=time.perf_counter() - t0), sim
 
@@ -105,8 +109,9 @@ def write_csv(rows: list[EpisodeRow], path: Path) -> None:
 COLUMNS = (("density", "obstacle_density", "{:.2f}"), ("N", "n_nodes", "{:d}"),
            ("coverage %", "coverage", "{:.1%}"), ("beacons", "beacons", "{:.0f}"),
            ("L / L_ideal", None, "{:.2f}"), ("eta_traj", "eta_traj", "{:.3f}"),
-           ("collisions", "collisions", "{:.1f}"), ("E_total [J]", "energy_total", "{:.1f}"),
-           ("EER [1/J]", "eer", "{:.3f}"))
+           ("contacts static", "collisions_static", "{:.1f}"),
+           ("contacts moving", "collisions_moving", "{:.1f}"),
+           ("E_total [J]", "energy_total", "{:.1f}"), ("EER [1/J]", "eer", "{:.3f}"))
 
 
 def summary_table(rows: list[EpisodeRow]) -> str:

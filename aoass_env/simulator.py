@@ -131,7 +131,8 @@ class Simulator:
         return WaypointFollower(self.spiral.waypoints, self.spiral.blocked,
                                 capture_radius=max(c.anchor_radius, 0.5 * c.anchor_nominal_speed
                                                    * c.dt),
-                                cruise_speed=c.anchor_nominal_speed, planner=self.planner)
+                                cruise_speed=c.anchor_nominal_speed,
+                                max_accel=c.anchor_max_accel, planner=self.planner)
 
     def nominal_steps(self) -> int:
         """Control periods the ideal spiral takes at nominal speed."""

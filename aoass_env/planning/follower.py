@@ -26,6 +26,7 @@ class WaypointFollower:
         blocked: waypoints to skip.
         capture_radius: a waypoint counts as reached within this distance (m).
         cruise_speed: commanded speed on straight stretches (m/s).
+        max_accel: the anchor's deceleration limit (m/s^2), used to brake ahead of sharp turns.
         stall_time: a target (spiral or detour point) not reached within this time (s) is
             skipped, so a follower pushed against an obstacle does not wait forever.
         planner: detour planner used when the straight line to the target is obstructed.
@@ -35,6 +36,7 @@ class WaypointFollower:
     blocked: np.ndarray
     capture_radius: float
     cruise_speed: float
+    max_accel: float = math.inf
     stall_time: float = 30.0
     planner: DetourPlanner | None = None
     index: int = 0
@@ -103,7 +105,25 @@ class WaypointFollower:
             break
         if self.done:
             return 0.0, 0.0
-        aim = self._detour[0] if self._detour else self.waypoints[self.index]
+        aim, after = self._aim_points()
         dx, dy = aim - position
         bearing = math.atan2(dy, dx)
-        return self.cruise_speed * max(0.0, math.cos(bearing - heading)), bearing
+        speed = self.cruise_speed * max(0.0, math.cos(bearing - heading))
+        if after is not None:
+            # brake so that the speed at the aim point suits the turn there
+            ox, oy = after - aim
+            turn = math.atan2(oy, ox) - bearing
+            corner_speed = self.cruise_speed * max(0.0, math.cos(turn))
+            if self.planner is not None and not self.planner.visible(aim, after):
+                corner_speed = 0.0      # the way on is obstructed: stop there to replan
+            room = max(0.0, math.hypot(dx, dy) - self.capture_radius)
+            speed = min(speed, math.sqrt(corner_speed**2 + 2.0 * self.max_accel * room))
+        return speed, bearing
+
+    def _aim_points(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """The point steered to and the one after it (None at the end of the path)."""
+        queue = self._detour + [self.waypoints[self.index]]
+        if len(queue) > 1:
+            return queue[0], queue[1]
+        nxt = self._next_free(self.index + 1)
+        return queue[0], (self.waypoints[nxt] if nxt < len(self.waypoints) else None)
