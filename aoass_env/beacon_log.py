@@ -288,6 +288,9 @@ class BeaconLog:
         """
         unreadable = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)
         arrays: dict[str, np.ndarray] = {}
+        if os.path.isfile(path) and not zipfile.is_zipfile(path):
+            raise BeaconLogError("not an .npz archive (no zip structure): written by "
+                                 "BeaconLog.save?", path=path)
         try:
             data = np.load(path, allow_pickle=False)
         except FileNotFoundError:

@@ -31,6 +31,10 @@ from aoass_env.world import World
 #: room for the turn-rate-limited anchor to round the corners of a detour.
 DETOUR_MARGIN = 0.3
 
+#: Default step limit of :meth:`Simulator.run` in units of the ideal spiral's duration; detours
+#: at density 0.5-0.6 take up to about 3 times as long as the ideal spiral.
+RUN_LIMIT = 5
+
 
 @dataclass(frozen=True)
 class StepRecord:
@@ -140,10 +144,10 @@ class Simulator:
                          / self.config.dt)
 
     def run(self, max_steps: int | None = None) -> BeaconLog:
-        """Drive the nominal follower until the spiral is done (or ``max_steps``, default three
-        times the nominal duration); return the finished beacon log."""
+        """Drive the nominal follower until the spiral is done (or ``max_steps``, default
+        ``RUN_LIMIT`` times the nominal duration); return the finished beacon log."""
         follower = self.follower()
-        limit = max_steps if max_steps is not None else 3 * self.nominal_steps()
+        limit = max_steps if max_steps is not None else RUN_LIMIT * self.nominal_steps()
         for _ in range(limit):
             speed, heading = follower.command(self.world.position, self.world.heading,
                                               self.config.dt)
