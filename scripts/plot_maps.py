@@ -1,0 +1,43 @@
+"""Draw shipped maps side by side (docs/figures/maps.png).
+
+    python3 scripts/plot_maps.py [--out docs/figures/maps.png] [NAME ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.patches import Polygon  # noqa: E402
+
+from aoass_env.maps import load_map  # noqa: E402
+
+DEFAULT = ["test/d0.10_f100_s500", "test/d0.30_f100_s506", "test/d0.60_f100_s515",
+           "test/d0.60_f200_s533"]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("names", nargs="*", default=DEFAULT, help="shipped map names or paths")
+    parser.add_argument("--out", type=Path, default=Path("docs/figures/maps.png"))
+    args = parser.parse_args()
+    fig, axes = plt.subplots(1, len(args.names), figsize=(4 * len(args.names), 4.2),
+                             squeeze=False)
+    for ax, name in zip(axes[0], args.names, strict=True):
+        m = load_map(name)
+        for poly in m.polygons:
+            ax.add_patch(Polygon(poly, closed=True, color="0.45"))
+        ax.set(xlim=(0, m.width), ylim=(0, m.height), aspect="equal",
+               title=f"{name}: density {m.density:.3f}")
+    fig.tight_layout()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(args.out, dpi=80)
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
