@@ -182,6 +182,19 @@ class AOASSConfig:
         return [(f.name, f.default, f.metadata["unit"], f.metadata["doc"])
                 for f in dataclasses.fields(cls)]
 
+    @classmethod
+    def markdown(cls) -> str:
+        """The parameter table of docs/config.md (a test keeps the two identical)."""
+        rows = ["| parameter | default | unit | valid | meaning |", "|---|---|---|---|---|"]
+        for f in dataclasses.fields(cls):
+            meta = f.metadata
+            valid = _range_text(meta) if meta["low"] is not None else meta["kind"]
+            if meta["optional"]:
+                valid += " or None"
+            rows.append(f"| `{f.name}` | {f.default!r} | {meta['unit']} | {valid} | "
+                        f"{meta['doc']} |")
+        return "\n".join(rows)
+
     # --- derived quantities ----------------------------------------------------------
     @property
     def substep_dt(self) -> float:

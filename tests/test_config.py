@@ -73,3 +73,9 @@ def test_describe_lists_every_field_with_doc():
 def test_substep_dt():
     c = AOASSConfig(dt=0.5, physics_substeps=5)
     assert math.isclose(c.substep_dt, 0.1)
+
+
+def test_docs_table_matches_the_dataclass():
+    from pathlib import Path
+    doc = (Path(__file__).parents[1] / "docs" / "config.md").read_text()
+    assert AOASSConfig.markdown() in doc
