@@ -16,15 +16,14 @@ from __future__ import annotations
 
 import argparse
 import csv
-import os
 import sys
-import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
+from aoass_env.atomic import write_text_atomic
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import list_maps, load_map
 from aoass_env.metrics import energy_efficiency_ratio, trajectory_efficiency
@@ -89,21 +88,13 @@ def run_episode(map_name: str, n_nodes: int, seed: int,
         wall_seconds=time.perf_counter() - t0), sim
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    with os.fdopen(fd, "w", newline="") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
-
-
 def write_csv(rows: list[EpisodeRow], path: Path) -> None:
     import io
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(asdict(rows[0])))
     writer.writeheader()
     writer.writerows(asdict(r) for r in rows)
-    _write_atomic(path, buf.getvalue())
+    write_text_atomic(path, buf.getvalue())
 
 
 COLUMNS = (("density", "obstacle_density", "{:.2f}"), ("N", "n_nodes", "{:d}"),
@@ -215,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     print(file=sys.stderr)
     write_csv(rows, out / "episodes.csv")
     table = summary_table(rows)
-    _write_atomic(out / "summary.md",
+    write_text_atomic(out / "summary.md",
                   f"# AOASS core benchmark, preset {args.preset}\n\nMethod: square spiral with "
                   f"the nominal follower (zero action). Means over {args.seeds} seed(s) per map "
                   f"and node count, maps from maps/test.\n\n{table}\n")

@@ -33,16 +33,15 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import uuid
 import zipfile
 import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from aoass_env.atomic import atomic_open
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import MapError, ObstacleMap
 
@@ -266,17 +265,8 @@ class BeaconLog:
     # --- files ----------------------------------------------------------------------------
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the log to ``path`` (exactly that name) as ``.npz``, atomically."""
-        path = Path(path)
-        tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
-        try:
-            with open(tmp, "xb") as f:
-                np.savez(f, **self.arrays())
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        with atomic_open(path, "wb") as f:
+            np.savez(f, **self.arrays())
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> BeaconLog:

@@ -15,7 +15,6 @@ from __future__ import annotations
 import difflib
 import math
 import os
-import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -26,6 +25,8 @@ import numpy as np
 import shapely
 from pymunk import autogeometry
 from shapely.geometry.base import BaseGeometry
+
+from aoass_env.atomic import write_text_atomic
 
 #: Folder of the shipped maps (``train/`` and ``test/``), at the top of the repository.
 MAPS_DIR = Path(__file__).resolve().parents[1] / "maps"
@@ -647,20 +648,7 @@ def write_map(obstacle_map: ObstacleMap, path: str | os.PathLike) -> None:
     for p in obstacle_map.polygons:
         out += ["", "[OBSTACLE]"]
         out += [f"{float(x)!r} {float(y)!r}" for x, y in p]
-    _write_atomic(Path(path), "\n".join(out) + "\n")
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to a temporary file next to ``path``, then rename it over ``path``."""
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
-    try:
-        with open(tmp, "x", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    write_text_atomic(Path(path), "\n".join(out) + "\n")
 
 
 def list_maps(split: str) -> list[str]:

@@ -367,9 +367,9 @@ def test_write_is_atomic(tmp_path, monkeypatch):
     assert os.listdir(tmp_path) == ["m.txt"]
 
 
-def test_write_into_a_missing_folder_fails_cleanly(tmp_path):
-    with pytest.raises(FileNotFoundError):
-        write_map(ObstacleMap(5, 5), tmp_path / "nope" / "m.txt")
+def test_write_creates_a_missing_folder(tmp_path):
+    write_map(ObstacleMap(5, 5), tmp_path / "new" / "m.txt")
+    assert read_map(tmp_path / "new" / "m.txt").width == 5.0
 
 
 GOOD_HEAD = "[SCALE]\n1\n[BORDER]\n0 0\n10 0\n10 10\n0 10\n"

@@ -1,0 +1,39 @@
+"""Atomic file writes: a temporary file beside the target, then a rename over it.
+
+A reader never sees a half-written file, and a crash mid-write leaves the old file intact.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO
+
+
+@contextlib.contextmanager
+def atomic_open(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO]:
+    """Open a temporary file next to ``path`` for writing (``mode`` "w" text or "wb" binary);
+    on a clean exit it is flushed, synced and renamed over ``path``, otherwise removed."""
+    if mode not in ("w", "wb"):
+        raise ValueError(f"mode={mode!r} must be 'w' or 'wb'")
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
+    try:
+        with open(tmp, mode.replace("w", "x"), **({} if "b" in mode else
+                                                  {"encoding": "utf-8", "newline": ""})) as f:
+            yield f
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically, creating parent folders."""
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with atomic_open(path, "w") as f:
+        f.write(text)
