@@ -15,7 +15,7 @@ import math
 import numpy as np
 import shapely
 from scipy import ndimage
-from scipy.sparse import coo_matrix
+from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from aoass_env.maps import ObstacleMap
@@ -33,7 +33,7 @@ class DetourPlanner:
     def __init__(self, obstacle_map: ObstacleMap, radius: float, resolution: float = 0.5):
         if not (radius > 0 and resolution > 0):
             raise ValueError(f"radius={radius} and resolution={resolution} must be positive (m)")
-        self.map, self.radius, self.res = obstacle_map, float(radius), float(resolution)
+        self.radius, self.res = float(radius), float(resolution)
         nx = max(1, math.ceil(obstacle_map.width / resolution))
         ny = max(1, math.ceil(obstacle_map.height / resolution))
         self.shape = (nx, ny)
@@ -55,7 +55,8 @@ class DetourPlanner:
         shapely.prepare(self._blocker)
         self._tree: tuple[int, np.ndarray, np.ndarray] | None = None
 
-    def _build_graph(self, cost: np.ndarray):
+    def _build_graph(self, cost: np.ndarray) -> csr_matrix:
+        """Undirected 8-connected graph of the free cells, edge weight = length x mean cost."""
         nx, ny = self.shape
         idx = np.arange(nx * ny).reshape(nx, ny)
         rows, cols, weights = [], [], []
