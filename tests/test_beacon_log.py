@@ -7,6 +7,8 @@ import os
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from aoass_env.beacon_log import (
     SCHEMA_VERSION,
@@ -327,3 +329,23 @@ def test_radio_network_and_recorder_agree(tmp_path):
     np.testing.assert_array_equal(back.node_links, radio.node_links())
     assert back.anchor_energy + back.node_energy.sum() == pytest.approx(net.energy_total,
                                                                         rel=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.data())
+def test_damaged_files_fail_with_beacon_log_error(tmp_path_factory, data):
+    """Flipped or cut bytes anywhere in a saved log: a BeaconLogError, or a valid log."""
+    path = tmp_path_factory.mktemp("damage") / "log.npz"
+    make_log().save(path)
+    raw = bytearray(path.read_bytes())
+    if data.draw(st.booleans(), label="truncate"):
+        raw = raw[:data.draw(st.integers(0, len(raw) - 1), label="keep")]
+    else:
+        for _ in range(data.draw(st.integers(1, 8), label="flips")):
+            raw[data.draw(st.integers(0, len(raw) - 1))] ^= data.draw(st.integers(1, 255))
+    path.write_bytes(bytes(raw))
+    try:
+        log = BeaconLog.load(path)
+    except BeaconLogError:
+        return
+    assert log.n_beacons >= 0

@@ -1,6 +1,8 @@
 import math
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig, ConfigError
 
@@ -79,3 +81,20 @@ def test_docs_table_matches_the_dataclass():
     from pathlib import Path
     doc = (Path(__file__).parents[1] / "docs" / "config.md").read_text()
     assert AOASSConfig.markdown() in doc
+
+
+_VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10, 10**6),
+                    st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=5),
+                    st.tuples(st.floats(-5, 50), st.floats(-5, 50)))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.dictionaries(st.sampled_from([r[0] for r in AOASSConfig.describe()]), _VALUES,
+                       max_size=4))
+def test_fuzzed_keywords_give_a_config_or_a_config_error(kwargs):
+    try:
+        c = AOASSConfig.from_kwargs(**kwargs)
+    except ConfigError as err:
+        assert any(k in str(err) for k in kwargs) or "must" in str(err)
+        return
+    assert AOASSConfig.from_kwargs(**c.to_dict()) == c

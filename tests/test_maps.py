@@ -475,3 +475,25 @@ def test_unknown_map_name_lists_valid_names():
         load_map("d0.30_f100_s999")
     with pytest.raises(MapError, match=rf"unknown map 'nothing-like-it'.*e\.g\. {shipped}, "):
         load_map("nothing-like-it")
+
+
+_LINE = st.one_of(
+    st.sampled_from(["[SCALE]", "[BORDER]", "[OBSTACLE]", "[OBSTACLES]", "", "1", "0.5",
+                     "-1", "0 0", "10 0", "10 10", "0 10", "3 3", "nan 1", "1 2 3", "x y"]),
+    st.tuples(st.integers(-5, 15), st.integers(-5, 15)).map(lambda p: f"{p[0]} {p[1]}"),
+    st.text(alphabet="[]ABCELORST 0123456789.-e\t", max_size=12))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(_LINE, max_size=30))
+def test_reader_fuzz_gives_a_map_or_a_map_format_error(tmp_path_factory, lines):
+    """Whatever the text, read_map returns a valid map or raises MapFormatError with a line."""
+    path = tmp_path_factory.mktemp("fuzz") / "m.txt"
+    path.write_text("\n".join(lines) + "\n")
+    try:
+        m = read_map(path)
+    except MapFormatError as err:
+        assert str(path) in str(err)
+        return
+    assert m.width > 0 and m.height > 0
+    assert 0.0 <= m.density <= 1.0
