@@ -44,6 +44,7 @@ class WaypointFollower:
     _budget: float = 0.0
     _planned: bool = False
     _detour: list[np.ndarray] = field(default_factory=list)
+    _way_on: tuple[tuple[bytes, bytes] | None, bool] = (None, True)
 
     def __post_init__(self) -> None:
         self.index = self._next_free(self.index)
@@ -114,11 +115,20 @@ class WaypointFollower:
             ox, oy = after - aim
             turn = math.atan2(oy, ox) - bearing
             corner_speed = self.cruise_speed * max(0.0, math.cos(turn))
-            if self.planner is not None and not self.planner.visible(aim, after):
+            if not self._way_on_open(aim, after):
                 corner_speed = 0.0      # the way on is obstructed: stop there to replan
             room = max(0.0, math.hypot(dx, dy) - self.capture_radius)
             speed = min(speed, math.sqrt(corner_speed**2 + 2.0 * self.max_accel * room))
         return speed, bearing
+
+    def _way_on_open(self, aim: np.ndarray, after: np.ndarray) -> bool:
+        """Whether the leg aim -> after is free; one planner query per leg, not per step."""
+        if self.planner is None:
+            return True
+        key = (aim.tobytes(), after.tobytes())
+        if self._way_on[0] != key:
+            self._way_on = (key, self.planner.visible(aim, after))
+        return self._way_on[1]
 
     def _aim_points(self) -> tuple[np.ndarray, np.ndarray | None]:
         """The point steered to and the one after it (None at the end of the path)."""
