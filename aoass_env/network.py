@@ -136,6 +136,12 @@ class Network:
         return _read_only(self._covered)
 
     @property
+    def beacon_centroid(self) -> np.ndarray:
+        """Mean position [m] (N, 2) of the beacons each node heard (0 for nodes that heard
+        none); read-only. The environment's cheap online position estimate."""
+        return _read_only(self._mean)
+
+    @property
     def line_residual(self) -> np.ndarray:
         """Root-sum-square distance [m] (N,) of each node's heard beacons to their best line."""
         return np.sqrt(self._lambda_min(self._scatter))
