@@ -346,6 +346,16 @@ class BeaconLogRecorder:
     def n_beacons(self) -> int:
         return len(self._beacons)
 
+    @property
+    def beacon_positions(self) -> np.ndarray:
+        """(B, 2) positions [m] of the beacons recorded so far, in order (a new array)."""
+        return np.array(self._beacons, dtype=np.float64).reshape(-1, 3)[:, 1:]
+
+    @property
+    def path_points(self) -> np.ndarray:
+        """(P, 2) anchor positions [m] recorded so far, in order (a new array)."""
+        return np.array(self._path, dtype=np.float64).reshape(-1, 3)[:, 1:]
+
     @staticmethod
     def _row(key: str, t: float, position: np.ndarray,
              rows: list[tuple[float, float, float]]) -> tuple[float, float, float]:

@@ -1,0 +1,158 @@
+"""Tests of aoass_env.render: frames, incremental history, node colours, human mode, video."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.wrappers import RecordVideo
+
+import aoass_env  # noqa: F401  (registers AOASS-v0)
+from aoass_env.config import AOASSConfig
+from aoass_env.render import COLORS, Renderer
+from aoass_env.simulator import Simulator
+
+SMALL = {"field_size": 30, "n_nodes": 20, "obstacle_density": 0.1, "n_moving_obstacles": 1}
+
+
+def _sim(seed: int = 0, **overrides: object) -> Simulator:
+    return Simulator(AOASSConfig(**{**SMALL, **overrides}), np.random.default_rng(seed))
+
+
+def _count(frame: np.ndarray, color: tuple[int, int, int]) -> int:
+    return int(np.all(frame == color, axis=-1).sum())
+
+
+def _drive(sim: Simulator, steps: int) -> None:
+    follower = sim.follower()
+    for _ in range(steps):
+        speed, heading = follower.command(sim.world.position, sim.world.heading, sim.config.dt)
+        sim.step(speed, heading)
+
+
+def test_rgb_array_frame_shape_and_dtype():
+    env = gym.make("AOASS-v0", render_mode="rgb_array", **SMALL)
+    env.reset(seed=0)
+    frame = env.render()
+    env.close()
+    assert frame.shape == (640, 640, 3) and frame.dtype == np.uint8
+    assert frame.flags.writeable and frame.flags.c_contiguous
+    assert _count(frame, COLORS["field"]) > 0.3 * 640 * 640
+    assert _count(frame, COLORS["obstacle"]) > 0
+
+
+def test_frame_size_is_configurable():
+    renderer = Renderer("rgb_array", 20, size=200)
+    sim = _sim()
+    frame = renderer.draw(sim, sim.follower())
+    renderer.close()
+    assert frame.shape == (200, 200, 3)
+
+
+def test_trail_and_beacons_appear_as_the_episode_advances_and_vanish_on_reset():
+    env = gym.make("AOASS-v0", render_mode="rgb_array", **SMALL)
+    env.reset(seed=0)
+    start = env.render()
+    for _ in range(30):
+        env.step(np.zeros(2))
+    later = env.render()
+    env.reset(seed=1)
+    fresh = env.render()
+    env.close()
+    assert _count(start, COLORS["trail"]) == 0
+    assert _count(later, COLORS["trail"]) > 100
+    assert _count(later, COLORS["beacon"]) > _count(start, COLORS["beacon"])
+    assert _count(fresh, COLORS["trail"]) == 0      # new episode, new history layer
+
+
+def test_trail_drawn_incrementally_matches_trail_drawn_at_once():
+    """Frames drawn every step and a frame drawn once at the end show the same picture."""
+    every, once = Renderer("rgb_array", 20, show_rays=False), Renderer("rgb_array", 20,
+                                                                       show_rays=False)
+    sim = _sim(seed=2)
+    follower = sim.follower()
+    for _ in range(25):
+        speed, heading = follower.command(sim.world.position, sim.world.heading, sim.config.dt)
+        sim.step(speed, heading)
+        every.draw(sim, follower)
+    a, b = every.draw(sim, follower), once.draw(sim, follower)
+    # joins between separately drawn 2 px segments may differ by a pixel here and there
+    assert np.mean(np.any(a != b, axis=-1)) < 1e-3
+
+
+def test_nodes_are_coloured_by_coverage():
+    sim = _sim(seed=3, n_nodes=60)
+    _drive(sim, 120)
+    renderer = Renderer("rgb_array", 20, show_rays=False)
+    frame = renderer.draw(sim, sim.follower())
+    net = sim.network
+    heard, covered = net.heard > 0, net.covered
+    px = renderer.to_screen(sim.nodes)
+    # nodes clear of other nodes, moving bodies, the anchor, the target and the status line
+    others = np.r_[sim.world.moving_positions, sim.world.position[None]]
+    clear = np.ones(len(px), dtype=bool)
+    for i, p in enumerate(px):
+        near_node = np.delete(np.hypot(*(px - p).T), i).min() < 10
+        near_body = np.hypot(*(renderer.to_screen(others) - p).T).min() < 20
+        clear[i] = not (near_node or near_body or p[1] < 30)
+    for key, mask in (("node_silent", ~heard), ("node_heard", heard & ~covered),
+                      ("node_covered", covered)):
+        centres = np.round(px[mask & clear]).astype(int)
+        assert len(centres) > 0, f"no {key} node to check"
+        for x, y in centres:
+            assert tuple(frame[y, x]) == COLORS[key], (key, x, y)
+
+
+def test_world_y_up_maps_to_screen_y_down():
+    renderer = Renderer("rgb_array", 20)
+    sim = _sim()
+    renderer.draw(sim, sim.follower())
+    (x0, y0), (x1, y1) = renderer.to_screen(np.array([[0.0, 0.0], [30.0, 30.0]]))
+    assert x1 > x0 and y1 < y0
+    assert 0 <= x0 < x1 < 640 and 0 <= y1 < y0 < 640
+
+
+def test_recorder_exposes_beacons_and_path_so_far():
+    sim = _sim()
+    _drive(sim, 10)
+    log = sim.finish()
+    np.testing.assert_array_equal(sim.recorder.beacon_positions, log.beacons[:, 1:])
+    np.testing.assert_array_equal(sim.recorder.path_points, log.anchor_path[:, 1:])
+    assert sim.recorder.path_points.shape == (11, 2)
+
+
+def test_human_mode_runs_headless(monkeypatch):
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    env = gym.make("AOASS-v0", render_mode="human", **SMALL)
+    env.reset(seed=0)                  # human mode draws on reset and on every step
+    for _ in range(3):
+        env.step(np.zeros(2))
+    assert env.render() is None
+    env.close()
+
+
+def test_closed_renderer_refuses_to_draw():
+    renderer = Renderer("rgb_array", 20)
+    renderer.close()
+    renderer.close()
+    sim = _sim()
+    with pytest.raises(RuntimeError, match="closed"):
+        renderer.draw(sim, sim.follower())
+
+
+def test_bad_render_mode_is_rejected():
+    with pytest.raises(ValueError, match="render_mode"):
+        Renderer("ansi", 20)
+
+
+def test_record_video_writes_a_video(tmp_path):
+    env = gym.make("AOASS-v0", render_mode="rgb_array", max_episode_steps=40, **SMALL)
+    env = RecordVideo(env, str(tmp_path / "videos"), episode_trigger=lambda episode: True)
+    env.reset(seed=0)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        done = terminated or truncated
+    env.close()
+    videos = list((tmp_path / "videos").glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 1000
