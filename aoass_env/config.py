@@ -128,6 +128,31 @@ class AOASSConfig:
     w2: float = _p(0.01, "Eq. 14 weight of the energy imbalance", low=0.0, high=1e6)
     w3: float = _p(0.005, "Eq. 14 weight of the online localization RMSE", unit="1/m",
                    low=0.0, high=1e6)
+    w_collision: float = _p(
+        0.0, "opt-in shaping, not in Eq. 14: penalty per new anchor contact with an obstacle",
+        low=0.0, high=1e6)
+
+    # --- environment: observation, action, episode ---------------------------------------
+    obs_waypoints: int = _p(8, "K: upcoming spiral waypoints in the observation", low=1,
+                            high=100, kind="int")
+    obs_moving_obstacles: int = _p(
+        3, "M: nearest moving obstacles within sensing range in the observation", low=0,
+        high=100, kind="int")
+    obs_position_noise: float = _p(
+        0.3, "std of the Gaussian noise on observed moving-obstacle positions", unit="m",
+        low=0.0, high=100.0)
+    obs_velocity_noise: float = _p(
+        0.2, "std of the Gaussian noise on observed moving-obstacle velocities", unit="m/s",
+        low=0.0, high=100.0)
+    action_speed_scale: float = _p(
+        1.0, "speed change commanded by action[0] = +-1 on top of the follower's speed",
+        unit="m/s", low=0.0, high=20.0)
+    action_heading_scale: float = _p(
+        math.pi / 2, "heading change commanded by action[1] = +-1 on top of the follower's "
+        "heading", unit="rad", low=0.0, high=math.pi)
+    time_limit_factor: float = _p(
+        4.0, "episode time limit as a multiple of the ideal spiral's duration at nominal speed",
+        low=1.0, high=100.0)
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

@@ -1,0 +1,268 @@
+"""AOASS-v0: the Gymnasium environment of the mobile anchor (orchestration only).
+
+The maths lives elsewhere: the simulation core in :mod:`aoass_env.simulator`, the observation in
+:mod:`aoass_env.observation`, the reward in :mod:`aoass_env.reward`, the metrics in
+:mod:`aoass_env.metrics`, the drawing in :mod:`aoass_env.render`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from aoass_env.beacon_log import BeaconLog
+from aoass_env.config import AOASSConfig, ConfigError
+from aoass_env.maps import ObstacleMap, load_map
+from aoass_env.metrics import energy_efficiency_ratio, energy_per_beacon, trajectory_efficiency
+from aoass_env.observation import Observer, observation_layout, observation_space
+from aoass_env.planning import WaypointFollower
+from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
+from aoass_env.simulator import Simulator, episode_spiral
+from aoass_env.world import wrap_angle
+
+__all__ = ["AOASSEnv", "max_episode_steps"]
+
+
+def max_episode_steps(config: AOASSConfig) -> int:
+    """Step limit of an episode: ``time_limit_factor`` x the ideal spiral's duration at nominal
+    speed, in control periods (1552 x 4 = 6208 steps for the default config)."""
+    spiral = episode_spiral(config, ObstacleMap(config.field_size, config.field_size))
+    nominal = spiral.nominal_time(config.anchor_nominal_speed) / config.dt
+    return math.ceil(config.time_limit_factor * nominal)
+
+
+class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
+    """A single mobile anchor sweeps a sensor field along a square spiral and broadcasts beacons.
+
+    ## Description
+
+    The anchor (a disc robot, pymunk physics) drives through a square field of static sensor
+    nodes with static obstacle polygons and moving disc obstacles. Every ``beacon_interval``
+    metres travelled (Table 1's Δs = 2 m) it broadcasts its position; nodes within radio range R
+    and line of sight hear it. A nominal path follower steers along the square spiral of the
+    paper's Eq. 1-2, skipping waypoints inside obstacles, detouring around obstacles in the way
+    and resuming the spiral after them. The agent acts on top of that follower (Eq. 6's action
+    is a residual), trading coverage (Eq. 18) against energy balance and localization error
+    (Eq. 14). Reference: Naguib, AOASS, IJCNC 18(1), 2026; see docs/env.md.
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)``: Eq. 6's a = [Δv, Δθ]. The commanded speed is the
+    follower's speed + Δv x ``action_speed_scale`` (1 m/s), clipped to [0, ``anchor_max_speed``]
+    (2 m/s); the commanded heading is the follower's heading + Δθ x ``action_heading_scale``
+    (π/2 rad). The anchor reaches them within its limits (``anchor_max_accel`` 1 m/s²,
+    ``anchor_max_turn_rate`` π/2 rad/s) over one control period ``dt`` = 0.5 s of
+    ``physics_substeps`` = 5 pymunk steps. **The zero action follows the spiral.** Values outside
+    [-1, 1] are clipped; NaN or infinite values raise ``ValueError``.
+
+    ## Observation Space
+
+    A bounded float32 ``Box`` (57 entries by default); ``env.unwrapped.obs_layout`` maps each
+    part's name to its slice. The first five entries are Eq. 6's s = [x, y, v, d_obs, Δθ]
+    (normalised), followed by the heading (cos, sin), the next K = 8 spiral waypoints relative to
+    the anchor, the 16 range-sensor distances, the M = 3 nearest moving obstacles within sensing
+    range (noisy relative position and velocity, presence flag), the coverage ratio, the path
+    progress and the elapsed fraction of the time limit. Layout and scales:
+    :mod:`aoass_env.observation`.
+
+    ## Rewards
+
+    Eq. 14 exactly: ``w1 * ΔCoverage - w2 * (max E_i / E_avg - 1) - w3 * RMSE_loc`` with
+    w1 = 100, w2 = 0.01, w3 = 0.005 /m. ΔCoverage is the step's gain of the Eq. 18 coverage
+    ratio; E_i the energy node i has spent so far; RMSE_loc an online estimate (covered nodes at
+    the centroid of their heard beacons). Each weighted term is in ``info["reward_terms"]``;
+    the opt-in shaping term ``w_collision`` (per new contact) defaults to 0. See
+    :mod:`aoass_env.reward`.
+
+    ## Starting State
+
+    Each ``reset`` builds a new episode from ``self.np_random``: a generated obstacle map of
+    ``obstacle_density`` (unless ``map`` is set), ``n_nodes`` nodes uniform over free space,
+    moving obstacles at random free places with random headings, and the anchor at rest on the
+    first free spiral waypoint (the field centre by default), facing +x.
+
+    ## Episode End
+
+    * Termination: the follower has reached or skipped every spiral waypoint (path complete).
+    * Truncation: ``max_episode_steps`` control periods, ``time_limit_factor`` (4) times the
+      ideal spiral's duration at nominal speed (6208 steps for the default config);
+      ``gymnasium.make`` reports the same limit in ``env.spec.max_episode_steps``.
+
+    Every step's ``info`` holds coverage, collisions, path length, beacons sent, energy, the
+    online RMSE and the reward terms; the last step's ``info["episode"]`` adds the Eq. 16-19
+    metrics. ``env.unwrapped.beacon_log`` is the episode's :class:`BeaconLog`.
+
+    ## Arguments
+
+    ``gymnasium.make("AOASS-v0", render_mode=None, config=None, **keywords)``: any field of
+    :class:`~aoass_env.config.AOASSConfig` as a keyword (e.g. ``field_size=200``,
+    ``n_nodes=300``, ``obstacle_density=0.4``, ``map="test/d0.40_f100_s509"``,
+    ``n_moving_obstacles=5``, ``radio_range=25``, ``beacon_interval=2``, ``w1``, ``w2``,
+    ``w3``), or a whole ``config``; bad values raise ``ConfigError`` naming the field and its
+    valid range. ``render_mode``: ``"rgb_array"`` or ``"human"`` (pygame window).
+    ``reset(options={"map": ...})`` uses a map (name, path or ``ObstacleMap``) for one episode.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
+
+    def __init__(self, render_mode: str | None = None, config: AOASSConfig | None = None,
+                 **kwargs: Any) -> None:
+        if config is not None and not isinstance(config, AOASSConfig):
+            raise ConfigError(f"config must be an AOASSConfig, got {type(config).__name__}")
+        self.config = (config.replace(**kwargs) if config is not None
+                       else AOASSConfig.from_kwargs(**kwargs))
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode={render_mode!r} is not one of "
+                             f"{self.metadata['render_modes']} or None")
+        self.render_mode = render_mode
+        self._map = (load_map(self.config.map, field_size=self.config.field_size)
+                     if self.config.map is not None else None)
+        self.max_episode_steps = max_episode_steps(self.config)
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self.observation_space = observation_space(self.config)
+        self.obs_layout = observation_layout(self.config)
+        self.sim: Simulator | None = None
+        self._renderer: Any = None
+        self._log: BeaconLog | None = None
+
+    # --- episode ----------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        options = dict(options or {})
+        episode_map = options.pop("map", None)
+        if options:
+            raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: ['map']")
+        if episode_map is not None and not isinstance(episode_map, ObstacleMap):
+            episode_map = load_map(episode_map, field_size=self.config.field_size)
+        self.sim = Simulator(self.config, self.np_random,
+                             obstacle_map=episode_map if episode_map is not None else self._map,
+                             seed=seed, method="aoass-env")
+        noise_rng = self.np_random.spawn(1)[0]
+        self._follower: WaypointFollower = self.sim.follower()
+        self._observe = Observer(self.config, self.sim.spiral, noise_rng)
+        self._steps = 0
+        self._log = None
+        self._contacts = 0
+        self._rmse = 0.0
+        self._command = self._follower.command(self.sim.world.position,
+                                               self.sim.world.heading, self.config.dt)
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), self._info()
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        sim = self.sim
+        if sim is None:
+            raise RuntimeError("call reset() before step()")
+        if self._log is not None:
+            raise RuntimeError("the episode has ended; call reset() to start a new one")
+        dv, dtheta = self._checked_action(action)
+        c = self.config
+        speed, heading = self._command
+        speed = min(max(speed + dv * c.action_speed_scale, 0.0), c.anchor_max_speed)
+        coverage_before = sim.network.coverage_ratio
+        record = sim.step(speed, heading + dtheta * c.action_heading_scale)
+        self._steps += 1
+        self._command = self._follower.command(sim.world.position, sim.world.heading, c.dt)
+        if len(record.beacons):
+            self._rmse = online_rmse(sim.nodes, sim.network.beacon_centroid,
+                                     sim.network.covered)
+        contacts = sim.collisions
+        terms = reward_terms(c, delta_coverage=sim.network.coverage_ratio - coverage_before,
+                             imbalance=energy_imbalance(sim.network.heard), rmse=self._rmse,
+                             new_contacts=contacts - self._contacts)
+        self._contacts = contacts
+        terminated = self._follower.done
+        truncated = not terminated and self._steps >= self.max_episode_steps
+        info = self._info()
+        info["reward_terms"] = terms
+        if terminated or truncated:
+            self._log = sim.finish()
+            info["episode"] = self._episode_metrics()
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), float(sum(terms.values())), terminated, truncated, info
+
+    @staticmethod
+    def _checked_action(action: Any) -> tuple[float, float]:
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"action must be 2 numbers [dv, dtheta], got {action!r}") from exc
+        if a.shape != (2,):
+            raise ValueError(f"action must have shape (2,) = [dv, dtheta], got shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be finite, got {a.tolist()} (NaN or infinite)")
+        dv, dtheta = np.clip(a, -1.0, 1.0).tolist()
+        return dv, dtheta
+
+    # --- what the agent and the user see -----------------------------------------------------
+    def _observation(self) -> np.ndarray:
+        sim = self.sim
+        heading_error = (wrap_angle(self._command[1] - sim.world.heading)
+                         if not self._follower.done else 0.0)
+        return self._observe(sim.world, follower_index=self._follower.index,
+                             heading_error=heading_error,
+                             coverage=sim.network.coverage_ratio,
+                             progress=self._follower.progress(),
+                             time_fraction=min(self._steps / self.max_episode_steps, 1.0))
+
+    def _info(self) -> dict[str, Any]:
+        sim, net = self.sim, self.sim.network
+        return {"coverage": net.coverage_ratio, "covered_nodes": net.n_covered,
+                "collisions": sim.collisions, "static_contacts": sim.world.static_contacts,
+                "wall_contacts": sim.world.wall_contacts,
+                "moving_contacts": sim.world.moving_contacts,
+                "path_length": net.distance_travelled, "beacons": net.beacons_sent,
+                "energy_anchor": net.anchor_energy, "energy_nodes": net.node_energy_total,
+                "energy_total": net.energy_total, "rmse_online": self._rmse,
+                "progress": self._follower.progress(), "time": sim.world.time}
+
+    def _episode_metrics(self) -> dict[str, float]:
+        """Eq. 16-19 and the online RMSE at the end of the episode."""
+        sim, net, c = self.sim, self.sim.network, self.config
+        t_ideal = sim.spiral.nominal_time(c.anchor_nominal_speed)
+        return {"coverage": net.coverage_ratio,
+                "energy_per_beacon": energy_per_beacon(net.energy_total, net.beacons_sent),
+                "eer": energy_efficiency_ratio(net.energy_total, net.beacons_sent),
+                "eta_traj": trajectory_efficiency(sim.spiral.length, net.distance_travelled,
+                                                  t_ideal, sim.world.time),
+                "rmse_online": self._rmse, "path_length": net.distance_travelled,
+                "travel_time": sim.world.time, "l_ideal": sim.spiral.length,
+                "t_ideal": t_ideal, "collisions": sim.collisions,
+                "steps": self._steps, "path_complete": self._follower.done}
+
+    @property
+    def beacon_log(self) -> BeaconLog | None:
+        """The episode's :class:`BeaconLog`: complete once the episode has ended, a snapshot of
+        the episode so far before that; None before the first reset."""
+        if self._log is not None:
+            return self._log
+        return self.sim.finish() if self.sim is not None else None
+
+    # --- rendering ---------------------------------------------------------------------------
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode="
+                            "'rgb_array' or 'human' to gymnasium.make")
+            return None
+        if self.sim is None:
+            raise RuntimeError("call reset() before render()")
+        if self._renderer is None:
+            from aoass_env.render import Renderer
+            self._renderer = Renderer(self.render_mode, self.metadata["render_fps"])
+        return self._renderer.draw(self.sim, self._follower)
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None

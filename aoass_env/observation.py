@@ -1,0 +1,151 @@
+"""The observation of AOASS-v0: layout, bounds and how it is read off the simulation.
+
+The observation is one float32 vector; :func:`observation_layout` maps each part's name to its
+slice (``env.unwrapped.obs_layout``). Every entry is normalised into [-1, 1] or [0, 1]:
+
+=====================  ======  ==========================================================
+name                   size    content (scale)
+=====================  ======  ==========================================================
+``position``           2       anchor x, y / field size                      [0, 1]
+``speed``              1       anchor speed / ``anchor_max_speed``            [0, 1]
+``d_obs``              1       gap to the nearest obstacle / ``sensing_range`` [0, 1]
+``heading_error``      1       follower's heading - anchor heading, / pi      [-1, 1]
+``heading``            2       cos, sin of the anchor heading                 [-1, 1]
+``waypoints``          2K      next K free spiral waypoints - anchor, / (K x waypoint step),
+                               clipped; the last one repeated near the end    [-1, 1]
+``rays``               n_rays  range-sensor distances / ``sensing_range``     [0, 1]
+``moving_obstacles``   5M      per slot: dx, dy / ``sensing_range``; vx, vy / speed scale;
+                               present (1/0); nearest first, empty slots 0    [-1, 1]
+``coverage``           1       Eq. 18 coverage ratio                          [0, 1]
+``progress``           1       fraction of spiral waypoints reached or skipped [0, 1]
+``time``               1       elapsed steps / episode step limit             [0, 1]
+=====================  ======  ==========================================================
+
+The first five entries are Eq. 6's state s = [x, y, v, d_obs, dtheta]. Moving obstacles are seen
+when their centre is within ``sensing_range`` of the anchor; their relative position and velocity
+carry Gaussian noise (``obs_position_noise`` m, ``obs_velocity_noise`` m/s) so that a tracker
+(the Kalman wrapper) has something to filter. The speed scale is the larger of the obstacles'
+and the anchor's maximum speed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from gymnasium import spaces
+
+from aoass_env.config import AOASSConfig
+from aoass_env.planning import SquareSpiral
+from aoass_env.world import World
+
+__all__ = ["Observer", "observation_layout", "observation_space"]
+
+#: Fields of one moving-obstacle slot.
+MOVING_FIELDS = ("dx", "dy", "vx", "vy", "present")
+
+
+def _sizes(config: AOASSConfig) -> list[tuple[str, int, float]]:
+    """(name, size, lower bound) of each part, in order; upper bounds are all 1."""
+    return [("position", 2, 0.0), ("speed", 1, 0.0), ("d_obs", 1, 0.0),
+            ("heading_error", 1, -1.0), ("heading", 2, -1.0),
+            ("waypoints", 2 * config.obs_waypoints, -1.0), ("rays", config.n_rays, 0.0),
+            ("moving_obstacles", len(MOVING_FIELDS) * config.obs_moving_obstacles, -1.0),
+            ("coverage", 1, 0.0), ("progress", 1, 0.0), ("time", 1, 0.0)]
+
+
+def observation_layout(config: AOASSConfig) -> dict[str, slice]:
+    """Name -> slice of each part of the observation vector."""
+    layout, start = {}, 0
+    for name, size, _ in _sizes(config):
+        layout[name] = slice(start, start + size)
+        start += size
+    return layout
+
+
+def observation_space(config: AOASSConfig) -> spaces.Box:
+    """The bounded float32 Box of the observation."""
+    low = np.concatenate([np.full(size, lo, np.float32) for _, size, lo in _sizes(config)])
+    return spaces.Box(low, np.ones_like(low), dtype=np.float32)
+
+
+class Observer:
+    """Reads the observation of one episode off the world and the follower.
+
+    Args:
+        config: the episode's configuration.
+        spiral: the episode's spiral (waypoints and blocked marks).
+        noise_rng: source of the moving-obstacle measurement noise.
+    """
+
+    def __init__(self, config: AOASSConfig, spiral: SquareSpiral,
+                 noise_rng: np.random.Generator) -> None:
+        self.config = config
+        self.layout = observation_layout(config)
+        self._size = self.layout["time"].stop
+        self._low = observation_space(config).low.astype(np.float64)
+        self._free = np.flatnonzero(~spiral.blocked)
+        self._free_xy = spiral.waypoints[self._free]
+        self._rng = noise_rng
+        step = config.waypoint_step or config.beacon_interval
+        self._wp_scale = config.obs_waypoints * step
+        self._v_scale = max(config.moving_obstacle_speed[1], config.anchor_max_speed)
+
+    def upcoming(self, index: int) -> np.ndarray:
+        """(K, 2) the next K free waypoints from spiral index ``index`` on (the last one
+        repeated near the end of the path)."""
+        k = self.config.obs_waypoints
+        first = int(np.searchsorted(self._free, index))
+        rows = np.minimum(np.arange(first, first + k), len(self._free) - 1)
+        return self._free_xy[rows]
+
+    def moving(self, world: World) -> np.ndarray:
+        """(M, 5) slots of the nearest moving obstacles in sensing range, noisy, nearest first."""
+        c = self.config
+        slots = np.zeros((c.obs_moving_obstacles, len(MOVING_FIELDS)))
+        n = c.n_moving_obstacles
+        if n == 0 or c.obs_moving_obstacles == 0:
+            return slots
+        rel = world.moving_positions - world.position
+        noise = self._rng.normal(size=(n, 4))
+        seen = np.flatnonzero(np.hypot(rel[:, 0], rel[:, 1]) <= c.sensing_range)
+        if seen.size == 0:
+            return slots
+        meas_pos = rel[seen] + c.obs_position_noise * noise[seen, :2]
+        meas_vel = world.moving_velocities[seen] + c.obs_velocity_noise * noise[seen, 2:]
+        order = np.argsort(np.hypot(meas_pos[:, 0], meas_pos[:, 1]), kind="stable")
+        order = order[:c.obs_moving_obstacles]
+        m = len(order)
+        slots[:m, :2] = meas_pos[order] / c.sensing_range
+        slots[:m, 2:4] = meas_vel[order] / self._v_scale
+        slots[:m, 4] = 1.0
+        return slots
+
+    def __call__(self, world: World, *, follower_index: int, heading_error: float,
+                 coverage: float, progress: float, time_fraction: float) -> np.ndarray:
+        """The observation vector (float32) for the current state.
+
+        Args:
+            world: the episode's world.
+            follower_index: spiral index the follower is heading for.
+            heading_error: follower heading - anchor heading (rad, wrapped to [-pi, pi]).
+            coverage: Eq. 18 coverage ratio.
+            progress: fraction of the spiral's waypoints reached or skipped.
+            time_fraction: elapsed steps / step limit.
+        """
+        c, lay = self.config, self.layout
+        obs = np.empty(self._size, dtype=np.float64)
+        pos = world.position
+        obs[lay["position"]] = pos / c.field_size
+        obs[lay["speed"]] = world.speed / c.anchor_max_speed
+        obs[lay["d_obs"]] = world.nearest_obstacle_distance() / c.sensing_range
+        obs[lay["heading_error"]] = heading_error / math.pi
+        h = world.heading
+        obs[lay["heading"]] = (math.cos(h), math.sin(h))
+        obs[lay["waypoints"]] = ((self.upcoming(follower_index) - pos) / self._wp_scale).ravel()
+        obs[lay["rays"]] = world.ray_distances() / c.sensing_range
+        obs[lay["moving_obstacles"]] = self.moving(world).ravel()
+        obs[lay["coverage"]] = coverage
+        obs[lay["progress"]] = progress
+        obs[lay["time"]] = time_fraction
+        return np.clip(obs, self._low, 1.0).astype(np.float32)

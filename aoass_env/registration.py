@@ -1,0 +1,35 @@
+"""Registration of AOASS-v0 with Gymnasium.
+
+``gymnasium.make("AOASS-v0", **keywords)`` calls :func:`make_env`, which builds the environment
+and wraps it in a ``TimeLimit`` of the episode's own step limit
+(:func:`aoass_env.env.max_episode_steps`: it depends on the field size and the spiral, so it
+cannot be one number fixed at registration). ``env.spec.max_episode_steps`` therefore reports
+the limit of the configuration that was made; the environment truncates at the same step itself,
+so that its last ``info`` carries the episode metrics.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+from gymnasium.wrappers import TimeLimit
+
+from aoass_env.env import AOASSEnv
+
+ENV_ID = "AOASS-v0"
+
+
+def make_env(**kwargs: Any) -> gym.Env:
+    """An :class:`AOASSEnv` built from ``kwargs`` in a ``TimeLimit`` of its own step limit."""
+    env = AOASSEnv(**kwargs)
+    return TimeLimit(env, env.max_episode_steps)
+
+
+make_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render modes
+
+
+def register() -> None:
+    """Register ``AOASS-v0`` (once per process)."""
+    if ENV_ID not in gym.registry:
+        gym.register(id=ENV_ID, entry_point=make_env)

@@ -1,0 +1,61 @@
+"""The reward of AOASS-v0: Eq. 14 of the paper, term by term, as pure functions.
+
+    R_t = w1 * dCoverage - w2 * (max_i E_i / E_avg - 1) - w3 * RMSE_loc          (Eq. 14)
+
+How each term is computed during an episode (docs/env.md, "Rewards"):
+
+* **dCoverage** -- the gain of the Eq. 18 coverage ratio (covered nodes / all nodes) during the
+  step, in [0, 1]. Over a whole episode the w1 terms add up to w1 x final coverage.
+* **Energy balance** -- E_i is the energy node i has spent so far (beacon receptions, J) and
+  E_avg the mean over all nodes; the term is 0 while no node has spent anything.
+* **RMSE_loc** -- a cheap online estimate, not the OLSTM-DV-Hop of evaluation: each covered node
+  is placed at the centroid of the beacon positions it heard, and the RMSE (m) is taken over the
+  covered nodes (0 while none is covered). The full localizer runs in evaluation only.
+* **Collisions** -- an opt-in shaping term outside Eq. 14, ``w_collision`` per new contact of
+  the anchor with an obstacle; 0 by default.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aoass_env.config import AOASSConfig
+from aoass_env.metrics import localization_rmse
+
+__all__ = ["REWARD_TERMS", "energy_imbalance", "online_rmse", "reward_terms"]
+
+#: Keys of ``info["reward_terms"]``; the reward is their sum.
+REWARD_TERMS = ("coverage", "energy_balance", "localization", "collision")
+
+
+def energy_imbalance(node_energy: np.ndarray) -> float:
+    """max_i E_i / E_avg - 1 (>= 0) of the nodes' spent energy (J); 0 while all are zero."""
+    e = np.asarray(node_energy, dtype=np.float64)
+    mean = float(e.mean()) if e.size else 0.0
+    return float(e.max()) / mean - 1.0 if mean > 0.0 else 0.0
+
+
+def online_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndarray) -> float:
+    """RMSE (m, Eq. 15) of ``estimate_xy`` over the ``localized`` nodes; 0 when there are none."""
+    mask = np.asarray(localized, dtype=bool)
+    if not mask.any():
+        return 0.0
+    return localization_rmse(np.asarray(true_xy)[mask], np.asarray(estimate_xy)[mask])[0]
+
+
+def reward_terms(config: AOASSConfig, *, delta_coverage: float, imbalance: float, rmse: float,
+                 new_contacts: int) -> dict[str, float]:
+    """The weighted terms of Eq. 14 (+ the opt-in collision shaping), keyed by
+    :data:`REWARD_TERMS`; the step reward is their sum.
+
+    Args:
+        config: supplies the weights ``w1``, ``w2``, ``w3`` [1/m] and ``w_collision``.
+        delta_coverage: coverage-ratio gain in the step, in [0, 1].
+        imbalance: :func:`energy_imbalance` of the nodes' spent energy.
+        rmse: online localization RMSE (m).
+        new_contacts: anchor contacts with obstacles that began in the step.
+    """
+    return {"coverage": config.w1 * delta_coverage,
+            "energy_balance": -config.w2 * imbalance,
+            "localization": -config.w3 * rmse,
+            "collision": -config.w_collision * new_contacts}
