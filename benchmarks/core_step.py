@@ -1,0 +1,84 @@
+"""Speed of one control step of the simulation core, as the Gymnasium environment drives it.
+
+Each episode builds a :class:`~aoass_env.simulator.Simulator` (the reset) and drives its nominal
+follower to the end: per control step ``follower.command``, ``Simulator.step`` (world step,
+beacons, radio and ledger), ``World.ray_distances`` and ``World.nearest_obstacle_distance``.
+Prints CPU microseconds per step for each part, the reset in milliseconds, and the cost per step
+with the reset amortised over the episode. Default config (100 m field, density 0.2, 3 moving
+obstacles, dt 0.5 s, 5 substeps, 16 rays) at 100 and 1000 nodes; episodes are capped at
+``--steps`` control steps. Run: ``python3 benchmarks/core_step.py [--episodes E] [--steps N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from aoass_env.config import AOASSConfig
+from aoass_env.simulator import Simulator
+
+PARTS = ("command", "sim.step", "rays", "d_obs")
+
+
+def run_episode(config: AOASSConfig, seed: int, max_steps: int) -> tuple[float, dict[str, float],
+                                                                          int]:
+    """One episode: (reset seconds, seconds per part summed over steps, control steps)."""
+    clock = time.process_time   # CPU time: less disturbed by other jobs on shared cores
+    t0 = clock()
+    sim = Simulator(config, np.random.default_rng(seed))
+    follower = sim.follower()
+    reset = clock() - t0
+    world, dt = sim.world, config.dt
+    parts = dict.fromkeys(PARTS, 0.0)
+    steps = 0
+    for _ in range(max_steps):
+        t0 = clock()
+        speed, heading = follower.command(world.position, world.heading, dt)
+        t1 = clock()
+        if follower.done:
+            break
+        sim.step(speed, heading)
+        t2 = clock()
+        world.ray_distances()
+        t3 = clock()
+        world.nearest_obstacle_distance()
+        t4 = clock()
+        parts["command"] += t1 - t0
+        parts["sim.step"] += t2 - t1
+        parts["rays"] += t3 - t2
+        parts["d_obs"] += t4 - t3
+        steps += 1
+    return reset, parts, steps
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=int, default=3, help="episodes (seeds) per config")
+    parser.add_argument("--steps", type=int, default=2000, help="control steps per episode cap")
+    args = parser.parse_args()
+    if args.episodes < 1 or args.steps < 1:
+        parser.error("--episodes and --steps must be positive")
+    for n_nodes in (100, 1000):
+        config = AOASSConfig(n_nodes=n_nodes)
+        resets, totals, steps = [], dict.fromkeys(PARTS, 0.0), 0
+        for seed in range(args.episodes):
+            reset, parts, n = run_episode(config, seed, args.steps)
+            resets.append(reset)
+            steps += n
+            for k, v in parts.items():
+                totals[k] += v
+        per_step = {k: v / steps * 1e6 for k, v in totals.items()}
+        step_us = sum(per_step.values())
+        reset_ms = 1e3 * float(np.mean(resets))
+        amortised = step_us + 1e3 * reset_ms * args.episodes / steps
+        print(f"N = {n_nodes}: {steps} steps in {args.episodes} episodes; per step "
+              + ", ".join(f"{k} {v:.1f}" for k, v in per_step.items())
+              + f" us; total {step_us:.1f} us; reset {reset_ms:.1f} ms "
+              f"(median {1e3 * float(np.median(resets)):.1f}); with resets amortised "
+              f"{amortised:.1f} us/step")
+
+
+if __name__ == "__main__":
+    main()
