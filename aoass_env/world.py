@@ -16,9 +16,9 @@ import numpy as np
 import pymunk
 import shapely
 
+from aoass_env.clearance import ClearanceGrid
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.trajectory import path_length
 
 # Collision types (pymunk handlers) and filter categories (queries) of the four kinds of shape.
 _ANCHOR, _STATIC, _WALL, _MOVING = 1, 2, 3, 4
@@ -30,6 +30,7 @@ _SLOP_FRACTION = 0.01   # allowed anchor overlap (pymunk collision_slop) / ancho
 _APPROACH_TOL = 1e-6    # a touched shape stops a disc moving into it faster than this * speed
 _MAX_BOUNCES = 4        # reflections of one moving obstacle within one physics substep
 _SPAWN_TRIES = 1000     # random candidates per moving obstacle before giving up
+_SKIP_MARGIN = 1e-6     # slack (m) of the proofs that a skipped query would have missed
 
 
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
@@ -117,6 +118,7 @@ class World:
         self._owner: dict[pymunk.Shape, tuple[str, int]] = {}
         self._add_walls()
         self._add_static_obstacles()
+        self._clearance = ClearanceGrid(obstacle_map)
 
         x0, y0 = self._check_start(start)
         self._heading = wrap_angle(_real("start_heading", start_heading, "rad"))
@@ -290,23 +292,27 @@ class World:
         target = min(max(_real("speed_cmd", speed_cmd, "m/s"), 0.0), cfg.anchor_max_speed)
         heading_target = _real("heading_cmd", heading_cmd, "rad")
         max_dv, max_dh = cfg.anchor_max_accel * self._sdt, cfg.anchor_max_turn_rate * self._sdt
-        n = cfg.physics_substeps
-        traj = np.empty((n + 1, 3))
-        traj[0] = (self.time, *self._anchor.position)
-        for k in range(1, n + 1):
+        anchor, bodies = self._anchor, self._mbodies
+        x, y = anchor.position
+        rows = [(self.time, x, y)]
+        length = 0.0
+        for _ in range(cfg.physics_substeps):
             self._speed, self._heading = _ramp(self._speed, self._heading, target,
                                                heading_target, max_dv, max_dh)
             self._velocity_cmd = (self._speed * math.cos(self._heading),
                                   self._speed * math.sin(self._heading))
-            self._limit_anchor_move()
+            velocity = self._limit_anchor_move(x, y)
             self._turn_moving()
-            self._move_moving()
+            self._move_moving(x, y, velocity)
             self._space.step(self._sdt)
             self._substeps_done += 1
-            self._mpos = [tuple(body.position) for body in self._mbodies]
-            traj[k] = (self.time, *self._anchor.position)
-        self._distance += path_length(traj[:, 1:])
-        return traj
+            self._mpos = [tuple(body.position) for body in bodies]
+            x0, y0 = x, y
+            x, y = anchor.position
+            length += math.sqrt((x - x0) * (x - x0) + (y - y0) * (y - y0))  # as path_length
+            rows.append((self.time, x, y))
+        self._distance += length
+        return np.array(rows)
 
     def _turn_moving(self) -> None:
         """Apply the Poisson heading changes that fell due: a new uniform heading, same speed."""
@@ -321,20 +327,22 @@ class World:
             speed = self._mspeed[i]
             self._mvel[i] = (speed * math.cos(heading), speed * math.sin(heading))
 
-    def _move_moving(self) -> None:
-        """Set each moving obstacle's velocity for the coming substep.
+    def _move_moving(self, ax: float, ay: float, velocity: tuple[float, float]) -> None:
+        """Set each moving obstacle's velocity for the coming substep, given the anchor's
+        position (ax, ay) (m) and its velocity (m/s) for the substep.
 
         The disc is swept along its move: it reflects off walls and static obstacles at the
         exact moment of contact and goes on for the rest of the substep; on reaching the anchor
         (where the anchor will be after the substep) it stops ``skin`` inside it, so that pymunk
         registers the contact, and reflects off it. (Once touching, :meth:`_bounce_off_anchor`
         reflects it.) So a moving obstacle never pushes the anchor deeper than ``skin``, and
-        cannot squeeze it into a static obstacle.
+        cannot squeeze it into a static obstacle. Sweeps that provably touch nothing (clearance
+        grid, distance to the anchor) are skipped: they would return no hit.
         """
         r, sdt = self.config.moving_obstacle_radius, self._sdt
         r_meet = max(r - self._skin, 0.0)
-        ux, uy = self._anchor.velocity
-        ox, oy = ux * sdt, uy * sdt      # the anchor's coming move
+        reach = r_meet + self.config.anchor_radius + _SKIP_MARGIN   # farther: the discs miss
+        ox, oy = velocity[0] * sdt, velocity[1] * sdt      # the anchor's coming move
         for i, body in enumerate(self._mbodies):
             x0, y0 = x, y = self._mpos[i]
             vx, vy = self._mvel[i]
@@ -343,9 +351,12 @@ class World:
                 if rest <= 0.0 or (vx == 0.0 and vy == 0.0):
                     break
                 ex, ey = x + vx * rest, y + vy * rest
-                hit = self._first_hit((x, y), (ex, ey), r, (vx, vy), _STATIC_ONLY)
-                meet = self._anchor_disc.segment_query((x - ox, y - oy), (ex - ox, ey - oy),
-                                                       r_meet)
+                move = math.hypot(vx, vy) * rest
+                hit = None if self._clear_of_static(x, y, move + r) else \
+                    self._first_hit((x, y), (ex, ey), r, (vx, vy), _STATIC_ONLY)
+                # the anchor disc stays at (ax, ay): the sweep is relative to its coming move
+                meet = None if _apart(x - ox - ax, y - oy - ay, move + reach) else \
+                    self._anchor_disc.segment_query((x - ox, y - oy), (ex - ox, ey - oy), r_meet)
                 if _blocks(meet, (vx, vy)) and (hit is None or meet.alpha < hit.alpha):
                     x, y = x + (ex - x) * meet.alpha, y + (ey - y) * meet.alpha
                     vx, vy = _reflect((vx, vy), meet.normal)
@@ -378,26 +389,40 @@ class World:
                 best = hit
         return best
 
-    def _limit_anchor_move(self) -> None:
-        """Stop the anchor's coming move just inside the first shape it would reach.
+    def _limit_anchor_move(self, x: float, y: float) -> tuple[float, float]:
+        """Stop the anchor's coming move just inside the first shape it would reach; return its
+        velocity (m/s) for the substep. (x, y) (m) is its position.
 
         pymunk detects contacts after moving, so a fast anchor could sink deep into, or tunnel
         through, an obstacle it reaches mid-substep; the move is shortened to end ``skin`` inside
         that shape, and pymunk's solver takes over from the contact. A shape already touched
         stops the anchor only if the solved velocity still points into it (pymunk cannot always
-        satisfy a contact with a kinematic moving obstacle and a static one at once).
+        satisfy a contact with a kinematic moving obstacle and a static one at once). The sweep
+        is skipped when the clearance grid and the moving obstacles' distances prove it free.
         """
         body = self._anchor
-        (x, y), (vx, vy) = body.position, body.velocity
+        vx, vy = body.velocity
         length = math.hypot(vx, vy) * self._sdt
         if length == 0.0:
-            return
+            return vx, vy
+        r = self.config.anchor_radius
+        reach = length + r + self.config.moving_obstacle_radius + _SKIP_MARGIN
+        if self._clear_of_static(x, y, length + r) and \
+                all(_apart(mx - x, my - y, reach) for mx, my in self._mpos):
+            return vx, vy
         end = (x + vx * self._sdt, y + vy * self._sdt)
-        hit = self._first_hit((x, y), end, self.config.anchor_radius, (vx, vy), _SENSED)
+        hit = self._first_hit((x, y), end, r, (vx, vy), _SENSED)
         if hit is not None:
             allowed = hit.alpha * length + self._skin
             if allowed < length:
-                body.velocity = (vx * allowed / length, vy * allowed / length)
+                vx, vy = vx * allowed / length, vy * allowed / length
+                body.velocity = (vx, vy)
+        return vx, vy
+
+    def _clear_of_static(self, x: float, y: float, reach: float) -> bool:
+        """Whether every point within ``reach`` (m) of (x, y) (m) is provably clear of static
+        obstacles and walls (clearance grid)."""
+        return self._clearance.lower_bound(x, y) > reach + _SKIP_MARGIN
 
     # --- sensing --------------------------------------------------------------------------
     def ray_angles(self) -> np.ndarray:
@@ -487,6 +512,11 @@ class World:
     def contacts(self) -> int:
         """All touching episodes: static + wall + moving."""
         return sum(self._contacts.values())
+
+
+def _apart(dx: float, dy: float, reach: float) -> bool:
+    """Whether the offset (dx, dy) (m) is longer than ``reach`` (m)."""
+    return dx * dx + dy * dy > reach * reach
 
 
 def _blocks(hit: pymunk.SegmentQueryInfo | None, v: tuple[float, float]) -> bool:

@@ -392,3 +392,14 @@ def test_bad_arguments():
         World(cfg, m, 0, (1.0, 1.0))
     with pytest.raises(ValueError, match="start_heading"):
         World(cfg, m, rng, (1.0, 1.0), math.nan)
+
+
+def test_skipped_sweeps_give_the_same_world(monkeypatch):
+    """The clearance-grid and distance shortcuts skip only queries that would miss."""
+    fast = run(3)
+    monkeypatch.setattr("aoass_env.clearance.ClearanceGrid.lower_bound", lambda self, x, y: 0.0)
+    monkeypatch.setattr("aoass_env.world._apart", lambda dx, dy, reach: False)
+    slow = run(3)
+    np.testing.assert_array_equal(fast[0], slow[0])
+    np.testing.assert_array_equal(fast[1], slow[1])
+    assert fast[2] == slow[2]
