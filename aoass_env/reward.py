@@ -32,7 +32,8 @@ def energy_imbalance(node_energy: np.ndarray) -> float:
     """max_i E_i / E_avg - 1 (>= 0) of the nodes' spent energy (J); 0 while all are zero."""
     e = np.asarray(node_energy, dtype=np.float64)
     mean = float(e.mean()) if e.size else 0.0
-    return float(e.max()) / mean - 1.0 if mean > 0.0 else 0.0
+    # max(0, .): the mean of equal values can round above their max
+    return max(float(e.max()) / mean - 1.0, 0.0) if mean > 0.0 else 0.0
 
 
 def online_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndarray) -> float:

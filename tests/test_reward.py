@@ -1,0 +1,59 @@
+"""Eq. 14 reward terms as pure functions."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from aoass_env.config import AOASSConfig
+from aoass_env.reward import REWARD_TERMS, energy_imbalance, online_rmse, reward_terms
+
+energies = arrays(np.float64, st.integers(1, 50), elements=st.floats(0, 1e-3))
+
+
+@given(energies)
+def test_energy_imbalance_is_max_over_mean_minus_one(e):
+    value = energy_imbalance(e)
+    assert value >= 0.0
+    if e.mean() > 0:
+        assert value == pytest.approx(e.max() / e.mean() - 1.0, rel=1e-12, abs=1e-12)
+    else:
+        assert value == 0.0
+
+
+def test_energy_imbalance_by_hand():
+    assert energy_imbalance(np.array([1.0, 1.0, 1.0])) == 0.0
+    assert energy_imbalance(np.array([3.0, 1.0, 2.0])) == pytest.approx(0.5)
+    assert energy_imbalance(np.zeros(4)) == 0.0
+
+
+def test_online_rmse_uses_only_localized_nodes():
+    true = np.array([[0.0, 0.0], [10.0, 0.0], [5.0, 5.0]])
+    est = np.array([[3.0, 4.0], [99.0, 99.0], [5.0, 5.0]])
+    assert online_rmse(true, est, np.array([True, False, True])) == pytest.approx(
+        math.sqrt(25.0 / 2))
+    assert online_rmse(true, est, np.zeros(3, bool)) == 0.0
+
+
+@given(st.floats(0, 1), st.floats(0, 50), st.floats(0, 100), st.integers(0, 5))
+def test_reward_terms_are_the_weighted_eq14_terms(dcov, imbalance, rmse, contacts):
+    cfg = AOASSConfig(w1=7.0, w2=0.3, w3=0.02, w_collision=1.5)
+    terms = reward_terms(cfg, delta_coverage=dcov, imbalance=imbalance, rmse=rmse,
+                         new_contacts=contacts)
+    assert tuple(terms) == REWARD_TERMS
+    assert terms == {"coverage": 7.0 * dcov, "energy_balance": -0.3 * imbalance,
+                     "localization": -0.02 * rmse, "collision": -1.5 * contacts}
+
+
+def test_default_weights_and_no_shaping():
+    terms = reward_terms(AOASSConfig(), delta_coverage=0.01, imbalance=2.0, rmse=4.0,
+                         new_contacts=3)
+    assert terms["coverage"] == pytest.approx(1.0)
+    assert terms["energy_balance"] == pytest.approx(-0.02)
+    assert terms["localization"] == pytest.approx(-0.02)
+    assert terms["collision"] == 0.0
