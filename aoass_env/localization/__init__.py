@@ -1,0 +1,70 @@
+"""Range-free localization from beacon logs: classical DV-Hop and OLSTM-DV-Hop.
+
+``localize(log, method)`` returns (N, 2) position estimates [m], NaN for the nodes that are not
+covered under Eq. 18 (fewer than three non-collinear beacons heard). See docs/localization.md.
+
+Modules: :mod:`.hops` (hop counts), :mod:`.dvhop` (Eq. 11, classical DV-Hop),
+:mod:`.multilateration` (Eq. 13), :mod:`.features` (OLSTM input), :mod:`.olstm` (model,
+checkpoints, Eq. 12), :mod:`.training` (training pipeline), :mod:`.cli` (folder of logs).
+"""
+
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+
+import numpy as np
+
+from aoass_env.beacon_log import BeaconLog
+from aoass_env.localization.dvhop import dvhop
+from aoass_env.localization.episode import Episode, prepare
+from aoass_env.localization.hops import DEFAULT_FLOOD_LIMIT
+from aoass_env.localization.olstm import (
+    DEFAULT_CHECKPOINT,
+    OLSTM,
+    CheckpointError,
+    load_checkpoint,
+    olstm_dvhop,
+)
+
+__all__ = ["METHODS", "CheckpointError", "Episode", "localize", "prepare"]
+
+#: Localization methods accepted by :func:`localize`.
+METHODS = ("dvhop", "olstm-dvhop")
+
+
+@lru_cache(maxsize=4)
+def _cached_model(path: str, mtime: float) -> OLSTM:
+    return load_checkpoint(path)
+
+
+def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
+             checkpoint: str | os.PathLike[str] | OLSTM = DEFAULT_CHECKPOINT,
+             flood_limit: int = DEFAULT_FLOOD_LIMIT) -> np.ndarray:
+    """Estimate every node's position from one episode's beacon log.
+
+    Args:
+        log: the beacon log (or an :class:`Episode` already prepared from one).
+        method: ``"dvhop"`` (classical DV-Hop) or ``"olstm-dvhop"``.
+        checkpoint: OLSTM checkpoint path, or a loaded model (``"olstm-dvhop"`` only).
+        flood_limit: hop-count flooding limit [hops] (ignored for a prepared episode).
+
+    Returns:
+        (N, 2) estimates [m]; NaN rows for nodes not covered under Eq. 18.
+
+    Raises:
+        ValueError: unknown method.
+        BeaconLogError: the log holds no beacons or is otherwise invalid.
+        CheckpointError: the checkpoint is missing or does not match this code.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method={method!r} must be one of {METHODS}")
+    episode = log if isinstance(log, Episode) else prepare(log, flood_limit)
+    if method == "dvhop":
+        return dvhop(episode)
+    if isinstance(checkpoint, OLSTM):
+        model = checkpoint
+    else:
+        path = os.fspath(checkpoint)
+        model = _cached_model(path, os.path.getmtime(path) if os.path.isfile(path) else -1.0)
+    return olstm_dvhop(episode, model)

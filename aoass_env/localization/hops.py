@@ -1,0 +1,86 @@
+"""Hop counts between virtual anchors (beacon positions) and nodes over the radio graph.
+
+With a single mobile anchor every beacon position is a *virtual anchor*. The radio graph has one
+vertex per node and one per beacon: a beacon is linked to the nodes that received it (one hop)
+and nodes are linked to the nodes they hear (``node_links``). Hop counts are breadth-first
+distances in this graph, computed for all beacons at once with :func:`scipy.sparse.csgraph.
+dijkstra` on unit weights, stopped at a flooding limit: a beacon's hop-count flood travels at
+most ``flood_limit`` hops, farther vertices count as unreachable (``inf``).
+
+Beacon-to-beacon hop counts (Eq. 11) come out of the same search: two beacons heard by one node
+are two hops apart (beacon -> node -> beacon).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+
+from aoass_env.beacon_log import BeaconLog, BeaconLogError
+
+__all__ = ["DEFAULT_FLOOD_LIMIT", "HopCounts", "hop_counts", "radio_graph", "require_beacons"]
+
+#: Default flooding limit in hops. The paper is silent; 3 hops reach about 3R = 75 m, most of a
+#: 100 m field, and keep the all-beacon search fast (docs/localization.md).
+DEFAULT_FLOOD_LIMIT = 3
+
+
+@dataclass(frozen=True)
+class HopCounts:
+    """Minimum hop counts of one episode (``inf`` beyond the flooding limit).
+
+    Attributes:
+        beacon_node: (B, N) float32, hops from each beacon to each node (1 = heard directly).
+        beacon_beacon: (B, B) float32, hops between beacons (0 on the diagonal).
+        flood_limit: the flooding limit used [hops].
+    """
+
+    beacon_node: np.ndarray
+    beacon_beacon: np.ndarray
+    flood_limit: int
+
+
+def require_beacons(log: BeaconLog) -> None:
+    """Raise :class:`BeaconLogError` naming ``beacons`` when the log holds no beacon."""
+    if not isinstance(log, BeaconLog):
+        raise TypeError(f"log must be a BeaconLog, got {type(log).__name__}")
+    if log.n_beacons == 0:
+        raise BeaconLogError("the log holds no beacons: nothing to localize from", "beacons")
+
+
+def radio_graph(log: BeaconLog) -> sp.csr_matrix:
+    """Undirected radio graph as an (N + B) square CSR matrix: nodes first, then beacons.
+
+    Entries are 1 for a reception (beacon, node) and for a node link.
+    """
+    n, b = log.n_nodes, log.n_beacons
+    rec, links = log.receptions, log.node_links
+    rows = np.concatenate([rec[:, 0] + n, links[:, 0]])
+    cols = np.concatenate([rec[:, 1], links[:, 1]])
+    graph = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n + b, n + b)).tocsr()
+    graph.data[:] = 1.0  # duplicate receptions must not add up to a longer edge
+    return graph
+
+
+def hop_counts(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> HopCounts:
+    """Hop counts from every beacon to every node and beacon, up to ``flood_limit`` hops.
+
+    Raises:
+        BeaconLogError: the log holds no beacons.
+        ValueError: ``flood_limit`` is not an integer >= 1.
+    """
+    require_beacons(log)
+    if isinstance(flood_limit, bool) or not isinstance(flood_limit, (int, np.integer)) \
+            or flood_limit < 1:
+        raise ValueError(f"flood_limit={flood_limit!r} must be an integer number of hops >= 1")
+    n = log.n_nodes
+    dist = csgraph.dijkstra(radio_graph(log), directed=False, unweighted=True,
+                            indices=np.arange(n, n + log.n_beacons), limit=float(flood_limit))
+    beacon_node = np.ascontiguousarray(dist[:, :n], dtype=np.float32)
+    beacon_beacon = np.ascontiguousarray(dist[:, n:], dtype=np.float32)
+    beacon_node.flags.writeable = False
+    beacon_beacon.flags.writeable = False
+    return HopCounts(beacon_node, beacon_beacon, int(flood_limit))

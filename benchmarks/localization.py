@@ -1,0 +1,153 @@
+"""Localization accuracy and speed: classical DV-Hop against OLSTM-DV-Hop on the test maps.
+
+Accuracy: square-spiral episodes on the shipped *test* maps (``maps/test``, never used in
+training), 100 x 100 m, R = 25 m, N in {100, 300, 500}, obstacle density in {0.1, 0.2, 0.3, 0.4},
+``--seeds`` seeds per cell (spread over the three test maps of each density), once with the unit
+disk (DOI 0) and once with DOI 0.1. Per cell: the RMSE of Eq. 15 pooled over all localized nodes
+of its episodes, the mean localized fraction, and the DV-Hop / OLSTM ratio.
+
+Speed: one episode with N = 1000 on a 200 x 200 m test map, localized from the saved log
+(hop counts, HopSize, coverage, model and Eq. 13 included) on one core; the median of
+``--repeats`` runs per method.
+
+``python benchmarks/localization.py`` simulates the logs once into ``--out`` (cached), then
+prints both tables and writes ``episodes.csv`` and ``localization.md`` there.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"  # one core: set before numpy / torch load their thread pools
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import io  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+from aoass_env.atomic import write_text_atomic  # noqa: E402
+from aoass_env.beacon_log import BeaconLog  # noqa: E402
+from aoass_env.localization import localize, prepare  # noqa: E402
+from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, load_checkpoint  # noqa: E402
+from aoass_env.localization.training import EpisodeSpec, generate_logs  # noqa: E402
+from aoass_env.maps import list_maps  # noqa: E402
+
+NODES = (100, 300, 500)
+DENSITIES = (0.1, 0.2, 0.3, 0.4)
+DOIS = (0.0, 0.1)
+SPEED_MAP, SPEED_NODES, SPEED_SEED = "test/d0.20_f200_s521", 1000, 7
+METHODS = ("dvhop", "olstm-dvhop")
+
+
+def accuracy_specs(seeds: int) -> list[EpisodeSpec]:
+    """The benchmark episodes, seed-major so that a partial run covers every cell evenly."""
+    names = list_maps("test")
+    specs = []
+    for doi in DOIS:
+        for seed in range(seeds):
+            for n in NODES:
+                for density in DENSITIES:
+                    maps = [m for m in names if m.split("/")[1].startswith(f"d{density:.2f}_f100")]
+                    specs.append(EpisodeSpec(maps[seed % len(maps)], n, doi, 10_000 + seed))
+    return specs
+
+
+def accuracy(paths: list[Path], specs: list[EpisodeSpec], model: torch.nn.Module) -> list[dict]:
+    rows = []
+    for path, spec in zip(paths, specs, strict=True):
+        episode = prepare(BeaconLog.load(path))
+        row = {"map": spec.map_name, "n_nodes": spec.n_nodes, "doi": spec.doi, "seed": spec.seed,
+               "density": float(spec.map_name.split("/")[1][1:5]),
+               "coverage": float(episode.covered.mean())}
+        for method in METHODS:
+            est = localize(episode, method, checkpoint=model)
+            ok = np.all(np.isfinite(est), axis=1)
+            row[f"{method}_sq"] = float(np.sum((est[ok] - episode.log.nodes[ok]) ** 2))
+            row[f"{method}_n"] = int(ok.sum())
+        rows.append(row)
+    return rows
+
+
+def accuracy_table(rows: list[dict], doi: float) -> str:
+    out = io.StringIO()
+    out.write(f"DOI {doi}: RMSE [m] pooled over localized nodes (localized fraction)\n\n")
+    out.write("| N | density | episodes | DV-Hop | OLSTM-DV-Hop | ratio | coverage |\n")
+    out.write("|---|---|---|---|---|---|---|\n")
+    for n in NODES:
+        for density in DENSITIES:
+            cell = [r for r in rows if r["doi"] == doi and r["n_nodes"] == n
+                    and abs(r["density"] - density) < 1e-9]
+            if not cell:
+                continue
+            total = sum(r["n_nodes"] for r in cell)
+            rmse, frac = {}, {}
+            for m in METHODS:
+                k = sum(r[f"{m}_n"] for r in cell)
+                rmse[m] = np.sqrt(sum(r[f"{m}_sq"] for r in cell) / max(k, 1))
+                frac[m] = k / total
+            cov = np.mean([r["coverage"] for r in cell])
+            out.write(f"| {n} | {density} | {len(cell)} | {rmse['dvhop']:.2f} "
+                      f"({frac['dvhop']:.3f}) | {rmse['olstm-dvhop']:.2f} "
+                      f"({frac['olstm-dvhop']:.3f}) | {rmse['dvhop'] / rmse['olstm-dvhop']:.1f}x "
+                      f"| {cov:.3f} |\n")
+    return out.getvalue()
+
+
+def speed(folder: Path, model: torch.nn.Module, repeats: int) -> str:
+    spec = EpisodeSpec(SPEED_MAP, SPEED_NODES, 0.0, SPEED_SEED)
+    path = generate_logs([spec], folder)[0]
+    log = BeaconLog.load(path)
+    times = {}
+    for method in METHODS:
+        localize(log, method, checkpoint=model)  # warm-up
+        runs = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            localize(log, method, checkpoint=model)
+            runs.append(time.perf_counter() - start)
+        times[method] = float(np.median(runs))
+    return (f"Speed, one core, N = {log.n_nodes}, {log.n_beacons} beacons, "
+            f"{int(log.field[0])} x {int(log.field[1])} m ({SPEED_MAP}), median of {repeats}:\n\n"
+            f"| method | time [s] |\n|---|---|\n| DV-Hop | {times['dvhop']:.3f} |\n"
+            f"| OLSTM-DV-Hop | {times['olstm-dvhop']:.3f} |\n"
+            f"| ratio OLSTM / DV-Hop | {times['olstm-dvhop'] / times['dvhop']:.1f} |\n")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=30, help="episodes per cell (default 30)")
+    parser.add_argument("--out", type=Path, default=Path("out/bench_localization"))
+    parser.add_argument("--checkpoint", type=Path, default=DEFAULT_CHECKPOINT)
+    parser.add_argument("--repeats", type=int, default=5, help="speed runs per method")
+    parser.add_argument("--logs-only", action="store_true", help="only simulate the logs")
+    parser.add_argument("--cached-only", action="store_true",
+                        help="only use logs already simulated (a partial run)")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    specs = accuracy_specs(args.seeds)
+    logs = args.out / "logs"
+    if args.cached_only:
+        specs = [s for s in specs if (logs / s.file_name).is_file()]
+    paths = generate_logs(specs, logs, lambda line: print(line, flush=True))
+    if args.logs_only:
+        return
+    model = load_checkpoint(args.checkpoint)
+    rows = accuracy(paths, specs, model)
+    report = "\n".join(accuracy_table(rows, doi) for doi in DOIS)
+    report += "\n" + speed(args.out / "speed", model, args.repeats)
+    print(report)
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    write_text_atomic(args.out / "episodes.csv", buf.getvalue())
+    write_text_atomic(args.out / "localization.md", report)
+
+
+if __name__ == "__main__":
+    main()

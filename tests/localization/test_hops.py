@@ -1,0 +1,78 @@
+"""Hop counts against a brute-force breadth-first search."""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aoass_env.beacon_log import BeaconLogError
+from aoass_env.localization.hops import hop_counts
+from tests.localization.conftest import make_log
+
+
+def _bfs(adj: list[set[int]], source: int, limit: int) -> np.ndarray:
+    dist = np.full(len(adj), np.inf)
+    dist[source] = 0
+    queue = deque([source])
+    while queue:
+        u = queue.popleft()
+        for v in adj[u]:
+            if dist[v] == np.inf and dist[u] + 1 <= limit:
+                dist[v] = dist[u] + 1
+                queue.append(v)
+    return dist
+
+
+@st.composite
+def graphs(draw: st.DrawFn) -> tuple[int, int, np.ndarray, np.ndarray]:
+    n = draw(st.integers(1, 8))
+    b = draw(st.integers(1, 6))
+    rec = draw(st.lists(st.tuples(st.integers(0, b - 1), st.integers(0, n - 1)), max_size=20,
+                        unique=True))
+    links = draw(st.lists(st.tuples(st.integers(0, n - 1), st.integers(0, n - 1))
+                          .filter(lambda p: p[0] < p[1]), max_size=15, unique=True))
+    return n, b, np.array(rec, np.int64).reshape(-1, 2), np.array(links, np.int64).reshape(-1, 2)
+
+
+@settings(max_examples=60, deadline=None)
+@given(graphs(), st.integers(1, 6))
+def test_hop_counts_match_bfs(graph: tuple, limit: int) -> None:
+    n, b, rec, links = graph
+    rng = np.random.default_rng(0)
+    log = make_log(rng.uniform(0, 100, (n, 2)), rng.uniform(0, 100, (b, 2)), rec, links)
+    adj: list[set[int]] = [set() for _ in range(n + b)]
+    for beacon, node in rec:
+        adj[n + beacon].add(node)
+        adj[node].add(n + beacon)
+    for i, j in links:
+        adj[i].add(j)
+        adj[j].add(i)
+    hops = hop_counts(log, limit)
+    assert hops.flood_limit == limit
+    for beacon in range(b):
+        expected = _bfs(adj, n + beacon, limit)
+        np.testing.assert_array_equal(hops.beacon_node[beacon], expected[:n])
+        np.testing.assert_array_equal(hops.beacon_beacon[beacon], expected[n:])
+
+
+def test_direct_reception_is_one_hop(small_log) -> None:
+    hops = hop_counts(small_log)
+    rec = small_log.receptions
+    assert np.all(hops.beacon_node[rec[:, 0], rec[:, 1]] == 1)
+    assert (hops.beacon_node == 1).sum() == len(rec)
+
+
+def test_no_beacons_is_a_clear_error() -> None:
+    log = make_log(np.zeros((2, 2)), np.zeros((0, 2)), [], [])
+    with pytest.raises(BeaconLogError, match="no beacons"):
+        hop_counts(log)
+
+
+@pytest.mark.parametrize("limit", [0, -1, 1.5, True])
+def test_bad_flood_limit(small_log, limit) -> None:
+    with pytest.raises(ValueError, match="flood_limit"):
+        hop_counts(small_log, limit)
