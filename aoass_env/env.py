@@ -153,6 +153,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         self._log = None
         self._contacts = 0
         self._rmse = 0.0
+        self._imbalance = energy_imbalance(self.sim.network.node_energy)
         self._command = self._follower.command(self.sim.world.position,
                                                self.sim.world.heading, self.config.dt)
         if self.render_mode == "human":
@@ -173,12 +174,13 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         record = sim.step(speed, heading + dtheta * c.action_heading_scale)
         self._steps += 1
         self._command = self._follower.command(sim.world.position, sim.world.heading, c.dt)
-        if len(record.beacons):
+        if len(record.beacons):     # energies and estimates change only with beacons
             self._rmse = online_rmse(sim.nodes, sim.network.beacon_centroid,
                                      sim.network.covered)
+            self._imbalance = energy_imbalance(sim.network.node_energy)
         contacts = sim.collisions
         terms = reward_terms(c, delta_coverage=sim.network.coverage_ratio - coverage_before,
-                             imbalance=energy_imbalance(sim.network.heard), rmse=self._rmse,
+                             imbalance=self._imbalance, rmse=self._rmse,
                              new_contacts=contacts - self._contacts)
         self._contacts = contacts
         terminated = self._follower.done

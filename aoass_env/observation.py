@@ -81,8 +81,6 @@ class Observer:
     def __init__(self, config: AOASSConfig, spiral: SquareSpiral,
                  noise_rng: np.random.Generator) -> None:
         self.config = config
-        self.layout = observation_layout(config)
-        self._size = self.layout["time"].stop
         self._low = observation_space(config).low.astype(np.float64)
         self._free = np.flatnonzero(~spiral.blocked)
         self._free_xy = spiral.waypoints[self._free]
@@ -90,14 +88,20 @@ class Observer:
         step = config.waypoint_step or config.beacon_interval
         self._wp_scale = config.obs_waypoints * step
         self._v_scale = max(config.moving_obstacle_speed[1], config.anchor_max_speed)
+        self._upcoming_index = -1
+        self._upcoming = self._free_xy[:0]
 
     def upcoming(self, index: int) -> np.ndarray:
         """(K, 2) the next K free waypoints from spiral index ``index`` on (the last one
-        repeated near the end of the path)."""
-        k = self.config.obs_waypoints
-        first = int(np.searchsorted(self._free, index))
-        rows = np.minimum(np.arange(first, first + k), len(self._free) - 1)
-        return self._free_xy[rows]
+        repeated near the end of the path); read-only, cached per index."""
+        if index != self._upcoming_index:
+            k = self.config.obs_waypoints
+            first = int(np.searchsorted(self._free, index))
+            rows = np.minimum(np.arange(first, first + k), len(self._free) - 1)
+            self._upcoming = self._free_xy[rows]
+            self._upcoming.flags.writeable = False
+            self._upcoming_index = index
+        return self._upcoming
 
     def moving(self, world: World) -> np.ndarray:
         """(M, 5) slots of the nearest moving obstacles in sensing range, noisy, nearest first."""
@@ -133,19 +137,13 @@ class Observer:
             progress: fraction of the spiral's waypoints reached or skipped.
             time_fraction: elapsed steps / step limit.
         """
-        c, lay = self.config, self.layout
-        obs = np.empty(self._size, dtype=np.float64)
-        pos = world.position
-        obs[lay["position"]] = pos / c.field_size
-        obs[lay["speed"]] = world.speed / c.anchor_max_speed
-        obs[lay["d_obs"]] = world.nearest_obstacle_distance() / c.sensing_range
-        obs[lay["heading_error"]] = heading_error / math.pi
-        h = world.heading
-        obs[lay["heading"]] = (math.cos(h), math.sin(h))
-        obs[lay["waypoints"]] = ((self.upcoming(follower_index) - pos) / self._wp_scale).ravel()
-        obs[lay["rays"]] = world.ray_distances() / c.sensing_range
-        obs[lay["moving_obstacles"]] = self.moving(world).ravel()
-        obs[lay["coverage"]] = coverage
-        obs[lay["progress"]] = progress
-        obs[lay["time"]] = time_fraction
-        return np.clip(obs, self._low, 1.0).astype(np.float32)
+        c = self.config
+        (x, y), h = world.position, world.heading
+        head = np.array([x / c.field_size, y / c.field_size, world.speed / c.anchor_max_speed,
+                         world.nearest_obstacle_distance() / c.sensing_range,
+                         heading_error / math.pi, math.cos(h), math.sin(h)])
+        waypoints = (self.upcoming(follower_index) - (x, y)) / self._wp_scale
+        obs = np.concatenate([head, waypoints.ravel(), world.ray_distances() / c.sensing_range,
+                              self.moving(world).ravel(),
+                              (coverage, progress, time_fraction)])
+        return np.minimum(np.maximum(obs, self._low), 1.0).astype(np.float32)
