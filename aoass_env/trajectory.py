@@ -2,7 +2,16 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+#: Paths of at most this many samples get the pure-Python odometer of :func:`beacons_along`
+#: (one control period has ``physics_substeps + 1``); numpy is faster on longer ones.
+_SHORT_PATH = 64
+
+#: numpy's add.reduce sums fewer than 8 float64 terms one after the other (pairwise beyond).
+_SEQUENTIAL_SUM = 7
 
 
 def path_length(points: np.ndarray) -> float:
@@ -10,7 +19,19 @@ def path_length(points: np.ndarray) -> float:
     pts = np.asarray(points, dtype=np.float64)
     if len(pts) < 2:
         return 0.0
+    if len(pts) <= _SEQUENTIAL_SUM + 1:    # numpy sums so few terms in order: same float
+        return _xy_length(pts.tolist())
     return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+
+
+def _xy_length(rows: list[list[float]]) -> float:
+    """Length (m) of the polyline through rows ending in (x [m], y [m]) (plain floats), the
+    segments summed in order: the float of numpy's norm and cumsum."""
+    total = 0.0
+    for (*_, x0, y0), (*_, x1, y1) in zip(rows, rows[1:], strict=False):
+        dx, dy = x1 - x0, y1 - y0
+        total += math.sqrt(dx * dx + dy * dy)
+    return total
 
 
 def beacons_along(path: np.ndarray, start_distance: float,
@@ -34,6 +55,10 @@ def beacons_along(path: np.ndarray, start_distance: float,
     if not interval > 0:
         raise ValueError(f"interval={interval!r} must be a positive distance (m)")
     p = np.asarray(path, dtype=np.float64).reshape(-1, 3)
+    if len(p) <= _SHORT_PATH:   # fast path: most control periods pass no beacon mark
+        end = start_distance + _xy_length(p.tolist())
+        if math.floor(end / interval + 1e-9) <= math.floor(start_distance / interval + 1e-9):
+            return np.zeros((0, 3)), end
     seg = np.linalg.norm(np.diff(p[:, 1:], axis=0), axis=1)
     odo = start_distance + np.r_[0.0, np.cumsum(seg)]
     end = float(odo[-1])

@@ -19,6 +19,7 @@ import shapely
 from aoass_env.clearance import ClearanceGrid
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
+from aoass_env.trajectory import path_length
 
 # Collision types (pymunk handlers) and filter categories (queries) of the four kinds of shape.
 _ANCHOR, _STATIC, _WALL, _MOVING = 1, 2, 3, 4
@@ -295,7 +296,6 @@ class World:
         anchor, bodies = self._anchor, self._mbodies
         x, y = anchor.position
         rows = [(self.time, x, y)]
-        length = 0.0
         for _ in range(cfg.physics_substeps):
             self._speed, self._heading = _ramp(self._speed, self._heading, target,
                                                heading_target, max_dv, max_dh)
@@ -307,12 +307,11 @@ class World:
             self._space.step(self._sdt)
             self._substeps_done += 1
             self._mpos = [tuple(body.position) for body in bodies]
-            x0, y0 = x, y
             x, y = anchor.position
-            length += math.sqrt((x - x0) * (x - x0) + (y - y0) * (y - y0))  # as path_length
             rows.append((self.time, x, y))
-        self._distance += length
-        return np.array(rows)
+        traj = np.array(rows)
+        self._distance += path_length(traj[:, 1:])
+        return traj
 
     def _turn_moving(self) -> None:
         """Apply the Poisson heading changes that fell due: a new uniform heading, same speed."""

@@ -36,3 +36,19 @@ def test_split_path_gives_same_beacons_as_whole(points, cut, interval):
     # consecutive beacons are never farther apart along the path than the interval
     if len(whole) > 1:
         assert np.all(np.linalg.norm(np.diff(whole[:, 1:], axis=0), axis=1) <= interval + 1e-7)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.floats(-50, 50), st.floats(-50, 50)), min_size=1, max_size=12),
+       st.floats(0.0, 30.0), st.floats(0.3, 5.0))
+def test_fast_paths_match_numpy(points, start, interval):
+    """path_length's plain-float sum and beacons_along's short-path exit change no bit."""
+    xy = np.array(points)
+    seg = np.linalg.norm(np.diff(xy, axis=0), axis=1)
+    assert path_length(xy) == float(seg.sum())
+    path = np.c_[np.arange(len(xy), dtype=float), xy]
+    fast, fast_end = beacons_along(path, start, interval)
+    long = np.repeat(path, 70 // len(path) + 1, axis=0)      # beyond the short-path limit
+    slow, slow_end = beacons_along(long, start, interval)     # repeated samples: same path
+    assert fast_end == slow_end == start + float(np.r_[0.0, np.cumsum(seg)][-1])
+    np.testing.assert_array_equal(fast, slow)
