@@ -20,6 +20,12 @@ from scipy.sparse.csgraph import dijkstra
 
 from aoass_env.maps import ObstacleMap
 
+#: A detour search first explores paths of cost up to SEARCH_FACTOR x the straight distance +
+#: SEARCH_SLACK (m; cost = length x (1 + 1/clearance), at most about twice the length), and
+#: searches the whole grid only when the goal lies beyond.
+SEARCH_FACTOR = 4.0
+SEARCH_SLACK = 40.0
+
 
 class DetourPlanner:
     """Collision-free paths for a disc among the static obstacles of a map.
@@ -53,10 +59,11 @@ class DetourPlanner:
         self._blocker = shapely.buffer(obstacle_map.union, radius) if obstacle_map.polygons \
             else shapely.Polygon()
         shapely.prepare(self._blocker)
-        self._tree: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._tree: tuple[int, float, np.ndarray, np.ndarray] | None = None
 
     def _build_graph(self, cost: np.ndarray) -> csr_matrix:
-        """Undirected 8-connected graph of the free cells, edge weight = length x mean cost."""
+        """8-connected graph of the free cells with both directions of every edge (so Dijkstra
+        needs no symmetrising per search), edge weight = length x mean cost."""
         nx, ny = self.shape
         idx = np.arange(nx * ny).reshape(nx, ny)
         rows, cols, weights = [], [], []
@@ -72,9 +79,10 @@ class DetourPlanner:
             rows.append(a)
             cols.append(b)
             weights.append(step * 0.5 * (cost.ravel()[a] + cost.ravel()[b]))
-        n = nx * ny
-        return coo_matrix((np.concatenate(weights), (np.concatenate(rows),
-                           np.concatenate(cols))), shape=(n, n)).tocsr()
+        n, w = nx * ny, np.concatenate(weights)
+        a, b = np.concatenate(rows), np.concatenate(cols)
+        return coo_matrix((np.concatenate([w, w]), (np.concatenate([a, b]),
+                           np.concatenate([b, a]))), shape=(n, n)).tocsr()
 
     def _cell(self, point: np.ndarray) -> int:
         i = min(max(int(point[0] / self.res), 0), self.shape[0] - 1)
@@ -95,11 +103,10 @@ class DetourPlanner:
         one place (a follower skipping unreachable waypoints) costs one search.
         """
         s, g = self._cell(start), self._cell(goal)
-        if self._tree is None or self._tree[0] != s:
-            dist, pred = dijkstra(self._graph, directed=False, indices=s,
-                                  return_predecessors=True)
-            self._tree = (s, dist, pred)
-        _, dist, pred = self._tree
+        straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
+        dist, pred = self._tree_from(s, SEARCH_FACTOR * straight + SEARCH_SLACK)
+        if not np.isfinite(dist[g]):
+            dist, pred = self._tree_from(s, math.inf)
         if not np.isfinite(dist[g]):
             return None
         cells = [g]
@@ -107,6 +114,16 @@ class DetourPlanner:
             cells.append(int(pred[cells[-1]]))
         pts = np.vstack([start, self.centres[cells[::-1]], goal])
         return self._pull(pts)
+
+    def _tree_from(self, s: int, limit: float) -> tuple[np.ndarray, np.ndarray]:
+        """Shortest-path distances and predecessors from cell ``s``, searched up to path cost
+        ``limit`` (cells beyond it are unreached: inf). Within the limit Dijkstra settles cells
+        in the same order as an unlimited search, so the paths it finds are the same; the tree
+        of the last start is kept and reused while its limit suffices."""
+        if self._tree is None or self._tree[0] != s or self._tree[1] < limit:
+            dist, pred = dijkstra(self._graph, indices=s, return_predecessors=True, limit=limit)
+            self._tree = (s, limit, dist, pred)
+        return self._tree[2], self._tree[3]
 
     def _pull(self, pts: np.ndarray) -> np.ndarray:
         """String pulling: from each kept point, jump to the last point still visible."""

@@ -39,3 +39,26 @@ def test_visible_in_open_field():
     assert p.visible(np.array([1.0, 1.0]), np.array([49.0, 49.0]))
     path = p.path(np.array([5.0, 5.0]), np.array([45.0, 30.0]))
     assert len(path) == 2
+
+
+def test_bounded_search_finds_the_same_paths_as_a_full_search(monkeypatch):
+    from aoass_env.maps import generate_map
+    from aoass_env.planning import detour
+
+    m = generate_map(60.0, 0.4, np.random.default_rng(4))
+    rng = np.random.default_rng(5)
+    pairs = [m.sample_free_points(2, rng) for _ in range(25)]
+    bounded = DetourPlanner(m, radius=0.8)
+    found = [bounded.path(a, b) for a, b in pairs]
+    monkeypatch.setattr(detour, "SEARCH_FACTOR", 1e9)
+    full = DetourPlanner(m, radius=0.8)
+    for (a, b), path in zip(pairs, found, strict=True):
+        ref = full.path(a, b)
+        assert (path is None) == (ref is None)
+        if ref is not None:
+            np.testing.assert_array_equal(path, ref)
+    # a goal beyond the bounded search (a long way round) is still found
+    far = DetourPlanner(ObstacleMap(100, 100, [WALL]), radius=0.8)
+    monkeypatch.setattr(detour, "SEARCH_FACTOR", 0.0)
+    monkeypatch.setattr(detour, "SEARCH_SLACK", 1.0)
+    assert far.path(np.array([20.0, 50.0]), np.array([70.0, 50.0])) is not None
