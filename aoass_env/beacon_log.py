@@ -276,7 +276,10 @@ class BeaconLog:
             FileNotFoundError: no file at ``path``.
             BeaconLogError: the file is not a readable ``.npz`` or a key is missing or invalid.
         """
-        unreadable = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)
+        # zipfile reports damaged headers as NotImplementedError (unknown version or
+        # compression flags) or RuntimeError (a flipped "encrypted" bit)
+        unreadable = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error,
+                      NotImplementedError, RuntimeError)
         arrays: dict[str, np.ndarray] = {}
         if os.path.isfile(path) and not zipfile.is_zipfile(path):
             raise BeaconLogError("not an .npz archive (no zip structure): written by "
