@@ -38,6 +38,7 @@ def grid_map(cells: int) -> ObstacleMap:
 
 def make(start, heading=0.0, seed=0, obstacle_map=None, **config) -> World:
     config.setdefault("n_moving_obstacles", 0)
+    config.setdefault("physics_substeps", 5)     # the figures below assume 0.1 s substeps
     return World(AOASSConfig(**config), obstacle_map or field_map(),
                  np.random.default_rng(seed), start, heading)
 
