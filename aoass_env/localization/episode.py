@@ -9,6 +9,7 @@ log and its episode always agree on it.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +19,7 @@ from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.localization.dvhop import hop_size
 from aoass_env.localization.hops import DEFAULT_FLOOD_LIMIT, HopCounts, hop_counts
 from aoass_env.network import Network
+from aoass_env.radio import LineOfSight
 
 __all__ = ["Episode", "covered_nodes", "log_config", "prepare"]
 
@@ -33,6 +35,7 @@ class Episode:
         hop_size: (B,) HopSize of each beacon, Eq. 11 [m].
         covered: (N,) nodes that heard >= 3 non-collinear beacons (Eq. 18).
         heard_centroid: (N, 2) mean position of each node's heard beacons [m] (NaN: none).
+        line_of_sight: exact line-of-sight test against the log's obstacles.
     """
 
     log: BeaconLog
@@ -41,6 +44,10 @@ class Episode:
     hop_size: np.ndarray
     covered: np.ndarray
     heard_centroid: np.ndarray
+    line_of_sight: LineOfSight = dataclasses.field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "line_of_sight", LineOfSight(self.log.obstacle_map))
 
     @property
     def beacon_xy(self) -> np.ndarray:

@@ -15,6 +15,8 @@ name        meaning
 dx, dy      beacon position minus the reference point, / R
 range       distance from the reference point to the beacon, / R
 heard       1 if the node received the beacon directly (hop count 1), else 0
+clear       1 if no obstacle blocks the segment from the reference point to the beacon
+            (1 for heard beacons: a reception needs line of sight)
 hops        hop count from the beacon to the node, capped at flood limit + 1, / that cap
 hop_size    the beacon's HopSize (Eq. 11), / R
 step        straight-line distance from the previous beacon of the sequence, / R (<= 2)
@@ -37,9 +39,10 @@ from aoass_env.localization.ragged import pad_rows
 __all__ = ["FEATURE_NAMES", "FEATURE_VERSION", "MAX_LEN", "WINDOW_MARGIN", "Sequences",
            "build_sequences"]
 
-FEATURE_NAMES = ("dx", "dy", "range", "heard", "hops", "hop_size", "step", "travel", "degree")
+FEATURE_NAMES = ("dx", "dy", "range", "heard", "clear", "hops", "hop_size", "step", "travel",
+                 "degree")
 #: Bumped whenever the meaning of a feature changes; checkpoints record it.
-FEATURE_VERSION = 1
+FEATURE_VERSION = 2
 #: Window margin beyond the farthest heard beacon [m].
 WINDOW_MARGIN = 10.0
 #: Longest sequence [beacons].
@@ -122,9 +125,12 @@ def build_sequences(episode: Episode, nodes: np.ndarray, refs: np.ndarray, *,
     hops = np.minimum(episode.hops.beacon_node[b, k], cap)
     degree = np.bincount(log.node_links.ravel(), minlength=log.n_nodes)[k]
     off = (xy[b] - refs[seq]) / r_unit
+    clear = np.ones(len(seq))
+    unheard = np.flatnonzero(hops != 1)
+    clear[unheard] = ~episode.line_of_sight.blocked(refs[seq[unheard]], xy[b[unheard]])
     columns = {
         "dx": off[:, 0], "dy": off[:, 1], "range": np.hypot(off[:, 0], off[:, 1]),
-        "heard": (hops == 1).astype(np.float64), "hops": hops / cap,
+        "heard": (hops == 1).astype(np.float64), "clear": clear, "hops": hops / cap,
         "hop_size": np.nan_to_num(episode.hop_size[b] / r_unit),
         "step": np.minimum(np.hypot(*(xy[b] - xy[prev]).T) / r_unit, _STEP_CAP),
         "travel": np.minimum((b - prev) * episode.config.beacon_interval / r_unit, _TRAVEL_CAP),

@@ -145,13 +145,13 @@ class TrainConfig:
 
     data_dir: Path = Path("out/localizer_logs")
     checkpoint: Path = DEFAULT_CHECKPOINT
-    n_train_logs: int = 100
+    n_train_logs: int = 120
     n_val_logs: int = 16
     nodes_per_log: int = 80
     max_noise: float = 4.0
     hidden: int = 32
-    epochs: int = 12
-    patience: int = 3
+    epochs: int = 30
+    patience: int = 5
     batch_size: int = 64
     learning_rate: float = 3e-3
     seed: int = 0

@@ -8,6 +8,7 @@ import torch
 
 from aoass_env.beacon_log import BeaconLogError
 from aoass_env.localization import localize
+from aoass_env.localization.features import FEATURE_NAMES
 from aoass_env.localization.olstm import (
     OLSTM,
     CheckpointError,
@@ -41,9 +42,9 @@ def test_inference_is_deterministic_and_covers_exactly_the_covered(model, small_
 
 
 def test_padding_does_not_change_predictions(model) -> None:
-    x = torch.randn(1, 6, 9)
+    x = torch.randn(1, 6, len(FEATURE_NAMES))
     d1, v1 = model(x, torch.tensor([6]))
-    padded = torch.cat([x, torch.randn(1, 4, 9)], dim=1)
+    padded = torch.cat([x, torch.randn(1, 4, len(FEATURE_NAMES))], dim=1)
     d2, v2 = model(padded, torch.tensor([6]))
     torch.testing.assert_close(d1, d2[:, :6])
     torch.testing.assert_close(v1, v2[:, :6])
