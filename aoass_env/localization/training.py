@@ -248,8 +248,9 @@ def train_localizer(cfg: TrainConfig, report: Callable[[str], None] = print) -> 
             report(f"early stop: no improvement for {cfg.patience} epochs")
             break
     model.load_state_dict(best_state)
-    meta = {"config": {k: str(v) if isinstance(v, Path) else v
-                       for k, v in dataclasses.asdict(cfg).items()},
+    settings = {k: str(v) if isinstance(v, Path) else v
+                for k, v in dataclasses.asdict(cfg).items() if k != "checkpoint"}
+    meta = {"config": settings,
             "best_epoch": best_epoch, "val_rmse": best, "history": history,
             "train_maps": train_names, "val_maps": val_names}
     save_checkpoint(model, cfg.checkpoint, meta)
