@@ -34,7 +34,6 @@ import dataclasses
 import json
 import os
 import zipfile
-import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -276,10 +275,11 @@ class BeaconLog:
             FileNotFoundError: no file at ``path``.
             BeaconLogError: the file is not a readable ``.npz`` or a key is missing or invalid.
         """
-        # zipfile reports damaged headers as NotImplementedError (unknown version or
-        # compression flags) or RuntimeError (a flipped "encrypted" bit)
-        unreadable = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error,
-                      NotImplementedError, RuntimeError)
+        # A damaged archive fails deep inside zipfile, zlib or numpy's header parser with many
+        # exception types (BadZipFile, zlib.error, NotImplementedError for unknown zip
+        # versions, RuntimeError for a flipped "encrypted" bit, tokenize.TokenError for a
+        # garbled .npy header, ...): at this file boundary every one of them means "unreadable".
+        unreadable = Exception
         arrays: dict[str, np.ndarray] = {}
         if os.path.isfile(path) and not zipfile.is_zipfile(path):
             raise BeaconLogError("not an .npz archive (no zip structure): written by "
@@ -289,7 +289,8 @@ class BeaconLog:
         except FileNotFoundError:
             raise
         except unreadable as exc:
-            raise BeaconLogError(f"not a readable .npz file ({exc})", path=path) from None
+            raise BeaconLogError(f"not a readable .npz file ({type(exc).__name__}: {exc})",
+                                 path=path) from None
         if not isinstance(data, np.lib.npyio.NpzFile):
             raise BeaconLogError("not an .npz archive (a single .npy array)", path=path)
         with data:
@@ -297,7 +298,8 @@ class BeaconLog:
                 try:
                     arrays[key] = data[key]
                 except unreadable as exc:
-                    raise BeaconLogError(f"cannot read ({exc})", key, path) from None
+                    raise BeaconLogError(f"cannot read ({type(exc).__name__}: {exc})", key,
+                                         path) from None
         for key in KEYS:
             if key not in arrays:
                 raise BeaconLogError(f"missing (keys present: {sorted(arrays)})", key, path)
