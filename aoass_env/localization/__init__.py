@@ -1,11 +1,12 @@
-"""Range-free localization from beacon logs: classical DV-Hop and OLSTM-DV-Hop.
+"""Range-free localization from beacon logs: classical DV-Hop, visibility consensus, OLSTM-DV-Hop.
 
 ``localize(log, method)`` returns (N, 2) position estimates [m], NaN for the nodes that are not
 covered under Eq. 18 (fewer than three non-collinear beacons heard). See docs/localization.md.
 
 Modules: :mod:`.hops` (hop counts), :mod:`.dvhop` (Eq. 11, classical DV-Hop),
-:mod:`.multilateration` (Eq. 13), :mod:`.features` (OLSTM input), :mod:`.olstm` (model,
-checkpoints, Eq. 12), :mod:`.training` (training pipeline), :mod:`.cli` (folder of logs).
+:mod:`.consensus` (map-aware visibility consensus), :mod:`.multilateration` (Eq. 13),
+:mod:`.features` (OLSTM input), :mod:`.olstm` (model, checkpoints, Eq. 12), :mod:`.training`
+(training pipeline), :mod:`.cli` (folder of logs).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from functools import lru_cache
 import numpy as np
 
 from aoass_env.beacon_log import BeaconLog
+from aoass_env.localization.consensus import consensus
 from aoass_env.localization.dvhop import dvhop
 from aoass_env.localization.episode import Episode, prepare
 from aoass_env.localization.hops import DEFAULT_FLOOD_LIMIT
@@ -30,7 +32,7 @@ from aoass_env.localization.olstm import (
 __all__ = ["METHODS", "CheckpointError", "Episode", "localize", "prepare"]
 
 #: Localization methods accepted by :func:`localize`.
-METHODS = ("dvhop", "olstm-dvhop")
+METHODS = ("dvhop", "consensus", "olstm-dvhop")
 
 
 @lru_cache(maxsize=4)
@@ -45,7 +47,9 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
 
     Args:
         log: the beacon log (or an :class:`Episode` already prepared from one).
-        method: ``"dvhop"`` (classical DV-Hop) or ``"olstm-dvhop"``.
+        method: ``"dvhop"`` (classical DV-Hop, the baseline), ``"consensus"`` (the map-aware
+            visibility consensus alone) or ``"olstm-dvhop"`` (the consensus refined by the
+            OLSTM and Eq. 13); docs/localization.md.
         checkpoint: OLSTM checkpoint path, or a loaded model (``"olstm-dvhop"`` only).
         flood_limit: hop-count flooding limit [hops] (ignored for a prepared episode).
 
@@ -62,6 +66,8 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
     episode = log if isinstance(log, Episode) else prepare(log, flood_limit)
     if method == "dvhop":
         return dvhop(episode)
+    if method == "consensus":
+        return consensus(episode)
     if isinstance(checkpoint, OLSTM):
         model = checkpoint
     else:

@@ -1,6 +1,7 @@
 """Localize a folder of saved beacon logs and print RMSE, localized fraction and coverage.
 
-``python -m aoass_env.localization LOGDIR [--method olstm-dvhop|dvhop] [--checkpoint PATH]``
+``python -m aoass_env.localization LOGDIR [--method olstm-dvhop|consensus|dvhop]
+[--checkpoint PATH]``
 
 One line per ``.npz`` log, then an overall line: the RMSE pooled over every localized node of
 every log (Eq. 15), the localized fraction and the Eq. 18 coverage over all nodes.

@@ -12,11 +12,12 @@ from aoass_env.simulator import Simulator
 
 def make_log(nodes: np.ndarray, beacons_xy: np.ndarray, receptions: np.ndarray,
              node_links: np.ndarray, *, field: float = 100.0,
-             radio_range: float = 25.0) -> BeaconLog:
+             radio_range: float = 25.0, doi: float = 0.0) -> BeaconLog:
     """A minimal valid log without obstacles; beacons one second apart."""
     n, b = len(nodes), len(beacons_xy)
     return BeaconLog(
-        config_json=episode_config_json(AOASSConfig(field_size=field, radio_range=radio_range),
+        config_json=episode_config_json(AOASSConfig(field_size=field, radio_range=radio_range,
+                                                    doi=doi),
                                         seed=0, method="test"),
         field=np.array([field, field]), obstacle_vertices=np.zeros((0, 2)),
         obstacle_offsets=np.zeros(1, np.int64), nodes=np.asarray(nodes, float),

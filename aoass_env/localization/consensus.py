@@ -1,0 +1,355 @@
+"""Visibility consensus: where on the map does a node's heard / unheard record fit best?
+
+The obstacle map is known to the localizer, so every beacon says something about every point of
+the field. A beacon heard by node k constrains k to points *in range and in sight* of it
+(distance <= R (1 + DOI), no obstacle between); a beacon k did not hear rules out the points in
+sight of it within R (1 - DOI), where it would surely have been heard. On a grid of ``cell``-metre
+cells, the consensus estimate of k is the mean of the cells with the fewest violations
+
+    violations(c) = #{heard b: |b - c| > R (1 + DOI) or an obstacle blocks b -> c}
+                  + #{unheard b: |b - c| <= R (1 - DOI) and nothing blocks b -> c},
+
+cells inside obstacles excluded. Violations are counted, not forbidden: moving obstacles (not in
+the map) block some beacons, and cell centres are up to ``cell / sqrt 2`` from the node.
+
+Speed comes from three restrictions (docs/localization.md):
+
+* **Visibility rasters.** Line of sight is decided per beacon for the cells of a square stencil
+  around it, from a polar *profile*: the distance from the beacon to the first obstacle edge that
+  faces it, in each of ``ANGLE_BINS`` directions (only edges facing the beacon can be entered
+  first). A cell is in sight when it is nearer than the profile in its direction. The profile is
+  exact on the bin centres; a cell off its bin centre may be judged wrongly within
+  ``pi R / ANGLE_BINS`` (8 cm at R = 25 m) of a shadow boundary.
+* **Candidate boxes.** Only cells in the bounding box of the intersection of the heard discs
+  (radius R (1 + DOI) + cell / sqrt 2, so the node's own cell is in it) are scored.
+* **One count per cell for all unheard beacons.** The unheard violations of a cell are the
+  beacons in sight within R (1 - DOI) of it (one field-wide raster, ``certain``) minus the
+  heard ones among them, so only heard beacons are looked up per node.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+
+from aoass_env.localization.episode import Episode
+from aoass_env.localization.ragged import pad_rows
+
+__all__ = ["ANGLE_BINS", "DEFAULT_CELL", "RELIABLE_SPREAD", "Consensus", "VisibilityRaster",
+           "consensus", "node_consensus", "visibility_raster"]
+
+#: Grid cell size [m].
+DEFAULT_CELL = 1.0
+#: Nodes whose best cells spread over more than this [m] are scored again with their neighbours.
+RELIABLE_SPREAD = 1.0
+#: Directions of a beacon's visibility profile.
+ANGLE_BINS = 1024
+_CHUNK_LOOKUPS = 2_000_000  # (cell, beacon) lookups per chunk of nodes
+
+
+@dataclass(frozen=True)
+class VisibilityRaster:
+    """Per beacon, what each cell of an (S, S) stencil around it makes of it.
+
+    ``weight`` is flat: beacon b at cell (ix, iy) is entry ``key[b] + ix * S + iy`` for the
+    cells of b's stencil, which holds every cell within R (1 + DOI) + cell of b along x and y;
+    ``key[-1]`` (padding) lands on an all-zero tail for any cell of the field.
+
+    Attributes:
+        cell: cell size [m]; cell (i, j) has its centre at ((i + 0.5) cell, (j + 0.5) cell).
+        shape: (nx, ny) cells of the field.
+        size: S, stencil side [cells].
+        key: (B + 1,) int64 table offset of each beacon, and of padding (last).
+        weight: flat uint8 table: 2 in sight within R (1 - DOI) (hearing is certain), 1 in sight
+            within R (1 + DOI) (hearing is possible), 0 otherwise (not in sight, too far, cell
+            inside an obstacle or off the field).
+        certain: (nx, ny) number of beacons in sight within R (1 - DOI) of each cell.
+        inside: (nx, ny) bool, cell centre inside an obstacle.
+    """
+
+    cell: float
+    shape: tuple[int, int]
+    size: int
+    key: np.ndarray
+    weight: np.ndarray
+    certain: np.ndarray
+    inside: np.ndarray
+
+
+def _profiles(beacon_xy: np.ndarray, polygons: tuple[np.ndarray, ...], reach: float,
+              bins: int) -> np.ndarray:
+    """(B, bins) distance [m] from each beacon to the first obstacle edge facing it along the
+    centre direction of each angle bin (``inf``: none within ``reach``)."""
+    out = np.full((len(beacon_xy), bins), np.inf)
+    if not polygons or not len(beacon_xy):
+        return out
+    p = np.concatenate(polygons)
+    q = np.concatenate([np.roll(v, -1, axis=0) for v in polygons])
+    mid, half = (p + q) / 2, np.hypot(*(q - p).T) / 2
+    tree = cKDTree(beacon_xy)
+    lists = tree.query_ball_point(mid, reach + half)
+    counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(lists))
+    if counts.sum() == 0:
+        return out
+    edge = np.repeat(np.arange(len(p)), counts)
+    beacon = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
+    rp, rq = p[edge] - beacon_xy[beacon], q[edge] - beacon_xy[beacon]
+    e = q[edge] - p[edge]
+    # polygons are counter-clockwise: an edge faces the beacon when the beacon is on its right
+    facing = e[:, 0] * rp[:, 1] - e[:, 1] * rp[:, 0] > 0
+    beacon, rp, rq, e = beacon[facing], rp[facing], rq[facing], e[facing]
+    step = 2 * np.pi / bins
+    # seen from the beacon, a facing edge runs clockwise from p to q: sweep q -> p
+    a_q = np.arctan2(rq[:, 1], rq[:, 0])
+    sweep = (np.arctan2(rp[:, 1], rp[:, 0]) - a_q) % (2 * np.pi)
+    first = np.ceil(a_q / step - 0.5).astype(np.int64)
+    n_bins = np.floor((a_q + sweep) / step - 0.5).astype(np.int64) - first + 1
+    n_bins = np.maximum(n_bins, 0)
+    pair = np.repeat(np.arange(len(beacon)), n_bins)
+    k = first[pair] + np.arange(len(pair)) - np.repeat(np.cumsum(n_bins) - n_bins, n_bins)
+    angle = (k + 0.5) * step
+    # ray b + s u meets edge p + t e where s = (rp x e) / (u x e)
+    num = rp[pair, 0] * e[pair, 1] - rp[pair, 1] * e[pair, 0]
+    den = np.cos(angle) * e[pair, 1] - np.sin(angle) * e[pair, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dist = np.where(den != 0, num / den, np.inf)
+    dist = np.where(dist >= 0, dist, np.inf)
+    np.minimum.at(out.reshape(-1), beacon[pair] * bins + k % bins, dist)
+    return out
+
+
+def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = ANGLE_BINS,
+                      points: np.ndarray | None = None) -> VisibilityRaster:
+    """The :class:`VisibilityRaster` of ``episode`` on a grid of ``cell`` metres, for the
+    transmitters at ``points`` (M, 2) [m] (default: the beacons).
+
+    Raises:
+        ValueError: ``cell`` is not a positive number or ``bins`` < 8.
+    """
+    if not (isinstance(cell, (int, float)) and np.isfinite(cell) and cell > 0):
+        raise ValueError(f"cell={cell!r} must be a positive number of metres")
+    if bins < 8:
+        raise ValueError(f"bins={bins!r} must be at least 8")
+    config = episode.config
+    xy = episode.beacon_xy if points is None else np.asarray(points, dtype=np.float64)
+    r_hi = episode.log.radio_range * (1 + config.doi)
+    r_lo = episode.log.radio_range * (1 - config.doi)
+    w, h = episode.field
+    shape = (int(np.ceil(w / cell)), int(np.ceil(h / cell)))
+    # the border ring of the stencil lies beyond r_hi, and every cell of a candidate box lies
+    # within r_hi + cell / sqrt 2 of each heard beacon along x and y: both fit in this half-width
+    half = int(np.ceil(r_hi / cell)) + 2
+    size = 2 * half + 1
+    origin = np.floor(xy / cell).astype(np.int64) - half
+    offs = np.arange(size)
+    # (B, S, S) offsets of the stencil's cell centres from the beacon [m]
+    cx = ((origin[:, 0, None] + offs + 0.5) * cell - xy[:, 0, None]).astype(np.float32)
+    cy = ((origin[:, 1, None] + offs + 0.5) * cell - xy[:, 1, None]).astype(np.float32)
+    dx, dy = cx[:, :, None], cy[:, None, :]
+    dist = np.sqrt(dx * dx + dy * dy)
+    inside = _inside_cells(episode.log.obstacle_map.polygons, shape, cell)
+    # cells off the field or inside an obstacle are never in sight
+    pad = half + 1
+    excluded = np.ones((shape[0] + 2 * pad, shape[1] + 2 * pad), dtype=bool)
+    excluded[pad:-pad, pad:-pad] = inside
+    sight = ~excluded[(origin[:, 0, None] + pad + offs)[:, :, None],
+                      (origin[:, 1, None] + pad + offs)[:, None, :]]
+    if config.line_of_sight and episode.log.obstacle_map.polygons:
+        profile = _profiles(xy, episode.log.obstacle_map.polygons, r_hi, bins)
+        k = np.floor(np.arctan2(dy, dx) * np.float32(bins / (2 * np.pi))).astype(np.int64)
+        k %= bins
+        sight &= dist < profile[np.arange(len(xy))[:, None, None], k]
+    near = sight & (dist <= r_lo)
+    weight = near.astype(np.uint8) + (sight & (dist <= r_hi))
+    ix = origin[:, 0, None, None] + offs[None, :, None]
+    iy = origin[:, 1, None, None] + offs[None, None, :]
+    certain = np.bincount(np.broadcast_to(ix * shape[1] + iy, near.shape)[near],
+                          minlength=shape[0] * shape[1]).reshape(shape)
+    n, stencil = len(xy), size * size
+    key = np.r_[np.arange(n) * stencil - origin[:, 0] * size - origin[:, 1], n * stencil]
+    tail = np.zeros(shape[0] * size + shape[1], dtype=np.uint8)  # padding lands here
+    return VisibilityRaster(cell=float(cell), shape=shape, size=size, key=key,
+                            weight=np.r_[weight.reshape(-1), tail], certain=certain,
+                            inside=inside)
+
+
+def _inside_cells(polygons: tuple[np.ndarray, ...], shape: tuple[int, int],
+                  cell: float) -> np.ndarray:
+    """(nx, ny) bool: cell centre strictly inside some obstacle polygon."""
+    inside = np.zeros(shape, dtype=bool)
+    for poly in polygons:
+        lo = np.clip(np.floor(poly.min(axis=0) / cell).astype(np.int64), 0, shape)
+        hi = np.clip(np.ceil(poly.max(axis=0) / cell).astype(np.int64), 0, shape)
+        if np.any(hi <= lo):
+            continue
+        gx, gy = np.meshgrid((np.arange(lo[0], hi[0]) + 0.5) * cell,
+                             (np.arange(lo[1], hi[1]) + 0.5) * cell, indexing="ij")
+        inside[lo[0]:hi[0], lo[1]:hi[1]] |= shapely.contains_xy(shapely.Polygon(poly), gx, gy)
+    return inside
+
+
+@dataclass(frozen=True)
+class Consensus:
+    """Visibility-consensus result for S nodes.
+
+    Attributes:
+        nodes: (S,) node indices.
+        estimate: (S, 2) mean of the best cells [m].
+        spread: (S,) RMS distance of the best cells from the estimate [m] (0: one cell).
+        violations: (S,) the fewest violations (0: a cell fits the whole record).
+    """
+
+    nodes: np.ndarray
+    estimate: np.ndarray
+    spread: np.ndarray
+    violations: np.ndarray
+
+
+def _boxes(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray]],
+           reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Grid index ranges [i0, i1] (S, 2) of the bounding boxes of the intersections of the
+    discs of radius ``reach`` [m] around every heard transmitter of every part (raster,
+    positions (M, 2), heard (S, H) padded with -1); i1 < i0: empty."""
+    raster = parts[0][0]
+    xy = np.concatenate([np.where((heard >= 0)[..., None], points[heard], np.nan)
+                         for _, points, heard in parts], axis=1)
+    top = np.array(raster.shape) - 1
+    with np.errstate(invalid="ignore"):
+        lo = np.nanmax(xy, axis=1) - reach
+        hi = np.nanmin(xy, axis=1) + reach
+    i0 = np.clip(np.floor(lo / raster.cell), 0, top).astype(np.int64)
+    i1 = np.clip(np.ceil(hi / raster.cell) - 1, -1, top).astype(np.int64)
+    return i0, i1
+
+
+def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray]], i0: np.ndarray,
+           i1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Estimate (S, 2), spread (S,) and fewest violations (S,) of S nodes with non-empty boxes
+    [i0, i1]; ``parts``: (raster, heard transmitters (S, H) padded with -1), rasters on one
+    grid."""
+    grid = parts[0][0]
+    wx, wy = i1[:, 0] - i0[:, 0] + 1, i1[:, 1] - i0[:, 1] + 1
+    n_cells = wx * wy
+    s = len(i0)
+    owner = np.repeat(np.arange(s), n_cells)
+    local = np.arange(len(owner)) - np.repeat(np.cumsum(n_cells) - n_cells, n_cells)
+    ix = i0[owner, 0] + local // wy[owner]
+    iy = i0[owner, 1] + local % wy[owner]
+    viol = np.zeros(len(owner))
+    for raster, heard in parts:
+        # #heard - #heard in sight and reach + #in sight within R (1 - DOI) - #heard among
+        # those; every box cell lies on every heard transmitter's stencil
+        entries = raster.key[heard][owner] + (ix * raster.size + iy)[:, None]
+        fit = raster.weight[entries].sum(axis=1, dtype=np.int64)
+        viol += (heard >= 0).sum(axis=1)[owner] + raster.certain[ix, iy] - fit
+    viol[grid.inside[ix, iy]] = np.inf
+    best = np.minimum.reduceat(viol, np.cumsum(n_cells) - n_cells)
+    win = viol == best[owner]
+    owner = owner[win]
+    px, py = (ix[win] + 0.5) * grid.cell, (iy[win] + 0.5) * grid.cell
+    n_win = np.bincount(owner, minlength=s)
+    est = np.stack([np.bincount(owner, weights=v, minlength=s) for v in (px, py)], axis=1)
+    est /= n_win[:, None]
+    var = np.bincount(owner, weights=(px - est[owner, 0]) ** 2 + (py - est[owner, 1]) ** 2,
+                      minlength=s) / n_win
+    return est, np.sqrt(var), best
+
+
+def _solve(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray]], reach: float,
+           result: tuple[np.ndarray, np.ndarray, np.ndarray], rows: np.ndarray) -> None:
+    """Score the nodes ``rows`` of ``result`` (estimate, spread, violations), in place; the
+    heard arrays of ``parts`` (see :func:`_boxes`) have one row per entry of ``rows``. Nodes
+    with an empty box keep their values."""
+    i0, i1 = _boxes(parts, reach)
+    n_heard = sum((heard >= 0).sum(axis=1) for _, _, heard in parts)
+    ok = np.flatnonzero(np.all(i1 >= i0, axis=1))
+    # chunks of nodes with similar heard counts (little padding), bounded lookups per chunk
+    ok = ok[np.argsort(n_heard[ok], kind="stable")]
+    work = np.cumsum(np.prod(i1[ok] - i0[ok] + 1, axis=1) * n_heard[ok])
+    bounds = np.unique(np.r_[np.searchsorted(work, np.arange(0, work[-1], _CHUNK_LOOKUPS)),
+                             len(ok)]) if len(ok) else np.zeros(1, np.int64)
+    for a, b in itertools.pairwise(bounds):
+        idx = ok[a:b]
+        chunk = []
+        for raster, _, heard in parts:
+            width = max(int((heard[idx] >= 0).sum(axis=1).max()), 1)
+            chunk.append((raster, heard[idx, :width]))
+        est, spread, viol = _chunk(chunk, i0[idx], i1[idx])
+        for out, value in zip(result, (est, spread, viol), strict=True):
+            out[rows[idx]] = value
+
+
+def _lists(rows: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """(n, L) padded lists of ``values`` per row, sorted within a row (pairs with a negative
+    row or value dropped)."""
+    keep = (rows >= 0) & (values >= 0)
+    rows, values = rows[keep], values[keep]
+    order = np.lexsort((values, rows))
+    return pad_rows(rows[order], values[order], n)[0]
+
+
+def node_consensus(episode: Episode, nodes: np.ndarray | None = None, *,
+                   cell: float = DEFAULT_CELL) -> Consensus:
+    """Visibility-consensus estimates of ``nodes`` (default: the Eq. 18 covered nodes).
+
+    Two stages: every node from the beacons; then every node whose best cells spread over more
+    than ``RELIABLE_SPREAD`` again, with its reliable neighbour nodes (``node_links``) as extra
+    heard transmitters at their estimates and the reliable nodes it does not hear as unheard
+    ones. A node whose heard discs (radius R (1 + DOI)) do not intersect on the field, which a
+    log of this simulator never holds, keeps the centroid of its heard beacons, with NaN spread
+    and violations.
+
+    Args:
+        episode: the prepared log.
+        nodes: (S,) node indices; each must have heard a beacon.
+        cell: grid cell size [m].
+
+    Raises:
+        ValueError: a node heard no beacon, or ``cell`` is not a positive number.
+    """
+    nodes = np.flatnonzero(episode.covered) if nodes is None \
+        else np.asarray(nodes, dtype=np.int64).reshape(-1)
+    beacon_raster = visibility_raster(episode, cell)
+    seq_of = np.full(episode.log.n_nodes, -1, dtype=np.int64)
+    seq_of[nodes] = np.arange(len(nodes))
+    rec = episode.log.receptions
+    heard = _lists(seq_of[rec[:, 1]], rec[:, 0], len(nodes))
+    n_heard = (heard >= 0).sum(axis=1)
+    if len(nodes) and n_heard.min() == 0:
+        raise ValueError(f"node {nodes[np.argmin(n_heard)]} heard no beacon")
+    reach = episode.log.radio_range * (1 + episode.config.doi) + beacon_raster.cell / np.sqrt(2)
+    result = Consensus(nodes=nodes, estimate=episode.heard_centroid[nodes].copy(),
+                       spread=np.full(len(nodes), np.nan), violations=np.full(len(nodes), np.nan))
+    fields = (result.estimate, result.spread, result.violations)
+    _solve([(beacon_raster, episode.beacon_xy, heard)], reach, fields, np.arange(len(nodes)))
+    reliable = result.spread <= RELIABLE_SPREAD  # NaN: not reliable
+    targets = np.flatnonzero(~reliable)
+    if len(targets) == 0 or not reliable.any():
+        return result
+    # reliable nodes become transmitters at their estimates
+    anchor_of = np.full(len(nodes), -1, dtype=np.int64)
+    anchor_of[reliable] = np.arange(int(reliable.sum()))
+    points = result.estimate[reliable]
+    node_raster = visibility_raster(episode, cell, points=points)
+    target_of = np.full(len(nodes), -1, dtype=np.int64)
+    target_of[targets] = np.arange(len(targets))
+    links = seq_of[episode.log.node_links]
+    links = np.concatenate([links, links[:, ::-1]])
+    links = links[np.all(links >= 0, axis=1)]
+    neighbours = _lists(target_of[links[:, 0]], anchor_of[links[:, 1]], len(targets))
+    _solve([(beacon_raster, episode.beacon_xy, heard[targets]),
+            (node_raster, points, neighbours)], reach, fields, targets)
+    return result
+
+
+def consensus(episode: Episode, *, cell: float = DEFAULT_CELL) -> np.ndarray:
+    """Visibility-consensus estimates (N, 2) [m]; NaN for nodes not covered under Eq. 18."""
+    out = np.full((episode.log.n_nodes, 2), np.nan)
+    nodes = np.flatnonzero(episode.covered)
+    if len(nodes):
+        out[nodes] = node_consensus(episode, nodes, cell=cell).estimate
+    return out
