@@ -1,8 +1,9 @@
 """Benchmark runner: episodes over maps, seeds and node counts; tables and figures.
 
-This first version exercises the simulation core: the anchor follows the square spiral with the
-nominal follower (the zero action of the environment, with detours around static obstacles).
-The learned policy, the safety stack, localization and the baselines join it in later releases.
+The anchor follows the square spiral with the nominal follower (the zero action of the
+environment, with detours around static obstacles), and every episode's beacon log is localized
+with classical DV-Hop and OLSTM-DV-Hop (the shipped checkpoint). The learned policy, the safety
+stack and the baselines join it in later releases.
 
     python3 evaluate.py                       # preset "quick": a few minutes on 2 cores
     python3 evaluate.py --seeds 5 --out out/run1 --save-logs
@@ -22,11 +23,13 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from aoass_env.atomic import write_text_atomic
 from aoass_env.config import AOASSConfig
+from aoass_env.localization import localize
 from aoass_env.maps import list_maps, load_map
-from aoass_env.metrics import energy_efficiency_ratio, trajectory_efficiency
+from aoass_env.metrics import energy_efficiency_ratio, localization_rmse, trajectory_efficiency
 from aoass_env.simulator import Simulator
 
 PRESETS = {
@@ -57,6 +60,9 @@ class EpisodeRow:
     collisions_moving: int
     energy_total: float
     eer: float
+    rmse_dvhop: float
+    rmse_olstm: float
+    localized: float
     wall_seconds: float
 
 
@@ -73,6 +79,8 @@ def run_episode(map_name: str, n_nodes: int, seed: int,
         log.save(out / "logs" / f"{Path(map_name).name}_n{n_nodes}_s{seed}.npz")
     net = sim.network
     ideal_time = sim.spiral.nominal_time(config.anchor_nominal_speed)
+    rmse_dvhop, _ = localization_rmse(log.nodes, localize(log, "dvhop"))
+    rmse_olstm, localized = localization_rmse(log.nodes, localize(log, "olstm-dvhop"))
     return EpisodeRow(
         method="spiral", map=map_name, field_size=obstacle_map.width, n_nodes=n_nodes,
         obstacle_density=round(obstacle_map.density, 4), seed=seed,
@@ -85,6 +93,7 @@ def run_episode(map_name: str, n_nodes: int, seed: int,
         collisions_static=sim.world.static_contacts + sim.world.wall_contacts,
         collisions_moving=sim.world.moving_contacts, energy_total=net.energy_total,
         eer=energy_efficiency_ratio(net.energy_total, net.beacons_sent),
+        rmse_dvhop=rmse_dvhop, rmse_olstm=rmse_olstm, localized=localized,
         wall_seconds=time.perf_counter() - t0), sim
 
 
@@ -102,7 +111,10 @@ COLUMNS = (("density", "obstacle_density", "{:.2f}"), ("N", "n_nodes", "{:d}"),
            ("L / L_ideal", None, "{:.2f}"), ("eta_traj", "eta_traj", "{:.3f}"),
            ("contacts static", "collisions_static", "{:.1f}"),
            ("contacts moving", "collisions_moving", "{:.1f}"),
-           ("E_total [J]", "energy_total", "{:.1f}"), ("EER [1/J]", "eer", "{:.3f}"))
+           ("E_total [J]", "energy_total", "{:.1f}"), ("EER [1/J]", "eer", "{:.3f}"),
+           ("RMSE DV-Hop [m]", "rmse_dvhop", "{:.2f}"),
+           ("RMSE OLSTM-DV-Hop [m]", "rmse_olstm", "{:.2f}"),
+           ("localized %", "localized", "{:.1%}"))
 
 
 def summary_table(rows: list[EpisodeRow]) -> str:
@@ -183,6 +195,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="output folder (out/<preset>)")
     parser.add_argument("--save-logs", action="store_true", help="save each beacon log (.npz)")
     args = parser.parse_args(argv)
+    torch.set_num_threads(1)        # small models: one thread is fastest on a shared machine
     if args.seeds < 1:
         parser.error(f"--seeds must be >= 1, got {args.seeds}")
     preset = PRESETS[args.preset]
@@ -208,8 +221,10 @@ def main(argv: list[str] | None = None) -> int:
     table = summary_table(rows)
     write_text_atomic(out / "summary.md",
                   f"# AOASS core benchmark, preset {args.preset}\n\nMethod: square spiral with "
-                  f"the nominal follower (zero action). Means over {args.seeds} seed(s) per map "
-                  f"and node count, maps from maps/test.\n\n{table}\n")
+                  f"the nominal follower (zero action); logs localized with DV-Hop and "
+                  f"OLSTM-DV-Hop (Eq. 15 RMSE over localized nodes). Means over "
+                  f"{args.seeds} seed(s) per map and node count, maps from maps/test."
+                  f"\n\n{table}\n")
     figures = plot(rows, shown, out)
     print(table)
     print(f"\nwrote {out / 'episodes.csv'}, {out / 'summary.md'}, "
