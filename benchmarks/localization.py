@@ -1,10 +1,11 @@
-"""Localization accuracy and speed: classical DV-Hop against OLSTM-DV-Hop on the test maps.
+"""Localization accuracy and speed: classical DV-Hop, the visibility consensus alone and
+OLSTM-DV-Hop on the test maps.
 
 Accuracy: square-spiral episodes on the shipped *test* maps (``maps/test``, never used in
 training), 100 x 100 m, R = 25 m, N in {100, 300, 500}, obstacle density in {0.1, 0.2, 0.3, 0.4},
 ``--seeds`` seeds per cell (spread over the three test maps of each density), once with the unit
 disk (DOI 0) and once with DOI 0.1. Per cell: the RMSE of Eq. 15 pooled over all localized nodes
-of its episodes, the mean localized fraction, and the DV-Hop / OLSTM ratio.
+of its episodes and the localized fraction per method, and the DV-Hop / OLSTM ratio.
 
 Speed: one episode with N = 1000 on a 200 x 200 m test map, localized from the saved log
 (hop counts, HopSize, coverage, model and Eq. 13 included) on one core; the median of
@@ -41,7 +42,8 @@ NODES = (100, 300, 500)
 DENSITIES = (0.1, 0.2, 0.3, 0.4)
 DOIS = (0.0, 0.1)
 SPEED_MAP, SPEED_NODES, SPEED_SEED = "test/d0.20_f200_s521", 1000, 7
-METHODS = ("dvhop", "olstm-dvhop")
+METHODS = ("dvhop", "consensus", "olstm-dvhop")
+LABELS = {"dvhop": "DV-Hop", "consensus": "consensus", "olstm-dvhop": "OLSTM-DV-Hop"}
 
 
 def accuracy_specs(seeds: int) -> list[EpisodeSpec]:
@@ -76,8 +78,9 @@ def accuracy(paths: list[Path], specs: list[EpisodeSpec], model: torch.nn.Module
 def accuracy_table(rows: list[dict], doi: float) -> str:
     out = io.StringIO()
     out.write(f"DOI {doi}: RMSE [m] pooled over localized nodes (localized fraction)\n\n")
-    out.write("| N | density | episodes | DV-Hop | OLSTM-DV-Hop | ratio | coverage |\n")
-    out.write("|---|---|---|---|---|---|---|\n")
+    out.write(f"| N | density | episodes | {' | '.join(LABELS[m] for m in METHODS)} | ratio "
+              f"| coverage |\n")
+    out.write("|---" * (len(METHODS) + 5) + "|\n")
     for n in NODES:
         for density in DENSITIES:
             cell = [r for r in rows if r["doi"] == doi and r["n_nodes"] == n
@@ -91,10 +94,9 @@ def accuracy_table(rows: list[dict], doi: float) -> str:
                 rmse[m] = np.sqrt(sum(r[f"{m}_sq"] for r in cell) / max(k, 1))
                 frac[m] = k / total
             cov = np.mean([r["coverage"] for r in cell])
-            out.write(f"| {n} | {density} | {len(cell)} | {rmse['dvhop']:.2f} "
-                      f"({frac['dvhop']:.3f}) | {rmse['olstm-dvhop']:.2f} "
-                      f"({frac['olstm-dvhop']:.3f}) | {rmse['dvhop'] / rmse['olstm-dvhop']:.1f}x "
-                      f"| {cov:.3f} |\n")
+            values = " | ".join(f"{rmse[m]:.2f} ({frac[m]:.3f})" for m in METHODS)
+            out.write(f"| {n} | {density} | {len(cell)} | {values} | "
+                      f"{rmse['dvhop'] / rmse['olstm-dvhop']:.1f}x | {cov:.3f} |\n")
     return out.getvalue()
 
 
@@ -111,10 +113,10 @@ def speed(folder: Path, model: torch.nn.Module, repeats: int) -> str:
             localize(log, method, checkpoint=model)
             runs.append(time.perf_counter() - start)
         times[method] = float(np.median(runs))
+    rows = "".join(f"| {LABELS[m]} | {times[m]:.3f} |\n" for m in METHODS)
     return (f"Speed, one core, N = {log.n_nodes}, {log.n_beacons} beacons, "
             f"{int(log.field[0])} x {int(log.field[1])} m ({SPEED_MAP}), median of {repeats}:\n\n"
-            f"| method | time [s] |\n|---|---|\n| DV-Hop | {times['dvhop']:.3f} |\n"
-            f"| OLSTM-DV-Hop | {times['olstm-dvhop']:.3f} |\n"
+            f"| method | time [s] |\n|---|---|\n{rows}"
             f"| ratio OLSTM / DV-Hop | {times['olstm-dvhop'] / times['dvhop']:.1f} |\n")
 
 

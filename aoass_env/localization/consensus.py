@@ -12,6 +12,13 @@ cells, the consensus estimate of k is the mean of the cells with the fewest viol
 cells inside obstacles excluded. Violations are counted, not forbidden: moving obstacles (not in
 the map) block some beacons, and cell centres are up to ``cell / sqrt 2`` from the node.
 
+**Neighbour stage.** A node whose best cells spread over more than ``RELIABLE_SPREAD`` (RMS
+distance from their mean) is scored a second time with the *reliable* nodes (spread at most
+that) as further transmitters at their first-stage estimates: its neighbours (``node_links``)
+count like heard beacons, the reliable nodes it does not hear like unheard ones. Node links obey
+the same range and line-of-sight rules as beacons (within R (1 + DOI) and in sight; certain
+within R (1 - DOI)).
+
 Speed comes from three restrictions (docs/localization.md):
 
 * **Visibility rasters.** Line of sight is decided per beacon for the cells of a square stencil
@@ -43,7 +50,7 @@ __all__ = ["ANGLE_BINS", "DEFAULT_CELL", "RELIABLE_SPREAD", "Consensus", "Visibi
            "consensus", "node_consensus", "visibility_raster"]
 
 #: Grid cell size [m].
-DEFAULT_CELL = 1.0
+DEFAULT_CELL = 0.5
 #: Nodes whose best cells spread over more than this [m] are scored again with their neighbours.
 RELIABLE_SPREAD = 1.0
 #: Directions of a beacon's visibility profile.
@@ -128,12 +135,12 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
     transmitters at ``points`` (M, 2) [m] (default: the beacons).
 
     Raises:
-        ValueError: ``cell`` is not a positive number or ``bins`` < 8.
+        ValueError: ``cell`` is not a positive number or ``bins`` not a power of two >= 8.
     """
     if not (isinstance(cell, (int, float)) and np.isfinite(cell) and cell > 0):
         raise ValueError(f"cell={cell!r} must be a positive number of metres")
-    if bins < 8:
-        raise ValueError(f"bins={bins!r} must be at least 8")
+    if not (isinstance(bins, int) and bins >= 8 and bins & (bins - 1) == 0):
+        raise ValueError(f"bins={bins!r} must be a power of two >= 8")
     config = episode.config
     xy = episode.beacon_xy if points is None else np.asarray(points, dtype=np.float64)
     r_hi = episode.log.radio_range * (1 + config.doi)
@@ -160,15 +167,17 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
                       (origin[:, 1, None] + pad + offs)[:, None, :]]
     if config.line_of_sight and episode.log.obstacle_map.polygons:
         profile = _profiles(xy, episode.log.obstacle_map.polygons, r_hi, bins)
-        k = np.floor(np.arctan2(dy, dx) * np.float32(bins / (2 * np.pi))).astype(np.int64)
-        k %= bins
-        sight &= dist < profile[np.arange(len(xy))[:, None, None], k]
+        # angle bin, floor of a positive number by truncation, wrapped by a mask (bins = 2^k)
+        k = (np.arctan2(dy, dx) * np.float32(bins / (2 * np.pi)) + np.float32(bins)).astype(
+            np.int32) & (bins - 1)
+        k += (np.arange(len(xy), dtype=np.int32) * bins)[:, None, None]
+        sight &= dist < np.take(profile.astype(np.float32).reshape(-1), k)
     near = sight & (dist <= r_lo)
     weight = near.astype(np.uint8) + (sight & (dist <= r_hi))
-    ix = origin[:, 0, None, None] + offs[None, :, None]
-    iy = origin[:, 1, None, None] + offs[None, None, :]
-    certain = np.bincount(np.broadcast_to(ix * shape[1] + iy, near.shape)[near],
-                          minlength=shape[0] * shape[1]).reshape(shape)
+    certain = np.zeros((shape[0] + 2 * pad, shape[1] + 2 * pad), dtype=np.int32)
+    for (ox, oy), block in zip(origin + pad, near, strict=True):
+        certain[ox:ox + size, oy:oy + size] += block
+    certain = certain[pad:-pad, pad:-pad]
     n, stencil = len(xy), size * size
     key = np.r_[np.arange(n) * stencil - origin[:, 0] * size - origin[:, 1], n * stencil]
     tail = np.zeros(shape[0] * size + shape[1], dtype=np.uint8)  # padding lands here

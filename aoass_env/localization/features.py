@@ -1,11 +1,11 @@
 """Per-node beacon sequences and their features, the input of the OLSTM (Eq. 12).
 
 For each node to localize, the sequence holds the beacons within a window around a *reference
-point* (first the centroid of the beacons it heard, later its current estimate), in broadcast
-(time) order. The window radius is the distance from the reference to the farthest heard beacon
-plus ``margin``, so every heard beacon is in it together with the unheard beacons just beyond the
-node's range: not hearing a beacon that passed close by is information too. Sequences longer
-than ``max_len`` keep the beacons nearest the reference.
+point* (the node's visibility-consensus estimate, :mod:`~aoass_env.localization.consensus`), in
+broadcast (time) order. The window radius is the distance from the reference to the farthest
+heard beacon plus ``margin``, so every heard beacon is in it together with the unheard beacons
+just beyond the node's range: not hearing a beacon that passed close by is information too.
+Sequences longer than ``max_len`` keep the beacons nearest the reference.
 
 Features per (node, beacon) step, lengths in units of the radio range R:
 
@@ -23,6 +23,7 @@ step        straight-line distance from the previous beacon of the sequence, / R
 travel      distance the anchor travelled since the previous beacon of the sequence
             (index difference x beacon interval), / R (<= 4)
 degree      log(1 + number of neighbour nodes of the node) / 4
+spread      RMS radius of the node's consensus region (its best cells), / R
 ==========  ==========================================================================
 """
 
@@ -40,9 +41,9 @@ __all__ = ["FEATURE_NAMES", "FEATURE_VERSION", "MAX_LEN", "WINDOW_MARGIN", "Sequ
            "build_sequences"]
 
 FEATURE_NAMES = ("dx", "dy", "range", "heard", "clear", "hops", "hop_size", "step", "travel",
-                 "degree")
+                 "degree", "spread")
 #: Bumped whenever the meaning of a feature changes; checkpoints record it.
-FEATURE_VERSION = 2
+FEATURE_VERSION = 3
 #: Window margin beyond the farthest heard beacon [m].
 WINDOW_MARGIN = 10.0
 #: Longest sequence [beacons].
@@ -90,9 +91,10 @@ def _windows(beacon_xy: np.ndarray, refs: np.ndarray, radius: np.ndarray,
     return seq, beacons
 
 
-def build_sequences(episode: Episode, nodes: np.ndarray, refs: np.ndarray, *,
-                    margin: float = WINDOW_MARGIN, max_len: int = MAX_LEN) -> Sequences:
-    """Feature sequences of ``nodes`` around the reference points ``refs`` (S, 2) [m].
+def build_sequences(episode: Episode, nodes: np.ndarray, refs: np.ndarray, spread: np.ndarray,
+                    *, margin: float = WINDOW_MARGIN, max_len: int = MAX_LEN) -> Sequences:
+    """Feature sequences of ``nodes`` around the reference points ``refs`` (S, 2) [m], whose
+    consensus regions have RMS radius ``spread`` (S,) [m].
 
     Every node must have heard at least one beacon (its window is sized by them).
 
@@ -102,9 +104,11 @@ def build_sequences(episode: Episode, nodes: np.ndarray, refs: np.ndarray, *,
     log = episode.log
     nodes = np.asarray(nodes, dtype=np.int64)
     refs = np.asarray(refs, dtype=np.float64)
-    if nodes.ndim != 1 or refs.shape != (len(nodes), 2) or not np.all(np.isfinite(refs)):
-        raise ValueError(f"nodes must be (S,) and refs finite (S, 2); got {nodes.shape}, "
-                         f"{refs.shape}")
+    spread = np.asarray(spread, dtype=np.float64)
+    if nodes.ndim != 1 or refs.shape != (len(nodes), 2) or not np.all(np.isfinite(refs)) \
+            or spread.shape != (len(nodes),):
+        raise ValueError(f"nodes must be (S,), refs finite (S, 2) and spread (S,); got "
+                         f"{nodes.shape}, {refs.shape}, {spread.shape}")
     r_unit = log.radio_range
     xy = episode.beacon_xy
     seq_of = np.full(log.n_nodes, -1, dtype=np.int64)
@@ -135,6 +139,7 @@ def build_sequences(episode: Episode, nodes: np.ndarray, refs: np.ndarray, *,
         "step": np.minimum(np.hypot(*(xy[b] - xy[prev]).T) / r_unit, _STEP_CAP),
         "travel": np.minimum((b - prev) * episode.config.beacon_interval / r_unit, _TRAVEL_CAP),
         "degree": np.log1p(degree) / _DEGREE_SCALE,
+        "spread": np.nan_to_num(spread[seq] / r_unit),
     }
     flat = np.stack([columns[name] for name in FEATURE_NAMES], axis=1).astype(np.float32)
     padded, lengths = pad_rows(seq, b, len(nodes))

@@ -3,10 +3,9 @@
 For every covered node the model reads the node's beacon sequence (:mod:`~aoass_env.
 localization.features`) in time order with a bidirectional LSTM and predicts, per beacon, the
 distance ``d_hat`` as the distance from the reference point plus a learned correction, and the
-log-variance of that prediction. Eq. 13 is then solved with weights ``1 / variance``
-(:func:`~aoass_env.localization.multilateration.multilaterate`). The localization runs in
-``passes`` rounds: the first around the centroid of the heard beacons, each later one around the
-previous estimate.
+log-variance of that prediction. The reference point of the sequences and the start of Eq. 13
+(weights ``1 / variance``, :func:`~aoass_env.localization.multilateration.multilaterate`) is the
+node's visibility-consensus estimate (:mod:`~aoass_env.localization.consensus`).
 
 Checkpoints are plain dictionaries (weights as tensors, metadata as lists, numbers and strings)
 saved with :func:`torch.save` and read with ``torch.load(..., weights_only=True)``; their format,
@@ -24,6 +23,7 @@ import torch
 from torch import nn
 
 from aoass_env.atomic import atomic_open
+from aoass_env.localization.consensus import RELIABLE_SPREAD, node_consensus
 from aoass_env.localization.episode import Episode
 from aoass_env.localization.features import FEATURE_NAMES, FEATURE_VERSION, build_sequences
 from aoass_env.localization.multilateration import multilaterate
@@ -142,22 +142,27 @@ def predict(model: OLSTM, features: np.ndarray,
     return d_hat, logvar
 
 
-def olstm_dvhop(episode: Episode, model: OLSTM, *, passes: int = 2) -> np.ndarray:
-    """OLSTM-DV-Hop estimates (N, 2) [m]; NaN for nodes not covered under Eq. 18."""
-    if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
-        raise ValueError(f"passes={passes!r} must be an integer >= 1")
+def olstm_dvhop(episode: Episode, model: OLSTM) -> np.ndarray:
+    """OLSTM-DV-Hop estimates (N, 2) [m]; NaN for nodes not covered under Eq. 18.
+
+    Every covered node starts from its visibility-consensus estimate; the nodes whose consensus
+    region is wide (spread above ``RELIABLE_SPREAD``) then get the OLSTM distances (Eq. 12) and
+    Eq. 13 from there.
+    """
     out = np.full((episode.log.n_nodes, 2), np.nan)
     nodes = np.flatnonzero(episode.covered)
     if len(nodes) == 0:
         return out
-    est = episode.heard_centroid[nodes]
-    for _ in range(passes):
-        seq = build_sequences(episode, nodes, est)
-        d_hat, logvar = predict(model, seq.features, seq.lengths)
-        mask = seq.mask
-        weights = np.where(mask, np.exp(-logvar.astype(np.float64)), 0.0)
-        est = multilaterate(episode.beacon_xy[np.maximum(seq.beacons, 0)],
-                            np.where(mask, d_hat * episode.log.radio_range, 0.0), weights,
-                            est, episode.field)
-    out[nodes] = est
+    ref = node_consensus(episode, nodes)
+    out[nodes] = ref.estimate
+    wide = ~(ref.spread <= RELIABLE_SPREAD)  # NaN spread: no consensus cell, wide too
+    if not wide.any():
+        return out
+    seq = build_sequences(episode, nodes[wide], ref.estimate[wide], ref.spread[wide])
+    d_hat, logvar = predict(model, seq.features, seq.lengths)
+    mask = seq.mask
+    weights = np.where(mask, np.exp(-logvar.astype(np.float64)), 0.0)
+    out[nodes[wide]] = multilaterate(episode.beacon_xy[np.maximum(seq.beacons, 0)],
+                                     np.where(mask, d_hat * episode.log.radio_range, 0.0),
+                                     weights, ref.estimate[wide], episode.field)
     return out

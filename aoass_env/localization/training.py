@@ -6,9 +6,10 @@
    of each density and field size) is held out from training. :func:`generate_logs` simulates
    them and caches the ``.npz`` logs, so a rerun only simulates what is missing.
 2. **Examples.** Per log, up to ``nodes_per_log`` covered nodes are drawn; each gives two
-   sequences, one around the centroid of its heard beacons (the first localization pass) and one
-   around its true position displaced by Gaussian noise of a random scale (later passes start
-   from an estimate). The target of each step is the true node-beacon distance / R.
+   sequences, one around its visibility-consensus estimate (the reference at inference) and one
+   around its true position displaced by Gaussian noise of a random scale (so that the model
+   learns to correct a reference in any direction). The target of each step is the true
+   node-beacon distance / R.
 3. **Training.** Gaussian negative log-likelihood of the target under (d_hat, log variance),
    Adam, a fixed seed, one thread. After every epoch the full OLSTM-DV-Hop localization runs on
    the validation logs; the weights with the lowest validation RMSE are kept and training stops
@@ -29,6 +30,7 @@ import torch
 
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.config import AOASSConfig
+from aoass_env.localization.consensus import node_consensus
 from aoass_env.localization.episode import Episode, prepare
 from aoass_env.localization.features import FEATURE_NAMES, build_sequences
 from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, OLSTM, olstm_dvhop, save_checkpoint
@@ -119,8 +121,9 @@ def node_examples(episode: Episode, rng: np.random.Generator, nodes_per_log: int
                   max_noise: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Training sequences of one episode: per-sequence feature arrays (L, F) and targets (L,).
 
-    Up to ``nodes_per_log`` covered nodes, each around its heard centroid and around its true
-    position plus isotropic Gaussian noise of standard deviation U(0, ``max_noise``) [m].
+    Up to ``nodes_per_log`` covered nodes, each around its consensus estimate and around its true
+    position plus isotropic Gaussian noise of standard deviation U(0, ``max_noise``) [m]; both
+    carry the node's consensus spread.
     """
     covered = np.flatnonzero(episode.covered)
     nodes = np.sort(rng.permutation(covered)[:nodes_per_log])
@@ -128,9 +131,10 @@ def node_examples(episode: Episode, rng: np.random.Generator, nodes_per_log: int
     noisy = true + rng.normal(size=true.shape) * rng.uniform(0, max_noise, (len(nodes), 1))
     w, h = episode.field
     noisy = np.clip(noisy, 0.0, [w, h])
+    ref = node_consensus(episode, nodes)
     features, targets = [], []
-    for refs in (episode.heard_centroid[nodes], noisy):
-        seq = build_sequences(episode, nodes, refs)
+    for refs in (ref.estimate, noisy):
+        seq = build_sequences(episode, nodes, refs, ref.spread)
         xy = episode.beacon_xy[np.maximum(seq.beacons, 0)]
         dist = np.hypot(*(xy - true[:, None, :]).transpose(2, 0, 1)) / episode.log.radio_range
         for s, n in enumerate(seq.lengths):

@@ -56,7 +56,7 @@ def test_doi_widens_the_heard_range_and_narrows_the_certain_one() -> None:
 
 def test_raster_ranges_follow_the_doi() -> None:
     beacon = np.array([[50.2, 50.3]])
-    raster = visibility_raster(record(beacon, np.zeros((0, 2)), doi=0.2))
+    raster = visibility_raster(record(beacon, np.zeros((0, 2)), doi=0.2), cell=1.0)
     ix, iy = np.meshgrid(np.arange(20, 80), np.arange(20, 80), indexing="ij")
     dist = np.hypot((ix + 0.5) - 50.2, (iy + 0.5) - 50.3)
     weight = raster.weight[raster.key[0] + ix * raster.size + iy]

@@ -16,7 +16,7 @@ def episode(small_log):
 
 def test_sequences_hold_every_heard_beacon_in_time_order(episode) -> None:
     nodes = np.flatnonzero(episode.covered)
-    seq = build_sequences(episode, nodes, episode.heard_centroid[nodes])
+    seq = build_sequences(episode, nodes, episode.heard_centroid[nodes], np.zeros(len(nodes)))
     assert seq.features.shape == (len(nodes), seq.beacons.shape[1], len(FEATURE_NAMES))
     heard_col = FEATURE_NAMES.index("heard")
     rec = episode.log.receptions
@@ -34,8 +34,8 @@ def test_sequences_hold_every_heard_beacon_in_time_order(episode) -> None:
 def test_max_len_keeps_the_nearest(episode) -> None:
     nodes = np.flatnonzero(episode.covered)[:3]
     refs = episode.heard_centroid[nodes]
-    seq = build_sequences(episode, nodes, refs, max_len=5)
-    full = build_sequences(episode, nodes, refs)
+    seq = build_sequences(episode, nodes, refs, np.zeros(3), max_len=5)
+    full = build_sequences(episode, nodes, refs, np.zeros(3))
     rng_col = FEATURE_NAMES.index("range")
     for s in range(3):
         kept = np.sort(seq.features[s, :seq.lengths[s], rng_col])
@@ -49,4 +49,4 @@ def test_node_without_beacons_is_an_error(episode) -> None:
     if len(silent) == 0:
         pytest.skip("every node heard a beacon")
     with pytest.raises(ValueError, match="heard no beacon"):
-        build_sequences(episode, silent[:1], np.zeros((1, 2)))
+        build_sequences(episode, silent[:1], np.zeros((1, 2)), np.zeros(1))
