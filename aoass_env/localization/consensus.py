@@ -60,9 +60,10 @@ _CHUNK_LOOKUPS = 2_000_000  # (cell, beacon) lookups per chunk of nodes
 
 @dataclass(frozen=True)
 class VisibilityRaster:
-    """Per beacon, what each cell of an (S, S) stencil around it makes of it.
+    """Per transmitter (beacon, or node at its estimate), what each cell of an (S, S) stencil
+    around it makes of it.
 
-    ``weight`` is flat: beacon b at cell (ix, iy) is entry ``key[b] + ix * S + iy`` for the
+    ``weight`` is flat: transmitter b at cell (ix, iy) is entry ``key[b] + ix * S + iy`` for the
     cells of b's stencil, which holds every cell within R (1 + DOI) + cell of b along x and y;
     ``key[-1]`` (padding) lands on an all-zero tail for any cell of the field.
 
@@ -70,11 +71,11 @@ class VisibilityRaster:
         cell: cell size [m]; cell (i, j) has its centre at ((i + 0.5) cell, (j + 0.5) cell).
         shape: (nx, ny) cells of the field.
         size: S, stencil side [cells].
-        key: (B + 1,) int64 table offset of each beacon, and of padding (last).
+        key: (M + 1,) int64 table offset of each transmitter, and of padding (last).
         weight: flat uint8 table: 2 in sight within R (1 - DOI) (hearing is certain), 1 in sight
             within R (1 + DOI) (hearing is possible), 0 otherwise (not in sight, too far, cell
             inside an obstacle or off the field).
-        certain: (nx, ny) number of beacons in sight within R (1 - DOI) of each cell.
+        certain: (nx, ny) number of transmitters in sight within R (1 - DOI) of each cell.
         inside: (nx, ny) bool, cell centre inside an obstacle.
     """
 
@@ -89,8 +90,8 @@ class VisibilityRaster:
 
 def _profiles(beacon_xy: np.ndarray, polygons: tuple[np.ndarray, ...], reach: float,
               bins: int) -> np.ndarray:
-    """(B, bins) distance [m] from each beacon to the first obstacle edge facing it along the
-    centre direction of each angle bin (``inf``: none within ``reach``)."""
+    """(M, bins) distance [m] from each transmitter to the first obstacle edge facing it along
+    the centre direction of each angle bin (``inf``: none within ``reach``)."""
     out = np.full((len(beacon_xy), bins), np.inf)
     if not polygons or not len(beacon_xy):
         return out
