@@ -65,9 +65,8 @@ def multilaterate(anchors: np.ndarray, distances: np.ndarray, weights: np.ndarra
     # working set: the nodes still iterating, compacted whenever some converge
     act = np.arange(len(out))
     p, lam = out.copy(), np.full(len(out), _LAMBDA0)
-    cost = _offsets(p, a, d, w)[3]
+    dx, dy, r, cost = _offsets(p, a, d, w)
     for _ in range(max_iter):
-        dx, dy, r, _ = _offsets(p, a, d, w)
         q = w / np.maximum(r, _MIN_RANGE)  # w / r: Jacobian rows are (dx, dy) / r
         qres = q * (r - d)
         gx, gy = np.einsum("sm,sm->s", qres, dx), np.einsum("sm,sm->s", qres, dy)
@@ -79,11 +78,13 @@ def multilaterate(anchors: np.ndarray, distances: np.ndarray, weights: np.ndarra
         det = axx * ayy - hxy * hxy
         step = np.stack([-(ayy * gx - hxy * gy) / det, -(axx * gy - hxy * gx) / det], axis=1)
         trial = np.clip(p + step, 0.0, hi)
-        tcost = _offsets(trial, a, d, w)[3]
+        tdx, tdy, tr, tcost = _offsets(trial, a, d, w)
         better = tcost < cost
         moved = np.hypot(*(trial - p).T)
         p = np.where(better[:, None], trial, p)
         cost = np.where(better, tcost, cost)
+        keep = better[:, None]      # the offsets of the point each node now sits at
+        dx, dy, r = np.where(keep, tdx, dx), np.where(keep, tdy, dy), np.where(keep, tr, r)
         lam = np.where(better, lam * _LAMBDA_DOWN, lam * _LAMBDA_UP)
         out[act] = p
         going = ~((better & (moved <= tol)) | (lam > _LAMBDA_MAX))
@@ -92,4 +93,5 @@ def multilaterate(anchors: np.ndarray, distances: np.ndarray, weights: np.ndarra
         if not going.all():
             act, p, lam, cost = act[going], p[going], lam[going], cost[going]
             a, d, w = a[going], d[going], w[going]
+            dx, dy, r = dx[going], dy[going], r[going]
     return out
