@@ -33,7 +33,8 @@ from aoass_env.metrics import energy_efficiency_ratio, localization_rmse, trajec
 from aoass_env.simulator import Simulator
 
 PRESETS = {
-    # field size, densities, node counts, maps per density
+    # field size, densities, node counts, maps per density ("smoke": the test suite's run)
+    "smoke": dict(field_size=100.0, densities=(0.1,), n_nodes=(60,), maps=1),
     "quick": dict(field_size=100.0, densities=(0.1, 0.2, 0.3, 0.4), n_nodes=(100, 300), maps=1),
     "core": dict(field_size=100.0, densities=(0.1, 0.2, 0.3, 0.4, 0.5, 0.6),
                  n_nodes=(100, 300, 500), maps=3),
@@ -168,17 +169,24 @@ def plot(rows: list[EpisodeRow], shown: dict[float, Simulator], out: Path) -> li
     written.append(path)
 
     densities = sorted({r.obstacle_density for r in rows})
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
-    panels = (("coverage", "coverage ratio (Eq. 18)"),
-              ("eta_traj", "trajectory efficiency (Eq. 19)"),
-              ("eer", "EER (Eq. 17) [beacons/J]"))
-    for ax, (key, label) in zip(axes, panels, strict=True):
-        means = [np.mean([getattr(r, key) for r in rows if r.obstacle_density == d])
-                 for d in densities]
-        stds = [np.std([getattr(r, key) for r in rows if r.obstacle_density == d])
-                for d in densities]
-        ax.bar([f"{d:.2f}" for d in densities], means, yerr=stds, color="tab:blue", capsize=3)
-        ax.set(xlabel="obstacle density", title=label)
+    x = np.arange(len(densities))
+    fig, axes = plt.subplots(1, 4, figsize=(16, 3.4))
+    panels = (("coverage ratio (Eq. 18)", (("coverage", None),)),
+              ("trajectory efficiency (Eq. 19)", (("eta_traj", None),)),
+              ("EER (Eq. 17) [beacons/J]", (("eer", None),)),
+              ("localization RMSE (Eq. 15) [m]",
+               (("rmse_dvhop", "DV-Hop"), ("rmse_olstm", "OLSTM-DV-Hop"))))
+    for ax, (label, series) in zip(axes, panels, strict=True):
+        width = 0.8 / len(series)
+        for k, (key, name) in enumerate(series):
+            values = [[getattr(r, key) for r in rows if r.obstacle_density == d]
+                      for d in densities]
+            ax.bar(x + (k - (len(series) - 1) / 2) * width, [np.mean(v) for v in values],
+                   width, yerr=[np.std(v) for v in values], capsize=3, label=name)
+        ax.set(xlabel="obstacle density", title=label, xticks=x,
+               xticklabels=[f"{d:.2f}" for d in densities])
+        if len(series) > 1:
+            ax.legend(fontsize=7)
     fig.tight_layout()
     path = out / "metrics.png"
     fig.savefig(path, dpi=110)
@@ -200,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--seeds must be >= 1, got {args.seeds}")
     preset = PRESETS[args.preset]
     out = args.out or Path("out") / args.preset
-    out.mkdir(parents=True, exist_ok=True)
+    (out / "logs" if args.save_logs else out).mkdir(parents=True, exist_ok=True)
 
     size = int(preset["field_size"])
     maps = [m for d in preset["densities"]
