@@ -1,4 +1,4 @@
-"""Path arithmetic: distance travelled and beacon points along a travelled path."""
+"""Path arithmetic: beacon points along a travelled path and the odometer reading."""
 
 from __future__ import annotations
 
@@ -10,23 +10,9 @@ import numpy as np
 #: (one control period has ``physics_substeps + 1``); numpy is faster on longer ones.
 _SHORT_PATH = 64
 
-#: numpy's add.reduce sums fewer than 8 float64 terms one after the other (pairwise beyond).
-_SEQUENTIAL_SUM = 7
-
-
-def path_length(points: np.ndarray) -> float:
-    """Length (m) of the polyline through (P, 2) points."""
-    pts = np.asarray(points, dtype=np.float64)
-    if len(pts) < 2:
-        return 0.0
-    if len(pts) <= _SEQUENTIAL_SUM + 1:    # numpy sums so few terms in order: same float
-        return _xy_length(pts.tolist())
-    return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
-
-
 def _xy_length(rows: list[list[float]]) -> float:
     """Length (m) of the polyline through rows ending in (x [m], y [m]) (plain floats), the
-    segments summed in order: the float of numpy's norm and cumsum."""
+    segments summed in order: the same float as numpy's norm and cumsum."""
     total = 0.0
     for (*_, x0, y0), (*_, x1, y1) in zip(rows, rows[1:], strict=False):
         dx, dy = x1 - x0, y1 - y0

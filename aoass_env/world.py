@@ -19,7 +19,6 @@ import shapely
 from aoass_env.clearance import ClearanceGrid
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.trajectory import path_length
 
 # Collision types (pymunk handlers) and filter categories (queries) of the four kinds of shape.
 _ANCHOR, _STATIC, _WALL, _MOVING = 1, 2, 3, 4
@@ -144,7 +143,6 @@ class World:
         space.on_collision(_ANCHOR, _MOVING, begin=self._begin, pre_solve=self._bounce_off_anchor,
                            separate=self._separate)
         self._substeps_done = 0
-        self._distance = 0.0
         self._ray_offsets = 2.0 * math.pi * np.arange(config.n_rays) / config.n_rays
 
     # --- construction ---------------------------------------------------------------------
@@ -309,9 +307,7 @@ class World:
             self._mpos = [tuple(body.position) for body in bodies]
             x, y = anchor.position
             rows.append((self.time, x, y))
-        traj = np.array(rows)
-        self._distance += path_length(traj[:, 1:])
-        return traj
+        return np.array(rows)
 
     def _turn_moving(self) -> None:
         """Apply the Poisson heading changes that fell due: a new uniform heading, same speed."""
@@ -475,11 +471,6 @@ class World:
     def time(self) -> float:
         """Simulated time (s)."""
         return self._substeps_done * self._sdt
-
-    @property
-    def distance_travelled(self) -> float:
-        """Length (m) of the anchor's path so far (sum of the trajectory segments)."""
-        return self._distance
 
     @property
     def moving_positions(self) -> np.ndarray:

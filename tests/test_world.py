@@ -97,16 +97,6 @@ def test_wrap_angle(a):
     assert math.sin(b) == pytest.approx(math.sin(a), abs=1e-9)
 
 
-def test_distance_travelled_is_the_path_length():
-    w = make((2.0, 2.0), obstacle_map=ObstacleMap(100.0, 100.0))
-    total = 0.0
-    for k in range(10):
-        traj = w.step(1.5, 0.3 * k)
-        total += np.hypot(*np.diff(traj[:, 1:], axis=0).T).sum()
-    assert w.distance_travelled == pytest.approx(total, rel=1e-12)
-    assert total > 5.0
-
-
 # --- contacts ---------------------------------------------------------------------------------
 def test_wall_stops_the_anchor_and_counts_one_contact_per_episode():
     w = make((10.0, 6.0))
