@@ -170,7 +170,6 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         c = self.config
         speed, heading = self._command
         speed = min(max(speed + dv * c.action_speed_scale, 0.0), c.anchor_max_speed)
-        coverage_before = sim.network.coverage_ratio
         record = sim.step(speed, heading + dtheta * c.action_heading_scale)
         self._steps += 1
         self._command = self._follower.command(sim.world.position, sim.world.heading, c.dt)
@@ -179,7 +178,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                                      sim.network.covered)
             self._imbalance = energy_imbalance(sim.network.node_energy)
         contacts = sim.collisions
-        terms = reward_terms(c, delta_coverage=sim.network.coverage_ratio - coverage_before,
+        terms = reward_terms(c, delta_coverage=record.newly_covered / sim.network.n_nodes,
                              imbalance=self._imbalance, rmse=self._rmse,
                              new_contacts=contacts - self._contacts)
         self._contacts = contacts
