@@ -24,7 +24,22 @@ from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
 from aoass_env.simulator import Simulator, episode_spiral
 from aoass_env.world import wrap_angle
 
-__all__ = ["AOASSEnv", "max_episode_steps"]
+__all__ = ["AOASSEnv", "checked_action", "max_episode_steps"]
+
+
+def checked_action(action: Any) -> tuple[float, float]:
+    """(dv, dtheta) of an action [dv, dtheta] clipped to [-1, 1]; ValueError for a wrong shape,
+    non-numbers, NaN or infinite values."""
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"action must be 2 numbers [dv, dtheta], got {action!r}") from exc
+    if a.shape != (2,):
+        raise ValueError(f"action must have shape (2,) = [dv, dtheta], got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"action must be finite, got {a.tolist()} (NaN or infinite)")
+    dv, dtheta = np.clip(a, -1.0, 1.0).tolist()
+    return dv, dtheta
 
 
 def max_episode_steps(config: AOASSConfig) -> int:
@@ -93,8 +108,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
       ``gymnasium.make`` reports the same limit in ``env.spec.max_episode_steps``.
 
     Every step's ``info`` holds coverage, collisions, path length, beacons sent, energy, the
-    online RMSE and the reward terms; the last step's ``info["episode"]`` adds the Eq. 16-19
-    metrics. ``env.unwrapped.beacon_log`` is the episode's :class:`BeaconLog`.
+    online RMSE and the reward terms; the last step's ``info["episode_metrics"]`` adds the
+    Eq. 16-19 metrics. ``env.unwrapped.beacon_log`` is the episode's :class:`BeaconLog`.
 
     ## Arguments
 
@@ -166,7 +181,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
             raise RuntimeError("call reset() before step()")
         if self._log is not None:
             raise RuntimeError("the episode has ended; call reset() to start a new one")
-        dv, dtheta = self._checked_action(action)
+        dv, dtheta = checked_action(action)
         c = self.config
         speed, heading = self._command
         speed = min(max(speed + dv * c.action_speed_scale, 0.0), c.anchor_max_speed)
@@ -188,23 +203,10 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         info["reward_terms"] = terms
         if terminated or truncated:
             self._log = sim.finish()
-            info["episode"] = self._episode_metrics()
+            info["episode_metrics"] = self._episode_metrics()
         if self.render_mode == "human":
             self.render()
         return self._observation(), float(sum(terms.values())), terminated, truncated, info
-
-    @staticmethod
-    def _checked_action(action: Any) -> tuple[float, float]:
-        try:
-            a = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"action must be 2 numbers [dv, dtheta], got {action!r}") from exc
-        if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,) = [dv, dtheta], got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite, got {a.tolist()} (NaN or infinite)")
-        dv, dtheta = np.clip(a, -1.0, 1.0).tolist()
-        return dv, dtheta
 
     # --- what the agent and the user see -----------------------------------------------------
     def _observation(self) -> np.ndarray:
@@ -241,6 +243,15 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                 "travel_time": sim.world.time, "l_ideal": sim.spiral.length,
                 "t_ideal": t_ideal, "collisions": sim.collisions,
                 "steps": self._steps, "path_complete": self._follower.done}
+
+    @property
+    def nominal_command(self) -> tuple[float, float]:
+        """The follower's (speed [m/s], heading [rad]) for the next step: what the zero action
+        commands; action [dv, dtheta] commands (speed + dv x ``action_speed_scale``, heading +
+        dtheta x ``action_heading_scale``)."""
+        if self.sim is None:
+            raise RuntimeError("call reset() before reading nominal_command")
+        return self._command
 
     @property
     def beacon_log(self) -> BeaconLog | None:

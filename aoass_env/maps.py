@@ -25,6 +25,7 @@ import numpy as np
 import shapely
 from pymunk import autogeometry
 from shapely.geometry.base import BaseGeometry
+from shapely.geometry.polygon import orient
 
 from aoass_env.atomic import write_text_atomic
 
@@ -156,6 +157,20 @@ class ObstacleMap:
     def free_space(self) -> BaseGeometry:
         """The field minus the obstacles."""
         return shapely.difference(self.field_polygon, self.union)
+
+    @cached_property
+    def free_space_loops(self) -> tuple[np.ndarray, ...]:
+        """The boundary of free space as closed (k, 2) vertex loops (m) with free space to the
+        right of every directed edge: outer boundaries clockwise, the obstacles inside them
+        counter-clockwise (RVO2's obstacle convention; used by ORCA)."""
+        loops: list[np.ndarray] = []
+        for poly in shapely.get_parts(self.free_space):
+            if not isinstance(poly, shapely.Polygon) or poly.is_empty:
+                continue
+            poly = orient(poly, sign=-1.0)
+            loops.extend(np.asarray(ring.coords)[:-1]
+                         for ring in (poly.exterior, *poly.interiors))
+        return tuple(loops)
 
     @property
     def area(self) -> float:

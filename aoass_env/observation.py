@@ -39,7 +39,8 @@ from aoass_env.config import AOASSConfig
 from aoass_env.planning import SquareSpiral
 from aoass_env.world import World
 
-__all__ = ["Observer", "observation_layout", "observation_space"]
+__all__ = ["MOVING_FIELDS", "Observer", "observation_layout", "observation_space",
+           "velocity_scale"]
 
 #: Fields of one moving-obstacle slot.
 MOVING_FIELDS = ("dx", "dy", "vx", "vy", "present")
@@ -52,6 +53,12 @@ def _sizes(config: AOASSConfig) -> list[tuple[str, int, float]]:
             ("waypoints", 2 * config.obs_waypoints, -1.0), ("rays", config.n_rays, 0.0),
             ("moving_obstacles", len(MOVING_FIELDS) * config.obs_moving_obstacles, -1.0),
             ("coverage", 1, 0.0), ("progress", 1, 0.0), ("time", 1, 0.0)]
+
+
+def velocity_scale(config: AOASSConfig) -> float:
+    """Velocities in the observation are divided by this (m/s): the larger of the moving
+    obstacles' and the anchor's maximum speed."""
+    return max(config.moving_obstacle_speed[1], config.anchor_max_speed)
 
 
 def observation_layout(config: AOASSConfig) -> dict[str, slice]:
@@ -87,7 +94,7 @@ class Observer:
         self._rng = noise_rng
         step = config.waypoint_step or config.beacon_interval
         self._wp_scale = config.obs_waypoints * step
-        self._v_scale = max(config.moving_obstacle_speed[1], config.anchor_max_speed)
+        self._v_scale = velocity_scale(config)
         self._upcoming_index = -1
         self._upcoming = self._free_xy[:0]
 

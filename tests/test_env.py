@@ -71,8 +71,8 @@ def test_zero_action_completes_the_spiral_with_full_coverage_in_an_empty_field()
     assert terminated and not truncated
     info = steps[-1][2]
     assert info["coverage"] == 1.0 and info["collisions"] == 0
-    assert info["episode"]["path_complete"]
-    assert info["episode"]["path_length"] == pytest.approx(env.sim.spiral.length, rel=0.05)
+    assert info["episode_metrics"]["path_complete"]
+    assert info["episode_metrics"]["path_length"] == pytest.approx(env.sim.spiral.length, rel=0.05)
 
 
 def test_zero_action_reproduces_the_nominal_simulator_episode():
@@ -178,7 +178,7 @@ def test_truncation_at_the_step_limit_with_episode_metrics():
     assert env.spec.max_episode_steps == limit == env.unwrapped.max_episode_steps
     steps, terminated, truncated = rollout(env, lambda k: np.array([-1.0, 0.0]), seed=0)
     assert truncated and not terminated and len(steps) - 1 == limit
-    metrics = steps[-1][2]["episode"]
+    metrics = steps[-1][2]["episode_metrics"]
     assert not metrics["path_complete"] and metrics["steps"] == limit
     assert {"coverage", "energy_per_beacon", "eer", "eta_traj", "rmse_online"} <= set(metrics)
     with pytest.raises(RuntimeError, match="reset"):
@@ -194,7 +194,7 @@ def test_max_episode_steps_follows_the_spiral_and_the_margin():
 def test_termination_carries_the_eq16_to_19_metrics():
     env = AOASSEnv(**SMALL)
     steps, terminated, _ = rollout(env, lambda k: np.zeros(2), seed=1)
-    m = steps[-1][2]["episode"]
+    m = steps[-1][2]["episode_metrics"]
     net = env.sim.network
     assert terminated and m["path_complete"]
     assert m["eer"] == pytest.approx(net.beacons_sent / net.energy_total)
