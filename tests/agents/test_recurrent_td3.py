@@ -1,0 +1,230 @@
+"""RecurrentTD3: recurrent predict, targets, learn, save/load, callbacks, argument checks."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.callbacks import EvalCallback
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.evaluation import evaluate_policy
+
+from agents import RecurrentTD3, RecurrentTD3Policy, SequenceReplayBuffer
+
+EP_LEN = 20
+TINY = dict(batch_size=8, burn_in=2, train_length=4, buffer_size=2_000, device="cpu",
+            policy_kwargs=dict(lstm_hidden_size=16, net_arch=[16]))
+
+
+def _env(n_envs: int = 1, seed: int = 0):
+    return make_vec_env("Pendulum-v1", n_envs=n_envs, seed=seed,
+                        env_kwargs=dict(max_episode_steps=EP_LEN))
+
+
+def _model(n_envs: int = 1, **kwargs) -> RecurrentTD3:
+    return RecurrentTD3("MlpLstmPolicy", _env(n_envs), seed=0, **{**TINY, **kwargs})
+
+
+def _rollout(model: RecurrentTD3, obs_seq: np.ndarray, starts: np.ndarray | None = None
+             ) -> list[np.ndarray]:
+    """Actions of ``predict`` along ``obs_seq`` (T, n_envs, obs_dim), carrying the state."""
+    state, actions = None, []
+    for t, obs in enumerate(obs_seq):
+        start = None if starts is None else starts[t]
+        action, state = model.predict(obs, state=state, episode_start=start, deterministic=True)
+        actions.append(action)
+    return actions
+
+
+@pytest.mark.parametrize("n_envs", [1, 3])
+def test_predict_shapes_and_determinism(n_envs: int) -> None:
+    model = _model(n_envs)
+    obs = model.get_env().reset()
+    action, (h, c, prev) = model.predict(obs)
+    assert action.shape == (n_envs, 1)
+    assert h.shape == c.shape == (1, n_envs, 16)
+    assert prev.shape == (n_envs, 1)
+    assert np.all(np.abs(action) <= 2.0)
+    again, state2 = model.predict(obs, state=(h, c, prev))
+    again2, _ = model.predict(obs, state=(h, c, prev), deterministic=True)
+    np.testing.assert_array_equal(again, again2)
+    assert not np.allclose(h, state2[0])  # the state moves on
+    single, (h1, _, _) = model.predict(obs[0])
+    assert single.shape == (1,) and h1.shape == (1, 1, 16)
+    np.testing.assert_allclose(single, action[0], rtol=1e-6)
+
+
+def test_episode_start_resets_the_state() -> None:
+    model = _model(3)
+    rng = np.random.default_rng(0)
+    obs_seq = rng.uniform(-1, 1, (6, 3, 3)).astype(np.float32)
+    state = None
+    for obs in obs_seq[:5]:
+        _, state = model.predict(obs, state=state)
+    fresh, fresh_state = model.predict(obs_seq[5])
+    cont, cont_state = model.predict(obs_seq[5], state=state)
+    mixed, mixed_state = model.predict(obs_seq[5], state=state,
+                                       episode_start=np.array([True, False, True]))
+    assert not np.allclose(fresh, cont)  # the memory matters
+    np.testing.assert_allclose(mixed[[0, 2]], fresh[[0, 2]], rtol=1e-6)
+    np.testing.assert_allclose(mixed[1], cont[1], rtol=1e-6)
+    for a, b, c in zip(mixed_state, fresh_state, cont_state, strict=True):
+        np.testing.assert_allclose(a[..., [0, 2], :] if a.ndim == 3 else a[[0, 2]],
+                                   b[..., [0, 2], :] if b.ndim == 3 else b[[0, 2]], rtol=1e-6)
+        np.testing.assert_allclose(a[..., 1, :] if a.ndim == 3 else a[1],
+                                   c[..., 1, :] if c.ndim == 3 else c[1], rtol=1e-6)
+
+
+def test_evaluate_policy_runs() -> None:
+    model = _model(1)
+    mean, std = evaluate_policy(model, _env(2, seed=1), n_eval_episodes=2)
+    assert np.isfinite(mean) and np.isfinite(std)
+
+
+def test_rollout_state_matches_the_stored_history() -> None:
+    """The LSTM state carried during rollouts (random warm-up and noisy actions) equals the
+    actor run over the stored episode, and it is zeroed at episode ends."""
+    from stable_baselines3.common.noise import NormalActionNoise
+
+    model = _model(2, learning_starts=15, gradient_steps=0,  # no training: the actor is fixed
+                   action_noise=NormalActionNoise(np.zeros(1), 0.3 * np.ones(1)))
+    model.learn(2 * EP_LEN)  # one full episode per env
+    assert all(np.all(x == 0) for x in model._rollout_state)  # both episodes just ended
+    model.learn(2 * 7, reset_num_timesteps=False)  # 7 steps per env into the next episode
+    buf = model.replay_buffer
+    rows = np.arange(EP_LEN, EP_LEN + 7)
+    assert buf.episode_starts[rows[0]].all() and not buf.episode_starts[rows[1:]].any()
+    h, c, prev = model._rollout_state
+    for env in range(2):
+        obs = th.as_tensor(buf.observations[rows, env])[None]
+        prev_actions = th.as_tensor(buf.prev_actions[rows, env])[None]
+        with th.no_grad():
+            _, (h_ref, c_ref) = model.actor(obs, prev_actions)
+        np.testing.assert_allclose(h[:, env], h_ref[:, 0].numpy(), atol=1e-5)
+        np.testing.assert_allclose(c[:, env], c_ref[:, 0].numpy(), atol=1e-5)
+        np.testing.assert_array_equal(prev[env], buf.actions[rows[-1], env])
+    assert buf.dones[:EP_LEN].sum() == 0  # Pendulum only truncates: always bootstrap
+    assert buf.timeouts[EP_LEN - 1].all()
+
+
+def test_timeout_bootstraps_and_terminal_does_not() -> None:
+    model = _model(1, gamma=0.9, target_policy_noise=0.0)
+    buf = model.replay_buffer
+    rng = np.random.default_rng(1)
+    obs = rng.uniform(-1, 1, (7, 3)).astype(np.float32)
+    acts = rng.uniform(-1, 1, (6, 1)).astype(np.float32)
+    ends = {2: {"TimeLimit.truncated": True}, 5: {}}  # episode 0 times out, episode 1 terminates
+    for t in range(6):
+        next_obs = obs[t + 1]
+        buf.add(obs[t][None], next_obs[None], acts[t][None], np.array([t + 1.0]),
+                np.array([t in ends]), [ends.get(t, {})])
+    data = buf._get_samples(np.array([2, 5]), env_indices=np.array([0, 0]))
+    targets = model._critic_targets(data)
+    # Terminal: no bootstrap.
+    assert targets[1, 2].item() == pytest.approx(6.0)
+    # Timeout: bootstrap from the target networks' value of the history after the last step.
+    seq_obs = th.as_tensor(obs[None, [0, 1, 2, 3]])
+    seq_prev = th.as_tensor(np.concatenate([np.zeros((1, 1)), acts[:3]])[None].astype(np.float32))
+    with th.no_grad():
+        a_next = model.actor_target(seq_obs, seq_prev)[0][:, -1:]
+        mem = model.critic_target.memory(seq_obs, seq_prev)
+        q = min(model.critic_target.q_value(i, m[:, -1:], a_next).item()
+                for i, m in enumerate(mem))
+    assert targets[0, 2].item() == pytest.approx(3.0 + 0.9 * q, rel=1e-5, abs=1e-5)
+    # Inside an episode every step bootstraps.
+    assert targets[1, 0].item() != pytest.approx(4.0)
+
+
+@pytest.mark.parametrize("n_envs", [1, 2])
+def test_learn_changes_weights(n_envs: int) -> None:
+    model = _model(n_envs, learning_starts=100)
+    before = {k: v.clone() for k, v in model.policy.state_dict().items()}
+    model.learn(300)
+    after = model.policy.state_dict()
+    for prefix in ("actor.lstm", "actor.mu", "critic.lstms", "critic.q_networks",
+                   "actor_target.lstm", "critic_target.lstms"):
+        keys = [k for k in before if k.startswith(prefix)]
+        assert keys and any(not th.equal(before[k], after[k]) for k in keys), prefix
+    assert model._n_updates > 0
+    assert model.replay_buffer.size() * n_envs == 300
+
+
+def test_save_load_round_trip(tmp_path) -> None:
+    model = _model(2, learning_starts=50)
+    model.learn(100)
+    model.save(tmp_path / "model.zip")
+    loaded = RecurrentTD3.load(tmp_path / "model.zip", device="cpu")
+    assert loaded._rollout_state is None
+    assert (loaded.burn_in, loaded.train_length) == (2, 4)
+    assert isinstance(loaded.policy, RecurrentTD3Policy)
+    rng = np.random.default_rng(2)
+    obs_seq = rng.uniform(-1, 1, (8, 2, 3)).astype(np.float32)
+    starts = np.zeros((8, 2), bool)
+    starts[[0, 5], 0] = True
+    for a, b in zip(_rollout(model, obs_seq, starts), _rollout(loaded, obs_seq, starts),
+                    strict=True):
+        np.testing.assert_array_equal(a, b)
+    loaded.set_env(_env(2))
+    loaded.learn(20, reset_num_timesteps=False)  # training continues after loading
+
+
+def test_eval_callback_works(tmp_path) -> None:
+    model = _model(1, learning_starts=20)
+    callback = EvalCallback(_env(1, seed=3), n_eval_episodes=1, eval_freq=30,
+                            log_path=str(tmp_path), verbose=0)
+    model.learn(60, callback=callback)
+    assert callback.n_calls == 60 and np.isfinite(callback.last_mean_reward)
+    assert len(callback.evaluations_results) == 2
+
+
+@pytest.mark.parametrize(("kwargs", "name"), [
+    (dict(burn_in=-1), "burn_in"),
+    (dict(burn_in=1.5), "burn_in"),
+    (dict(train_length=0), "train_length"),
+    (dict(batch_size=0), "batch_size"),
+    (dict(policy_delay=0), "policy_delay"),
+    (dict(optimize_memory_usage=True), "optimize_memory_usage"),
+    (dict(replay_buffer_kwargs=dict(burn_in=3)), "burn_in"),
+    (dict(policy_kwargs=dict(lstm_hidden_size=0)), "lstm_hidden_size"),
+])
+def test_bad_constructor_values_name_the_parameter(kwargs: dict, name: str) -> None:
+    with pytest.raises(ValueError, match=name):
+        RecurrentTD3("MlpLstmPolicy", "Pendulum-v1", device="cpu", **kwargs)
+
+
+def test_rejects_other_buffers_and_dict_observations() -> None:
+    from stable_baselines3.common.buffers import ReplayBuffer
+
+    with pytest.raises(ValueError, match="replay_buffer_class"):
+        RecurrentTD3("MlpLstmPolicy", "Pendulum-v1", replay_buffer_class=ReplayBuffer)
+
+    class DictObs(gym.ObservationWrapper):
+        def __init__(self, env: gym.Env):
+            super().__init__(env)
+            self.observation_space = spaces.Dict({"x": env.observation_space})
+
+        def observation(self, observation):
+            return {"x": observation}
+
+    with pytest.raises(ValueError, match="Dict"):
+        RecurrentTD3("MlpLstmPolicy", DictObs(gym.make("Pendulum-v1")), device="cpu")
+    assert SequenceReplayBuffer is RecurrentTD3("MlpLstmPolicy", "Pendulum-v1",
+                                                **TINY).replay_buffer_class
+
+
+def test_image_shaped_box_observations_are_flattened() -> None:
+    class Grid(gym.ObservationWrapper):
+        def __init__(self, env: gym.Env):
+            super().__init__(env)
+            self.observation_space = spaces.Box(-8.0, 8.0, (2, 3), np.float32)
+
+        def observation(self, observation):
+            return np.stack([observation, -observation]).astype(np.float32)
+
+    env = Grid(gym.make("Pendulum-v1", max_episode_steps=EP_LEN))
+    model = RecurrentTD3("MlpLstmPolicy", env, seed=0, learning_starts=20, **TINY)
+    model.learn(40)
+    action, _ = model.predict(env.observation_space.sample())
+    assert action.shape == (1,)
