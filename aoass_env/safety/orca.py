@@ -1,0 +1,804 @@
+"""ORCA: optimal reciprocal collision avoidance for the anchor (Eq. 8-10).
+
+ORCA (van den Berg, Guy, Lin, Manocha, "Reciprocal n-Body Collision Avoidance", ISRR 2009 /
+Springer Tracts in Advanced Robotics 70, 2011; reference library RVO2) turns every obstacle
+near the anchor into a half-plane of *permitted* velocities, then picks the permitted velocity
+closest to the preferred one:
+
+* Eq. 8-9, the ORCA condition: for a moving disc B, the velocity obstacle VO(tau) holds the
+  relative velocities that bring the two discs into contact within the horizon ``tau``; u is
+  the smallest change of the current relative velocity that leaves it, n the outward normal at
+  the exit point, and ORCA = {v : (v - (v_A + r u)) . n >= 0} where r is the anchor's share of
+  the avoidance (``responsibility``: 1 for obstacles that do not reciprocate, as here; RVO2's
+  agent-agent case is 1/2). A static polygon edge gives a half-plane the same way with r = 1
+  and its own horizon ``time_horizon_obst``.
+* Eq. 10: v* = argmin over V_safe of |v - v_pref|, V_safe being the intersection of the
+  half-planes and the disc |v| <= max_speed. It is solved by RVO2's incremental 2-D linear
+  program (``linearProgram1/2``: the lines are added one by one and the optimum moves onto a
+  line only when it violates it). When V_safe is empty, the static-obstacle half-planes stay
+  hard and the moving-obstacle ones are relaxed: v* minimises the largest penetration of a
+  moving-obstacle half-plane (RVO2's ``linearProgram3``, a 3-D LP solved by projection).
+
+The construction follows RVO2's ``Agent::computeNewVelocity`` case by case: static edges
+within ``time_horizon_obst * max_speed + radius`` (m) of the anchor, nearest first, seen from
+their free side only (back-face culling); edges whose velocity obstacle earlier static lines
+already cover are skipped; collisions with a vertex or a segment give a line through the
+origin that forbids going deeper; otherwise the velocity obstacle's cut-off line, cut-off
+circles and legs (one vertex's legs when the edge is seen obliquely, the cut-off line's
+extension at a non-convex vertex, a neighbouring edge's direction for a leg pointing into it,
+in which case projecting on that "foreign" leg adds no line). Moving discs give RVO2's three
+cases: projection on the cut-off circle or on a leg, and, when the discs already overlap, on the
+cut-off circle of time ``time_step`` (a velocity that separates them within one step).
+
+Static obstacles do not push the anchor out: when it already overlaps an edge, the line only
+forbids the velocities that take it deeper (as in RVO2).
+
+Conventions (RVO2's):
+
+* a line is a point ``p`` and a unit direction ``d`` in velocity space (m/s); the permitted
+  half-plane lies to the LEFT of ``d``: v is permitted when ``det(d, p - v) <= 0`` with
+  ``det(a, b) = a_x b_y - a_y b_x``;
+* static obstacles are vertex loops with free space to the RIGHT of every directed edge: a
+  solid obstacle is listed counter-clockwise, an enclosure (field border, a hole of free space)
+  clockwise (:attr:`aoass_env.maps.ObstacleMap.free_space_loops` has this orientation);
+* units: metres, seconds, metres per second.
+
+Differences from RVO2, all numerical: computations are in float64 (RVO2: float32), so the
+parallel-line tolerance of the 2-D LP is 1e-10 instead of RVO_EPSILON = 1e-5. The 2-D LP
+declares a line infeasible only when the best point on it violates an earlier line by more than
+1e-9 m/s (RVO2 gives up on any round-off, e.g. when the lines through the origin of two
+collisions leave zero velocity alone, and its fallback then breaks a static line). Degenerate
+directions that RVO2 would divide by zero on (a velocity exactly at a cut-off centre, discs
+exactly concentric) take a defined fallback. An anchor whose centre projects exactly on the end
+of an edge (s = 1) counts as colliding with that end vertex (RVO2 would take the square root of
+a negative number there). Moving obstacles are all used: filter far ones before the call (RVO2
+keeps the ``max_neighbors`` nearest within ``neighbor_dist``); they are ordered nearest first
+as RVO2 orders its neighbours. Static edges at equal distance keep index order (RVO2: its
+kd-tree's order; that tree also splits edges crossing its partition lines, which this module
+does not need). A double-precision transcription of RVO2's ``Agent.cpp`` gave the same lines
+on 12,000 random scenes and the same velocities except where its round-off gave up (above).
+
+Speed: the per-line geometry and the linear programs run on Python floats (numpy scalar
+arithmetic costs about a microsecond per operation); numpy only filters the static edges.
+Build :class:`StaticObstacles` once per map and pass it in; a sequence of loops is converted
+on every call. ``python3 benchmarks/orca.py`` prints microseconds per call.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+__all__ = ["OrcaLines", "StaticObstacles", "orca_lines", "orca_velocity", "solve_velocity"]
+
+#: RVO2's RVO_EPSILON: slack of the "already covered" test (m/s) and the parallel-line
+#: tolerance of the 3-D LP's projection (a |det| of unit vectors).
+_EPS = 1e-5
+#: Parallel-line tolerance of the 2-D LP (|det| of unit directions; float64).
+_PARALLEL = 1e-10
+#: Round-off slack (m/s) of the 2-D LP's infeasibility tests: a point that violates earlier
+#: lines by at most this much is accepted rather than declaring the program infeasible.
+_SLACK = 1e-9
+
+#: A line: (point x, point y, direction x, direction y), velocity space (m/s).
+_Line = tuple[float, float, float, float]
+
+
+# --------------------------------------------------------------------------------------------
+# input checks
+# --------------------------------------------------------------------------------------------
+
+def _vec2(name: str, value: Any, unit: str) -> tuple[float, float]:
+    """A finite 2-vector as two Python floats, or a ValueError naming ``name``."""
+    try:
+        if isinstance(value, np.ndarray):
+            if value.shape != (2,):
+                raise ValueError
+            x, y = value.tolist()
+        else:
+            x, y = value
+        x, y = float(x), float(y)
+    except (TypeError, ValueError):
+        shape = getattr(value, "shape", None)
+        got = f"shape {shape}" if shape is not None else repr(value)
+        raise ValueError(f"{name} must be a finite 2-vector ({unit}), got {got}") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise ValueError(f"{name} must be a finite 2-vector ({unit}), got ({x}, {y})")
+    return x, y
+
+
+def _positive(name: str, value: Any, unit: str) -> float:
+    """A finite number > 0 as a Python float, or a ValueError naming ``name``."""
+    try:
+        if isinstance(value, (bool, np.bool_)):
+            raise TypeError
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a finite number > 0 ({unit}), got {value!r}") from None
+    if not (number > 0.0 and math.isfinite(number)):
+        raise ValueError(f"{name} must be > 0 ({unit}), got {value!r}")
+    return number
+
+
+def _moving(value: Any) -> list[list[float]]:
+    """Moving obstacles as rows [x, y, vx, vy, radius] of Python floats."""
+    if value is None:
+        return []
+    try:
+        rows = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError("moving_obstacles must be None or an (n, 5) array of "
+                         "[x, y, vx, vy, radius] (m, m/s, m)") from None
+    if rows.size == 0:
+        return []
+    if rows.ndim != 2 or rows.shape[1] != 5:
+        raise ValueError(f"moving_obstacles must have shape (n, 5) [x, y, vx, vy, radius], "
+                         f"got {rows.shape}")
+    if not np.isfinite(rows).all():
+        raise ValueError("moving_obstacles must be finite (NaN or inf found)")
+    if (rows[:, 4] < 0.0).any():
+        raise ValueError(f"moving_obstacles radii (column 4) must be >= 0 (m), got "
+                         f"{rows[:, 4].min()}")
+    return rows.tolist()
+
+
+# --------------------------------------------------------------------------------------------
+# static obstacles
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class StaticObstacles:
+    """RVO2-style obstacle vertices. Each loop is a closed polygon chain; free space lies to the
+    RIGHT of each directed edge: a solid obstacle is listed counter-clockwise (as in RVO2), an
+    enclosure (field border, a hole) clockwise.
+
+    Vertex i starts edge i, which ends at vertex ``next[i]``.
+
+    Attributes:
+        point: (V, 2) float64 vertices (m).
+        direction: (V, 2) unit vector from vertex i to ``next[i]``.
+        next: (V,) int64 index of the next vertex of the loop.
+        prev: (V,) int64 index of the previous vertex of the loop.
+        convex: (V,) bool, RVO2's ``isConvex_``: ``leftOf(prev, cur, next) >= 0`` (vertices of
+            two-vertex loops are convex).
+    """
+
+    point: np.ndarray
+    direction: np.ndarray
+    next: np.ndarray
+    prev: np.ndarray
+    convex: np.ndarray
+
+    def __post_init__(self) -> None:
+        point = np.array(self.point, dtype=np.float64)        # copies: stored read-only
+        v = len(point) if point.ndim == 2 else -1
+        if point.ndim != 2 or point.shape[1] != 2 or not np.isfinite(point).all():
+            raise ValueError(f"StaticObstacles.point must be a finite (V, 2) array (m), got "
+                             f"shape {point.shape}")
+        direction = np.array(self.direction, dtype=np.float64)
+        if direction.shape != (v, 2) or not np.isfinite(direction).all():
+            raise ValueError(f"StaticObstacles.direction must be a finite ({v}, 2) array, got "
+                             f"shape {direction.shape}")
+        links = {}
+        for name in ("next", "prev"):
+            index = np.asarray(getattr(self, name))
+            if index.shape != (v,) or (v and (not np.issubdtype(index.dtype, np.integer)
+                                              or index.min() < 0 or index.max() >= v)):
+                raise ValueError(f"StaticObstacles.{name} must be ({v},) integer indices in "
+                                 f"[0, {v}), got shape {index.shape}")
+            links[name] = index.astype(np.int64)
+        if v and (links["next"][links["prev"]] != np.arange(v)).any():
+            raise ValueError("StaticObstacles.next and .prev must be inverse permutations")
+        convex = np.asarray(self.convex)
+        if convex.shape != (v,):
+            raise ValueError(f"StaticObstacles.convex must be a ({v},) bool array, got shape "
+                             f"{convex.shape}")
+        convex = convex.astype(bool)
+        for name, array in (("point", point), ("direction", direction), ("next", links["next"]),
+                            ("prev", links["prev"]), ("convex", convex)):
+            array.setflags(write=False)
+            object.__setattr__(self, name, array)
+
+        # vectorised edge filter: start (ax, ay), edge vector (ex, ey), 1 / |e|^2
+        nxt = links["next"]
+        ax, ay = point[:, 0].copy(), point[:, 1].copy()
+        ex, ey = point[nxt, 0] - ax, point[nxt, 1] - ay
+        len2 = ex * ex + ey * ey
+        if (len2 <= 0.0).any():
+            raise ValueError("StaticObstacles has a zero-length edge (a vertex repeated)")
+        lo, hi = (point.min(axis=0), point.max(axis=0)) if v else (np.zeros(2), np.zeros(2))
+        cache = {
+            "_ax": ax, "_ay": ay, "_bx": point[nxt, 0], "_by": point[nxt, 1],
+            "_ex": ex, "_ey": ey, "_inv_len2": 1.0 / len2,
+            "_bbox": (*lo.tolist(), *hi.tolist()),
+            # per-vertex Python lists for the per-line geometry
+            "_x": ax.tolist(), "_y": ay.tolist(),
+            "_dx": direction[:, 0].tolist(), "_dy": direction[:, 1].tolist(),
+            "_next": nxt.tolist(), "_prev": links["prev"].tolist(), "_convex": convex.tolist(),
+        }
+        for name, value in cache.items():
+            object.__setattr__(self, name, value)
+
+    def __len__(self) -> int:
+        """Number of vertices (= number of edges)."""
+        return len(self.point)
+
+    @classmethod
+    def from_loops(cls, loops: Sequence[ArrayLike]) -> StaticObstacles:
+        """Build from vertex loops, each a (k, 2) array (m) with k >= 2.
+
+        Loops follow the orientation convention of the class (solid obstacle counter-clockwise,
+        enclosure clockwise). A closing vertex equal to the first one (shapely's ring
+        convention) is dropped; any other repeated consecutive vertex is an error.
+        """
+        if isinstance(loops, np.ndarray) and loops.ndim == 2:
+            raise ValueError("static_obstacles must be a sequence of (k, 2) vertex loops, got "
+                             f"one array of shape {loops.shape}; wrap it in a list")
+        points, nexts, prevs, convexes = [], [], [], []
+        start = 0
+        for i, loop in enumerate(loops):
+            what = (f"static_obstacles[{i}] must be a finite (k, 2) array of vertices (m) "
+                    f"with k >= 2")
+            try:
+                vertices = np.array(loop, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ValueError(f"{what}, got {type(loop).__name__}") from None
+            if vertices.ndim != 2 or vertices.shape[1] != 2:
+                raise ValueError(f"{what}, got shape {vertices.shape}")
+            if not np.isfinite(vertices).all():
+                raise ValueError(f"{what}, got NaN or inf")
+            if len(vertices) > 2 and (vertices[0] == vertices[-1]).all():
+                vertices = vertices[:-1]
+            k = len(vertices)
+            if k < 2:
+                raise ValueError(f"{what}, got {k} distinct vertices")
+            following = np.roll(vertices, -1, axis=0)
+            if ((following - vertices) == 0.0).all(axis=1).any():
+                raise ValueError(f"static_obstacles[{i}] repeats a vertex (zero-length edge); "
+                                 f"consecutive vertices must differ")
+            if k == 2:
+                convex = np.ones(2, dtype=bool)
+            else:
+                preceding = np.roll(vertices, 1, axis=0)
+                # RVO2's leftOf(prev, cur, next) = det(prev - next, cur - prev) >= 0
+                a, b = preceding - following, vertices - preceding
+                convex = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] >= 0.0
+            index = np.arange(start, start + k, dtype=np.int64)
+            points.append(vertices)
+            nexts.append(np.roll(index, -1))
+            prevs.append(np.roll(index, 1))
+            convexes.append(convex)
+            start += k
+        if not points:
+            return cls.empty()
+        point = np.concatenate(points)
+        nxt = np.concatenate(nexts)
+        edge = point[nxt] - point
+        direction = edge / np.hypot(edge[:, 0], edge[:, 1])[:, None]
+        return cls(point, direction, nxt, np.concatenate(prevs), np.concatenate(convexes))
+
+    @classmethod
+    def empty(cls) -> StaticObstacles:
+        """No static obstacles."""
+        return cls(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, np.int64),
+                   np.zeros(0, np.int64), np.zeros(0, bool))
+
+    def edges_near(self, position: ArrayLike, reach: float) -> np.ndarray:
+        """Indices i of edges (point[i] -> point[next[i]]) whose distance to position is < reach,
+        sorted by distance (vectorised numpy).
+
+        Args:
+            position: (2,) query point (m).
+            reach: distance bound (m), >= 0.
+
+        Returns:
+            (m,) int64 edge indices, nearest first (ties in index order).
+        """
+        px, py = _vec2("position", position, "m")
+        try:
+            reach = float(reach)
+        except (TypeError, ValueError):
+            raise ValueError(f"reach must be a finite number >= 0 (m), got {reach!r}") from None
+        if not (0.0 <= reach < math.inf):
+            raise ValueError(f"reach must be a finite number >= 0 (m), got {reach!r}")
+        return np.asarray(self._near(px, py, reach), dtype=np.int64)
+
+    def _near(self, px: float, py: float, reach: float) -> list[int]:
+        """:meth:`edges_near` on checked floats, as a list."""
+        x0, y0, x1, y1 = self._bbox
+        if (len(self.point) == 0 or px < x0 - reach or px > x1 + reach or py < y0 - reach
+                or py > y1 + reach):
+            return []
+        rx = px - self._ax
+        ry = py - self._ay
+        ex, ey = self._ex, self._ey
+        s = (rx * ex + ry * ey) * self._inv_len2
+        np.clip(s, 0.0, 1.0, out=s)
+        rx -= s * ex
+        ry -= s * ey
+        dist2 = rx * rx + ry * ry
+        hits = np.flatnonzero(dist2 < reach * reach)
+        if len(hits) > 1:
+            # nearest at the end vertex: measure from that vertex itself, so that two edges
+            # nearest at their shared vertex tie exactly and keep index order
+            ends = hits[s[hits] >= 1.0]
+            if len(ends):
+                qx, qy = px - self._bx[ends], py - self._by[ends]
+                dist2[ends] = qx * qx + qy * qy
+            hits = hits[np.argsort(dist2[hits], kind="stable")]
+        return hits.tolist()
+
+
+def _static(value: Any) -> StaticObstacles | None:
+    if value is None or isinstance(value, StaticObstacles):
+        return value
+    if isinstance(value, (str, bytes)):
+        raise ValueError("static_obstacles must be None, a StaticObstacles or a sequence of "
+                         f"(k, 2) vertex loops, got {value!r}")
+    try:
+        iter(value)
+    except TypeError:
+        raise ValueError("static_obstacles must be None, a StaticObstacles or a sequence of "
+                         f"(k, 2) vertex loops, got {type(value).__name__}") from None
+    return StaticObstacles.from_loops(value)
+
+
+# --------------------------------------------------------------------------------------------
+# ORCA lines
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class OrcaLines:
+    """ORCA half-planes in velocity space.
+
+    Attributes:
+        point: (n, 2) a point on each line (m/s).
+        direction: (n, 2) unit direction; the permitted half-plane is to the LEFT of the
+            direction (RVO2 convention): v is permitted when ``det(direction, point - v) <= 0``.
+        n_static: the first ``n_static`` lines come from static obstacles (hard constraints).
+    """
+
+    point: np.ndarray
+    direction: np.ndarray
+    n_static: int
+
+    def __len__(self) -> int:
+        return len(self.point)
+
+
+def _static_lines(obstacles: StaticObstacles, px: float, py: float, vx: float, vy: float,
+                  radius: float, max_speed: float, tau: float, lines: list[_Line]) -> None:
+    """Append RVO2's obstacle lines for the edges near (px, py) to ``lines``."""
+    edges = obstacles._near(px, py, tau * max_speed + radius)
+    if not edges:
+        return
+    xs, ys, dxs, dys = obstacles._x, obstacles._y, obstacles._dx, obstacles._dy
+    nxt, prv, convex = obstacles._next, obstacles._prev, obstacles._convex
+    inv_tau = 1.0 / tau
+    rad2 = radius * radius
+    rad_tau = radius * inv_tau  # cut-off radius (m/s)
+    sqrt = math.sqrt
+
+    for first in edges:
+        second = nxt[first]
+        # positions of the edge's end vertices relative to the anchor (m)
+        x1, y1 = xs[first] - px, ys[first] - py
+        x2, y2 = xs[second] - px, ys[second] - py
+        ex, ey = x2 - x1, y2 - y1
+        # back-face culling (RVO2's kd-tree query): the anchor must lie right of the edge
+        if x1 * ey - y1 * ex >= 0.0:
+            continue
+
+        # skip the edge when earlier lines already forbid both cut-off discs entirely
+        c1x, c1y, c2x, c2y = x1 * inv_tau, y1 * inv_tau, x2 * inv_tau, y2 * inv_tau
+        covered = False
+        for lx, ly, ldx, ldy in lines:
+            if ((c1x - lx) * ldy - (c1y - ly) * ldx - rad_tau >= -_EPS
+                    and (c2x - lx) * ldy - (c2y - ly) * ldx - rad_tau >= -_EPS):
+                covered = True
+                break
+        if covered:
+            continue
+
+        dist2_1 = x1 * x1 + y1 * y1
+        dist2_2 = x2 * x2 + y2 * y2
+        # s: where the anchor projects on the edge (0 at the first vertex, 1 at the second)
+        s = -(x1 * ex + y1 * ey) / (ex * ex + ey * ey)
+        fx, fy = -x1 - s * ex, -y1 - s * ey
+        dist2_line = fx * fx + fy * fy
+
+        # --- the anchor already overlaps the edge: forbid moving deeper -------------------
+        if s < 0.0 and dist2_1 <= rad2:
+            if convex[first]:
+                norm = sqrt(dist2_1)
+                lines.append((0.0, 0.0, -y1 / norm, x1 / norm))
+            continue
+        if s >= 1.0 and dist2_2 <= rad2:
+            # a non-convex vertex, or one the next edge handles, adds nothing
+            if convex[second] and x2 * dys[second] - y2 * dxs[second] >= 0.0:
+                norm = sqrt(dist2_2)
+                lines.append((0.0, 0.0, -y2 / norm, x2 / norm))
+            continue
+        if 0.0 <= s < 1.0 and dist2_line <= rad2:
+            lines.append((0.0, 0.0, -dxs[first], -dys[first]))
+            continue
+
+        # --- no collision: legs of the velocity obstacle -----------------------------------
+        # (left vertex, right vertex) of the velocity obstacle; the same vertex when the
+        # edge is seen obliquely
+        left, right = first, second
+        if s < 0.0 and dist2_line <= rad2:
+            # seen obliquely: the first vertex alone defines the velocity obstacle
+            if not convex[first]:
+                continue
+            right = first
+            leg = sqrt(max(dist2_1 - rad2, 0.0))
+            llx, lly = (x1 * leg - y1 * radius) / dist2_1, (x1 * radius + y1 * leg) / dist2_1
+            rlx, rly = (x1 * leg + y1 * radius) / dist2_1, (y1 * leg - x1 * radius) / dist2_1
+        elif s > 1.0 and dist2_line <= rad2:
+            # seen obliquely: the second vertex alone defines the velocity obstacle
+            if not convex[second]:
+                continue
+            left = second
+            leg = sqrt(max(dist2_2 - rad2, 0.0))
+            llx, lly = (x2 * leg - y2 * radius) / dist2_2, (x2 * radius + y2 * leg) / dist2_2
+            rlx, rly = (x2 * leg + y2 * radius) / dist2_2, (y2 * leg - x2 * radius) / dist2_2
+        else:
+            if convex[first]:
+                leg = sqrt(max(dist2_1 - rad2, 0.0))
+                llx, lly = (x1 * leg - y1 * radius) / dist2_1, (x1 * radius + y1 * leg) / dist2_1
+            else:
+                # non-convex first vertex: the left leg continues the cut-off line
+                llx, lly = -dxs[first], -dys[first]
+            if convex[second]:
+                leg = sqrt(max(dist2_2 - rad2, 0.0))
+                rlx, rly = (x2 * leg + y2 * radius) / dist2_2, (y2 * leg - x2 * radius) / dist2_2
+            else:
+                # non-convex second vertex: the right leg continues the cut-off line
+                rlx, rly = dxs[first], dys[first]
+
+        # a leg at a convex vertex may not point into the neighbouring edge: take that edge's
+        # direction instead ("foreign" leg; projecting on it adds no line)
+        left_foreign = right_foreign = False
+        before = prv[left]
+        if convex[left] and llx * -dys[before] - lly * -dxs[before] >= 0.0:
+            llx, lly = -dxs[before], -dys[before]
+            left_foreign = True
+        if convex[right] and rlx * dys[right] - rly * dxs[right] <= 0.0:
+            rlx, rly = dxs[right], dys[right]
+            right_foreign = True
+
+        # cut-off centres (m/s) and the cut-off segment between them
+        lcx, lcy = (xs[left] - px) * inv_tau, (ys[left] - py) * inv_tau
+        rcx, rcy = (xs[right] - px) * inv_tau, (ys[right] - py) * inv_tau
+        cx, cy = rcx - lcx, rcy - lcy
+        single = left == right
+        wlx, wly = vx - lcx, vy - lcy
+        t = 0.5 if single else (wlx * cx + wly * cy) / (cx * cx + cy * cy)
+        t_left = wlx * llx + wly * lly
+        wrx, wry = vx - rcx, vy - rcy
+        t_right = wrx * rlx + wry * rly
+
+        # project the current velocity on the velocity obstacle's boundary
+        if (t < 0.0 and t_left < 0.0) or (single and t_left < 0.0 and t_right < 0.0):
+            lines.append(_on_circle(wlx, wly, lcx, lcy, rad_tau))
+            continue
+        if t > 1.0 and t_right < 0.0:
+            lines.append(_on_circle(wrx, wry, rcx, rcy, rad_tau))
+            continue
+
+        inf = math.inf
+        if t < 0.0 or t > 1.0 or single:
+            d2_cut = inf
+        else:
+            qx, qy = wlx - t * cx, wly - t * cy
+            d2_cut = qx * qx + qy * qy
+        if t_left < 0.0:
+            d2_left = inf
+        else:
+            qx, qy = wlx - t_left * llx, wly - t_left * lly
+            d2_left = qx * qx + qy * qy
+        if t_right < 0.0:
+            d2_right = inf
+        else:
+            qx, qy = wrx - t_right * rlx, wry - t_right * rly
+            d2_right = qx * qx + qy * qy
+
+        if d2_cut <= d2_left and d2_cut <= d2_right:
+            # the cut-off line, shifted by the cut-off radius toward the anchor
+            dx, dy = -dxs[left], -dys[left]
+            lines.append((lcx - rad_tau * dy, lcy + rad_tau * dx, dx, dy))
+        elif d2_left <= d2_right:
+            if not left_foreign:
+                lines.append((lcx - rad_tau * lly, lcy + rad_tau * llx, llx, lly))
+        elif not right_foreign:
+            dx, dy = -rlx, -rly
+            lines.append((rcx - rad_tau * dy, rcy + rad_tau * dx, dx, dy))
+
+
+def _on_circle(wx: float, wy: float, cx: float, cy: float, rad: float) -> _Line:
+    """Line tangent to the cut-off circle (centre (cx, cy), radius ``rad``, m/s) at the point
+    nearest the velocity (cx + wx, cy + wy)."""
+    norm = math.hypot(wx, wy)
+    if norm > 0.0:
+        ux, uy = wx / norm, wy / norm
+    else:
+        # velocity exactly at the centre (RVO2 divides by zero): the side facing the origin
+        norm = math.hypot(cx, cy)
+        ux, uy = (-cx / norm, -cy / norm) if norm > 0.0 else (-1.0, 0.0)
+    return (cx + rad * ux, cy + rad * uy, uy, -ux)
+
+
+def _moving_lines(rows: list[list[float]], px: float, py: float, vx: float, vy: float,
+                  radius: float, tau: float, time_step: float, share: float,
+                  lines: list[_Line]) -> None:
+    """Append RVO2's agent lines for moving discs (nearest first) to ``lines``."""
+    inv_tau = 1.0 / tau
+    entries = []
+    for ox, oy, ovx, ovy, orad in rows:
+        rx, ry = ox - px, oy - py
+        entries.append((rx * rx + ry * ry, rx, ry, vx - ovx, vy - ovy, radius + orad))
+    entries.sort(key=lambda entry: entry[0])
+    for dist2, rx, ry, wvx, wvy, rad in entries:
+        rad2 = rad * rad
+        if dist2 > rad2:
+            # w: from the cut-off centre to the relative velocity
+            wx, wy = wvx - rx * inv_tau, wvy - ry * inv_tau
+            w2 = wx * wx + wy * wy
+            dot = wx * rx + wy * ry
+            if dot < 0.0 and dot * dot > rad2 * w2:
+                # nearest boundary point on the cut-off circle
+                w_len = math.sqrt(w2)
+                ux, uy = wx / w_len, wy / w_len
+                dx, dy = uy, -ux
+                grow = rad * inv_tau - w_len
+                ux, uy = grow * ux, grow * uy
+            else:
+                # nearest boundary point on a leg
+                leg = math.sqrt(dist2 - rad2)
+                if rx * wy - ry * wx > 0.0:
+                    dx, dy = (rx * leg - ry * rad) / dist2, (rx * rad + ry * leg) / dist2
+                else:
+                    dx, dy = -(rx * leg + ry * rad) / dist2, (rx * rad - ry * leg) / dist2
+                along = wvx * dx + wvy * dy
+                ux, uy = along * dx - wvx, along * dy - wvy
+        else:
+            # overlapping: leave the cut-off circle of time time_step
+            inv_step = 1.0 / time_step
+            wx, wy = wvx - rx * inv_step, wvy - ry * inv_step
+            w_len = math.hypot(wx, wy)
+            if w_len > 0.0:
+                ux, uy = wx / w_len, wy / w_len
+            else:
+                # relative velocity exactly at the centre: push straight away from the disc
+                norm = math.hypot(rx, ry)
+                ux, uy = (-rx / norm, -ry / norm) if norm > 0.0 else (-1.0, 0.0)
+            dx, dy = uy, -ux
+            grow = rad * inv_step - w_len
+            ux, uy = grow * ux, grow * uy
+        lines.append((vx + share * ux, vy + share * uy, dx, dy))
+
+
+def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obstacles: Any,
+           moving_obstacles: Any, time_horizon: Any, time_horizon_obst: Any, time_step: Any,
+           responsibility: Any) -> tuple[list[_Line], int, float]:
+    """Checked inputs -> (lines, n_static, max_speed)."""
+    px, py = _vec2("position", position, "m")
+    vx, vy = _vec2("velocity", velocity, "m/s")
+    radius = _positive("radius", radius, "m")
+    max_speed = _positive("max_speed", max_speed, "m/s")
+    tau = _positive("time_horizon", time_horizon, "s")
+    tau_obst = _positive("time_horizon_obst", time_horizon_obst, "s")
+    step = _positive("time_step", time_step, "s")
+    share = _positive("responsibility", responsibility, "fraction")
+    if share > 1.0:
+        raise ValueError(f"responsibility must be in (0, 1], got {responsibility!r}")
+    static = _static(static_obstacles)
+    rows = _moving(moving_obstacles)
+    lines: list[_Line] = []
+    if static is not None:
+        _static_lines(static, px, py, vx, vy, radius, max_speed, tau_obst, lines)
+    n_static = len(lines)
+    if rows:
+        _moving_lines(rows, px, py, vx, vy, radius, tau, step, share, lines)
+    return lines, n_static, max_speed
+
+
+def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_speed: float, *,
+               static_obstacles: StaticObstacles | Sequence[ArrayLike] | None = None,
+               moving_obstacles: ArrayLike | None = None, time_horizon: float = 2.0,
+               time_horizon_obst: float = 2.0, time_step: float = 0.5,
+               responsibility: float = 1.0) -> OrcaLines:
+    """The anchor's ORCA half-planes (Eq. 8-9), static-obstacle lines first.
+
+    Args:
+        position: (2,) anchor position (m).
+        velocity: (2,) current anchor velocity (m/s); the lines are built around it.
+        radius: anchor radius (m), > 0.
+        max_speed: anchor speed limit (m/s), > 0; with ``time_horizon_obst`` it sets how far
+            static edges are considered (``time_horizon_obst * max_speed + radius``).
+        static_obstacles: None, a :class:`StaticObstacles`, or a sequence of (k, 2) loops.
+        moving_obstacles: None or (n, 5) rows [x, y, vx, vy, radius] (m, m/s, m); they do not
+            reciprocate.
+        time_horizon: horizon against moving obstacles (s).
+        time_horizon_obst: horizon against static obstacles (s).
+        time_step: control period (s); an overlap with a moving disc is resolved within it.
+        responsibility: the anchor's share of the avoidance of moving obstacles, in (0, 1]
+            (RVO2's agent-agent case: 0.5).
+    """
+    lines, n_static, _ = _build(position, velocity, radius, max_speed, static_obstacles,
+                                moving_obstacles, time_horizon, time_horizon_obst, time_step,
+                                responsibility)
+    if lines:
+        array = np.array(lines, dtype=np.float64)
+        point, direction = array[:, :2], array[:, 2:]
+    else:
+        point, direction = np.zeros((0, 2)), np.zeros((0, 2))
+    return OrcaLines(point, direction, n_static)
+
+
+# --------------------------------------------------------------------------------------------
+# linear programs (Eq. 10)
+# --------------------------------------------------------------------------------------------
+
+def _lp1(lines: list[_Line], k: int, speed: float, ox: float, oy: float,
+         along_direction: bool) -> tuple[float, float] | None:
+    """Best point on line k inside the speed disc and lines 0..k-1 (None if there is none):
+    the extreme along (ox, oy) when ``along_direction``, else the nearest to (ox, oy)."""
+    px, py, dx, dy = lines[k]
+    mid = px * dx + py * dy
+    disc = mid * mid + speed * speed - (px * px + py * py)
+    if disc < 0.0:
+        return None  # the speed disc misses the line
+    half = math.sqrt(disc)
+    lo, hi = -mid - half, -mid + half
+    for i in range(k):
+        qx, qy, ex, ey = lines[i]
+        cross = dx * ey - dy * ex           # det(d_k, d_i)
+        gap = ex * (py - qy) - ey * (px - qx)  # det(d_i, p_k - p_i)
+        if -_PARALLEL <= cross <= _PARALLEL:
+            if gap < -_SLACK:
+                return None  # parallel, and line k lies entirely in line i's forbidden side
+            continue
+        cut = gap / cross
+        if cross > 0.0:
+            if cut < hi:
+                hi = cut
+        elif cut > lo:
+            lo = cut
+    if lo > hi:
+        # empty interval; accept its middle when that is only round-off (a feasible set that
+        # shrank to a point, e.g. lines through the origin), else there is no solution
+        t = 0.5 * (lo + hi)
+        x, y = px + t * dx, py + t * dy
+        for i in range(k):
+            qx, qy, ex, ey = lines[i]
+            if ex * (qy - y) - ey * (qx - x) > _SLACK:
+                return None
+        return x, y
+    if along_direction:
+        t = hi if ox * dx + oy * dy > 0.0 else lo
+    else:
+        t = dx * (ox - px) + dy * (oy - py)
+        t = lo if t < lo else hi if t > hi else t
+    return px + t * dx, py + t * dy
+
+
+def _lp2(lines: list[_Line], speed: float, ox: float, oy: float,
+         along_direction: bool) -> tuple[int, float, float]:
+    """RVO2's linearProgram2: (index of the first line that cannot be met, or len(lines); x, y).
+    On failure (x, y) is the optimum of the lines before that index."""
+    if along_direction:
+        rx, ry = ox * speed, oy * speed
+    elif ox * ox + oy * oy > speed * speed:
+        scale = speed / math.hypot(ox, oy)
+        rx, ry = ox * scale, oy * scale
+    else:
+        rx, ry = ox, oy
+    for k in range(len(lines)):
+        px, py, dx, dy = lines[k]
+        if dx * (py - ry) - dy * (px - rx) > 0.0:
+            better = _lp1(lines, k, speed, ox, oy, along_direction)
+            if better is None:
+                return k, rx, ry
+            rx, ry = better
+    return len(lines), rx, ry
+
+
+def _lp3(lines: list[_Line], n_static: int, begin: int, speed: float, rx: float,
+         ry: float) -> tuple[float, float]:
+    """RVO2's linearProgram3: keep lines[:n_static] hard and minimise the largest violation of
+    the others, starting from line ``begin`` with the partial result (rx, ry)."""
+    depth = 0.0
+    hard = lines[:n_static]
+    for i in range(begin, len(lines)):
+        px, py, dx, dy = lines[i]
+        if dx * (py - ry) - dy * (px - rx) <= depth:
+            continue
+        # lines of equal violation of line i and each earlier relaxed line j
+        projected = list(hard)
+        for j in range(n_static, i):
+            qx, qy, ex, ey = lines[j]
+            cross = dx * ey - dy * ex
+            if -_EPS <= cross <= _EPS:
+                if dx * ex + dy * ey > 0.0:
+                    continue  # same direction: line j adds nothing
+                mx, my = 0.5 * (px + qx), 0.5 * (py + qy)
+            else:
+                along = (ex * (py - qy) - ey * (px - qx)) / cross
+                mx, my = px + along * dx, py + along * dy
+            nx, ny = ex - dx, ey - dy
+            norm = math.hypot(nx, ny)
+            projected.append((mx, my, nx / norm, ny / norm))
+        fail, sx, sy = _lp2(projected, speed, -dy, dx, True)
+        if fail == len(projected):
+            rx, ry = sx, sy
+        # else: round-off; keep the current result (as RVO2)
+        depth = dx * (py - ry) - dy * (px - rx)
+    return rx, ry
+
+
+def _solve(lines: list[_Line], n_static: int, px: float, py: float,
+           max_speed: float) -> tuple[float, float]:
+    fail, x, y = _lp2(lines, max_speed, px, py, False)
+    if fail < len(lines):
+        x, y = _lp3(lines, n_static, fail, max_speed, x, y)
+    return x, y
+
+
+def solve_velocity(lines: OrcaLines, preferred_velocity: ArrayLike,
+                   max_speed: float) -> np.ndarray:
+    """Eq. 10: the velocity (m/s) in the ORCA half-planes and the disc |v| <= ``max_speed``
+    closest to ``preferred_velocity`` (m/s).
+
+    RVO2's linearProgram2 (incremental 2-D LP in the max-speed disc, closest to preferred
+    velocity), and linearProgram3 fallback when infeasible (static lines stay hard,
+    moving-obstacle lines relaxed by minimising the max penetration).
+
+    Returns:
+        (2,) float64 velocity (m/s).
+    """
+    if not isinstance(lines, OrcaLines):
+        raise ValueError(f"lines must be an OrcaLines (from orca_lines), got "
+                         f"{type(lines).__name__}")
+    ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
+    max_speed = _positive("max_speed", max_speed, "m/s")
+    point = np.asarray(lines.point, dtype=np.float64)
+    direction = np.asarray(lines.direction, dtype=np.float64)
+    n = len(point)
+    if point.shape != (n, 2) or direction.shape != (n, 2):
+        raise ValueError(f"lines.point and lines.direction must both have shape (n, 2), got "
+                         f"{point.shape} and {direction.shape}")
+    if n and not (np.isfinite(point).all() and np.isfinite(direction).all()):
+        raise ValueError("lines must be finite (NaN or inf found)")
+    n_static = lines.n_static
+    if isinstance(n_static, bool) or not isinstance(n_static, (int, np.integer)) \
+            or not 0 <= n_static <= n:
+        raise ValueError(f"lines.n_static must be an integer in [0, {n}], got {n_static!r}")
+    if n:
+        rows = np.concatenate([point, direction], axis=1).tolist()
+        x, y = _solve([tuple(row) for row in rows], int(n_static), ox, oy, max_speed)
+    else:
+        x, y = _solve([], 0, ox, oy, max_speed)
+    return np.array([x, y])
+
+
+def orca_velocity(position: ArrayLike, velocity: ArrayLike, preferred_velocity: ArrayLike,
+                  radius: float, max_speed: float, *,
+                  static_obstacles: StaticObstacles | Sequence[ArrayLike] | None = None,
+                  moving_obstacles: ArrayLike | None = None, time_horizon: float = 2.0,
+                  time_horizon_obst: float = 2.0, time_step: float = 0.5,
+                  responsibility: float = 1.0) -> np.ndarray:
+    """= solve_velocity(orca_lines(...), preferred_velocity, max_speed). Returns (2,) float64
+    m/s. Arguments as in :func:`orca_lines`; ``preferred_velocity`` (2,) in m/s."""
+    ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
+    lines, n_static, max_speed = _build(position, velocity, radius, max_speed, static_obstacles,
+                                        moving_obstacles, time_horizon, time_horizon_obst,
+                                        time_step, responsibility)
+    x, y = _solve(lines, n_static, ox, oy, max_speed)
+    return np.array([x, y])

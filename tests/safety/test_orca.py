@@ -1,0 +1,441 @@
+"""Tests of aoass_env.safety.orca: ORCA half-planes and velocities with RVO2's semantics.
+
+Analytic scenes check exact velocities (R: combined radius, tau: horizon). A velocity v is
+permitted by a line when det(direction, point - v) <= 0 (RVO2's convention).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aoass_env.safety.orca import (
+    OrcaLines,
+    StaticObstacles,
+    orca_lines,
+    orca_velocity,
+    solve_velocity,
+)
+
+# a long wall 2 m above the origin (a CCW box: solid)
+WALL = [(-10.0, 2.0), (10.0, 2.0), (10.0, 3.0), (-10.0, 3.0)]
+# an L (CCW) whose inner corner is (1, 1); non-convex vertex there
+ELL = [(0.0, 0.0), (4.0, 0.0), (4.0, 1.0), (1.0, 1.0), (1.0, 4.0), (0.0, 4.0)]
+BOX = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]
+# a field border around the origin (CW: an enclosure)
+BORDER = [(-5.0, -5.0), (-5.0, 5.0), (5.0, 5.0), (5.0, -5.0)]
+
+
+def slack(lines: OrcaLines, v) -> np.ndarray:
+    """det(d, p - v) per line: <= 0 where v is permitted."""
+    p, d = lines.point, lines.direction
+    return d[:, 0] * (p[:, 1] - v[1]) - d[:, 1] * (p[:, 0] - v[0])
+
+
+def closest_approach(rel_position, rel_velocity, horizon: float) -> float:
+    """Smallest distance (m) over [0, horizon] between two discs' centres; the second starts at
+    ``rel_position`` relative to the first and moves at ``rel_velocity`` relative to it."""
+    p, w = np.asarray(rel_position, float), np.asarray(rel_velocity, float)
+    t = 0.0 if w @ w == 0 else float(np.clip(-(p @ w) / (w @ w), 0.0, horizon))
+    return float(np.hypot(*(p + t * w)))
+
+
+# --------------------------------------------------------------------------------------------
+# free space
+# --------------------------------------------------------------------------------------------
+
+def test_nothing_around_returns_the_preferred_velocity():
+    far_box = [(100.0, 100.0), (101.0, 100.0), (101.0, 101.0), (100.0, 101.0)]
+    for kwargs in ({}, {"static_obstacles": StaticObstacles.empty()},
+                   {"static_obstacles": [far_box]}, {"moving_obstacles": np.zeros((0, 5))}):
+        v = orca_velocity((0, 0), (1, 0), (0.3, -0.4), 0.5, 2.0, **kwargs)
+        assert v.dtype == np.float64 and v.shape == (2,)
+        assert v.tolist() == [0.3, -0.4]
+    lines = orca_lines((0, 0), (1, 0), 0.5, 2.0, static_obstacles=[far_box])
+    assert len(lines) == 0 and lines.n_static == 0 and lines.point.shape == (0, 2)
+
+
+def test_preferred_velocity_beyond_max_speed_is_scaled_to_the_circle():
+    v = orca_velocity((0, 0), (0, 0), (3.0, 4.0), 0.5, 2.0)
+    np.testing.assert_allclose(v, [1.2, 1.6], rtol=0, atol=1e-12)
+
+
+# --------------------------------------------------------------------------------------------
+# moving discs (they do not reciprocate)
+# --------------------------------------------------------------------------------------------
+
+def test_head_on_with_a_standing_disc_cuts_to_the_cut_off_circle():
+    # R = 1, tau = 2: 3 m to contact -> at most 1.5 m/s straight ahead
+    v = orca_velocity((0, 0), (1.8, 0), (1.8, 0), 0.5, 4.0, moving_obstacles=[[4, 0, 0, 0, 0.5]])
+    np.testing.assert_allclose(v, [1.5, 0.0], atol=1e-12)
+
+
+def test_head_on_with_a_standing_disc_projects_on_the_right_leg():
+    # inside the cone beyond the cut-off circle: projected on the leg (ties pass on the right)
+    v = orca_velocity((0, 0), (3, 0), (3, 0), 0.5, 4.0, moving_obstacles=[[5, 0, 0, 0, 0.5]])
+    leg = math.sqrt(24.0)
+    np.testing.assert_allclose(v, [72 / 25, -3 * leg / 25], atol=1e-12)
+    assert closest_approach((5, 0), -v, 2.0) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_head_on_with_a_disc_coming_at_the_anchor():
+    # closing speed 1 + 1 = 2 m/s, 3.5 m to contact in tau = 2 s -> closing at most 1.75 m/s
+    v = orca_velocity((0, 0), (1, 0), (1, 0), 0.5, 4.0, moving_obstacles=[[4.5, 0, -1, 0, 0.5]])
+    np.testing.assert_allclose(v, [0.75, 0.0], atol=1e-12)
+
+
+def test_overtaking_a_slower_disc():
+    # 2 m gap, tau = 2.5 s: the anchor may gain at most 0.8 m/s on the 1 m/s disc
+    v = orca_velocity((0, 0), (2, 0), (2, 0), 0.5, 4.0, moving_obstacles=[[3, 0, 1, 0, 0.5]],
+                      time_horizon=2.5)
+    np.testing.assert_allclose(v, [1.8, 0.0], atol=1e-12)
+
+
+def test_crossing_leaves_the_velocity_obstacle_by_the_smallest_change():
+    # both would reach (3, 0) at t = 3 s
+    disc = np.array([[3.0, -3.0, 0.0, 1.0, 0.5]])
+    v = orca_velocity((0, 0), (1, 0), (1, 0), 0.5, 2.0, moving_obstacles=disc, time_horizon=5.0)
+    assert closest_approach(disc[0, :2], disc[0, 2:4] - (1, 0), 5.0) == 0.0
+    # v lies on the velocity obstacle's boundary: the discs just touch within the horizon
+    gap = closest_approach(disc[0, :2], disc[0, 2:4] - v, 5.0)
+    assert gap == pytest.approx(1.0, abs=1e-9)
+    assert v[0] < 1.0       # slows down to let the disc pass ahead
+    # u is the smallest change: no collision-free velocity is closer to the preferred one
+    grid = np.stack(np.meshgrid(np.linspace(-1, 3, 201), np.linspace(-2, 2, 201)), -1)
+    w = disc[0, 2:4] - grid.reshape(-1, 2)          # the disc's velocity relative to each
+    t = np.clip(-(w @ disc[0, :2]) / np.maximum((w * w).sum(1), 1e-300), 0.0, 5.0)
+    gaps = np.hypot(*(disc[0, :2] + t[:, None] * w).T)
+    change = np.hypot(*(grid.reshape(-1, 2) - (1, 0)).T)
+    assert change[gaps >= 1.0].min() >= np.hypot(*(v - (1, 0))) - 1e-12
+    lines = orca_lines((0, 0), (1, 0), 0.5, 2.0, moving_obstacles=disc, time_horizon=5.0)
+    assert len(lines) == 1 and slack(lines, v)[0] == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("disc, pref, full", [
+    ([4.0, 0.0, 0.0, 0.0, 0.5], (1.8, 0.0), (1.5, 0.0)),      # standing disc ahead
+    ([4.5, 0.0, -1.0, 0.0, 0.5], (1.0, 0.0), (0.75, 0.0)),    # disc coming at the anchor
+    ([5.0, 0.0, 0.0, 0.0, 0.5], (3.0, 0.0), (72 / 25, -3 * math.sqrt(24) / 25)),  # legs
+])
+def test_responsibility_scales_the_correction(disc, pref, full):
+    corrections = {}
+    for share in (1.0, 0.5, 0.25):
+        v = orca_velocity((0, 0), pref, pref, 0.5, 4.0, moving_obstacles=[disc],
+                          responsibility=share)
+        corrections[share] = v - np.array(pref)
+    np.testing.assert_allclose(corrections[1.0], np.array(full) - pref, atol=1e-12)
+    np.testing.assert_allclose(corrections[0.5], 0.5 * corrections[1.0], atol=1e-12)
+    np.testing.assert_allclose(corrections[0.25], 0.25 * corrections[1.0], atol=1e-12)
+
+
+def test_overlapping_disc_is_left_within_one_time_step():
+    # centres 0.5 m apart, R = 1: at rest, leave at 1 m/s to separate within 0.5 s
+    v = orca_velocity((0, 0), (0, 0), (0, 0), 0.5, 4.0, moving_obstacles=[[0.5, 0, 0, 0, 0.5]])
+    np.testing.assert_allclose(v, [-1.0, 0.0], atol=1e-12)
+    # the disc comes at the anchor at 1 m/s: (-3 + 1) m/s opens 0.5 m in 0.25 s
+    v = orca_velocity((0, 0), (0, 0), (0, 0), 0.5, 4.0, moving_obstacles=[[0.5, 0, -1, 0, 0.5]],
+                      time_step=0.25)
+    np.testing.assert_allclose(v, [-3.0, 0.0], atol=1e-12)
+    # half the responsibility: half the push
+    v = orca_velocity((0, 0), (0, 0), (0, 0), 0.5, 4.0, moving_obstacles=[[0.5, 0, 0, 0, 0.5]],
+                      responsibility=0.5)
+    np.testing.assert_allclose(v, [-0.5, 0.0], atol=1e-12)
+    # pushed out along the outward normal, whatever the preferred velocity
+    v = orca_velocity((0, 0), (0, 0), (2, 1), 0.5, 4.0, moving_obstacles=[[0.3, 0.4, 0, 0, 0.5]])
+    assert v @ np.array([-0.6, -0.8]) > 0.0
+
+
+def test_moving_lines_come_nearest_first_after_the_static_ones():
+    discs = [[6, 0, 0, 0, 0.5], [0, 3, 0, 0, 0.5], [-4, 0, 0, 0, 0.5]]
+    lines = orca_lines((0, 0), (0, 0), 0.5, 2.0, static_obstacles=[WALL],
+                       moving_obstacles=discs)
+    alone = [orca_lines((0, 0), (0, 0), 0.5, 2.0, moving_obstacles=[d]) for d in discs]
+    assert lines.n_static == 1 and len(lines) == 4
+    for row, k in zip(range(1, 4), (1, 2, 0), strict=True):
+        np.testing.assert_allclose(lines.point[row], alone[k].point[0])
+        np.testing.assert_allclose(lines.direction[row], alone[k].direction[0])
+
+
+# --------------------------------------------------------------------------------------------
+# static obstacles
+# --------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("pref, expected", [
+    ((0.0, 1.0), (0.0, 0.75)),
+    ((0.3, 1.2), (0.3, 0.75)),
+    ((-1.0, 2.5), (-1.0, 0.75)),
+    ((1.5, 0.0), (1.5, 0.0)),      # sliding along: untouched
+    ((-2.0, 0.5), (-2.0, 0.5)),    # slower than the limit toward the wall: untouched
+    ((0.0, -1.0), (0.0, -1.0)),    # moving away: untouched
+])
+def test_wall_caps_the_normal_speed_at_distance_over_horizon(pref, expected):
+    # 2 m to the wall, radius 0.5: 1.5 m in tau_obst = 2 s -> at most 0.75 m/s toward it
+    v = orca_velocity((0, 0), pref, pref, 0.5, 3.0, static_obstacles=[WALL])
+    np.testing.assert_allclose(v, expected, atol=1e-12)
+
+
+def test_wall_line_is_the_shifted_cut_off_line():
+    lines = orca_lines((0, 0), (0, 1), 0.5, 3.0, static_obstacles=[WALL])
+    assert lines.n_static == len(lines) == 1
+    np.testing.assert_allclose(lines.direction[0], [-1.0, 0.0])
+    assert lines.point[0, 1] == pytest.approx(0.75)
+
+
+@pytest.mark.parametrize("pref, expected", [((-1.0, -1.0), (-0.05, -0.05)),
+                                            ((-1.0, 0.5), (-0.05, 0.5))])
+def test_concave_corner_respects_both_walls(pref, expected):
+    # 0.6 m from both walls of the inner corner, radius 0.5: 0.1 m in 2 s on each axis
+    for velocity in (pref, (0.0, 0.0)):
+        lines = orca_lines((1.6, 1.6), velocity, 0.5, 2.0, static_obstacles=[ELL])
+        v = solve_velocity(lines, pref, 2.0)
+        assert v[0] >= -0.05 - 1e-12 and v[1] >= -0.05 - 1e-12
+        np.testing.assert_allclose(v, expected, atol=1e-12)
+        assert (slack(lines, v) <= 1e-12).all()
+
+
+def test_overlapping_a_static_vertex_forbids_going_deeper():
+    # 0.42 m from the box corner (0, 0), radius 0.5: only v . (1, 1) <= 0 is permitted
+    so = StaticObstacles.from_loops([BOX])
+    lines = orca_lines((-0.3, -0.3), (0, 0), 0.5, 2.0, static_obstacles=so)
+    assert len(lines) == 1 and lines.point.tolist() == [[0.0, 0.0]]
+    np.testing.assert_allclose(orca_velocity((-0.3, -0.3), (0, 0), (1, 0), 0.5, 2.0,
+                                             static_obstacles=so), [0.5, -0.5], atol=1e-12)
+    np.testing.assert_allclose(orca_velocity((-0.3, -0.3), (0, 0), (1, 1), 0.5, 2.0,
+                                             static_obstacles=so), [0.0, 0.0], atol=1e-12)
+    out = orca_velocity((-0.3, -0.3), (0, 0), (-1, -0.5), 0.5, 2.0, static_obstacles=so)
+    np.testing.assert_allclose(out, [-1.0, -0.5])
+    assert out @ np.array([-1.0, -1.0]) > 0.0
+
+
+def test_overlapping_a_static_segment_forbids_going_deeper():
+    # 0.3 m below the box's bottom edge, radius 0.5: only v_y <= 0 is permitted
+    so = StaticObstacles.from_loops([BOX])
+    lines = orca_lines((1.0, -0.3), (0, 0), 0.5, 2.0, static_obstacles=so)
+    assert len(lines) == 1
+    np.testing.assert_allclose(lines.point[0], [0.0, 0.0])
+    np.testing.assert_allclose(lines.direction[0], [-1.0, 0.0])
+    np.testing.assert_allclose(orca_velocity((1.0, -0.3), (0, 1), (0.5, 1.0), 0.5, 2.0,
+                                             static_obstacles=so), [0.5, 0.0], atol=1e-12)
+    out = orca_velocity((1.0, -0.3), (0, 1), (0.5, -1.0), 0.5, 2.0, static_obstacles=so)
+    np.testing.assert_allclose(out, [0.5, -1.0])
+    assert out[1] < 0.0     # pushed out along the outward normal (0, -1)
+
+
+def test_enclosure_keeps_the_anchor_in():
+    # 1 m below the top of a CW border, radius 0.5: at most 0.25 m/s toward it in 2 s
+    v = orca_velocity((0, 4), (0, 2), (0, 2), 0.5, 2.0, static_obstacles=[BORDER])
+    np.testing.assert_allclose(v, [0.0, 0.25], atol=1e-12)
+    so = StaticObstacles.from_loops([BORDER])
+    assert not so.convex.any()      # every corner of an enclosure is concave
+    inside = shapely.Polygon(BORDER)
+    rng = np.random.default_rng(3)
+    pos, vel, reached = np.array([0.0, 0.0]), np.zeros(2), 0.0
+    for step in range(300):
+        heading = 0.8 if step < 150 else rng.uniform(0, 2 * np.pi)
+        pref = 2.0 * np.array([math.cos(heading), math.sin(heading)])
+        vel = orca_velocity(pos, vel, pref, 0.5, 2.0, static_obstacles=so, time_step=0.1)
+        pos = pos + 0.1 * vel
+        assert inside.exterior.distance(shapely.Point(pos)) >= 0.5 - 1e-6
+        assert inside.contains(shapely.Point(pos))
+        reached = max(reached, np.abs(pos).max())
+    assert reached > 4.4        # it did press against the walls
+
+
+def test_infeasible_crowd_falls_back_to_the_3d_program():
+    # eight discs closing in from all sides, a wall below: no velocity avoids them all
+    angles = np.arange(8) * np.pi / 4 + 0.1
+    ring = np.c_[1.5 * np.cos(angles), 1.5 * np.sin(angles)]
+    discs = np.c_[ring, -ring / 1.5, np.full(8, 0.4)]
+    wall = [(-10.0, -3.0), (10.0, -3.0), (10.0, -1.8), (-10.0, -1.8)]
+    assert shapely.Polygon(wall).exterior.is_ccw
+    lines = orca_lines((0, 0), (0, 0), 0.5, 1.0, static_obstacles=[wall],
+                       moving_obstacles=discs, time_horizon=3.0)
+    assert lines.n_static == 1 and len(lines) == 9
+    v = solve_velocity(lines, (0.5, 0.5), 1.0)
+    assert np.isfinite(v).all() and np.hypot(*v) <= 1.0 + 1e-9
+    s = slack(lines, v)
+    assert s[:1].max() <= 1e-9          # the static line stays hard
+    assert s[1:].max() > 0.0            # the moving ones could not all be met
+    # v minimises the largest penetration of a moving line over the permitted velocities
+    rng = np.random.default_rng(0)
+    radius, angle = np.sqrt(rng.uniform(0, 1, 20000)), rng.uniform(0, 2 * np.pi, 20000)
+    candidates = np.c_[radius * np.cos(angle), radius * np.sin(angle)]
+    p, d = lines.point, lines.direction
+    pen = (d[:, 0][None] * (p[:, 1][None] - candidates[:, 1:2])
+           - d[:, 1][None] * (p[:, 0][None] - candidates[:, 0:1]))
+    ok = pen[:, 0] <= 0.0
+    assert s[1:].max() <= pen[ok, 1:].max(axis=1).min() + 1e-9
+
+
+# --------------------------------------------------------------------------------------------
+# StaticObstacles
+# --------------------------------------------------------------------------------------------
+
+def test_from_loops_links_vertices_and_marks_convexity():
+    so = StaticObstacles.from_loops([ELL, [(10.0, 10.0), (12.0, 10.0)], BORDER])
+    assert len(so) == 6 + 2 + 4
+    assert so.next[:6].tolist() == [1, 2, 3, 4, 5, 0]
+    assert so.prev[:6].tolist() == [5, 0, 1, 2, 3, 4]
+    assert so.next[6:8].tolist() == [7, 6] and so.prev[6:8].tolist() == [7, 6]
+    assert so.next[8:].tolist() == [9, 10, 11, 8]
+    assert so.convex.tolist() == [True, True, True, False, True, True, True, True,
+                                  False, False, False, False]
+    np.testing.assert_allclose(so.direction[0], [1.0, 0.0])
+    np.testing.assert_allclose(so.direction[6], [1.0, 0.0])
+    np.testing.assert_allclose(so.direction[7], [-1.0, 0.0])
+    np.testing.assert_allclose(np.hypot(*so.direction.T), 1.0)
+    # a closing vertex equal to the first (shapely's rings) is dropped
+    closed = StaticObstacles.from_loops([[*BOX, BOX[0]]])
+    assert len(closed) == 4
+    assert StaticObstacles.from_loops([]).point.shape == (0, 2)
+    assert len(StaticObstacles.empty()) == 0
+
+
+def test_edges_near_sorted_by_distance():
+    so = StaticObstacles.from_loops([BOX])
+    # from (1, -1): bottom edge 1 m, the two sides sqrt(2) m (their nearest vertices), top 3 m
+    assert so.edges_near((1.0, -1.0), 10.0).tolist() == [0, 1, 3, 2]
+    assert so.edges_near((1.0, -1.0), 1.5).tolist() == [0, 1, 3]
+    assert so.edges_near((1.0, -1.0), 1.0).tolist() == []       # strictly closer than reach
+    assert so.edges_near((50.0, 50.0), 3.0).dtype == np.int64
+    assert StaticObstacles.empty().edges_near((0, 0), 5.0).tolist() == []
+
+
+# --------------------------------------------------------------------------------------------
+# bad input
+# --------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"radius": -1}, re.escape("radius must be > 0 (m), got -1")),
+    ({"radius": float("nan")}, "radius"),
+    ({"max_speed": 0.0}, "max_speed must be > 0"),
+    ({"position": (0.0, float("nan"))}, "position"),
+    ({"position": np.zeros(3)}, "position must be a finite 2-vector"),
+    ({"velocity": "fast"}, "velocity"),
+    ({"preferred_velocity": (1.0, float("inf"))}, "preferred_velocity"),
+    ({"moving_obstacles": np.zeros((3, 4))},
+     re.escape("moving_obstacles must have shape (n, 5) [x, y, vx, vy, radius], got (3, 4)")),
+    ({"moving_obstacles": [[1, 2, 3, 4, float("nan")]]}, "moving_obstacles"),
+    ({"moving_obstacles": [[1, 2, 3, 4, -0.5]]}, "moving_obstacles radii"),
+    ({"static_obstacles": [[(0, 0), (1, float("nan")), (0, 1)]]}, r"static_obstacles\[0\]"),
+    ({"static_obstacles": [BOX, [(0, 0)]]}, r"static_obstacles\[1\] must be .* k >= 2"),
+    ({"static_obstacles": [BOX, [(0, 0), (0, 0), (1, 1)]]}, r"static_obstacles\[1\] repeats"),
+    ({"static_obstacles": [np.zeros((3, 3))]}, r"static_obstacles\[0\].*shape \(3, 3\)"),
+    ({"static_obstacles": np.zeros((4, 2))}, "sequence of"),
+    ({"static_obstacles": 3}, "static_obstacles"),
+    ({"time_horizon": 0}, "time_horizon must be > 0"),
+    ({"time_horizon_obst": -2}, "time_horizon_obst must be > 0"),
+    ({"time_step": float("inf")}, "time_step"),
+    ({"responsibility": 1.5}, r"responsibility must be in \(0, 1\]"),
+    ({"responsibility": 0}, "responsibility"),
+])
+def test_bad_input_names_the_parameter(kwargs, message):
+    args = {"position": (0, 0), "velocity": (0, 0), "preferred_velocity": (1, 0),
+            "radius": 0.5, "max_speed": 2.0}
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=message):
+        orca_velocity(**args)
+
+
+def test_bad_lines_and_reach_name_the_parameter():
+    lines = orca_lines((0, 0), (0, 0), 0.5, 2.0, moving_obstacles=[[2, 0, 0, 0, 0.5]])
+    with pytest.raises(ValueError, match="lines must be an OrcaLines"):
+        solve_velocity(np.zeros((1, 4)), (0, 0), 2.0)
+    with pytest.raises(ValueError, match="n_static"):
+        solve_velocity(OrcaLines(lines.point, lines.direction, 2), (0, 0), 2.0)
+    with pytest.raises(ValueError, match="max_speed"):
+        solve_velocity(lines, (0, 0), -1.0)
+    with pytest.raises(ValueError, match="preferred_velocity"):
+        solve_velocity(lines, (0, 0, 0), 2.0)
+    with pytest.raises(ValueError, match="reach"):
+        StaticObstacles.from_loops([BOX]).edges_near((0, 0), -1.0)
+
+
+# --------------------------------------------------------------------------------------------
+# properties
+# --------------------------------------------------------------------------------------------
+
+@st.composite
+def scenes(draw):
+    """Random star-shaped CCW polygons (maybe overlapping), an optional CW border, moving discs
+    and an anchor state."""
+    loops = []
+    for _ in range(draw(st.integers(0, 4))):
+        cx, cy = draw(st.floats(-6, 6)), draw(st.floats(-6, 6))
+        k = draw(st.integers(3, 7))
+        turns = draw(st.lists(st.floats(0.2, 1.0), min_size=k, max_size=k))
+        radii = draw(st.lists(st.floats(0.3, 3.0), min_size=k, max_size=k))
+        angles = 2 * np.pi * np.cumsum(turns) / sum(turns)
+        loops.append(np.c_[cx + np.array(radii) * np.cos(angles),
+                           cy + np.array(radii) * np.sin(angles)])
+    border = draw(st.booleans())
+    if border:
+        loops.append(np.array(BORDER) * 2.0)
+    n = draw(st.integers(0, 5))
+    discs = np.array([[draw(st.floats(-6, 6)), draw(st.floats(-6, 6)), draw(st.floats(-2, 2)),
+                       draw(st.floats(-2, 2)), draw(st.floats(0.1, 1.0))] for _ in range(n)])
+    state = {
+        "position": (draw(st.floats(-5, 5)), draw(st.floats(-5, 5))),
+        "velocity": (draw(st.floats(-3, 3)), draw(st.floats(-3, 3))),
+        "radius": draw(st.floats(0.1, 1.0)),
+        "max_speed": draw(st.floats(0.2, 3.0)),
+        "time_horizon": draw(st.floats(0.5, 5.0)),
+        "time_horizon_obst": draw(st.floats(0.5, 5.0)),
+        "time_step": draw(st.floats(0.05, 1.0)),
+        "responsibility": draw(st.sampled_from([0.5, 1.0])),
+    }
+    pref = (draw(st.floats(-3, 3)), draw(st.floats(-3, 3)))
+    return loops, border, discs.reshape(-1, 5), state, pref
+
+
+@settings(max_examples=300, deadline=None)
+@given(scenes())
+def test_random_scenes_keep_speed_and_static_lines(scene):
+    loops, border, discs, state, pref = scene
+    lines = orca_lines(static_obstacles=loops, moving_obstacles=discs, **state)
+    v = solve_velocity(lines, pref, state["max_speed"])
+    assert np.isfinite(v).all()
+    assert np.hypot(*v) <= state["max_speed"] + 1e-9
+    ns = lines.n_static
+    zero = slack(lines, (0.0, 0.0))[:ns]
+    # zero velocity is permitted by every static line when the anchor overlaps no obstacle
+    solids = [shapely.Polygon(loop) for loop in (loops[:-1] if border else loops)]
+    anchor = shapely.Point(state["position"])
+    if all(p.distance(anchor) > state["radius"] + 1e-9 for p in solids):
+        assert zero.max(initial=0.0) <= 1e-12
+    # when some velocity in the disc (zero) meets every static line, the result does too
+    if zero.max(initial=0.0) <= 0.0:
+        assert slack(lines, v)[:ns].max(initial=0.0) <= 1e-7
+    assert np.array_equal(v, orca_velocity(preferred_velocity=pref, static_obstacles=loops,
+                                           moving_obstacles=discs, **state))
+
+
+PENTAGON = np.c_[5 + 1.5 * np.cos(np.pi + np.arange(5) * 2 * np.pi / 5),
+                 1.5 * np.sin(np.pi + np.arange(5) * 2 * np.pi / 5)]
+DIAMOND = [(3.5, 0.0), (5.0, -1.5), (6.5, 0.0), (5.0, 1.5)]
+TALL_BOX = [(4.0, -1.5), (6.0, -1.5), (6.0, 1.5), (4.0, 1.5)]
+
+
+@pytest.mark.parametrize("polygon, start_y, goal_y", [
+    (PENTAGON, 0.5, 0.8), (PENTAGON, 0.1, 0.0), (PENTAGON, -0.4, -0.2),
+    (DIAMOND, 0.2, 2.5), (DIAMOND, -0.3, 0.1), (TALL_BOX, 0.5, 3.0), (TALL_BOX, 0.0, -3.0),
+])
+def test_agent_gets_around_a_polygon_without_touching_it(polygon, start_y, goal_y):
+    radius, max_speed, dt = 0.3, 1.5, 0.1
+    so = StaticObstacles.from_loops([polygon])
+    solid = shapely.Polygon(polygon)
+    pos, vel, goal = np.array([0.0, start_y]), np.zeros(2), np.array([10.0, goal_y])
+    for _ in range(200):
+        to_goal = goal - pos
+        dist = float(np.hypot(*to_goal))
+        pref = to_goal / dist * min(max_speed, dist / dt) if dist > 0 else np.zeros(2)
+        vel = orca_velocity(pos, vel, pref, radius, max_speed, static_obstacles=so,
+                            time_step=dt)
+        pos = pos + dt * vel
+        assert solid.distance(shapely.Point(pos)) >= radius - 1e-6
+    assert np.hypot(*(goal - pos)) < 1e-6
