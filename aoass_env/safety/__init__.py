@@ -1,0 +1,1 @@
+"""The AOASS safety stack: Kalman tracking, fuzzy control, ORCA."""

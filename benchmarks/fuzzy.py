@@ -1,0 +1,82 @@
+"""Speed of the Eq. 7 fuzzy controller (aoass_env.safety.fuzzy).
+
+Prints microseconds per scalar call ``FuzzyController()(d, dtheta)`` (target < 30 us), per
+element of a vectorised call on ``--batch`` points, and, when scikit-fuzzy is installed, per
+scalar call of its Mamdani control system with the same sets and rules. Best of three passes;
+figures only.
+
+Run: ``python3 benchmarks/fuzzy.py [--calls 20000] [--batch 10000]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from aoass_env.safety.fuzzy import FuzzyController
+
+
+def best_of_three(fn, n: int) -> float:
+    """Best of three passes of ``n`` calls, seconds per call."""
+    best = float("inf")
+    for _ in range(3):
+        t0 = time.perf_counter()
+        for _ in range(n):
+            fn()
+        best = min(best, (time.perf_counter() - t0) / n)
+    return best
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--calls", type=int, default=20000)
+    parser.add_argument("--batch", type=int, default=10000)
+    args = parser.parse_args()
+    flc = FuzzyController()
+    rng = np.random.default_rng(0)
+    pts = list(zip(rng.uniform(0, 10, 64).tolist(), rng.uniform(-3, 3, 64).tolist(),
+                   strict=True))
+    it = iter(range(10 ** 9))
+    t = best_of_three(lambda: flc(*pts[next(it) % 64]), args.calls)
+    print(f"scalar call                : {t * 1e6:7.1f} us")
+    d, h = rng.uniform(0, 10, args.batch), rng.uniform(-3, 3, args.batch)
+    t = best_of_three(lambda: flc(d, h), 3)
+    print(f"vectorised, {args.batch} points : {t / args.batch * 1e6:7.2f} us per point "
+          f"({t * 1e3:.1f} ms)")
+    try:
+        import skfuzzy as fuzz
+        from skfuzzy import control as ctrl
+    except ImportError:
+        print("scikit-fuzzy not installed: no comparison")
+        return
+
+    def var(cls, v):
+        lo, hi, n = v.universe
+        u = np.linspace(lo, hi, n)
+        out = cls(u, v.name)
+        for name, p in v.terms.items():
+            out[name] = fuzz.trimf(u, list(p)) if len(p) == 3 else fuzz.trapmf(u, list(p))
+        return out
+
+    dist, head = var(ctrl.Antecedent, flc.distance), var(ctrl.Antecedent, flc.heading)
+    turn, speed = var(ctrl.Consequent, flc.turn), var(ctrl.Consequent, flc.speed)
+    sim = ctrl.ControlSystemSimulation(ctrl.ControlSystem(
+        [ctrl.Rule(dist[a] & head[b], (turn[c], speed[e]))
+         for (a, b), (c, e) in flc.rules.items()]), cache=False)
+
+    def sk() -> None:
+        x, y = pts[next(it) % 64]
+        sim.input["distance"], sim.input["heading"] = x, y
+        sim.compute()
+
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        t = best_of_three(sk, 200)
+    print(f"scikit-fuzzy scalar call   : {t * 1e6:7.1f} us")
+
+
+if __name__ == "__main__":
+    main()
