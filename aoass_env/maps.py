@@ -666,14 +666,28 @@ def write_map(obstacle_map: ObstacleMap, path: str | os.PathLike) -> None:
     write_text_atomic(Path(path), "\n".join(out) + "\n")
 
 
-def list_maps(split: str) -> list[str]:
-    """Names (``"<split>/<stem>"``) of the shipped maps of ``split`` ("train" or "test")."""
+def list_maps(split: str, *, field_size: float | None = None,
+              densities: tuple[float, float] | None = None) -> list[str]:
+    """Names (``"<split>/<stem>"``) of the shipped maps of ``split`` ("train" or "test").
+
+    Shipped stems read ``d<density>_f<field size>_s<seed>``; ``field_size`` (m) keeps the maps
+    of that field size, ``densities`` = (low, high) those whose density lies in [low, high]."""
     if split not in SPLITS:
         raise MapError(f"split={split!r} must be one of {SPLITS}")
     folder = MAPS_DIR / split
     if not folder.is_dir():
         raise MapError(f"shipped map folder {folder} is missing (it comes with the repository)")
-    return sorted(f"{split}/{p.stem}" for p in folder.glob("*.txt"))
+    names = []
+    for p in sorted(folder.glob("*.txt")):
+        if field_size is not None or densities is not None:
+            parts = dict((f[0], f[1:]) for f in p.stem.split("_") if f)
+            if field_size is not None and float(parts.get("f", "nan")) != field_size:
+                continue
+            if densities is not None and not (
+                    densities[0] - 1e-9 <= float(parts.get("d", "nan")) <= densities[1] + 1e-9):
+                continue
+        names.append(f"{split}/{p.stem}")
+    return names
 
 
 def load_map(name_or_path: str | os.PathLike,

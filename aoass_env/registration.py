@@ -18,6 +18,9 @@ from gymnasium.wrappers import TimeLimit
 from aoass_env.env import AOASSEnv
 
 ENV_ID = "AOASS-v0"
+#: The full AOASS stack: AOASS-v0 -> Kalman tracker -> fuzzy + ORCA safety filter
+#: (:func:`aoass_env.wrappers.make_safe_env`).
+SAFE_ENV_ID = "AOASS-Safe-v0"
 
 
 def make_env(**kwargs: Any) -> gym.Env:
@@ -30,6 +33,8 @@ make_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render modes
 
 
 def register() -> None:
-    """Register ``AOASS-v0`` (once per process)."""
+    """Register ``AOASS-v0`` and ``AOASS-Safe-v0`` (once per process)."""
     if ENV_ID not in gym.registry:
         gym.register(id=ENV_ID, entry_point=make_env)
+    if SAFE_ENV_ID not in gym.registry:
+        gym.register(id=SAFE_ENV_ID, entry_point="aoass_env.wrappers:make_safe_env")

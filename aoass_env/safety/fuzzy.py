@@ -128,10 +128,12 @@ class FuzzyVariable:
 
 
 def _default_distance() -> FuzzyVariable:
+    # ORCA keeps the anchor off the obstacles; the controller only eases off in the last
+    # metre (the spiral and the detours routinely pass 0.3-1 m from obstacles).
     return FuzzyVariable("distance", (0.0, 10.0, 201), {
-        "near": (0.0, 0.0, 0.8, 2.0),
-        "medium": (1.0, 2.5, 5.0),
-        "far": (3.5, 6.0, 10.0, 10.0),
+        "near": (0.0, 0.0, 0.2, 0.6),
+        "medium": (0.3, 1.0, 2.0),
+        "far": (1.2, 2.5, 10.0, 10.0),
     })
 
 
@@ -147,34 +149,39 @@ def _default_heading() -> FuzzyVariable:
 
 
 def _default_turn() -> FuzzyVariable:
-    return FuzzyVariable("turn", (-1.0, 1.0, 201), {
-        "NB": (-1.0, -1.0, -0.7),
-        "NS": (-0.75, -0.45, -0.15),
-        "ZE": (-0.25, 0.0, 0.25),
-        "PS": (0.15, 0.45, 0.75),
-        "PB": (0.7, 1.0, 1.0),
+    # Symmetric terms centred on -1, 0 and 1 (the universe reaches past +-1 so that full turn
+    # is exactly 1): between "ZE" at 0 and "PS" at pi/4 the output grows about linearly, so
+    # with the default limits (pi/2 rad/s over a 0.5 s period) the anchor closes a heading
+    # error of up to pi/4 within one period.
+    return FuzzyVariable("turn", (-1.1, 1.1, 2201), {
+        "right": (-1.1, -1.0, -0.9),
+        "straight": (-0.1, 0.0, 0.1),
+        "left": (0.9, 1.0, 1.1),
     })
 
 
 def _default_speed() -> FuzzyVariable:
-    return FuzzyVariable("speed", (0.0, 1.0, 201), {
-        "stop": (0.0, 0.0, 0.1),
-        "slow": (0.05, 0.25, 0.45),
-        "medium": (0.35, 0.6, 0.85),
-        "fast": (0.8, 1.0, 1.0),
+    # symmetric terms: "stop" is exactly 0 and "fast" exactly 1 (the universe reaches past both)
+    return FuzzyVariable("speed", (-0.1, 1.1, 1201), {
+        "stop": (-0.1, 0.0, 0.1),
+        "slow": (0.1, 0.3, 0.5),
+        "medium": (0.4, 0.65, 0.9),
+        "fast": (0.9, 1.0, 1.1),
     })
 
 
 def _default_rules() -> dict[tuple[str, str], tuple[str, str]]:
-    # The turn term is the heading term (the FLC has no bearing to the obstacle, so it steers
-    # toward the desired heading and leaves the geometry to ORCA); the speed term drops with
-    # the heading error and with the proximity of the obstacle.
+    # The turn follows the sign of the heading error (the FLC has no bearing to the obstacle,
+    # so it steers toward the desired heading and leaves the geometry to ORCA); the speed term
+    # drops for heading errors beyond pi/4 (the follower already slows with the cosine of the
+    # error) and in the last metre before an obstacle.
+    turn = {"NB": "right", "NS": "right", "ZE": "straight", "PS": "left", "PB": "left"}
     speed = {
-        "near": {"NB": "stop", "NS": "slow", "ZE": "slow", "PS": "slow", "PB": "stop"},
-        "medium": {"NB": "stop", "NS": "slow", "ZE": "medium", "PS": "slow", "PB": "stop"},
-        "far": {"NB": "slow", "NS": "medium", "ZE": "fast", "PS": "medium", "PB": "slow"},
+        "near": {"NB": "stop", "NS": "slow", "ZE": "medium", "PS": "slow", "PB": "stop"},
+        "medium": {"NB": "stop", "NS": "fast", "ZE": "fast", "PS": "fast", "PB": "stop"},
+        "far": {"NB": "slow", "NS": "fast", "ZE": "fast", "PS": "fast", "PB": "slow"},
     }
-    return {(dt, ht): (ht, sp) for dt, row in speed.items() for ht, sp in row.items()}
+    return {(dt, ht): (turn[ht], sp) for dt, row in speed.items() for ht, sp in row.items()}
 
 
 @dataclass(frozen=True)
@@ -210,10 +217,13 @@ class FuzzyController:
                           ("turn", self.turn), ("speed", self.speed)):
             if not isinstance(var, FuzzyVariable):
                 raise ValueError(f"{role} must be a FuzzyVariable, got {type(var).__name__}")
-        if self.turn.universe[0] < -1 or self.turn.universe[1] > 1:
-            raise ValueError(f"turn universe {self.turn.universe[:2]} must lie inside [-1, 1]")
-        if self.speed.universe[0] < 0 or self.speed.universe[1] > 1:
-            raise ValueError(f"speed universe {self.speed.universe[:2]} must lie inside [0, 1]")
+        # Output universes may reach past [-1, 1] / [0, 1] (so that a symmetric term can
+        # centre on an end); the outputs are clipped to those ranges.
+        if self.turn.universe[0] >= 0 or self.turn.universe[1] <= 0:
+            raise ValueError(f"turn universe {self.turn.universe[:2]} must contain 0")
+        if self.speed.universe[0] > 0 or self.speed.universe[1] <= 0:
+            raise ValueError(f"speed universe {self.speed.universe[:2]} must contain [0, a] "
+                             f"with a > 0")
         rules = self._check_rules()
         object.__setattr__(self, "rules", MappingProxyType(rules))
         object.__setattr__(self, "_tables", self._build_tables(rules))
@@ -336,7 +346,7 @@ class FuzzyController:
         nt = tab["nt"]
         ta, tm = clipped[:nt].max(axis=0) @ tab["moments"][0]
         sa, sm = clipped[nt:].max(axis=0) @ tab["moments"][1]
-        return float(tm / ta), float(sm / sa)
+        return min(max(tm / ta, -1.0), 1.0), min(max(sm / sa, 0.0), 1.0)
 
     def _infer(self, d: np.ndarray, h: np.ndarray) -> np.ndarray:
         """(N, 4) [turn area, turn moment, speed area, speed moment] for 1-D d (m) and wrapped
@@ -397,5 +407,6 @@ class FuzzyController:
         # Blocks bound the (terms, block, n) implication array to a few MB.
         res = np.concatenate([self._infer(d_flat[i:i + _BLOCK], h_flat[i:i + _BLOCK])
                               for i in range(0, max(len(d_flat), 1), _BLOCK)])
-        omega, speed = res[:, 1] / res[:, 0], res[:, 3] / res[:, 2]       # centroids
+        omega = np.clip(res[:, 1] / res[:, 0], -1.0, 1.0)                 # centroids
+        speed = np.clip(res[:, 3] / res[:, 2], 0.0, 1.0)
         return omega.reshape(shape), speed.reshape(shape)

@@ -49,8 +49,9 @@ def test_default_behaviour():
     free, _ = FLC(8.0, 0.0)
     assert free == pytest.approx(0.0, abs=1e-12)
     assert FLC(8.0, 0.0)[1] > 0.9                  # far and aligned: fast
-    assert FLC(0.5, 0.0)[1] < 0.3                  # near: slow
-    assert FLC(8.0, 2.5)[1] < 0.3                  # large error: slow even when far
+    assert FLC(0.1, 0.0)[1] == pytest.approx(0.65)  # touching and aligned: medium
+    assert FLC(0.1, 0.5)[1] < FLC(0.1, 0.0)[1]     # near and turning: slower
+    assert FLC(8.0, 2.5)[1] < 0.35                 # large error: slow even when far
     assert FLC(0.5, 2.5)[1] < 0.05                 # large error and near: stop
     assert FLC(5.0, 2.5)[0] > 0.85                 # turn hard toward the desired heading
     assert FLC(5.0, -2.5)[0] < -0.85
@@ -195,12 +196,13 @@ def _rules(**changes):
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    ({"rules": _rules(update={("near", "ZE"): ("ZE", "warp")})}, "'warp' is not a term of speed"),
+    ({"rules": _rules(update={("near", "ZE"): ("straight", "warp")})},
+     "'warp' is not a term of speed"),
     ({"rules": _rules(update={("close", "ZE"): ("ZE", "slow")})}, "'close' is not a term"),
     ({"rules": _rules(drop=[("far", "PB")])}, "missing"),
     ({"rules": _rules(update={("near", "ZE"): "ZE"})}, "must be"),
-    ({"turn": _var("turn", (-2.0, 2.0, 11), a=(-2.0, -2.0, 2.0))}, "inside .-1, 1."),
-    ({"speed": _var("speed", (0.0, 2.0, 11), a=(0.0, 0.0, 2.0))}, "inside .0, 1."),
+    ({"turn": _var("turn", (0.5, 2.0, 11), a=(0.5, 0.5, 2.0))}, "must contain 0"),
+    ({"speed": _var("speed", (0.5, 2.0, 11), a=(0.5, 0.5, 2.0))}, "must contain"),
     ({"distance": FuzzyVariable("distance", (0, 10, 11), {
         "near": (0, 0, 1, 2), "medium": (1, 2, 3), "far": (5, 6, 10, 10)})}, "no term covers"),
     ({"speed": FuzzyVariable("speed", (0, 1, 11), {

@@ -1,0 +1,76 @@
+"""Executing a holonomic ORCA velocity on the anchor's unicycle.
+
+ORCA (:mod:`aoass_env.safety.orca`) returns a velocity ``v*`` as if the anchor could take any
+velocity at once. The anchor cannot: it moves along its heading, turns at most
+``max_turn`` (rad) per control period and changes speed at a bounded rate. The anchor is
+commanded ``v*``'s heading, and a speed no larger than the largest speed that keeps *every
+heading it passes through while turning* inside the ORCA half-planes that zero velocity
+satisfies, and that does not deepen a half-plane zero velocity violates (an obstacle closing in
+on a standing anchor): the anchor slows down, or turns in place, while it faces the wrong way.
+
+Convention (RVO2's): a velocity ``v`` satisfies the line (point ``p``, unit direction ``d``)
+when ``det(d, p - v) <= 0``, i.e. ``v`` lies to the left of the directed line.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["turn_headings", "safe_speed", "unicycle_command"]
+
+#: Below this speed (m/s) ORCA's velocity has no usable direction.
+_STILL = 1e-9
+
+
+def turn_headings(heading: float, target: float, max_turn: float, n: int = 4) -> np.ndarray:
+    """(n + 1,) headings (rad) the anchor passes through when it turns from ``heading`` toward
+    ``target`` the shorter way round by at most ``max_turn`` (rad), evenly spaced."""
+    turn = math.remainder(target - heading, 2.0 * math.pi)
+    turn = min(max(turn, -max_turn), max_turn)
+    return heading + turn * np.linspace(0.0, 1.0, n + 1)
+
+
+def safe_speed(points: np.ndarray, directions: np.ndarray, headings: np.ndarray,
+               limit: float) -> float:
+    """Largest speed s in [0, ``limit``] (m/s) such that, for every heading h in ``headings``
+    (rad), s (cos h, sin h) satisfies every line that zero velocity satisfies and deepens no
+    line that zero velocity violates.
+
+    Args:
+        points, directions: (n, 2) the ORCA lines (velocity space, m/s; unit directions).
+        headings: (k,) headings (rad).
+        limit: upper bound on the speed (m/s), >= 0.
+    """
+    if len(points) == 0 or limit <= 0.0:
+        return max(limit, 0.0)
+    # c = det(d, p): zero velocity satisfies the line when c <= 0; moving at speed s along h
+    # changes det(d, p - v) by -s det(d, h)
+    c = directions[:, 0] * points[:, 1] - directions[:, 1] * points[:, 0]
+    h = np.stack([np.cos(headings), np.sin(headings)], axis=1)                     # (k, 2)
+    along = (directions[:, 0][:, None] * h[None, :, 1]
+             - directions[:, 1][:, None] * h[None, :, 0])                          # det(d, h)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        bound = np.where(along < 0.0, np.where(c[:, None] <= 0.0, c[:, None] / along, 0.0),
+                         np.inf)
+    return float(min(limit, max(bound.min(), 0.0)))
+
+
+def unicycle_command(v_star: np.ndarray, heading: float, max_turn: float,
+                     points: np.ndarray, directions: np.ndarray,
+                     fallback_heading: float) -> tuple[float, float]:
+    """(speed [m/s], heading [rad]) that execute ORCA's ``v_star`` on a unicycle.
+
+    Args:
+        v_star: (2,) ORCA's velocity (m/s).
+        heading: the anchor's current heading (rad).
+        max_turn: the most the anchor turns in one control period (rad).
+        points, directions: (n, 2) the ORCA lines ``v_star`` was solved against.
+        fallback_heading: heading (rad) to turn toward when ``v_star`` is (almost) zero.
+    """
+    vx, vy = float(v_star[0]), float(v_star[1])
+    speed = math.hypot(vx, vy)
+    target = math.atan2(vy, vx) if speed > _STILL else fallback_heading
+    headings = turn_headings(heading, target, max_turn)
+    return safe_speed(points, directions, headings, speed), target

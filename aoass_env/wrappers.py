@@ -1,0 +1,368 @@
+"""The AOASS safety stack as Gymnasium wrappers around AOASS-v0.
+
+* :class:`KalmanObstacleTracker` (observation side, Section 3.5 step 2): tracks the moving
+  obstacles with constant-velocity Kalman filters (:mod:`aoass_env.safety.kalman`), replaces the
+  noisy moving-obstacle block of the observation with the filtered tracks and appends their
+  predicted positions ``horizon`` seconds ahead.
+* :class:`FuzzyORCASafety` (action side, Eq. 7-10): agent action -> desired velocity -> fuzzy
+  controller (:mod:`aoass_env.safety.fuzzy`) -> ORCA (:mod:`aoass_env.safety.orca`) against the
+  static obstacles near the anchor and the Kalman-tracked moving obstacles -> the speed and
+  heading the anchor executes (:mod:`aoass_env.safety.unicycle`), sent to AOASS-v0 as its action.
+  ``info["safety"]`` reports the intervention.
+
+The full stack in one line (also registered as ``AOASS-Safe-v0``)::
+
+    env = aoass_env.make_safe_env(obstacle_density=0.3)
+
+docs/safety.md describes every part and the measured safety record.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from aoass_env.config import AOASSConfig, ConfigError
+from aoass_env.env import AOASSEnv, checked_action
+from aoass_env.maps import ObstacleMap, load_map
+from aoass_env.observation import MOVING_FIELDS, velocity_scale
+from aoass_env.registration import make_env
+from aoass_env.safety.fuzzy import FuzzyController
+from aoass_env.safety.kalman import MultiTargetTracker
+from aoass_env.safety.orca import StaticObstacles, orca_lines, solve_velocity
+from aoass_env.safety.unicycle import unicycle_command
+from aoass_env.world import wrap_angle
+
+__all__ = ["FuzzyORCASafety", "KalmanObstacleTracker", "MapSampler", "make_safe_env"]
+
+#: Measurement-noise floor of the tracker (m, m/s): a noiseless observation still needs a
+#: positive noise for the filter's innovation covariance.
+NOISE_FLOOR = 1e-3
+
+
+def _aoass(env: gym.Env, wrapper: str) -> AOASSEnv:
+    base = env.unwrapped
+    if not isinstance(base, AOASSEnv):
+        raise TypeError(f"{wrapper} wraps an AOASS-v0 environment, got {type(base).__name__}")
+    return base
+
+
+def _positive(name: str, value: float, unit: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{name} must be a positive number ({unit}), got {value!r}")
+    return float(value)
+
+
+class MapSampler(gym.Wrapper):
+    """A map drawn for every episode from a list (a seeded reset fixes the sequence of draws),
+    or taken in turn (``cycle=True``, for evaluation).
+
+    Args:
+        env: an AOASS-v0 environment (possibly wrapped).
+        maps: shipped map names (``"train/d0.10_f100_s000"``), paths or ``ObstacleMap`` objects;
+            loaded once here, so a bad name fails now.
+        cycle: take the maps in order instead of at random.
+    """
+
+    def __init__(self, env: gym.Env, maps: Sequence[str | ObstacleMap], *,
+                 cycle: bool = False) -> None:
+        super().__init__(env)
+        base = _aoass(env, "MapSampler")
+        if isinstance(maps, str) or len(maps) == 0:
+            raise ValueError(f"maps must be a non-empty list of maps, got {maps!r}")
+        self.maps = [m if isinstance(m, ObstacleMap) else
+                     load_map(m, field_size=base.config.field_size) for m in maps]
+        self.cycle = bool(cycle)
+        self._next = 0
+        self._rng: np.random.Generator | None = None
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        options = dict(options or {})
+        if seed is not None or self._rng is None:
+            # a seed fixes the draws from here on; no seed ever: OS entropy, as in gymnasium
+            self._rng = np.random.default_rng(None if seed is None else [seed, 0x4D4150])
+        if "map" not in options:
+            if self.cycle:
+                options["map"] = self.maps[self._next % len(self.maps)]
+                self._next += 1
+            else:
+                options["map"] = self.maps[int(self._rng.integers(len(self.maps)))]
+        return self.env.reset(seed=seed, options=options)
+
+
+class KalmanObstacleTracker(gym.ObservationWrapper):
+    """Kalman tracks of the moving obstacles in the observation.
+
+    The wrapped observation is AOASS-v0's with its ``moving_obstacles`` block (M slots of
+    dx, dy, vx, vy, present) holding the M confirmed tracks nearest the anchor (filtered
+    position relative to the anchor / sensing range, filtered velocity / velocity scale) instead
+    of the raw noisy detections, and a new block ``moving_predicted`` appended at the end: each
+    slot's predicted position ``horizon`` seconds ahead relative to the anchor's current
+    position, / sensing range, clipped to [-1, 1] (zeros for empty slots). ``obs_layout`` maps
+    the names to slices.
+
+    Args:
+        env: an AOASS-v0 environment (possibly wrapped).
+        horizon: prediction horizon (s).
+        process_noise: std of the white acceleration of the constant-velocity model (m/s^2).
+        gate: probability of the chi-square gate for associating a detection with a track.
+        birth_hits: detections that confirm a new track.
+        max_misses: consecutive misses that delete a track.
+    """
+
+    def __init__(self, env: gym.Env, *, horizon: float = 2.0, process_noise: float = 0.5,
+                 gate: float = 0.99, birth_hits: int = 2, max_misses: int = 3) -> None:
+        super().__init__(env)
+        self._base = base = _aoass(env, "KalmanObstacleTracker")
+        c = base.config
+        self.horizon = _positive("horizon", horizon, "s")
+        self.tracker = MultiTargetTracker(
+            c.dt, position_noise=max(c.obs_position_noise, NOISE_FLOOR),
+            velocity_noise=max(c.obs_velocity_noise, NOISE_FLOOR), process_noise=process_noise,
+            gate=gate, birth_hits=birth_hits, max_misses=max_misses)
+        #: (n, 4) the detections of the last observation, world frame: x, y (m), vx, vy (m/s)
+        self.last_detections = np.zeros((0, 4))
+        layout = dict(base.obs_layout)
+        self._moving = layout["moving_obstacles"]
+        self._slots = c.obs_moving_obstacles
+        self._v_scale = velocity_scale(c)
+        inner = env.observation_space
+        n = inner.shape[0]
+        layout["moving_predicted"] = slice(n, n + 2 * self._slots)
+        self.obs_layout = layout
+        self.observation_space = spaces.Box(
+            np.concatenate([inner.low, np.full(2 * self._slots, -1.0, np.float32)]),
+            np.concatenate([inner.high, np.ones(2 * self._slots, np.float32)]),
+            dtype=np.float32)
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        self.tracker.reset()
+        return super().reset(seed=seed, options=options)
+
+    @property
+    def tracked_obstacles(self) -> np.ndarray:
+        """(m, 5) confirmed tracks in the world frame: x, y (m), vx, vy (m/s), radius (m)."""
+        states = self.tracker.states()
+        radius = np.full((len(states), 1), self._base.config.moving_obstacle_radius)
+        return np.hstack([states.reshape(-1, 4), radius])
+
+    def observation(self, observation: np.ndarray) -> np.ndarray:
+        c = self._base.config
+        anchor = self._base.sim.world.position
+        slots = observation[self._moving].reshape(self._slots, len(MOVING_FIELDS))
+        seen = slots[:, 4] > 0.5
+        detections = np.hstack([anchor + slots[seen, :2] * c.sensing_range,
+                                slots[seen, 2:4] * self._v_scale])
+        self.last_detections = detections
+        self.tracker.step(detections)
+
+        states = self.tracker.states()
+        predicted = self.tracker.predict_positions(self.horizon)
+        rel = states[:, :2] - anchor
+        order = np.argsort(np.hypot(rel[:, 0], rel[:, 1]), kind="stable")[:self._slots]
+        m = len(order)
+        filtered = np.zeros((self._slots, len(MOVING_FIELDS)))
+        filtered[:m, :2] = rel[order] / c.sensing_range
+        filtered[:m, 2:4] = states[order, 2:4] / self._v_scale
+        filtered[:m, 4] = 1.0
+        ahead = np.zeros((self._slots, 2))
+        ahead[:m] = (predicted[order] - anchor) / c.sensing_range
+        out = np.concatenate([observation, ahead.ravel()])
+        out[self._moving] = filtered.ravel()
+        return np.clip(out, self.observation_space.low, self.observation_space.high
+                       ).astype(np.float32)
+
+
+class FuzzyORCASafety(gym.ActionWrapper):
+    """Fuzzy-logic + ORCA velocity filter between the agent and AOASS-v0 (Eq. 7-10).
+
+    The agent's action a = [dv, dtheta] in [-1, 1]^2 is a residual on the spiral follower, as in
+    AOASS-v0: desired speed v_des = follower speed + dv x ``speed_scale`` (clipped to
+    [0, ``anchor_max_speed``]) and desired heading = follower heading + dtheta x
+    ``heading_scale``. Then:
+
+    1. Eq. 7: the fuzzy controller maps the gap to the nearest obstacle d (m) and the heading
+       error (desired - current heading) to a turn-rate fraction and a speed fraction; the
+       preferred velocity points where the anchor heads after turning at that rate for one
+       control period, at the desired speed times the speed fraction.
+    2. Eq. 8-10: ORCA returns the velocity v* closest to the preferred one that is collision-free
+       for ``time_horizon_obst`` (s) against the static obstacles near the anchor (the
+       boundary of free space of the episode's map, field border included) and for
+       ``time_horizon`` (s) against the Kalman-tracked moving obstacles (which do not
+       reciprocate: the anchor takes full responsibility). The anchor's radius is inflated by
+       ``margin`` (m), the moving obstacles' by ``moving_margin`` (m).
+    3. The anchor is commanded v*'s heading and the largest speed up to |v*| that stays safe on
+       every heading it passes through while it turns (:mod:`aoass_env.safety.unicycle`).
+
+    ``info["safety"]`` holds ``intervention`` = |v* - v_des| (m/s, the agent's desired
+    velocity), ``orca_correction`` = |v* - v_pref| (m/s), the fuzzy outputs, the executed
+    speed and heading, and the number of ORCA constraints (``constraints``, ``static``) and of
+    those active at v* (``active``, ``active_static``).
+
+    The wrapped AOASS-v0 must let its action reach every speed and heading:
+    ``action_speed_scale >= anchor_max_speed`` and ``action_heading_scale = pi``
+    (:func:`make_safe_env` builds it so), and a :class:`KalmanObstacleTracker` must lie between
+    this wrapper and AOASS-v0.
+
+    Args:
+        env: a :class:`KalmanObstacleTracker`-wrapped AOASS-v0.
+        speed_scale: the agent's dv = +-1 in m/s (AOASS-v0's default, 1 m/s).
+        heading_scale: the agent's dtheta = +-1 in rad (AOASS-v0's default, pi / 2).
+        time_horizon: ORCA horizon against moving obstacles (s).
+        time_horizon_obst: ORCA horizon against static obstacles (s); at least
+            ``anchor_max_speed / anchor_max_accel`` lets the anchor brake in time.
+        margin: safety margin added to the anchor's radius (m).
+        moving_margin: further margin added to the radius of the moving obstacles (m): they
+            do not avoid the anchor and turn at random, so it keeps clear of them.
+        controller: the fuzzy controller (default: :meth:`FuzzyController.default`).
+    """
+
+    def __init__(self, env: gym.Env, *, speed_scale: float = 1.0,
+                 heading_scale: float = math.pi / 2, time_horizon: float = 4.0,
+                 time_horizon_obst: float = 2.5, margin: float = 0.2,
+                 moving_margin: float = 1.0,
+                 controller: FuzzyController | None = None) -> None:
+        super().__init__(env)
+        self._base = base = _aoass(env, "FuzzyORCASafety")
+        c = base.config
+        if c.action_speed_scale < c.anchor_max_speed or \
+                not math.isclose(c.action_heading_scale, math.pi):
+            raise ValueError(
+                f"FuzzyORCASafety needs an AOASS-v0 whose action reaches every speed and "
+                f"heading: action_speed_scale >= anchor_max_speed ({c.anchor_max_speed}) and "
+                f"action_heading_scale = pi, got {c.action_speed_scale} and "
+                f"{c.action_heading_scale}; build the stack with aoass_env.make_safe_env")
+        self._tracker = self._find_tracker(env)
+        self.speed_scale = _positive("speed_scale", speed_scale, "m/s")
+        self.heading_scale = _positive("heading_scale", heading_scale, "rad")
+        self.time_horizon = _positive("time_horizon", time_horizon, "s")
+        self.time_horizon_obst = _positive("time_horizon_obst", time_horizon_obst, "s")
+        for name, value in (("margin", margin), ("moving_margin", moving_margin)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not 0.0 <= value < math.inf:
+                raise ValueError(f"{name} must be a finite number >= 0 (m), got {value!r}")
+        self.margin, self.moving_margin = float(margin), float(moving_margin)
+        if controller is not None and not isinstance(controller, FuzzyController):
+            raise TypeError(f"controller must be a FuzzyController, got "
+                            f"{type(controller).__name__}")
+        self.controller = controller if controller is not None else FuzzyController.default()
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self._static: StaticObstacles | None = None
+        self._static_map: Any = None
+
+    @staticmethod
+    def _find_tracker(env: gym.Env) -> KalmanObstacleTracker:
+        inner: Any = env
+        while isinstance(inner, gym.Wrapper):
+            if isinstance(inner, KalmanObstacleTracker):
+                return inner
+            inner = inner.env
+        raise ValueError("FuzzyORCASafety needs a KalmanObstacleTracker between it and AOASS-v0 "
+                         "(its tracks are the moving obstacles ORCA avoids); build the stack "
+                         "with aoass_env.make_safe_env")
+
+    def _static_obstacles(self) -> StaticObstacles:
+        """The boundary of free space of the episode's map (built once per map)."""
+        episode_map = self._base.sim.map
+        if episode_map is not self._static_map:
+            self._static = StaticObstacles.from_loops(episode_map.free_space_loops)
+            self._static_map = episode_map
+        return self._static
+
+    def _moving_obstacles(self) -> np.ndarray:
+        """Kalman-tracked moving obstacles (x, y, vx, vy, radius + moving_margin)."""
+        tracks = self._tracker.tracked_obstacles
+        tracks[:, 4] += self.moving_margin
+        return tracks
+
+    def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        executed, report = self._filter(action)
+        observation, reward, terminated, truncated, info = self.env.step(executed)
+        info["safety"] = report
+        return observation, reward, terminated, truncated, info
+
+    def action(self, action: np.ndarray) -> np.ndarray:
+        return self._filter(action)[0]
+
+    def _filter(self, action: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+        base = self._base
+        if base.sim is None:
+            raise RuntimeError("call reset() before step()")
+        c, world = base.config, base.sim.world
+        dv, dtheta = checked_action(action)
+        speed_nom, heading_nom = base.nominal_command
+        speed_des = min(max(speed_nom + dv * self.speed_scale, 0.0), c.anchor_max_speed)
+        heading_des = heading_nom + dtheta * self.heading_scale
+        v_des = speed_des * np.array([math.cos(heading_des), math.sin(heading_des)])
+
+        heading = world.heading
+        turn, slow = self.controller(world.nearest_obstacle_distance(),
+                                     wrap_angle(heading_des - heading))
+        max_turn = c.anchor_max_turn_rate * c.dt
+        heading_pref = heading + float(turn) * max_turn
+        speed_pref = float(slow) * speed_des
+        v_pref = speed_pref * np.array([math.cos(heading_pref), math.sin(heading_pref)])
+
+        lines = orca_lines(world.position, world.velocity, c.anchor_radius + self.margin,
+                           c.anchor_max_speed, static_obstacles=self._static_obstacles(),
+                           moving_obstacles=self._moving_obstacles(),
+                           time_horizon=self.time_horizon,
+                           time_horizon_obst=self.time_horizon_obst, time_step=c.dt)
+        v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
+        speed_cmd, heading_cmd = unicycle_command(v_star, heading, max_turn, lines.point,
+                                                  lines.direction, heading_pref)
+        executed = np.clip([(speed_cmd - speed_nom) / c.action_speed_scale,
+                            wrap_angle(heading_cmd - heading_nom) / c.action_heading_scale],
+                           -1.0, 1.0).astype(np.float32)
+
+        # constraints active at v*: on the line (within 1e-6 m/s) or violated
+        slack = (lines.direction[:, 0] * (lines.point[:, 1] - v_star[1])
+                 - lines.direction[:, 1] * (lines.point[:, 0] - v_star[0]))
+        active = slack > -1e-6
+        report = {"intervention": float(np.hypot(*(v_star - v_des))),
+                  "orca_correction": float(np.hypot(*(v_star - v_pref))),
+                  "flc_turn": float(turn), "flc_speed": float(slow),
+                  "speed_cmd": speed_cmd, "heading_cmd": heading_cmd,
+                  "constraints": len(slack), "static": lines.n_static,
+                  "active": int(active.sum()),
+                  "active_static": int(active[:lines.n_static].sum())}
+        return executed, report
+
+
+def make_safe_env(*, config: AOASSConfig | None = None, render_mode: str | None = None,
+                  tracker: dict[str, Any] | None = None, safety: dict[str, Any] | None = None,
+                  **kwargs: Any) -> gym.Env:
+    """The full AOASS stack: AOASS-v0 (in its ``TimeLimit``) -> :class:`KalmanObstacleTracker`
+    -> :class:`FuzzyORCASafety`.
+
+    Args:
+        config, kwargs: the environment's configuration, as for ``gymnasium.make("AOASS-v0")``;
+            ``action_speed_scale`` and ``action_heading_scale`` are set by the stack (the
+            agent's scales are ``safety={"speed_scale": ..., "heading_scale": ...}``).
+        render_mode: as for AOASS-v0.
+        tracker: keywords of :class:`KalmanObstacleTracker`.
+        safety: keywords of :class:`FuzzyORCASafety`.
+    """
+    for key in ("action_speed_scale", "action_heading_scale"):
+        if key in kwargs:
+            raise ConfigError(f"{key} is set by the safety stack (the inner environment must "
+                              f"reach every speed and heading); set the agent's scale with "
+                              f"safety={{'speed_scale': ..., 'heading_scale': ...}}")
+    if config is not None and not isinstance(config, AOASSConfig):
+        raise ConfigError(f"config must be an AOASSConfig, got {type(config).__name__}")
+    cfg = config.replace(**kwargs) if config is not None else AOASSConfig.from_kwargs(**kwargs)
+    cfg = cfg.replace(action_speed_scale=cfg.anchor_max_speed, action_heading_scale=math.pi)
+    env = make_env(config=cfg, render_mode=render_mode)
+    env = KalmanObstacleTracker(env, **(tracker or {}))
+    return FuzzyORCASafety(env, **(safety or {}))
+
+
+make_safe_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render modes

@@ -1,0 +1,77 @@
+"""Executing ORCA's velocity on the unicycle: turn headings and the safe speed along them."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aoass_env.safety.orca import orca_lines
+from aoass_env.safety.unicycle import safe_speed, turn_headings, unicycle_command
+
+
+def det(d, v):
+    return d[0] * v[1] - d[1] * v[0]
+
+
+def test_turn_headings_take_the_short_way_and_respect_the_limit():
+    h = turn_headings(0.1, 0.1 + 3.0, max_turn=0.5)
+    assert h[0] == 0.1 and h[-1] == pytest.approx(0.6) and np.all(np.diff(h) > 0)
+    h = turn_headings(3.0, -3.0, max_turn=1.0)          # across +-pi: counter-clockwise
+    assert h[-1] == pytest.approx(3.0 + (2 * math.pi - 6.0))
+    np.testing.assert_allclose(turn_headings(1.0, 1.2, max_turn=1.0)[[0, -1]], [1.0, 1.2])
+
+
+def test_a_wall_ahead_caps_the_speed_and_a_wall_behind_does_not():
+    # half-plane v_x <= 0.5 (a wall to the +x side): line through (0.5, 0) pointing +y
+    points, dirs = np.array([[0.5, 0.0]]), np.array([[0.0, 1.0]])
+    assert safe_speed(points, dirs, np.array([0.0]), 2.0) == pytest.approx(0.5)
+    assert safe_speed(points, dirs, np.array([math.pi / 3]), 2.0) == pytest.approx(1.0)
+    assert safe_speed(points, dirs, np.array([math.pi]), 2.0) == 2.0
+    assert safe_speed(points, dirs, np.array([math.pi, 0.0]), 2.0) == pytest.approx(0.5)
+
+
+def test_a_violated_line_is_never_deepened():
+    # v_x >= 0.5 required (an obstacle coming from -x): line through (0.5, 0) pointing -y
+    points, dirs = np.array([[0.5, 0.0]]), np.array([[0.0, -1.0]])
+    assert safe_speed(points, dirs, np.array([math.pi]), 2.0) == 0.0       # toward it: stay
+    assert safe_speed(points, dirs, np.array([0.0]), 2.0) == 2.0           # away: go
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.floats(-2, 2), st.floats(-2, 2), st.floats(0, 2 * math.pi)),
+                min_size=1, max_size=6),
+       st.floats(-math.pi, math.pi), st.floats(-math.pi, math.pi), st.floats(0.0, 2.0))
+def test_the_safe_speed_satisfies_every_line_zero_satisfies(lines, heading, target, limit):
+    points = np.array([(x, y) for x, y, _ in lines])
+    dirs = np.array([(math.cos(a), math.sin(a)) for _, _, a in lines])
+    headings = turn_headings(heading, target, max_turn=math.pi / 4)
+    s = safe_speed(points, dirs, headings, limit)
+    assert 0.0 <= s <= limit
+    for p, d in zip(points, dirs, strict=True):
+        zero_ok = det(d, p) <= 0.0
+        for h in headings:
+            v = s * np.array([math.cos(h), math.sin(h)])
+            after = det(d, p - v)
+            if zero_ok:
+                assert after <= 1e-9
+            else:
+                assert after <= det(d, p) + 1e-9
+
+
+def test_unicycle_command_heads_for_v_star_and_slows_while_facing_a_wall():
+    lines = orca_lines(np.array([0.0, 0.0]), np.zeros(2), 0.5, 2.0,
+                       static_obstacles=[np.array([[1.0, -5.0], [3.0, -5.0], [3.0, 5.0],
+                                                   [1.0, 5.0]])],
+                       time_horizon_obst=2.0)
+    # ORCA would slide along the wall (+y); the anchor still faces the wall (+x)
+    speed, heading = unicycle_command(np.array([0.0, 1.0]), 0.0, math.pi / 4, lines.point,
+                                      lines.direction, fallback_heading=0.0)
+    assert heading == pytest.approx(math.pi / 2)
+    assert speed == pytest.approx(0.25)        # 0.5 m gap over 2 s: 0.25 m/s along +x
+    speed, heading = unicycle_command(np.zeros(2), 0.3, math.pi / 4, lines.point,
+                                      lines.direction, fallback_heading=1.0)
+    assert speed == 0.0 and heading == 1.0
