@@ -200,7 +200,9 @@ class FuzzyORCASafety(gym.ActionWrapper):
        reciprocate: the anchor takes full responsibility). The anchor's radius is inflated by
        ``margin`` (m), the moving obstacles' by ``moving_margin`` (m).
     3. The anchor is commanded v*'s heading and the largest speed up to |v*| that stays safe on
-       every heading it passes through while it turns (:mod:`aoass_env.safety.unicycle`).
+       every heading it passes through while it turns; it turns only as far as the headings
+       stay safe at the speed it cannot shed within the period
+       (:mod:`aoass_env.safety.unicycle`).
 
     ``info["safety"]`` holds ``intervention`` = |v* - v_des| (m/s, the agent's desired
     velocity), ``orca_correction`` = |v* - v_pref| (m/s), the fuzzy outputs, the executed
@@ -317,8 +319,9 @@ class FuzzyORCASafety(gym.ActionWrapper):
                            time_horizon=self.time_horizon,
                            time_horizon_obst=self.time_horizon_obst, time_step=c.dt)
         v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
-        speed_cmd, heading_cmd = unicycle_command(v_star, heading, max_turn, lines.point,
-                                                  lines.direction, heading_pref)
+        speed_cmd, heading_cmd = unicycle_command(
+            v_star, heading, world.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
+            lines.direction, heading_pref)
         executed = np.clip([(speed_cmd - speed_nom) / c.action_speed_scale,
                             wrap_angle(heading_cmd - heading_nom) / c.action_heading_scale],
                            -1.0, 1.0).astype(np.float32)

@@ -20,9 +20,9 @@ speed term)`` in a frozen :class:`FuzzyController`. Inference:
 
 Membership grids of the output terms and the interpolation tables of the input terms are
 computed once at construction. A scalar call takes a plain-Python path for fuzzification and
-rules and four small NumPy operations for the aggregation (about 12 us; scikit-fuzzy's control
-system takes about 12 ms on the same sets); arrays go through the same steps vectorised, in
-blocks of 1024 points (about 2 us per point). ``benchmarks/fuzzy.py`` prints the figures.
+rules and four small NumPy operations for the aggregation (about 24 us; scikit-fuzzy's control
+system takes about 20 ms on the same sets); arrays go through the same steps vectorised, in
+blocks of 1024 points (about 15 us per point). ``benchmarks/fuzzy.py`` prints the figures.
 """
 
 from __future__ import annotations
@@ -153,7 +153,7 @@ def _default_turn() -> FuzzyVariable:
     # is exactly 1): between "ZE" at 0 and "PS" at pi/4 the output grows about linearly, so
     # with the default limits (pi/2 rad/s over a 0.5 s period) the anchor closes a heading
     # error of up to pi/4 within one period.
-    return FuzzyVariable("turn", (-1.1, 1.1, 2201), {
+    return FuzzyVariable("turn", (-1.1, 1.1, 441), {
         "right": (-1.1, -1.0, -0.9),
         "straight": (-0.1, 0.0, 0.1),
         "left": (0.9, 1.0, 1.1),
@@ -162,7 +162,7 @@ def _default_turn() -> FuzzyVariable:
 
 def _default_speed() -> FuzzyVariable:
     # symmetric terms: "stop" is exactly 0 and "fast" exactly 1 (the universe reaches past both)
-    return FuzzyVariable("speed", (-0.1, 1.1, 1201), {
+    return FuzzyVariable("speed", (-0.1, 1.1, 481), {
         "stop": (-0.1, 0.0, 0.1),
         "slow": (0.1, 0.3, 0.5),
         "medium": (0.4, 0.65, 0.9),

@@ -7,6 +7,8 @@ commanded ``v*``'s heading, and a speed no larger than the largest speed that ke
 heading it passes through while turning* inside the ORCA half-planes that zero velocity
 satisfies, and that does not deepen a half-plane zero velocity violates (an obstacle closing in
 on a standing anchor): the anchor slows down, or turns in place, while it faces the wrong way.
+It also cannot stop at once (its deceleration is bounded), so it turns toward ``v*`` only as
+far as the headings stay safe at the speed it still has.
 
 Convention (RVO2's): a velocity ``v`` satisfies the line (point ``p``, unit direction ``d``)
 when ``det(d, p - v) <= 0``, i.e. ``v`` lies to the left of the directed line.
@@ -18,7 +20,7 @@ import math
 
 import numpy as np
 
-__all__ = ["turn_headings", "safe_speed", "unicycle_command"]
+__all__ = ["safe_speed", "speed_bounds", "turn_headings", "unicycle_command"]
 
 #: Below this speed (m/s) ORCA's velocity has no usable direction.
 _STILL = 1e-9
@@ -32,19 +34,19 @@ def turn_headings(heading: float, target: float, max_turn: float, n: int = 4) ->
     return heading + turn * np.linspace(0.0, 1.0, n + 1)
 
 
-def safe_speed(points: np.ndarray, directions: np.ndarray, headings: np.ndarray,
-               limit: float) -> float:
-    """Largest speed s in [0, ``limit``] (m/s) such that, for every heading h in ``headings``
-    (rad), s (cos h, sin h) satisfies every line that zero velocity satisfies and deepens no
-    line that zero velocity violates.
+def speed_bounds(points: np.ndarray, directions: np.ndarray,
+                 headings: np.ndarray) -> np.ndarray:
+    """(k,) for each heading h (rad) the largest speed s >= 0 (m/s; inf when unbounded) such
+    that s (cos h, sin h) satisfies every line that zero velocity satisfies and deepens no line
+    that zero velocity violates.
 
     Args:
         points, directions: (n, 2) the ORCA lines (velocity space, m/s; unit directions).
         headings: (k,) headings (rad).
-        limit: upper bound on the speed (m/s), >= 0.
     """
-    if len(points) == 0 or limit <= 0.0:
-        return max(limit, 0.0)
+    headings = np.asarray(headings, dtype=np.float64)
+    if len(points) == 0:
+        return np.full(len(headings), np.inf)
     # c = det(d, p): zero velocity satisfies the line when c <= 0; moving at speed s along h
     # changes det(d, p - v) by -s det(d, h)
     c = directions[:, 0] * points[:, 1] - directions[:, 1] * points[:, 0]
@@ -54,23 +56,47 @@ def safe_speed(points: np.ndarray, directions: np.ndarray, headings: np.ndarray,
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         bound = np.where(along < 0.0, np.where(c[:, None] <= 0.0, c[:, None] / along, 0.0),
                          np.inf)
-    return float(min(limit, max(bound.min(), 0.0)))
+    return np.maximum(bound.min(axis=0), 0.0)
 
 
-def unicycle_command(v_star: np.ndarray, heading: float, max_turn: float,
-                     points: np.ndarray, directions: np.ndarray,
+def safe_speed(points: np.ndarray, directions: np.ndarray, headings: np.ndarray,
+               limit: float) -> float:
+    """Largest speed s in [0, ``limit``] (m/s) that is safe (:func:`speed_bounds`) on every
+    heading in ``headings`` (rad)."""
+    if limit <= 0.0:
+        return 0.0
+    return float(min(limit, speed_bounds(points, directions, headings).min()))
+
+
+def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn: float,
+                     max_dv: float, points: np.ndarray, directions: np.ndarray,
                      fallback_heading: float) -> tuple[float, float]:
     """(speed [m/s], heading [rad]) that execute ORCA's ``v_star`` on a unicycle.
+
+    The anchor turns toward ``v_star`` only as far as every heading on the way stays safe at
+    the speed it cannot shed within the period (``speed - max_dv``), and is commanded the
+    largest safe speed up to ``|v_star|`` on the headings it passes through. When even its
+    current heading is unsafe at that speed, it brakes fully and turns toward the safest
+    heading within reach.
 
     Args:
         v_star: (2,) ORCA's velocity (m/s).
         heading: the anchor's current heading (rad).
+        speed: the anchor's current speed (m/s).
         max_turn: the most the anchor turns in one control period (rad).
+        max_dv: the most its speed changes in one control period (m/s).
         points, directions: (n, 2) the ORCA lines ``v_star`` was solved against.
         fallback_heading: heading (rad) to turn toward when ``v_star`` is (almost) zero.
     """
     vx, vy = float(v_star[0]), float(v_star[1])
-    speed = math.hypot(vx, vy)
-    target = math.atan2(vy, vx) if speed > _STILL else fallback_heading
-    headings = turn_headings(heading, target, max_turn)
-    return safe_speed(points, directions, headings, speed), target
+    wanted = math.hypot(vx, vy)
+    target = math.atan2(vy, vx) if wanted > _STILL else fallback_heading
+    arc = turn_headings(heading, target, max_turn, n=8)
+    bounds = speed_bounds(points, directions, arc)
+    floor = max(speed - max_dv, 0.0)
+    reach = np.minimum.accumulate(bounds)          # safe speed over the arc up to each heading
+    if reach[0] + 1e-9 < floor:
+        return 0.0, float(arc[int(np.argmax(bounds))])
+    k = int(np.flatnonzero(reach + 1e-9 >= floor)[-1])
+    command = target if k == len(arc) - 1 else float(arc[k])
+    return float(min(wanted, reach[k])), command

@@ -131,10 +131,11 @@ def test_vectorised_equals_scalar_loop():
        st.floats(-0.01, 0.01))
 def test_continuity(d, h, dd, dh):
     """Lipschitz: a small input change gives a proportionally small output change (the
-    default sets have slopes below about 3 / m and 6 / rad)."""
+    default surfaces have slopes below 14 / m and 9.4 / rad, measured on a fine grid: the
+    speed drops from fast to medium over the 0.3-0.6 m of gap where near and medium cross)."""
     o1, v1 = FLC(d, h)
     o2, v2 = FLC(d + dd, h + dh)
-    bound = 10.0 * (abs(dd) + abs(dh)) + 1e-12
+    bound = 15.0 * (abs(dd) + abs(dh)) + 1e-12
     assert abs(o2 - o1) <= bound and abs(v2 - v1) <= bound
 
 

@@ -68,10 +68,25 @@ def test_unicycle_command_heads_for_v_star_and_slows_while_facing_a_wall():
                                                    [1.0, 5.0]])],
                        time_horizon_obst=2.0)
     # ORCA would slide along the wall (+y); the anchor still faces the wall (+x)
-    speed, heading = unicycle_command(np.array([0.0, 1.0]), 0.0, math.pi / 4, lines.point,
-                                      lines.direction, fallback_heading=0.0)
+    speed, heading = unicycle_command(np.array([0.0, 1.0]), 0.0, 0.0, math.pi / 4, 0.5,
+                                      lines.point, lines.direction, fallback_heading=0.0)
     assert heading == pytest.approx(math.pi / 2)
     assert speed == pytest.approx(0.25)        # 0.5 m gap over 2 s: 0.25 m/s along +x
-    speed, heading = unicycle_command(np.zeros(2), 0.3, math.pi / 4, lines.point,
+    speed, heading = unicycle_command(np.zeros(2), 0.3, 0.0, math.pi / 4, 0.5, lines.point,
                                       lines.direction, fallback_heading=1.0)
     assert speed == 0.0 and heading == 1.0
+
+
+def test_a_fast_anchor_does_not_turn_into_a_wall_it_cannot_stop_for():
+    # wall to the +x side, 0.5 m gap over 2 s: v_x <= 0.25 m/s. The anchor runs along it (+y)
+    # at 1.5 m/s and can shed only 0.5 m/s per period; ORCA asks for a heading toward the wall.
+    lines = orca_lines(np.array([0.0, 0.0]), np.array([0.0, 1.5]), 0.5, 2.0,
+                       static_obstacles=[np.array([[1.0, -50.0], [3.0, -50.0], [3.0, 50.0],
+                                                   [1.0, 50.0]])],
+                       time_horizon_obst=2.0)
+    v_star = np.array([0.25, 0.3])
+    speed, heading = unicycle_command(v_star, math.pi / 2, 1.5, math.pi / 4, 0.5, lines.point,
+                                      lines.direction, fallback_heading=0.0)
+    # at 1.0 m/s a heading h is safe while cos(h) <= 0.25: the turn stops there
+    assert math.cos(heading) * 1.0 <= 0.25 + 1e-9
+    assert heading < math.pi / 2 and speed <= math.hypot(*v_star) + 1e-12
