@@ -1,14 +1,20 @@
-"""Training entry point: ``python train.py <what> [options]``.
+"""Training entry point.
 
-Subcommands:
-    localizer   simulate beacon logs on maps/train and train the OLSTM-DV-Hop localizer
-                (aoass_env/localization/training.py), writing checkpoints/olstm_dvhop.pt
+    python train.py [options]            train the AOASS agent (TD3-LSTM) inside the safety
+                                         stack (agents/training.py; hyperparameters in
+                                         configs/aoass.yml)
+    python train.py localizer [options]  simulate beacon logs on maps/train and train the
+                                         OLSTM-DV-Hop localizer, writing checkpoints/olstm_dvhop.pt
+
+``python train.py --help`` and ``python train.py localizer --help`` list the options.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import shlex
+import sys
 from pathlib import Path
 
 import torch
@@ -16,34 +22,83 @@ import torch
 from aoass_env.localization.training import TrainConfig, train_localizer
 
 
-def _add_localizer(sub: argparse._SubParsersAction) -> None:
+def _localizer_parser() -> argparse.ArgumentParser:
     defaults = TrainConfig()
-    p = sub.add_parser("localizer", help="train the OLSTM-DV-Hop localizer",
-                       description="Simulate logs on maps/train (cached in --data-dir), train "
-                                   "the OLSTM with early stopping on held-out training maps, "
-                                   "write the checkpoint.")
+    p = argparse.ArgumentParser(
+        prog="train.py localizer", description="Simulate logs on maps/train (cached in "
+        "--data-dir), train the OLSTM with early stopping on held-out training maps, write the "
+        "checkpoint.")
     for field in dataclasses.fields(TrainConfig):
         default = getattr(defaults, field.name)
         kind = Path if isinstance(default, Path) else type(default)
         p.add_argument(f"--{field.name.replace('_', '-')}", type=kind, default=default,
                        help=f"(default: {default})")
     p.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
-    p.set_defaults(run=_run_localizer)
+    return p
 
 
-def _run_localizer(args: argparse.Namespace) -> None:
+def _run_localizer(argv: list[str]) -> None:
+    args = _localizer_parser().parse_args(argv)
     torch.set_num_threads(args.threads)
     cfg = TrainConfig(**{f.name: getattr(args, f.name) for f in dataclasses.fields(TrainConfig)})
     train_localizer(cfg, report=lambda line: print(line, flush=True))
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = parser.add_subparsers(dest="command", required=True, metavar="{localizer}")
-    _add_localizer(sub)
+def _agent_parser() -> argparse.ArgumentParser:
+    from agents.training import DEFAULT_CONFIG
+    p = argparse.ArgumentParser(
+        prog="train.py", description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="Subcommand: 'python train.py localizer --help' trains the OLSTM-DV-Hop "
+               "localizer instead.")
+    p.add_argument("--algo", choices=["td3-lstm", "td3"], default="td3-lstm",
+                   help="td3-lstm: recurrent TD3 (agents.RecurrentTD3); td3: SB3's "
+                        "feedforward TD3 (ablation) (default: td3-lstm)")
+    p.add_argument("--timesteps", type=int, default=None,
+                   help="environment steps (default: the config's n_timesteps)")
+    p.add_argument("--seed", type=int, default=0, help="(default: 0)")
+    p.add_argument("--n-envs", type=int, default=1,
+                   help="parallel environments, subprocesses when > 1 (default: 1)")
+    p.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
+                   help="hyperparameter YAML (default: configs/aoass.yml)")
+    p.add_argument("--resume", type=Path, default=None,
+                   help="continue training a saved model (.zip; its replay buffer is loaded "
+                        "when saved beside it, as last.zip's is)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="folder of the run's models (default: checkpoints/aoass_<algo>)")
+    p.add_argument("--log-dir", type=Path, default=Path("out/tensorboard"),
+                   help="TensorBoard folder (default: out/tensorboard)")
+    p.add_argument("--no-tensorboard", action="store_true", help="do not write TensorBoard logs")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
+    return p
+
+
+def _run_agent(argv: list[str]) -> None:
+    from agents.hyperparams import HyperparameterError, load_hyperparams
+    from agents.training import TrainRun, train_agent
+    parser = _agent_parser()
     args = parser.parse_args(argv)
-    args.run(args)
+    torch.set_num_threads(args.threads)
+    out = args.out or Path(f"checkpoints/aoass_{args.algo.replace('-', '_')}")
+    try:
+        run = TrainRun(algo=args.algo, timesteps=args.timesteps, seed=args.seed,
+                       n_envs=args.n_envs, config=args.config, resume=args.resume, out=out,
+                       log_dir=None if args.no_tensorboard else args.log_dir,
+                       progress_bar=not args.no_progress,
+                       command="python train.py " + " ".join(shlex.quote(a) for a in argv))
+        load_hyperparams(run.config, run.algo)      # bad files fail here, before any work
+    except (HyperparameterError, ValueError) as exc:
+        parser.exit(2, f"train.py: error: {exc}\n")
+    train_agent(run, report=lambda line: print(line, flush=True))
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["localizer"]:
+        _run_localizer(argv[1:])
+    else:
+        _run_agent(argv)
 
 
 if __name__ == "__main__":

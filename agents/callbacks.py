@@ -1,0 +1,107 @@
+"""SB3 callbacks of ``python train.py``: AOASS episode metrics in TensorBoard, atomic checkpoints.
+
+* :class:`AOASSMetricsCallback` logs, per finished episode, the coverage (Eq. 18), the online
+  localization RMSE, the anchor's contacts, η_traj (Eq. 19) and the mean safety intervention
+  (|v* - v_des|, m/s) under ``aoass/`` (means over the episodes of each log interval).
+* :func:`save_atomic` writes a model (and :class:`AtomicCheckpointCallback` periodically a model
+  and its replay buffer) to a temporary file that is renamed over the target: a crash
+  mid-training leaves the previous checkpoint intact and loadable.
+* :class:`SaveBestAtomically` is the ``callback_on_new_best`` of an ``EvalCallback``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+
+from aoass_env.atomic import atomic_open
+
+__all__ = ["AOASSMetricsCallback", "AtomicCheckpointCallback", "SaveBestAtomically",
+           "save_atomic"]
+
+
+def save_atomic(model: BaseAlgorithm, path: str | Path, *, replay_buffer: bool = False) -> None:
+    """Save ``model`` to ``path`` (a .zip) atomically; with ``replay_buffer``, also its replay
+    buffer to ``<path stem>_replay_buffer.pkl`` (written first, so a model never points at a
+    missing buffer)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if replay_buffer and getattr(model, "replay_buffer", None) is not None:
+        with atomic_open(replay_buffer_path(path), "wb") as f:
+            model.save_replay_buffer(f)
+    with atomic_open(path, "wb") as f:
+        model.save(f)
+
+
+def replay_buffer_path(model_path: str | Path) -> Path:
+    """Where :func:`save_atomic` puts the replay buffer of the model saved at ``model_path``."""
+    model_path = Path(model_path)
+    return model_path.with_name(f"{model_path.stem}_replay_buffer.pkl")
+
+
+class AOASSMetricsCallback(BaseCallback):
+    """Per-episode AOASS metrics to the logger (TensorBoard): coverage, online RMSE (m),
+    contacts, η_traj and the mean safety intervention (m/s) of each finished episode."""
+
+    def _init_callback(self) -> None:
+        n = self.training_env.num_envs
+        self._intervention = np.zeros(n)
+        self._steps = np.zeros(n, dtype=np.int64)
+
+    def _on_step(self) -> bool:
+        infos, dones = self.locals["infos"], self.locals["dones"]
+        for i, (info, done) in enumerate(zip(infos, dones, strict=True)):
+            safety = info.get("safety")
+            if safety is not None:
+                self._intervention[i] += safety["intervention"]
+                self._steps[i] += 1
+            if not done:
+                continue
+            metrics = info.get("episode_metrics")
+            if metrics is not None:
+                self.logger.record_mean("aoass/coverage", metrics["coverage"])
+                self.logger.record_mean("aoass/rmse_online", metrics["rmse_online"])
+                self.logger.record_mean("aoass/collisions", metrics["collisions"])
+                self.logger.record_mean("aoass/eta_traj", metrics["eta_traj"])
+                self.logger.record_mean("aoass/path_complete", float(metrics["path_complete"]))
+            if self._steps[i]:
+                self.logger.record_mean("aoass/intervention",
+                                        self._intervention[i] / self._steps[i])
+            self._intervention[i], self._steps[i] = 0.0, 0
+        return True
+
+
+class AtomicCheckpointCallback(BaseCallback):
+    """Every ``save_freq`` calls (env steps / n_envs), save the model to ``path`` atomically
+    (and its replay buffer with ``replay_buffer``)."""
+
+    def __init__(self, save_freq: int, path: str | Path, *, replay_buffer: bool = True,
+                 verbose: int = 0) -> None:
+        super().__init__(verbose)
+        if save_freq < 1:
+            raise ValueError(f"save_freq must be >= 1, got {save_freq}")
+        self.save_freq, self.path, self.replay_buffer = save_freq, Path(path), replay_buffer
+
+    def _on_step(self) -> bool:
+        if self.n_calls % self.save_freq == 0:
+            save_atomic(self.model, self.path, replay_buffer=self.replay_buffer)
+            if self.verbose:
+                print(f"checkpoint: {self.path} at {self.num_timesteps} steps")
+        return True
+
+
+class SaveBestAtomically(BaseCallback):
+    """``callback_on_new_best`` of an ``EvalCallback``: save the new best model atomically."""
+
+    def __init__(self, path: str | Path, verbose: int = 0) -> None:
+        super().__init__(verbose)
+        self.path = Path(path)
+
+    def _on_step(self) -> bool:
+        save_atomic(self.model, self.path)
+        if self.verbose:
+            print(f"new best model: {self.path} at {self.num_timesteps} steps")
+        return True

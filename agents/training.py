@@ -1,0 +1,173 @@
+"""Training the AOASS agent: environments, callbacks and the run record of ``python train.py``.
+
+The agent trains inside the full safety stack (AOASS-v0 -> Kalman tracker -> fuzzy + ORCA
+filter) on the shipped training maps, one map drawn per episode; an ``EvalCallback`` on the
+shipped test maps (taken in turn) keeps the best model. A run writes into its folder:
+
+=========================  ===============================================================
+``best.zip``               the model with the best mean evaluation return so far
+``last.zip``               the latest periodic checkpoint (+ ``last_replay_buffer.pkl``)
+``final.zip``              the model at the end of the budget
+``evaluations.npz``        SB3's evaluation record (timesteps, returns, episode lengths)
+``run.yml``                the command, the hyperparameters, the seed and package versions
+=========================  ===============================================================
+
+and TensorBoard logs (SB3's metrics plus ``aoass/``) under the log folder. Every file is
+written atomically.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import platform
+import shlex
+import sys
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import stable_baselines3
+import torch
+import yaml
+from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+from agents.callbacks import (
+    AOASSMetricsCallback,
+    AtomicCheckpointCallback,
+    SaveBestAtomically,
+    replay_buffer_path,
+    save_atomic,
+)
+from agents.hyperparams import ALGORITHMS, EXTRA_KEYS, action_noise, load_hyperparams
+from aoass_env.atomic import write_text_atomic
+from aoass_env.maps import list_maps
+from aoass_env.wrappers import MapSampler, make_safe_env
+
+__all__ = ["TrainRun", "make_training_env", "train_agent"]
+
+DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "aoass.yml"
+
+
+def make_training_env(*, split: str = "train", field_size: float = 100.0,
+                      densities: tuple[float, float] = (0.1, 0.4), cycle: bool = False,
+                      safety: dict[str, Any] | None = None, tracker: dict[str, Any] | None = None,
+                      **config: Any) -> gym.Env:
+    """The full safety stack on the shipped maps of ``split`` with ``field_size`` (m) and
+    density in ``densities``, one map per episode (drawn, or in turn with ``cycle``);
+    ``config``: further AOASS-v0 keywords (e.g. ``n_nodes``)."""
+    maps = list_maps(split, field_size=field_size, densities=tuple(densities))
+    if not maps:
+        raise ValueError(f"no shipped {split} maps with field_size={field_size} and densities "
+                         f"in {list(densities)}")
+    env = make_safe_env(field_size=field_size, tracker=tracker, safety=safety, **config)
+    return MapSampler(env, maps, cycle=cycle)
+
+
+@dataclasses.dataclass
+class TrainRun:
+    """One training run of ``python train.py``.
+
+    Args:
+        algo: "td3-lstm" (RecurrentTD3) or "td3" (feedforward ablation).
+        timesteps: env steps (None: the file's ``n_timesteps``).
+        seed: seed of the model, the environments and the map draws.
+        n_envs: parallel training environments (subprocesses when > 1).
+        config: hyperparameter YAML file.
+        resume: a saved model (.zip) to continue from (its replay buffer too, if saved beside).
+        out: folder of the run's models and records.
+        log_dir: TensorBoard folder (None: no TensorBoard).
+        progress_bar: show SB3's progress bar.
+        command: the command line, recorded in run.yml.
+    """
+
+    algo: str = "td3-lstm"
+    timesteps: int | None = None
+    seed: int = 0
+    n_envs: int = 1
+    config: Path = DEFAULT_CONFIG
+    resume: Path | None = None
+    out: Path = Path("checkpoints/aoass_td3_lstm")
+    log_dir: Path | None = Path("out/tensorboard")
+    progress_bar: bool = True
+    command: str = ""
+
+    def __post_init__(self) -> None:
+        if self.algo not in ALGORITHMS:
+            raise ValueError(f"algo={self.algo!r} must be one of {sorted(ALGORITHMS)}")
+        for name in ("timesteps", "n_envs"):
+            value = getattr(self, name)
+            if value is not None and (not isinstance(value, int) or value < 1):
+                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        if self.resume is not None and not Path(self.resume).is_file():
+            raise ValueError(f"resume={str(self.resume)!r}: no such model file")
+
+
+def _vec_env(n_envs: int, seed: int, env_kwargs: dict[str, Any]) -> Any:
+    return make_vec_env(make_training_env, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs,
+                        vec_env_cls=DummyVecEnv if n_envs == 1 else SubprocVecEnv)
+
+
+def train_agent(run: TrainRun, report: Any = print) -> Path:
+    """Train (or resume) the agent of ``run``; returns the path of the final model."""
+    hp = load_hyperparams(run.config, run.algo)
+    cls = ALGORITHMS[run.algo]
+    timesteps = run.timesteps or int(hp.get("n_timesteps", 100_000))
+    env_kwargs = dict(hp.get("env", {}))
+    evaluation = dict(hp.get("eval", {}))
+    env = _vec_env(run.n_envs, run.seed, env_kwargs)
+    eval_env = _vec_env(1, run.seed + 1_000_000, {**env_kwargs, "split": "test", "cycle": True})
+    noise = action_noise(hp.get("action_noise"), env.action_space.shape[0])
+    tb = str(run.log_dir) if run.log_dir is not None else None
+    out = Path(run.out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    if run.resume is not None:
+        model = cls.load(run.resume, env=env, tensorboard_log=tb, device="cpu")
+        model.action_noise = noise
+        buffer = replay_buffer_path(run.resume)
+        if buffer.is_file():
+            model.load_replay_buffer(buffer)
+        report(f"resumed {run.resume} at {model.num_timesteps} steps"
+               f"{' with its replay buffer' if buffer.is_file() else ''}")
+    else:
+        kwargs = {k: v for k, v in hp.items() if k not in EXTRA_KEYS}
+        if isinstance(kwargs.get("train_freq"), list):
+            kwargs["train_freq"] = tuple(kwargs["train_freq"])
+        policy = hp.get("policy", "MlpLstmPolicy" if run.algo == "td3-lstm" else "MlpPolicy")
+        model = cls(policy, env, action_noise=noise, tensorboard_log=tb, seed=run.seed,
+                    device="cpu", verbose=0, **kwargs)
+
+    n = run.n_envs
+    checkpoint_every = max(int(hp.get("checkpoint_freq", 10_000)) // n, 1)
+    callbacks = [AOASSMetricsCallback(),
+                 AtomicCheckpointCallback(checkpoint_every, out / "last.zip"),
+                 EvalCallback(eval_env, n_eval_episodes=int(evaluation.get("episodes", 4)),
+                              eval_freq=max(int(evaluation.get("freq", 10_000)) // n, 1),
+                              log_path=str(out), best_model_save_path=None,
+                              deterministic=True, verbose=0,
+                              callback_on_new_best=SaveBestAtomically(out / "best.zip"))]
+    _write_record(out / "run.yml", run, hp, timesteps)
+    model.learn(timesteps, callback=CallbackList(callbacks), progress_bar=run.progress_bar,
+                tb_log_name=f"{run.algo}_seed{run.seed}",
+                reset_num_timesteps=run.resume is None)
+    final = out / "final.zip"
+    save_atomic(model, final)
+    env.close()
+    eval_env.close()
+    report(f"trained {model.num_timesteps} steps; models in {out}")
+    return final
+
+
+def _write_record(path: Path, run: TrainRun, hp: dict[str, Any], timesteps: int) -> None:
+    record = {
+        "command": run.command or " ".join(shlex.quote(a) for a in sys.argv),
+        "algo": run.algo, "timesteps": timesteps, "seed": run.seed, "n_envs": run.n_envs,
+        "config_file": str(run.config), "resume": str(run.resume) if run.resume else None,
+        "hyperparameters": hp,
+        "versions": {"python": platform.python_version(), "torch": str(torch.__version__),
+                     "stable_baselines3": stable_baselines3.__version__,
+                     "gymnasium": gym.__version__},
+    }
+    write_text_atomic(path, yaml.safe_dump(record, sort_keys=False))

@@ -1,0 +1,148 @@
+"""python train.py: the agent CLI on a tiny budget, --resume, checkpoints, bad hyperparameters."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from agents.callbacks import save_atomic
+from agents.hyperparams import HyperparameterError, load_hyperparams
+from agents.recurrent_td3 import RecurrentTD3
+from agents.training import make_training_env
+
+ROOT = Path(__file__).resolve().parent.parent
+TINY = {
+    "td3-lstm": {"learning_starts": 60, "batch_size": 4, "buffer_size": 2000, "burn_in": 2,
+                 "train_length": 4, "train_freq": 4,
+                 "action_noise": {"kind": "normal", "sigma": 0.2},
+                 "policy_kwargs": {"lstm_hidden_size": 8, "net_arch": [8]},
+                 "env": {"field_size": 100, "densities": [0.1, 0.1], "n_nodes": 20,
+                         "time_limit_factor": 1.0},
+                 "eval": {"freq": 100, "episodes": 1}, "checkpoint_freq": 50},
+    "td3": {"learning_starts": 60, "batch_size": 8, "buffer_size": 2000,
+            "policy_kwargs": {"net_arch": [8]},
+            "env": {"field_size": 100, "densities": [0.1, 0.1], "n_nodes": 20,
+                    "time_limit_factor": 1.0},
+            "eval": {"freq": 100, "episodes": 1}, "checkpoint_freq": 50},
+}
+
+
+def _load_train():
+    spec = importlib.util.spec_from_file_location("aoass_train_script", ROOT / "train.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+train_script = _load_train()
+
+
+@pytest.fixture
+def tiny(tmp_path: Path) -> Path:
+    path = tmp_path / "tiny.yml"
+    path.write_text(yaml.safe_dump(TINY))
+    return path
+
+
+def test_cli_trains_checkpoints_and_resumes(tiny: Path, tmp_path: Path):
+    out = tmp_path / "run"
+    train_script.main(["--config", str(tiny), "--timesteps", "120", "--out", str(out),
+                       "--log-dir", str(tmp_path / "tb"), "--no-progress"])
+    for name in ("final.zip", "last.zip", "last_replay_buffer.pkl", "best.zip",
+                 "evaluations.npz", "run.yml"):
+        assert (out / name).is_file(), name
+    assert not list(out.glob(".*.tmp"))                       # atomic writes leave nothing
+    record = yaml.safe_load((out / "run.yml").read_text())
+    assert record["algo"] == "td3-lstm" and record["timesteps"] == 120
+    assert record["command"].startswith("python train.py --config")
+    assert list((tmp_path / "tb").rglob("events.out.tfevents*"))
+    model = RecurrentTD3.load(out / "final.zip", device="cpu")
+    assert model.num_timesteps == 120
+
+    at = RecurrentTD3.load(out / "last.zip", device="cpu").num_timesteps   # periodic: 100
+    assert at == 100
+    train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
+                       "--resume", str(out / "last.zip"), "--no-tensorboard",
+                       "--no-progress"])
+    resumed = RecurrentTD3.load(out / "final.zip", device="cpu")
+    assert resumed.num_timesteps == at + 60
+
+
+def test_feedforward_ablation_trains(tiny: Path, tmp_path: Path):
+    from stable_baselines3 import TD3
+    out = tmp_path / "ff"
+    train_script.main(["--algo", "td3", "--config", str(tiny), "--timesteps", "80", "--out",
+                       str(out), "--no-tensorboard", "--no-progress"])
+    assert TD3.load(out / "final.zip", device="cpu").num_timesteps == 80
+
+
+def test_interrupted_save_keeps_the_previous_checkpoint(tiny: Path, tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch):
+    env = make_training_env(**TINY["td3"]["env"])
+    from stable_baselines3 import TD3
+    model = TD3("MlpPolicy", env, policy_kwargs={"net_arch": [8]}, learning_starts=10,
+                device="cpu")
+    path = tmp_path / "model.zip"
+    save_atomic(model, path)
+    before = path.read_bytes()
+
+    def crash(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(model, "save", crash)
+    with pytest.raises(KeyboardInterrupt):
+        save_atomic(model, path)
+    assert path.read_bytes() == before and not list(tmp_path.glob(".*.tmp"))
+    assert TD3.load(path, device="cpu") is not None
+
+
+@pytest.mark.parametrize("section, message", [
+    ({"learing_rate": 0.001}, r"td3-lstm.learing_rate: unknown key"),
+    ({"learning_rate": -1.0}, r"td3-lstm.learning_rate: must be a number in \(0"),
+    ({"batch_size": 3.5}, r"td3-lstm.batch_size: must be an integer"),
+    ({"burn_in": -2}, r"td3-lstm.burn_in: must be an integer"),
+    ({"action_noise": "NormalActionNoise(0, 0.1)"}, r"td3-lstm.action_noise: must be"),
+    ({"action_noise": {"kind": "normal", "sigma": "big"}}, r"action_noise.sigma"),
+    ({"train_freq": [4, "minute"]}, r"td3-lstm.train_freq"),
+    ({"env": [1, 2]}, r"td3-lstm.env: must be a mapping"),
+])
+def test_bad_hyperparameters_name_the_file_and_key(tmp_path: Path, section, message):
+    path = tmp_path / "bad.yml"
+    path.write_text(yaml.safe_dump({"td3-lstm": section}))
+    with pytest.raises(HyperparameterError, match=message) as err:
+        load_hyperparams(path, "td3-lstm")
+    assert str(path) in str(err.value)
+
+
+def test_cli_reports_bad_files_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture):
+    path = tmp_path / "bad.yml"
+    path.write_text("td3-lstm: {gamma: 2.0}\n")
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["--config", str(path), "--no-progress"])
+    assert exit_.value.code == 2
+    assert "td3-lstm.gamma: must be a number" in capsys.readouterr().err
+    path.write_text("td3-lstm: [unclosed\n")
+    with pytest.raises(HyperparameterError, match="not valid YAML"):
+        load_hyperparams(path, "td3-lstm")
+    with pytest.raises(HyperparameterError, match="no section 'td3'"):
+        load_hyperparams(_write(tmp_path, "td3-lstm: {}"), "td3")
+    with pytest.raises(SystemExit):
+        train_script.main(["--resume", str(tmp_path / "missing.zip"), "--no-progress"])
+
+
+def _write(folder: Path, text: str) -> Path:
+    path = folder / "other.yml"
+    path.write_text(text)
+    return path
+
+
+def test_shipped_config_is_valid():
+    for algo in ("td3-lstm", "td3"):
+        hp = load_hyperparams(ROOT / "configs" / "aoass.yml", algo)
+        assert hp["n_timesteps"] > 0 and np.isfinite(hp["learning_rate"])
