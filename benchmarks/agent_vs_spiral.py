@@ -1,0 +1,135 @@
+"""Does the shipped AOASS policy help? It against the zero action, both inside the safety stack.
+
+On the shipped 100 m test maps of densities 0.1-0.4, ``--seeds`` seeds per density (each seed a
+test map of that density in turn, the same episodes for both), both policies drive the full
+stack (AOASS-Safe-v0). Per episode: the Eq. 14 return, η_traj (Eq. 19), node coverage
+(Eq. 18) and anchor contacts. Issue 6's criteria: a higher mean return, η_traj no lower,
+coverage no more than 1 point lower, no more contacts. Prints a table per density and overall
+(means, and the mean paired difference with its 95 % interval) and saves ``OUT/results.json``
+and ``OUT/episodes.csv``.
+
+Run: ``python3 benchmarks/agent_vs_spiral.py [--model checkpoints/aoass_td3_lstm/best.zip]
+[--seeds 30] [--jobs 2]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+from multiprocessing import Pool
+from pathlib import Path
+
+import numpy as np
+import torch
+
+import aoass_env  # noqa: F401  (registers the environments)
+from aoass_env.atomic import write_text_atomic
+from aoass_env.maps import list_maps
+from aoass_env.wrappers import make_safe_env
+
+DENSITIES = ("0.10", "0.20", "0.30", "0.40")
+METRICS = ("return", "eta_traj", "coverage", "contacts", "steps")
+
+
+def episode(task: tuple[str, str, int, str]) -> dict:
+    """(policy 'agent' or 'zero', map name, seed, model path) -> the episode's record."""
+    policy, map_name, seed, model_path = task
+    torch.set_num_threads(1)
+    env = make_safe_env(map=map_name)
+    obs, _ = env.reset(seed=seed)
+    model, state, start = None, None, np.ones(1, dtype=bool)
+    if policy == "agent":
+        from agents.hyperparams import ALGORITHMS
+        for cls in ALGORITHMS.values():
+            try:
+                model = cls.load(model_path, device="cpu")
+                break
+            except (ValueError, KeyError, TypeError, RuntimeError):
+                continue
+        if model is None:
+            raise SystemExit(f"{model_path}: not a model of {sorted(ALGORITHMS)}")
+    total = 0.0
+    while True:
+        if model is None:
+            action = np.zeros(2, np.float32)
+        else:
+            action, state = model.predict(obs, state=state, episode_start=start,
+                                          deterministic=True)
+            start = np.zeros(1, dtype=bool)
+        obs, reward, terminated, truncated, info = env.step(action)
+        total += reward
+        if terminated or truncated:
+            break
+    m = info["episode_metrics"]
+    return {"policy": policy, "map": map_name, "density": map_name.split("/")[1][1:5],
+            "seed": seed, "return": total, "eta_traj": m["eta_traj"],
+            "coverage": m["coverage"], "contacts": m["collisions"], "steps": m["steps"],
+            "complete": bool(m["path_complete"])}
+
+
+def paired(rows: list[dict], key: str) -> tuple[float, float]:
+    """Mean paired difference agent - zero and the half-width of its 95 % interval."""
+    by = {(r["map"], r["seed"], r["policy"]): r[key] for r in rows}
+    diffs = np.array([by[(m, s, "agent")] - by[(m, s, "zero")]
+                      for (m, s, p) in by if p == "agent"])
+    half = 1.96 * diffs.std(ddof=1) / np.sqrt(len(diffs)) if len(diffs) > 1 else float("nan")
+    return float(diffs.mean()), float(half)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--model", type=Path, default=Path("checkpoints/aoass_td3_lstm/best.zip"))
+    parser.add_argument("--seeds", type=int, default=30, help="episodes per density")
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--out", type=Path, default=Path("out/bench_agent"))
+    args = parser.parse_args()
+    if not args.model.is_file():
+        parser.error(f"--model {args.model}: no such file")
+    tasks = []
+    for d in DENSITIES:
+        maps = list_maps("test", field_size=100, densities=(float(d), float(d)))
+        for s in range(args.seeds):
+            for policy in ("agent", "zero"):
+                tasks.append((policy, maps[s % len(maps)], 100 + s, str(args.model)))
+    with Pool(args.jobs) as pool:
+        rows = pool.map(episode, tasks, chunksize=1)
+
+    print(f"{args.model}: {args.seeds} episodes per density, both inside the safety stack")
+    print(f"{'density':8s} {'policy':7s} " + " ".join(f"{k:>9s}" for k in METRICS))
+    summary: dict = {}
+    for d in (*DENSITIES, "all"):
+        sel = [r for r in rows if d == "all" or r["density"] == d]
+        summary[d] = {}
+        for policy in ("agent", "zero"):
+            mine = [r for r in sel if r["policy"] == policy]
+            means = {k: float(np.mean([r[k] for r in mine])) for k in METRICS}
+            summary[d][policy] = means
+            print(f"{d:8s} {policy:7s} " + " ".join(f"{means[k]:9.3f}" for k in METRICS))
+        summary[d]["difference"] = {k: paired(sel, k) for k in METRICS}
+        print(f"{d:8s} {'diff':7s} " + " ".join(
+            f"{summary[d]['difference'][k][0]:+9.3f}" for k in METRICS))
+    overall = summary["all"]
+    verdict = {
+        "higher_return": overall["agent"]["return"] > overall["zero"]["return"],
+        "eta_traj_no_lower": overall["agent"]["eta_traj"] >= overall["zero"]["eta_traj"],
+        "coverage_within_1pt": overall["agent"]["coverage"] >= overall["zero"]["coverage"]
+        - 0.01,
+        "no_more_contacts": overall["agent"]["contacts"] <= overall["zero"]["contacts"],
+    }
+    print("criteria:", ", ".join(f"{k} {'met' if v else 'MISSED'}" for k, v in verdict.items()))
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(args.out / "results.json", json.dumps(
+        {"model": str(args.model), "seeds": args.seeds, "summary": summary,
+         "criteria": verdict}, indent=1))
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    write_text_atomic(args.out / "episodes.csv", buf.getvalue())
+    print(f"wrote {args.out / 'results.json'}")
+
+
+if __name__ == "__main__":
+    main()
