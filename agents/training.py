@@ -160,11 +160,18 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     return final
 
 
+def _relative(path: Path) -> str:
+    """``path`` relative to the working folder when it lies inside it."""
+    path = Path(path).resolve()
+    return str(path.relative_to(Path.cwd())) if path.is_relative_to(Path.cwd()) else str(path)
+
+
 def _write_record(path: Path, run: TrainRun, hp: dict[str, Any], timesteps: int) -> None:
     record = {
         "command": run.command or " ".join(shlex.quote(a) for a in sys.argv),
         "algo": run.algo, "timesteps": timesteps, "seed": run.seed, "n_envs": run.n_envs,
-        "config_file": str(run.config), "resume": str(run.resume) if run.resume else None,
+        "config_file": _relative(run.config),
+        "resume": _relative(run.resume) if run.resume else None,
         "hyperparameters": hp,
         "versions": {"python": platform.python_version(), "torch": str(torch.__version__),
                      "stable_baselines3": stable_baselines3.__version__,

@@ -57,7 +57,7 @@ def main() -> None:
     for tag, title in SCALARS:
         if tag in scalars:
             steps, values = scalars[tag]
-            axes[0, k].plot(steps, values)
+            axes[0, k].plot(steps, values, marker="o")
             axes[0, k].set(xlabel="environment steps", title=title)
             axes[0, k].title.set_fontsize(9)
             k += 1
