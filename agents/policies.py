@@ -78,15 +78,26 @@ class RecurrentActor(BasePolicy):
                     features_extractor=self.features_extractor)
         return data
 
+    def memory(
+        self, obs: th.Tensor, prev_actions: th.Tensor, lstm_state: LSTMState | None = None
+    ) -> tuple[th.Tensor, LSTMState]:
+        """Inputs ``(B, L, D)`` of the action MLP (LSTM output, and the current features when
+        ``current_features``) and the final LSTM state (zero initial state when None)."""
+        features = _sequence_features(self, obs)
+        memory, state = self.lstm(th.cat([features, prev_actions], dim=-1), lstm_state)
+        return (th.cat([memory, features], dim=-1) if self.current_features else memory), state
+
+    def act(self, memory: th.Tensor) -> th.Tensor:
+        """Actions in ``[-1, 1]`` from ``memory`` outputs (any leading shape)."""
+        return self.mu(memory)
+
     def forward(  # type: ignore[override]
         self, obs: th.Tensor, prev_actions: th.Tensor, lstm_state: LSTMState | None = None
     ) -> tuple[th.Tensor, LSTMState]:
         """Actions ``(B, L, action_dim)`` in ``[-1, 1]`` for observation sequences
         ``(B, L, *obs_shape)``, and the final LSTM state (zero initial state when None)."""
-        features = _sequence_features(self, obs)
-        memory, state = self.lstm(th.cat([features, prev_actions], dim=-1), lstm_state)
-        head = th.cat([memory, features], dim=-1) if self.current_features else memory
-        return self.mu(head), state
+        memory, state = self.memory(obs, prev_actions, lstm_state)
+        return self.mu(memory), state
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         # Stateless single step from a zero state; stateful prediction is the policy's predict.
@@ -145,7 +156,8 @@ class RecurrentCritic(BaseModel):
         return out
 
     def q_value(self, index: int, memory: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        """Q-values ``(B, L)`` of critic ``index`` for a memory from ``memory`` and actions."""
+        """Q-values of critic ``index`` from ``memory`` outputs ``(..., D)`` and actions
+        ``(..., action_dim)``, shape ``(...)``."""
         return self.q_networks[index](th.cat([memory, actions], dim=-1)).squeeze(-1)
 
     def forward(self, obs: th.Tensor, prev_actions: th.Tensor, actions: th.Tensor

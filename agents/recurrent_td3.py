@@ -21,17 +21,13 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.utils import polyak_update
+from torch.nn import functional as F
 
 from agents.buffers import SequenceReplayBuffer, SequenceReplayBufferSamples, check_sequence_lengths
 from agents.policies import RecurrentActor, RecurrentCritic, RecurrentTD3Policy
 
 SelfRecurrentTD3 = TypeVar("SelfRecurrentTD3", bound="RecurrentTD3")
 RolloutState = tuple[np.ndarray, np.ndarray, np.ndarray]
-
-
-def masked_mean(values: th.Tensor, mask: th.Tensor) -> th.Tensor:
-    """Mean of ``values`` over the entries where ``mask`` is 1 (0 when the mask is empty)."""
-    return (values * mask).sum() / mask.sum().clamp_min(1.0)
 
 
 class RecurrentTD3(TD3):
@@ -219,40 +215,52 @@ class RecurrentTD3(TD3):
         return self.policy.predict(observation, state, episode_start, deterministic)
 
     # ----------------------------------------------------------------------------- training
-    def _critic_targets(self, data: SequenceReplayBufferSamples) -> th.Tensor:
-        """TD targets ``(B, L)``: ``r + gamma * (1 - done) * min_i Q'_i(h_{t+1}, a'_{t+1})``.
+    def _critic_targets(self, data: SequenceReplayBufferSamples,
+                        select: th.Tensor | None = None) -> th.Tensor:
+        """TD targets ``r + gamma * (1 - done) * min_i Q'_i(h_{t+1}, a'_{t+1})`` at the window
+        positions where ``select`` (B, L) is True, shape (N,); all positions (B, L) when None.
 
         The target networks read the window extended by one step, ``[o_0, next_o_0, ...,
         next_o_{L-1}]`` with previous actions ``[prev_a_0, a_0, ..., a_{L-1}]``; inside an
         episode ``next_o_t = o_{t+1}``, so their output at ``t + 1`` sums the history up to the
         next observation. ``a'`` is the target actor's action plus clipped Gaussian noise.
         """
+
+        def pick(x: th.Tensor) -> th.Tensor:
+            return x if select is None else x[select]
+
         with th.no_grad():
             obs = th.cat([data.observations[:, :1], data.next_observations], dim=1)
             prev = th.cat([data.prev_actions[:, :1], data.actions], dim=1)
-            next_actions = self.actor_target(obs, prev)[0][:, 1:]
+            actor_memory, _ = self.actor_target.memory(obs, prev)
+            next_actions = self.actor_target.act(pick(actor_memory[:, 1:]))
             if self.target_policy_noise > 0:
                 noise = th.randn_like(next_actions) * self.target_policy_noise
                 next_actions = next_actions + noise.clamp(-self.target_noise_clip,
                                                           self.target_noise_clip)
             next_actions = next_actions.clamp(-1, 1)
             memories = self.critic_target.memory(obs, prev)
-            next_q = th.stack([self.critic_target.q_value(i, m[:, 1:], next_actions)
+            next_q = th.stack([self.critic_target.q_value(i, pick(m[:, 1:]), next_actions)
                                for i, m in enumerate(memories)]).min(dim=0).values
-            return data.rewards + (1.0 - data.dones) * self.gamma * next_q
+            return pick(data.rewards) + (1.0 - pick(data.dones)) * self.gamma * next_q
 
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
-        """``gradient_steps`` TD3 updates on windows sampled from the sequence buffer."""
+        """``gradient_steps`` TD3 updates on windows sampled from the sequence buffer; the MLP
+        heads run only at the trained (loss-mask) steps, the LSTMs once over each window."""
         self.policy.set_training_mode(True)
         self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
         actor_losses, critic_losses = [], []
         for _ in range(gradient_steps):
             self._n_updates += 1
             data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
-            weight = data.loss_mask
-            targets = self._critic_targets(data)
-            current_q = self.critic(data.observations, data.prev_actions, data.actions)
-            critic_loss = sum(masked_mean((q - targets) ** 2, weight) for q in current_q)
+            select = data.loss_mask.bool()
+            if not select.any():  # only possible with tiny buffers: nothing to train on
+                continue
+            targets = self._critic_targets(data, select)
+            actions = data.actions[select]
+            memories = self.critic.memory(data.observations, data.prev_actions)
+            critic_loss = sum(F.mse_loss(self.critic.q_value(i, m[select], actions), targets)
+                              for i, m in enumerate(memories))
             assert isinstance(critic_loss, th.Tensor)
             critic_losses.append(critic_loss.item())
             self.critic.optimizer.zero_grad()
@@ -260,10 +268,11 @@ class RecurrentTD3(TD3):
             self.critic.optimizer.step()
 
             if self._n_updates % self.policy_delay == 0:
-                actions, _ = self.actor(data.observations, data.prev_actions)
+                actor_memory, _ = self.actor.memory(data.observations, data.prev_actions)
                 with th.no_grad():  # the actor's gradient does not need the critic's LSTM
                     memory = self.critic.memory(data.observations, data.prev_actions, n=1)[0]
-                actor_loss = -masked_mean(self.critic.q_value(0, memory, actions), weight)
+                q = self.critic.q_value(0, memory[select], self.actor.act(actor_memory[select]))
+                actor_loss = -q.mean()
                 actor_losses.append(actor_loss.item())
                 self.actor.optimizer.zero_grad()
                 actor_loss.backward()
