@@ -119,7 +119,9 @@ def load_hyperparams(path: str | Path, algo: str) -> dict[str, Any]:
         if not ok:
             raise HyperparameterError(f"{where}.train_freq: must be a positive integer or "
                                       f"[n, step|episode], got {tf!r}")
-    return dict(section)
+    # integers written as 32.0 reach SB3 as ints
+    return {k: int(v) if k in _NUMERIC and _NUMERIC[k][0] is int else v
+            for k, v in section.items()}
 
 
 def _check_noise(where: str, spec: Any) -> None:

@@ -9,7 +9,7 @@ coverage no more than 1 point lower, no more contacts. Prints a table per densit
 and ``OUT/episodes.csv``.
 
 Run: ``python3 benchmarks/agent_vs_spiral.py [--model checkpoints/aoass_td3_lstm/best.zip]
-[--seeds 30] [--jobs 2]``.
+[--algo td3-lstm] [--seeds 30] [--jobs 2]``.
 """
 
 from __future__ import annotations
@@ -34,22 +34,16 @@ METRICS = ("return", "eta_traj", "coverage", "contacts", "steps")
 
 
 def episode(task: tuple[str, str, int, str]) -> dict:
-    """(policy 'agent' or 'zero', map name, seed, model path) -> the episode's record."""
+    """(policy: an algorithm name or 'zero', map name, seed, model path) -> the episode's
+    record."""
     policy, map_name, seed, model_path = task
     torch.set_num_threads(1)
     env = make_safe_env(map=map_name)
     obs, _ = env.reset(seed=seed)
     model, state, start = None, None, np.ones(1, dtype=bool)
-    if policy == "agent":
+    if policy != "zero":
         from agents.hyperparams import ALGORITHMS
-        for cls in ALGORITHMS.values():
-            try:
-                model = cls.load(model_path, device="cpu")
-                break
-            except (ValueError, KeyError, TypeError, RuntimeError):
-                continue
-        if model is None:
-            raise SystemExit(f"{model_path}: not a model of {sorted(ALGORITHMS)}")
+        model = ALGORITHMS[policy].load(model_path, device="cpu")
     total = 0.0
     while True:
         if model is None:
@@ -63,7 +57,8 @@ def episode(task: tuple[str, str, int, str]) -> dict:
         if terminated or truncated:
             break
     m = info["episode_metrics"]
-    return {"policy": policy, "map": map_name, "density": map_name.split("/")[1][1:5],
+    return {"policy": "zero" if policy == "zero" else "agent", "map": map_name,
+            "density": map_name.split("/")[1][1:5],
             "seed": seed, "return": total, "eta_traj": m["eta_traj"],
             "coverage": m["coverage"], "contacts": m["collisions"], "steps": m["steps"],
             "complete": bool(m["path_complete"])}
@@ -81,6 +76,8 @@ def paired(rows: list[dict], key: str) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--model", type=Path, default=Path("checkpoints/aoass_td3_lstm/best.zip"))
+    parser.add_argument("--algo", choices=["td3-lstm", "td3"], default="td3-lstm",
+                        help="the algorithm that saved --model (default: td3-lstm)")
     parser.add_argument("--seeds", type=int, default=30, help="episodes per density")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/bench_agent"))
@@ -91,7 +88,7 @@ def main() -> None:
     for d in DENSITIES:
         maps = list_maps("test", field_size=100, densities=(float(d), float(d)))
         for s in range(args.seeds):
-            for policy in ("agent", "zero"):
+            for policy in (args.algo, "zero"):
                 tasks.append((policy, maps[s % len(maps)], 100 + s, str(args.model)))
     with Pool(args.jobs) as pool:
         rows = pool.map(episode, tasks, chunksize=1)

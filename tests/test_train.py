@@ -146,3 +146,10 @@ def test_shipped_config_is_valid():
     for algo in ("td3-lstm", "td3"):
         hp = load_hyperparams(ROOT / "configs" / "aoass.yml", algo)
         assert hp["n_timesteps"] > 0 and np.isfinite(hp["learning_rate"])
+
+
+def test_integer_keys_reach_the_algorithm_as_integers(tmp_path: Path):
+    path = _write(tmp_path, "td3-lstm: {batch_size: 32.0, learning_rate: 0.001}")
+    hp = load_hyperparams(path, "td3-lstm")
+    assert hp["batch_size"] == 32 and isinstance(hp["batch_size"], int)
+    assert isinstance(hp["learning_rate"], float)

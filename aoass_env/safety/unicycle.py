@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-__all__ = ["safe_speed", "speed_bounds", "turn_headings", "unicycle_command"]
+__all__ = ["speed_bounds", "turn_headings", "unicycle_command"]
 
 #: Below this speed (m/s) ORCA's velocity has no usable direction.
 _STILL = 1e-9
@@ -57,15 +57,6 @@ def speed_bounds(points: np.ndarray, directions: np.ndarray,
         bound = np.where(along < 0.0, np.where(c[:, None] <= 0.0, c[:, None] / along, 0.0),
                          np.inf)
     return np.maximum(bound.min(axis=0), 0.0)
-
-
-def safe_speed(points: np.ndarray, directions: np.ndarray, headings: np.ndarray,
-               limit: float) -> float:
-    """Largest speed s in [0, ``limit``] (m/s) that is safe (:func:`speed_bounds`) on every
-    heading in ``headings`` (rad)."""
-    if limit <= 0.0:
-        return 0.0
-    return float(min(limit, speed_bounds(points, directions, headings).min()))
 
 
 def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn: float,

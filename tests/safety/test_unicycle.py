@@ -10,11 +10,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.safety.orca import orca_lines
-from aoass_env.safety.unicycle import safe_speed, turn_headings, unicycle_command
+from aoass_env.safety.unicycle import speed_bounds, turn_headings, unicycle_command
 
 
 def det(d, v):
     return d[0] * v[1] - d[1] * v[0]
+
+
+def safe_speed(points, dirs, headings, limit):
+    """Largest speed up to ``limit`` that is safe on every heading."""
+    return float(min(limit, speed_bounds(points, dirs, np.asarray(headings)).min()))
 
 
 def test_turn_headings_take_the_short_way_and_respect_the_limit():
