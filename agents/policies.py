@@ -190,6 +190,10 @@ class RecurrentTD3Policy(BasePolicy):
     :param lstm_hidden_size: LSTM hidden units of every network
     :param n_lstm_layers: stacked LSTM layers of every network
     :param current_features: feed the current step's features to the MLP beside the memory
+    :param actor_final_init: when set, the actor's output layer starts with weights and biases
+        drawn from ``U(-actor_final_init, actor_final_init)`` (DDPG's 3e-3, Lillicrap et al.
+        2016), so the first policy outputs about 0: for a residual action such as AOASS's, the
+        untrained agent then behaves like the nominal controller
     """
 
     actor: RecurrentActor
@@ -213,6 +217,7 @@ class RecurrentTD3Policy(BasePolicy):
         lstm_hidden_size: int = 64,
         n_lstm_layers: int = 1,
         current_features: bool = True,
+        actor_final_init: float | None = None,
     ):
         if isinstance(observation_space, spaces.Dict):
             raise ValueError("RecurrentTD3Policy does not support Dict observation spaces")
@@ -220,6 +225,10 @@ class RecurrentTD3Policy(BasePolicy):
                             ("n_lstm_layers", n_lstm_layers), ("n_critics", n_critics)):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if actor_final_init is not None and not (isinstance(actor_final_init, (int, float))
+                                                 and 0.0 <= actor_final_init < float("inf")):
+            raise ValueError(f"actor_final_init must be None or a number >= 0, "
+                             f"got {actor_final_init!r}")
         super().__init__(observation_space, action_space, features_extractor_class,
                          features_extractor_kwargs, optimizer_class=optimizer_class,
                          optimizer_kwargs=optimizer_kwargs, squash_output=True,
@@ -233,6 +242,7 @@ class RecurrentTD3Policy(BasePolicy):
         self.lstm_hidden_size = lstm_hidden_size
         self.n_lstm_layers = n_lstm_layers
         self.current_features = current_features
+        self.actor_final_init = actor_final_init
         common = dict(observation_space=observation_space, action_space=action_space,
                       lstm_hidden_size=lstm_hidden_size, n_lstm_layers=n_lstm_layers,
                       current_features=current_features, activation_fn=activation_fn,
@@ -243,6 +253,10 @@ class RecurrentTD3Policy(BasePolicy):
 
     def _build(self, lr_schedule: Schedule) -> None:
         self.actor = self.make_actor()
+        if self.actor_final_init is not None:
+            last = [m for m in self.actor.mu if isinstance(m, nn.Linear)][-1]
+            nn.init.uniform_(last.weight, -self.actor_final_init, self.actor_final_init)
+            nn.init.uniform_(last.bias, -self.actor_final_init, self.actor_final_init)
         self.actor_target = self.make_actor()
         self.actor_target.load_state_dict(self.actor.state_dict())
         self.actor.optimizer = self.optimizer_class(self.actor.parameters(), lr=lr_schedule(1),
@@ -274,7 +288,7 @@ class RecurrentTD3Policy(BasePolicy):
             features_extractor_class=self.features_extractor_class,
             features_extractor_kwargs=self.features_extractor_kwargs,
             lstm_hidden_size=self.lstm_hidden_size, n_lstm_layers=self.n_lstm_layers,
-            current_features=self.current_features,
+            current_features=self.current_features, actor_final_init=self.actor_final_init,
         )
         return data
 

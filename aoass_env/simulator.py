@@ -14,6 +14,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -21,7 +22,13 @@ from aoass_env.beacon_log import BeaconLog, BeaconLogRecorder, episode_config_js
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import MapError, ObstacleMap, generate_map, load_map
 from aoass_env.network import Network
-from aoass_env.planning import SquareSpiral, WaypointFollower, default_spacing, square_spiral
+from aoass_env.planning import (
+    SquareSpiral,
+    WaypointFollower,
+    WaypointPath,
+    default_spacing,
+    square_spiral,
+)
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.radio import Radio
 from aoass_env.trajectory import beacons_along
@@ -49,6 +56,18 @@ class StepRecord:
     beacons: np.ndarray
     newly_covered: int
     distance: float
+
+
+class Controller(Protocol):
+    """What drives the anchor in :meth:`Simulator.run`: the nominal follower, or a baseline's
+    controller. ``done`` turns True when the method has finished its sweep."""
+
+    @property
+    def done(self) -> bool: ...
+
+    def command(self, position: np.ndarray, heading: float, dt: float) -> tuple[float, float]:
+        """(speed [m/s], heading [rad]) for the next control period of ``dt`` seconds."""
+        ...
 
 
 def episode_map(config: AOASSConfig, rng: np.random.Generator) -> ObstacleMap:
@@ -80,20 +99,28 @@ class Simulator:
         obstacle_map: use this map instead of ``config.map`` / a generated one.
         seed: recorded in the beacon log's config (the seed that made ``rng``).
         method: recorded in the beacon log's config (the method that drives the anchor).
+        path: the path the anchor sweeps (a baseline planner's); default the square spiral.
+            The anchor starts on its first free waypoint.
+
+    Attributes:
+        spiral: the episode's square spiral (the environment's reference path).
+        path: the swept path: ``path`` if given, else ``spiral``.
     """
 
     def __init__(self, config: AOASSConfig, rng: np.random.Generator, *,
                  obstacle_map: ObstacleMap | None = None, seed: int | None = None,
-                 method: str = "spiral") -> None:
+                 method: str = "spiral", path: WaypointPath | None = None) -> None:
         self.config = config
         self.map = obstacle_map if obstacle_map is not None else episode_map(config, rng)
         self.map.check_traversable(config.map_clearance)
         self.nodes = self.map.sample_free_points(config.n_nodes, rng)
         self.spiral = episode_spiral(config, self.map)
-        free = np.flatnonzero(~self.spiral.blocked)
+        self.path: SquareSpiral | WaypointPath = (
+            self.spiral if path is None else path.with_obstacles(self.map, config.anchor_radius))
+        free = np.flatnonzero(~self.path.blocked)
         if len(free) == 0:
-            raise MapError("every spiral waypoint lies inside an obstacle; nowhere to start")
-        start = self.spiral.waypoints[free[0]]
+            raise MapError("every waypoint of the path lies inside an obstacle; nowhere to start")
+        start = self.path.waypoints[free[0]]
         self.world = World(config, self.map, rng, tuple(start))
         self.radio = Radio.from_config(self.nodes, self.map, config, rng)
         self.network = Network(config.n_nodes, config)
@@ -130,23 +157,26 @@ class Simulator:
         return DetourPlanner(self.map, self.config.anchor_radius + DETOUR_MARGIN)
 
     def follower(self) -> WaypointFollower:
-        """A nominal follower of this episode's spiral (the zero action of the environment)."""
+        """A nominal follower of this episode's path (for the spiral: the zero action of the
+        environment)."""
         c = self.config
-        return WaypointFollower(self.spiral.waypoints, self.spiral.blocked,
+        return WaypointFollower(self.path.waypoints, self.path.blocked,
                                 capture_radius=max(c.anchor_radius, 0.5 * c.anchor_nominal_speed
                                                    * c.dt),
                                 cruise_speed=c.anchor_nominal_speed,
                                 max_accel=c.anchor_max_accel, planner=self.planner)
 
     def nominal_steps(self) -> int:
-        """Control periods the ideal spiral takes at nominal speed."""
-        return math.ceil(self.spiral.nominal_time(self.config.anchor_nominal_speed)
+        """Control periods the ideal path takes at nominal speed."""
+        return math.ceil(self.path.nominal_time(self.config.anchor_nominal_speed)
                          / self.config.dt)
 
-    def run(self, max_steps: int | None = None) -> BeaconLog:
-        """Drive the nominal follower until the spiral is done (or ``max_steps``, default
-        ``RUN_LIMIT`` times the nominal duration); return the finished beacon log."""
-        follower = self.follower()
+    def run(self, max_steps: int | None = None, controller: Controller | None = None
+            ) -> BeaconLog:
+        """Drive ``controller`` (default: the nominal follower of the path) until it is done
+        (or ``max_steps``, default ``RUN_LIMIT`` times the path's nominal duration); return the
+        finished beacon log."""
+        follower = controller if controller is not None else self.follower()
         limit = max_steps if max_steps is not None else RUN_LIMIT * self.nominal_steps()
         for _ in range(limit):
             speed, heading = follower.command(self.world.position, self.world.heading,

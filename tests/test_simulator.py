@@ -85,3 +85,45 @@ def test_nominal_follower_goes_around_obstacles():
     # detours make the path longer than the ideal spiral, but coverage stays high
     assert sim.network.distance_travelled > sim.spiral.length
     assert sim.network.coverage_ratio >= 0.9
+
+
+def test_a_given_path_is_swept_instead_of_the_spiral():
+    """A planner's path replaces the spiral: the anchor starts on its first free waypoint and
+    the follower tracks it to the end."""
+    from aoass_env.planning import polyline_path
+
+    config = AOASSConfig(field_size=40.0, obstacle_density=0.0, n_nodes=50,
+                         n_moving_obstacles=0)
+    block = ObstacleMap(40.0, 40.0, [np.array([[2.0, 2.0], [8.0, 2.0], [8.0, 8.0], [2.0, 8.0]])])
+    path = polyline_path(np.array([[5.0, 5.0], [5.0, 35.0], [35.0, 35.0]]), 1.0)
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=block, path=path)
+    assert sim.path.blocked[0] and not sim.path.blocked[-1]
+    first_free = sim.path.waypoints[np.flatnonzero(~sim.path.blocked)[0]]
+    np.testing.assert_allclose(sim.world.position, first_free, atol=1e-9)
+    log = sim.run()
+    assert np.linalg.norm(log.anchor_path[-1, 1:] - [35.0, 35.0]) < 1.0
+    assert sim.nominal_steps() == np.ceil(path.length / config.anchor_nominal_speed / config.dt)
+
+
+def test_run_drives_a_given_controller():
+    class Straight:
+        """Drive east at 1 m/s for 10 periods."""
+
+        def __init__(self) -> None:
+            self.calls = 0
+
+        @property
+        def done(self) -> bool:
+            return self.calls > 10
+
+        def command(self, position, heading, dt):
+            self.calls += 1
+            return 1.0, 0.0
+
+    config = AOASSConfig(field_size=40.0, obstacle_density=0.0, n_nodes=20,
+                         n_moving_obstacles=0)
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=ObstacleMap(40.0, 40.0))
+    x0 = sim.world.position[0]
+    sim.run(controller=Straight())
+    assert sim.world.time == pytest.approx(10 * config.dt)   # the 11th command said done
+    assert sim.world.position[0] > x0 + 3.0

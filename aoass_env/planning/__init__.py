@@ -1,6 +1,8 @@
-"""Path planning: the square spiral (Eq. 1-5) and the nominal path follower."""
+"""Path planning: the square spiral (Eq. 1-5), generic waypoint paths and the nominal path
+follower."""
 
 from aoass_env.planning.follower import WaypointFollower
+from aoass_env.planning.path import WaypointPath, polyline_path
 from aoass_env.planning.square_spiral import (
     SquareSpiral,
     default_spacing,
@@ -8,4 +10,5 @@ from aoass_env.planning.square_spiral import (
     square_spiral,
 )
 
-__all__ = ["SquareSpiral", "WaypointFollower", "default_spacing", "max_spacing", "square_spiral"]
+__all__ = ["SquareSpiral", "WaypointFollower", "WaypointPath", "default_spacing", "max_spacing",
+           "polyline_path", "square_spiral"]

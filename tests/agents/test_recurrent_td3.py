@@ -56,6 +56,22 @@ def test_predict_shapes_and_determinism(n_envs: int) -> None:
     np.testing.assert_allclose(single, action[0], rtol=1e-6)
 
 
+def test_actor_final_init_starts_near_the_zero_action(tmp_path) -> None:
+    obs = np.random.default_rng(0).uniform(-1, 1, (64, 3)).astype(np.float32)
+    default = _model(1)
+    small = _model(1, policy_kwargs=dict(**TINY["policy_kwargs"], actor_final_init=3e-3))
+    a_default = default.predict(obs, state=default.policy.initial_state(64))[0]
+    a_small = small.predict(obs, state=small.policy.initial_state(64))[0]
+    # Pendulum's actions span [-2, 2]: 0 is the middle of the range
+    assert np.abs(a_small).max() < 0.05 < np.abs(a_default).max()
+    for name in ("actor", "actor_target"):
+        np.testing.assert_array_equal(
+            getattr(small.policy, name).mu[-2].weight.detach().numpy(),
+            small.policy.actor.mu[-2].weight.detach().numpy())
+    small.save(tmp_path / "m.zip")
+    assert RecurrentTD3.load(tmp_path / "m.zip").policy.actor_final_init == 3e-3
+
+
 def test_episode_start_resets_the_state() -> None:
     model = _model(3)
     rng = np.random.default_rng(0)
@@ -188,6 +204,8 @@ def test_eval_callback_works(tmp_path) -> None:
     (dict(optimize_memory_usage=True), "optimize_memory_usage"),
     (dict(replay_buffer_kwargs=dict(burn_in=3)), "burn_in"),
     (dict(policy_kwargs=dict(lstm_hidden_size=0)), "lstm_hidden_size"),
+    (dict(policy_kwargs=dict(actor_final_init=-1.0)), "actor_final_init"),
+    (dict(policy_kwargs=dict(actor_final_init="small")), "actor_final_init"),
 ])
 def test_bad_constructor_values_name_the_parameter(kwargs: dict, name: str) -> None:
     with pytest.raises(ValueError, match=name):
