@@ -2,7 +2,7 @@
 follower."""
 
 from aoass_env.planning.follower import WaypointFollower
-from aoass_env.planning.path import WaypointPath, polyline_path
+from aoass_env.planning.path import PlannedMethod, WaypointPath, polyline_path
 from aoass_env.planning.square_spiral import (
     SquareSpiral,
     default_spacing,
@@ -10,5 +10,6 @@ from aoass_env.planning.square_spiral import (
     square_spiral,
 )
 
-__all__ = ["SquareSpiral", "WaypointFollower", "WaypointPath", "default_spacing", "max_spacing",
+__all__ = ["PlannedMethod", "SquareSpiral", "WaypointFollower", "WaypointPath", "default_spacing",
+           "max_spacing",
            "polyline_path", "square_spiral"]
