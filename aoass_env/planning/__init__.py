@@ -11,5 +11,4 @@ from aoass_env.planning.square_spiral import (
 )
 
 __all__ = ["PlannedMethod", "SquareSpiral", "WaypointFollower", "WaypointPath", "default_spacing",
-           "max_spacing",
-           "polyline_path", "square_spiral"]
+           "max_spacing", "polyline_path", "square_spiral"]
