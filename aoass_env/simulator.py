@@ -26,10 +26,10 @@ from aoass_env.planning import (
     SquareSpiral,
     WaypointFollower,
     WaypointPath,
-    default_spacing,
     square_spiral,
 )
 from aoass_env.planning.detour import DetourPlanner
+from aoass_env.planning.square_spiral import config_spacing
 from aoass_env.radio import Radio
 from aoass_env.trajectory import beacons_along
 from aoass_env.world import World
@@ -81,9 +81,7 @@ def episode_map(config: AOASSConfig, rng: np.random.Generator) -> ObstacleMap:
 def episode_spiral(config: AOASSConfig, obstacle_map: ObstacleMap) -> SquareSpiral:
     """The square spiral of the config over the map, blocked waypoints marked."""
     w, h = obstacle_map.width, obstacle_map.height
-    spacing = config.spiral_spacing or default_spacing(
-        w, h, config.radio_range, config.beacon_interval, config.edge_margin,
-        config.spiral_origin)
+    spacing = config_spacing(config, w, h)
     step = config.waypoint_step or config.beacon_interval
     spiral = square_spiral(w, h, spacing, step, origin=config.spiral_origin,
                            margin=config.edge_margin)

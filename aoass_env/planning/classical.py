@@ -1,11 +1,286 @@
 """The field's classical static sweep paths, run with the common obstacle rule.
 
-Filled in by the classical-paths work (issue 7); see docs/planning.md.
+Each path is built over the obstacle-free ``width`` x ``height`` field by a pure function of the
+geometry (``*_vertices``, metres in and out) and turned into waypoints by
+:func:`~aoass_env.planning.path.polyline_path`; obstacles are left to the simulator's nominal
+follower (blocked waypoints skipped, detours around static obstacles). The published geometries:
+
+* SCAN, DOUBLE-SCAN, HILBERT -- Koutsonikolas, Das & Hu, Computer Communications 30(13), 2007;
+* CIRCLES -- Huang & Zaruba, PerCom Workshops 2007;
+* LMAT -- Han et al., Wireless Communications and Mobile Computing 13(14), 2013;
+* Z-curve -- Rezazadeh et al., IEEE Sensors Journal 14(9), 2014.
+
+Choices of this implementation (docs/planning.md, "Classical sweep paths"):
+
+* Resolution: the square spiral's pass spacing ``d`` (:func:`config_spacing`), so the paths are
+  compared at the same resolution. A side of extent ``E`` is cut into ``n = ceil(E / d)`` equal
+  cells of side ``E / n <= d``; passes (and cell centres) lie at the cell centres, the first one
+  half a cell from the edge, clipped to the edge margin.
+* HILBERT: order ``k``, the smallest with ``max(width, height) / 2**k <= d``.
+* CIRCLES: circles at the cell-centre radii of the shorter side (the outermost half a cell from
+  the edge), inside out, joined by radial links along the +x axis; a last rectangular ring on
+  the margin-clipped border covers the corners beyond the largest circle.
+* LMAT: triangle side ``<= R`` (fitted so the lattice rows land on the clipped border), every
+  second row of triangles swept in a zig-zag, rows in boustrophedon order.
+* Z-curve: the cells in Morton order of their (column, row) indices; on a grid that is not a
+  power of two the cells outside the grid are skipped, so some jumps are longer than a diagonal.
 """
 
 from __future__ import annotations
 
-from aoass_env.planning.path import PlannedMethod
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import ObstacleMap
+from aoass_env.planning.path import PlannedMethod, WaypointPath, polyline_path
+from aoass_env.planning.square_spiral import config_spacing
+
+__all__ = ["CLASSICAL_METHODS", "circles_vertices", "double_scan_vertices", "hilbert_cells",
+           "hilbert_order", "hilbert_vertices", "lmat_vertices", "morton_cells",
+           "scan_vertices", "z_curve_vertices"]
+
+
+def _check_field(width: float, height: float, spacing: float, margin: float,
+                 spacing_name: str = "spacing") -> None:
+    """ValueError naming the first parameter out of its valid range."""
+    for name, value in (("width", width), ("height", height), (spacing_name, spacing)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name}={value!r} must be a positive number of metres")
+    half = min(width, height) / 2
+    if not (math.isfinite(margin) and 0 <= margin < half):
+        raise ValueError(f"margin={margin!r} must lie in [0, {half:g}) m for a {width:g} x "
+                         f"{height:g} m field")
+
+
+def _n_cells(extent: float, spacing: float) -> int:
+    """Number of equal cells of side <= ``spacing`` (m) across ``extent`` (m)."""
+    return max(1, math.ceil(extent / spacing - 1e-9))
+
+
+def _cell_centres(extent: float, n: int, margin: float) -> np.ndarray:
+    """(n,) centres (m) of ``n`` equal cells across ``extent`` (m), clipped to the margin."""
+    return np.clip((np.arange(n) + 0.5) * extent / n, margin, extent - margin)
+
+
+def _boustrophedon(offsets: np.ndarray, start: float, end: float) -> np.ndarray:
+    """(2P, 2) (offset, along) ends of parallel passes at ``offsets`` (m), the first running
+    from ``start`` to ``end`` (m) and each next one back."""
+    even = np.arange(len(offsets)) % 2 == 0
+    first = np.where(even, start, end)
+    second = np.where(even, end, start)
+    return np.stack([np.repeat(offsets, 2), np.stack([first, second], axis=1).ravel()], axis=1)
+
+
+def scan_vertices(width: float, height: float, spacing: float, margin: float) -> np.ndarray:
+    """(V, 2) corners (m) of SCAN: passes parallel to x at most ``spacing`` (m) apart, the first
+    half a pass spacing above the bottom edge (at least ``margin``), swept in boustrophedon
+    order upwards; each pass runs between the first and last cell centres in x."""
+    _check_field(width, height, spacing, margin)
+    xs = _cell_centres(width, _n_cells(width, spacing), margin)
+    ys = np.unique(_cell_centres(height, _n_cells(height, spacing), margin))
+    return _boustrophedon(ys, xs[0], xs[-1])[:, ::-1]
+
+
+def double_scan_vertices(width: float, height: float, spacing: float,
+                         margin: float) -> np.ndarray:
+    """(V, 2) corners (m) of DOUBLE-SCAN: SCAN along x, then from its end point a SCAN along y
+    (vertical passes swept back across the field), so that every point hears two crossing
+    families of passes."""
+    along_x = scan_vertices(width, height, spacing, margin)
+    xs = np.unique(_cell_centres(width, _n_cells(width, spacing), margin))
+    ys = _cell_centres(height, _n_cells(height, spacing), margin)
+    end_x, end_y = along_x[-1]
+    columns = xs if end_x == xs[0] else xs[::-1]
+    along_y = _boustrophedon(columns, end_y, ys[0])
+    return np.concatenate([along_x, along_y])
+
+
+def hilbert_order(width: float, height: float, spacing: float) -> int:
+    """Smallest order ``k`` with ``max(width, height) / 2**k <= spacing`` (all in m)."""
+    _check_field(width, height, spacing, 0.0)
+    return max(0, math.ceil(math.log2(max(width, height) / spacing) - 1e-9))
+
+
+def hilbert_cells(order: int) -> np.ndarray:
+    """(4**order, 2) integer (column, row) cells of the order-``order`` Hilbert curve on a
+    2**order grid, from (0, 0) to (2**order - 1, 0), each a grid neighbour of the last.
+
+    Built recursively: the curve of order k+1 is the order-k curve transposed (lower left),
+    shifted up (upper left), shifted up and right (upper right) and anti-transposed (lower
+    right), so each quarter ends next to where the next one starts.
+    """
+    if not (isinstance(order, int) and 0 <= order <= 15):
+        raise ValueError(f"order={order!r} must be an integer in [0, 15]")
+    cells = np.zeros((1, 2), dtype=np.int64)
+    for level in range(order):
+        s = 2**level
+        x, y = cells[:, 0], cells[:, 1]
+        cells = np.concatenate([
+            np.stack([y, x], axis=1),
+            np.stack([x, y + s], axis=1),
+            np.stack([x + s, y + s], axis=1),
+            np.stack([2 * s - 1 - y, s - 1 - x], axis=1),
+        ])
+    return cells
+
+
+def hilbert_vertices(width: float, height: float, spacing: float, margin: float) -> np.ndarray:
+    """(4**k, 2) cell centres (m) of HILBERT in curve order: the order-k Hilbert curve
+    (:func:`hilbert_order`) over cells of ``width / 2**k`` x ``height / 2**k`` m, centres clipped
+    to the margin."""
+    _check_field(width, height, spacing, margin)
+    k = hilbert_order(width, height, spacing)
+    cells = hilbert_cells(k)
+    xs = _cell_centres(width, 2**k, margin)
+    ys = _cell_centres(height, 2**k, margin)
+    return np.stack([xs[cells[:, 0]], ys[cells[:, 1]]], axis=1)
+
+
+def circles_vertices(width: float, height: float, spacing: float, margin: float,
+                     max_chord_error: float = 0.1) -> np.ndarray:
+    """(V, 2) corners (m) of CIRCLES: concentric circles about the field centre at the cell
+    centre radii of the shorter side (at most ``spacing`` apart, the outermost half a cell from
+    the edge and inside the margin), inside out, each polygonised with chords that stray at most
+    ``max_chord_error`` (m) from the circle, started and ended on the +x axis and joined by radial
+    links; then a rectangular ring along the margin-clipped border, which covers the corners
+    beyond the largest circle."""
+    _check_field(width, height, spacing, margin)
+    if not (math.isfinite(max_chord_error) and max_chord_error > 0):
+        raise ValueError(f"max_chord_error={max_chord_error!r} must be a positive number of "
+                         "metres")
+    cx, cy = width / 2, height / 2
+    short = min(width, height)
+    centres = np.unique(_cell_centres(short, _n_cells(short, spacing), margin))
+    radii = centres[centres >= short / 2 - 1e-9] - short / 2
+    pieces = []
+    for r in radii:
+        if r <= 1e-9:
+            pieces.append(np.array([[cx, cy]]))
+            continue
+        # a chord over angle 2*pi/n strays r * (1 - cos(pi/n)) from the circle
+        n = max(4, math.ceil(math.pi / math.acos(max(-1.0, 1 - max_chord_error / r)) + 1e-9))
+        angle = np.linspace(0.0, 2 * math.pi, n + 1)
+        pieces.append(np.stack([cx + r * np.cos(angle), cy + r * np.sin(angle)], axis=1))
+    lo_x, lo_y, hi_x, hi_y = margin, margin, width - margin, height - margin
+    pieces.append(np.array([[hi_x, cy], [hi_x, hi_y], [lo_x, hi_y], [lo_x, lo_y], [hi_x, lo_y],
+                            [hi_x, cy]]))
+    return np.concatenate(pieces)
+
+
+def lmat_vertices(width: float, height: float, side: float, margin: float) -> np.ndarray:
+    """(V, 2) corners (m) of LMAT: a tour of an equilateral-triangle lattice with side at most
+    ``side`` (m) over the margin-clipped field.
+
+    Lattice rows run parallel to x, ``J = ceil(H' / (side * sqrt(3) / 2))`` rows of triangles
+    fitted to the clipped height ``H'`` (the first and last lattice lines on the clipped border),
+    alternate lines offset by half a side. The anchor sweeps rows of triangles 0, 2, 4, ... (and
+    the last row when the number of lattice lines is odd) in a zig-zag along the triangles'
+    slanted edges, which visits every lattice vertex and so every triangle's three vertices;
+    each zig-zag starts and ends with the row's border edge (the half triangles cut by the
+    border; every step is then at most a side long), and rows alternate direction, each
+    leaving on its upper line where the next one enters.
+    """
+    _check_field(width, height, side, margin, spacing_name="side")
+    lo_x, hi_x = margin, width - margin
+    clipped_h = height - 2 * margin
+    rows = max(1, math.ceil(clipped_h / (side * math.sqrt(3) / 2) - 1e-9))
+    row_h = clipped_h / rows
+    a = 2 * row_h / math.sqrt(3)
+
+    def line(j: int) -> np.ndarray:
+        xs = np.arange(lo_x + (j % 2) * a / 2, hi_x + 1e-9, a)
+        return np.stack([xs, np.full(len(xs), margin + j * row_h)], axis=1)
+
+    starts = list(range(0, rows, 2)) + ([rows - 1] if rows % 2 == 0 else [])
+    tour = []
+    for i, j in enumerate(starts):
+        y_lo, y_hi = margin + j * row_h, margin + (j + 1) * row_h
+        zigzag = np.concatenate([line(j), line(j + 1)])
+        zigzag = zigzag[np.argsort(zigzag[:, 0], kind="stable")]
+        x_in, x_out = lo_x, hi_x
+        if i % 2 == 1:
+            zigzag, x_in, x_out = zigzag[::-1], hi_x, lo_x
+        first_y, last_y = zigzag[0, 1], zigzag[-1, 1]
+        # border edges: enter from the row below / leave towards the row above when there is
+        # one, else enter on the line that does not reach the border first (no retracing)
+        entry = ([y_lo, y_hi] if i > 0 else [y_hi if first_y == y_lo else y_lo, first_y])
+        leave = ([y_lo, y_hi] if i < len(starts) - 1
+                 else [last_y, y_hi if last_y == y_lo else y_lo])
+        tour.append(np.concatenate([[[x_in, y] for y in entry], zigzag,
+                                    [[x_out, y] for y in leave]]))
+    return np.concatenate(tour)
+
+
+def morton_cells(n_columns: int, n_rows: int) -> np.ndarray:
+    """(n_columns * n_rows, 2) integer (column, row) cells in Morton (Z) order: sorted by the key
+    whose even bits are the column's bits and odd bits the row's, so each 2 x 2 block is visited
+    lower left, lower right, upper left (the diagonal jump), upper right."""
+    for name, value in (("n_columns", n_columns), ("n_rows", n_rows)):
+        if not (isinstance(value, int) and value >= 1):
+            raise ValueError(f"{name}={value!r} must be a positive integer")
+    col, row = (g.ravel() for g in np.meshgrid(np.arange(n_columns), np.arange(n_rows)))
+    key = np.zeros(len(col), dtype=np.int64)
+    for bit in range(max(n_columns, n_rows).bit_length()):
+        key |= ((col >> bit) & 1) << (2 * bit) | ((row >> bit) & 1) << (2 * bit + 1)
+    order = np.argsort(key)
+    return np.stack([col[order], row[order]], axis=1)
+
+
+def z_curve_vertices(width: float, height: float, spacing: float, margin: float) -> np.ndarray:
+    """(C, 2) cell centres (m) of the Z-curve: cells of side at most ``spacing`` (m) visited in
+    Morton order (:func:`morton_cells`), centres clipped to the margin."""
+    _check_field(width, height, spacing, margin)
+    nx, ny = _n_cells(width, spacing), _n_cells(height, spacing)
+    cells = morton_cells(nx, ny)
+    xs, ys = _cell_centres(width, nx, margin), _cell_centres(height, ny, margin)
+    return np.stack([xs[cells[:, 0]], ys[cells[:, 1]]], axis=1)
+
+
+def _step(config: AOASSConfig) -> float:
+    """Waypoint step (m): ``config.waypoint_step``, else the beacon interval."""
+    return config.waypoint_step or config.beacon_interval
+
+
+def _at_spiral_spacing(vertices: Callable[[float, float, float, float], np.ndarray]
+                       ) -> Callable[[ObstacleMap, AOASSConfig], WaypointPath]:
+    """A plan function that builds ``vertices(width, height, d, edge_margin)`` with ``d`` the
+    square spiral's spacing on the map's field."""
+    def plan(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
+        w, h = obstacle_map.width, obstacle_map.height
+        return polyline_path(vertices(w, h, config_spacing(config, w, h), config.edge_margin),
+                             _step(config))
+    return plan
+
+
+def _plan_lmat(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
+    """LMAT over the map's field with triangle side at most the radio range."""
+    return polyline_path(lmat_vertices(obstacle_map.width, obstacle_map.height,
+                                       config.radio_range, config.edge_margin), _step(config))
+
+
+_KOUTSONIKOLAS = "Koutsonikolas, Das & Hu, Computer Communications 30(13), 2007"
 
 #: The classical paths by command-line name.
-CLASSICAL_METHODS: dict[str, PlannedMethod] = {}
+CLASSICAL_METHODS: dict[str, PlannedMethod] = {
+    m.name: m for m in [
+        PlannedMethod(name="scan", label="SCAN", source=_KOUTSONIKOLAS,
+                      plan=_at_spiral_spacing(scan_vertices)),
+        PlannedMethod(name="double-scan", label="DOUBLE-SCAN", source=_KOUTSONIKOLAS,
+                      plan=_at_spiral_spacing(double_scan_vertices)),
+        PlannedMethod(name="hilbert", label="HILBERT", source=_KOUTSONIKOLAS,
+                      plan=_at_spiral_spacing(hilbert_vertices)),
+        PlannedMethod(name="circles", label="CIRCLES",
+                      source="Huang & Zaruba, PerCom Workshops 2007",
+                      plan=_at_spiral_spacing(circles_vertices)),
+        PlannedMethod(name="lmat", label="LMAT",
+                      source="Han et al., Wireless Communications and Mobile Computing 13(14), "
+                             "2013",
+                      plan=_plan_lmat),
+        PlannedMethod(name="z-curve", label="Z-curve",
+                      source="Rezazadeh et al., IEEE Sensors Journal 14(9), 2014",
+                      plan=_at_spiral_spacing(z_curve_vertices)),
+    ]
+}

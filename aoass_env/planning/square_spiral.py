@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 
 #: Unit direction vectors d_n of Eq. 1, cycling right, up, left, down.
@@ -62,6 +63,15 @@ def default_spacing(width: float, height: float, radio_range: float, beacon_inte
     if h <= 0:
         return s_max
     return h / math.ceil(h / s_max - 1e-9)
+
+
+def config_spacing(config: AOASSConfig, width: float, height: float) -> float:
+    """The pass spacing (m) of ``config`` on a ``width`` x ``height`` (m) field: its
+    ``spiral_spacing``, else :func:`default_spacing` for its radio range, beacon interval, edge
+    margin and spiral origin."""
+    return config.spiral_spacing or default_spacing(
+        width, height, config.radio_range, config.beacon_interval, config.edge_margin,
+        config.spiral_origin)
 
 
 @dataclass(frozen=True)

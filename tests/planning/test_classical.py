@@ -1,0 +1,249 @@
+"""Classical sweep paths: geometry, closed-form lengths, coverage of an empty field, episodes."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import ObstacleMap
+from aoass_env.planning.classical import (
+    CLASSICAL_METHODS,
+    circles_vertices,
+    double_scan_vertices,
+    hilbert_cells,
+    hilbert_order,
+    hilbert_vertices,
+    lmat_vertices,
+    morton_cells,
+    scan_vertices,
+    z_curve_vertices,
+)
+from aoass_env.planning.square_spiral import config_spacing
+from aoass_env.simulator import Simulator, episode_map
+from aoass_env.trajectory import beacons_along
+
+VERTICES = [scan_vertices, double_scan_vertices, hilbert_vertices, circles_vertices,
+            lmat_vertices, z_curve_vertices]
+
+L = 100.0
+CONFIG = AOASSConfig()                      # R = 25 m, beacons every 2 m, edge margin 1.5 m
+EMPTY = ObstacleMap(L, L)
+D = config_spacing(CONFIG, L, L)            # the spiral's spacing, 16.17 m
+N = math.ceil(L / D)                        # 7 passes / cells across
+C = L / N                                   # fitted resolution, 14.29 m
+M = CONFIG.edge_margin
+
+
+def _length(vertices: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(vertices, axis=0), axis=1).sum())
+
+
+def test_registry():
+    assert list(CLASSICAL_METHODS) == ["scan", "double-scan", "hilbert", "circles", "lmat",
+                                       "z-curve"]
+    for name, m in CLASSICAL_METHODS.items():
+        assert m.name == name and m.controller is None and not m.reconstructed
+        assert m.label and m.source
+
+
+@settings(max_examples=25, deadline=None)
+@given(width=st.floats(10, 200), height=st.floats(10, 200), spacing=st.floats(2, 60),
+       margin_frac=st.floats(0, 0.9), fn=st.sampled_from(VERTICES))
+def test_every_path_stays_in_the_clipped_field(width, height, spacing, margin_frac, fn):
+    margin = margin_frac * min(width, height) / 2
+    v = fn(width, height, spacing, margin)
+    assert v.ndim == 2 and v.shape[1] == 2 and np.all(np.isfinite(v))
+    eps = 1e-9
+    assert np.all(v >= margin - eps)
+    assert np.all(v[:, 0] <= width - margin + eps) and np.all(v[:, 1] <= height - margin + eps)
+
+
+@settings(max_examples=25, deadline=None)
+@given(width=st.floats(10, 200), height=st.floats(10, 200), spacing=st.floats(2, 60))
+def test_scan_passes_are_at_most_spacing_apart_and_half_a_pass_from_the_edge(width, height,
+                                                                            spacing):
+    v = scan_vertices(width, height, spacing, 0.0)
+    ys = np.unique(v[:, 1])
+    assert np.all(np.diff(ys) <= spacing + 1e-9)
+    assert ys[0] <= spacing / 2 + 1e-9 and ys[0] == pytest.approx(height - ys[-1])
+    # boustrophedon: passes along x alternate direction, joined by links along y
+    steps = np.diff(v, axis=0)
+    assert np.all((np.abs(steps[:, 0]) < 1e-9) | (np.abs(steps[:, 1]) < 1e-9))
+
+
+def test_scan_and_double_scan_lengths():
+    """Exact: N passes of length L - C plus N - 1 links of C. baselines.md's L²/d + L counts
+    N + 1 passes from edge to edge; ours are inset half a cell, which is shorter by L + C, a
+    relative C/L = 1/N (14 %)."""
+    scan = scan_vertices(L, L, D, M)
+    assert _length(scan) == pytest.approx(N * (L - C) + (N - 1) * C)
+    assert _length(scan) == pytest.approx(L**2 / C + L, rel=1 / N + 1e-9)
+    double = double_scan_vertices(L, L, D, M)
+    assert _length(double) == pytest.approx(2 * _length(scan))
+    assert _length(double) == pytest.approx(2 * (L**2 / C + L), rel=1 / N + 1e-9)
+    # the second sweep runs along y and crosses every pass of the first
+    second = double[len(scan):]
+    assert np.all(np.abs(np.diff(second[::2, 0])) > 0)
+    np.testing.assert_allclose(second[0], scan[-1])
+
+
+def test_hilbert_order_and_length():
+    k = hilbert_order(L, L, D)
+    assert L / 2**k <= D < L / 2 ** (k - 1)
+    cell = L / 2**k
+    v = hilbert_vertices(L, L, D, M)
+    # 4^k - 1 unit steps; baselines.md's L²/d within 1/4^k (1.6 %)
+    assert _length(v) == pytest.approx((4**k - 1) * cell)
+    assert _length(v) == pytest.approx(L**2 / cell, rel=2**-(2 * k) + 1e-9)
+
+
+@pytest.mark.parametrize("order", range(7))
+def test_hilbert_visits_each_cell_once_through_neighbours(order):
+    cells = hilbert_cells(order)
+    n = 2**order
+    assert len({tuple(c) for c in cells}) == n * n == len(cells)
+    assert cells.min() == 0 and cells.max() == n - 1
+    assert np.all(np.abs(np.diff(cells, axis=0)).sum(axis=1) == 1)
+    assert tuple(cells[0]) == (0, 0) and tuple(cells[-1]) == (n - 1, 0)
+
+
+def test_circles_length_and_chord_error():
+    """Circles at radii 0, C, 2C, 3C: 2πC(1 + 2 + 3) ≈ baselines.md's πL²/(4d) (within 1/N²);
+    plus the radial links (L/2 - margin in all) and the border ring 4(L - 2 margin)."""
+    v = circles_vertices(L, L, D, M)
+    radii = C * np.arange((N + 1) // 2)
+    circles = 2 * math.pi * radii.sum()
+    assert circles == pytest.approx(math.pi * L**2 / (4 * C), rel=1 / N**2 + 1e-9)
+    # polygonisation shortens each circle by about 2π/3 * chord error
+    assert _length(v) == pytest.approx(circles + (L / 2 - M) + 4 * (L - 2 * M), abs=1.0)
+    r = np.hypot(*(v - L / 2).T)
+    on_circle = np.isclose(r[:, None], radii[None, 1:]).any(axis=1)
+    pairs = on_circle[:-1] & on_circle[1:] & np.isclose(r[:-1], r[1:])
+    half_chord = np.linalg.norm(np.diff(v, axis=0), axis=1)[pairs] / 2
+    sagitta = r[:-1][pairs] - np.sqrt(r[:-1][pairs] ** 2 - half_chord**2)
+    assert sagitta.max() < 0.1
+    # the last ring runs along the clipped border through all four corners
+    for corner in [(M, M), (L - M, M), (M, L - M), (L - M, L - M)]:
+        assert np.any(np.all(np.isclose(v, corner), axis=1))
+
+
+def test_lmat_side_vertices_and_length():
+    side = CONFIG.radio_range
+    v = lmat_vertices(L, L, side, M)
+    ys = np.unique(v[:, 1])
+    rows = len(ys) - 1
+    row_h = (L - 2 * M) / rows
+    a = 2 * row_h / math.sqrt(3)
+    assert a <= side and rows == math.ceil((L - 2 * M) / (side * math.sqrt(3) / 2))
+    # every lattice vertex is visited
+    for j, y in enumerate(ys):
+        for x in np.arange(M + (j % 2) * a / 2, L - M + 1e-9, a):
+            assert np.any(np.all(np.isclose(v, (x, y)), axis=1)), (x, y)
+    # every step is a triangle edge (or part of one cut by the border): at most a side long
+    assert np.linalg.norm(np.diff(v, axis=0), axis=1).max() <= a + 1e-9
+    # zig-zags cover 2 (L - 2 margin) each, plus border edges and links between them
+    pairs = math.ceil(len(ys) / 2)
+    estimate = pairs * (2 * (L - 2 * M) + 2 * row_h) + (pairs - 1) * row_h
+    assert _length(v) == pytest.approx(estimate, rel=0.05)
+
+
+def _morton_key(col: int, row: int) -> int:
+    bits = max(col, row).bit_length()
+    return int("".join(f"{row:0{bits}b}"[i] + f"{col:0{bits}b}"[i] for i in range(bits)) or "0",
+               2)
+
+
+@settings(max_examples=30, deadline=None)
+@given(nx=st.integers(1, 20), ny=st.integers(1, 20))
+def test_z_curve_order_is_morton_order(nx, ny):
+    cells = morton_cells(nx, ny)
+    assert len({tuple(c) for c in cells}) == nx * ny == len(cells)
+    keys = [_morton_key(int(c), int(r)) for c, r in cells]
+    assert keys == sorted(keys)
+
+
+def test_z_curve_diagonal_jumps_and_length():
+    """On a 2^k grid the Z-curve is four order-(k-1) curves joined by three jumps:
+    Z_k = 4 Z_{k-1} + c (2 sqrt(1 + (s-1)²) + sqrt((2s-1)² + 1)), s = 2^(k-1)."""
+    np.testing.assert_array_equal(morton_cells(2, 2), [[0, 0], [1, 0], [0, 1], [1, 1]])
+    cell = 12.5
+    v = z_curve_vertices(L, L, cell, M)
+    expected = 0.0
+    for k in range(1, 4):
+        s = 2 ** (k - 1)
+        expected = 4 * expected + cell * (2 * math.hypot(1, s - 1) + math.hypot(2 * s - 1, 1))
+    assert len(v) == 64 and _length(v) == pytest.approx(expected)
+
+
+def _beacons(method: str) -> np.ndarray:
+    """(B, 2) beacon points (m) every 2 m along the method's ideal path on the empty 100 m field
+    (the first at the start, as the simulator broadcasts)."""
+    path = CLASSICAL_METHODS[method].plan(EMPTY, CONFIG)
+    samples = np.c_[path.arc_length, path.waypoints]
+    beacons, _ = beacons_along(samples, 0.0, CONFIG.beacon_interval)
+    return np.r_[samples[:1], beacons][:, 1:]
+
+
+def _hears_three_non_collinear(points: np.ndarray, beacons: np.ndarray, r: float) -> np.ndarray:
+    """(P,) True where a point hears >= 3 beacons within ``r`` that do not lie on one line (the
+    smaller principal variance of the heard beacons exceeds 1e-3 m²)."""
+    d = beacons[None] - points[:, None]
+    heard = (np.hypot(d[..., 0], d[..., 1]) <= r).astype(float)
+    n = heard.sum(axis=1)
+    mean = np.einsum("pb,pbi->pi", heard, d) / np.maximum(n, 1)[:, None]
+    cov = np.einsum("pb,pbi,pbj->pij", heard, d, d) / np.maximum(n, 1)[:, None, None]
+    cov -= mean[:, :, None] * mean[:, None, :]
+    return (n >= 3) & (np.linalg.eigvalsh(cov)[:, 0] > 1e-3)
+
+
+@pytest.mark.parametrize("method", ["scan", "double-scan", "hilbert", "lmat"])
+def test_every_point_of_the_empty_field_hears_three_non_collinear_beacons(method):
+    beacons = _beacons(method)
+    corners = np.array([[0, 0], [L, 0], [0, L], [L, L]])
+    assert _hears_three_non_collinear(corners, beacons, CONFIG.radio_range).all()
+    g = np.linspace(0, L, 51)
+    grid = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
+    ok = _hears_three_non_collinear(grid, beacons, CONFIG.radio_range)
+    assert ok.all(), grid[~ok][:5]
+
+
+@pytest.mark.parametrize("method", list(CLASSICAL_METHODS))
+def test_every_method_runs_an_episode(method):
+    config = AOASSConfig(field_size=40, n_nodes=30, obstacle_density=0.1, n_moving_obstacles=0)
+    obstacle_map = episode_map(config, np.random.default_rng(0))
+    path = CLASSICAL_METHODS[method].plan(obstacle_map, config)
+    assert np.linalg.norm(np.diff(path.waypoints, axis=0), axis=1).max() <= (
+        config.beacon_interval + 1e-9)
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=obstacle_map, path=path)
+    log = sim.run()
+    coverage = sim.network.coverage_ratio
+    assert math.isfinite(coverage) and 0.0 <= coverage <= 1.0
+    assert log.n_beacons > 1 and sim.network.distance_travelled > 0
+
+
+@pytest.mark.parametrize("fn", VERTICES)
+@pytest.mark.parametrize(("args", "name"), [
+    ((100, 100, 0.0, 1.0), "spacing|side"),
+    ((100, 100, -5.0, 1.0), "spacing|side"),
+    ((100, 100, math.nan, 1.0), "spacing|side"),
+    ((100, 100, 10.0, 50.0), "margin"),
+    ((100, 60, 10.0, 31.0), "margin"),
+    ((100, 100, 10.0, -1.0), "margin"),
+    ((0, 100, 10.0, 1.0), "width"),
+    ((100, -1, 10.0, 1.0), "height"),
+])
+def test_bad_parameters_raise_naming_the_parameter(fn, args, name):
+    with pytest.raises(ValueError, match=name):
+        fn(*args)
+
+
+def test_bad_grid_parameters():
+    with pytest.raises(ValueError, match="order"):
+        hilbert_cells(-1)
+    with pytest.raises(ValueError, match="n_rows"):
+        morton_cells(3, 0)
+    with pytest.raises(ValueError, match="max_chord_error"):
+        circles_vertices(100, 100, 10, 1, max_chord_error=0)
