@@ -1,11 +1,13 @@
 """The AOASS paper's baselines (OHM, FDPP, M-ANCHORO), reconstructed from their publications.
 
-Filled in by the baselines work (issue 7); see docs/baselines.md.
+See docs/baselines.md for what each publication says and what was rebuilt.
 """
 
 from __future__ import annotations
 
+from aoass_env.planning.baselines.fdpp import FDPP
+from aoass_env.planning.baselines.ohm import OHM
 from aoass_env.planning.path import PlannedMethod
 
 #: The reconstructed baselines by command-line name.
-BASELINE_METHODS: dict[str, PlannedMethod] = {}
+BASELINE_METHODS: dict[str, PlannedMethod] = {m.name: m for m in (OHM, FDPP)}

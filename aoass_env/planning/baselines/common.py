@@ -1,0 +1,47 @@
+"""Pieces the reconstructed baselines share: their followers and the anchor's clearance region."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import shapely
+from shapely.geometry.base import BaseGeometry
+
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import ObstacleMap
+from aoass_env.planning.detour import DetourPlanner
+from aoass_env.planning.follower import WaypointFollower
+from aoass_env.planning.path import polyline_path
+
+
+def check_positive(name: str, value: float, high: float = math.inf) -> float:
+    """``value`` as a float when 0 < value <= high, else a ValueError naming ``name``."""
+    v = float(value)
+    if not (math.isfinite(v) and 0.0 < v <= high):
+        raise ValueError(f"{name}={value!r} must lie in (0, {high:g}]")
+    return v
+
+
+def point_follower(config: AOASSConfig, points: np.ndarray,
+                   planner: DetourPlanner | None) -> WaypointFollower:
+    """A follower of the polyline through ``points`` (K, 2) (m), with waypoints every
+    ``waypoint_step`` (or ``beacon_interval``) metres so that no leg outlasts the follower's
+    stall time, and the simulator's nominal capture radius, speed and deceleration; ``planner``
+    detours around static obstacles (None: straight legs)."""
+    pts = polyline_path(np.asarray(points, dtype=np.float64).reshape(-1, 2),
+                        config.waypoint_step or config.beacon_interval).waypoints
+    return WaypointFollower(pts, np.zeros(len(pts), dtype=bool),
+                            capture_radius=max(config.anchor_radius,
+                                               0.5 * config.anchor_nominal_speed * config.dt),
+                            cruise_speed=config.anchor_nominal_speed,
+                            max_accel=config.anchor_max_accel, planner=planner)
+
+
+def free_region(obstacle_map: ObstacleMap, clearance: float, border: float) -> BaseGeometry:
+    """Where the anchor's centre may go: the field shrunk by ``border`` (m) minus the obstacles
+    dilated by ``clearance`` (m). A Polygon or MultiPolygon (narrow passages may split it)."""
+    box = shapely.box(border, border, obstacle_map.width - border, obstacle_map.height - border)
+    if not obstacle_map.polygons:
+        return box
+    return shapely.difference(box, shapely.buffer(obstacle_map.union, clearance))
