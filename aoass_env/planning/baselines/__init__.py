@@ -6,8 +6,9 @@ See docs/baselines.md for what each publication says and what was rebuilt.
 from __future__ import annotations
 
 from aoass_env.planning.baselines.fdpp import FDPP
+from aoass_env.planning.baselines.m_anchoro import M_ANCHORO
 from aoass_env.planning.baselines.ohm import OHM
 from aoass_env.planning.path import PlannedMethod
 
 #: The reconstructed baselines by command-line name.
-BASELINE_METHODS: dict[str, PlannedMethod] = {m.name: m for m in (OHM, FDPP)}
+BASELINE_METHODS: dict[str, PlannedMethod] = {m.name: m for m in (OHM, FDPP, M_ANCHORO)}

@@ -179,7 +179,8 @@ class OHMController:
         self.region = free_region(sim.map, c.anchor_radius + gap, border)
         shapely.prepare(self.region)
         wps = sim.path.waypoints
-        turn = np.abs(np.cross(wps[1:-1] - wps[:-2], wps[2:] - wps[1:-1])) > 1e-9
+        u, v = wps[1:-1] - wps[:-2], wps[2:] - wps[1:-1]
+        turn = np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) > 1e-9
         self._corners = np.r_[sim.path.arc_length[1:-1][turn], sim.path.length]
         self.arc = 0.0
         self.walks = 0

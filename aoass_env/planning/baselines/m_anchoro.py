@@ -1,0 +1,225 @@
+"""M-ANCHORO (reconstructed): triangle-lattice beacon points, SCAN order, redundancy pruning.
+
+Tsai et al., "M-ANCHORO: Mobile Anchor Node-Based Path Optimization for Full Coverage Path
+Planning Algorithm", 2024, doi 10.1155/2024/7347796. The abstract gives the pipeline (split the
+field by the obstacle layout, beacon points on an equilateral-triangle lattice, SCAN order into
+a full-coverage path, remove redundant beacon points); the details are ours (docs/baselines.md):
+
+1. Lattice (:func:`triangle_lattice`): rows ``a sqrt(3)/2`` apart (at most), alternate rows
+   offset by ``a/2`` and closed by points on the field's shrunk border. Any point of a lattice
+   triangle is at most ``a`` from each of its three (non-collinear) vertices; a point of the
+   field lies at most ``sqrt(2) * edge_margin`` outside the lattice's hull, so
+   ``a = R - sqrt(2) * edge_margin`` (:func:`lattice_side`) lets every point hear three.
+2. Points inside obstacles dilated by the link clearance (anchor radius + detour margin +
+   ``LINK_MARGIN``) are
+   dropped; candidate points every ``a/2`` along the boundary of that dilated region are added
+   greedily (most uncovered samples first) while they restore triple coverage of free sample
+   points (:func:`restore_coverage`).
+3. SCAN: points are grouped by the nearest lattice row and visited row by row, alternating
+   direction (boustrophedon); consecutive points without a straight collision-free link are
+   joined by the shortest detour (same clearance) of
+   :class:`~aoass_env.planning.detour.DetourPlanner` (no
+   explicit cell decomposition: the detours do its work).
+4. Pruning (:func:`prune`): points are removed greedily (those heard by the fewest samples
+   first) when every sample they covered still hears >= 3 non-collinear remaining points.
+
+Coverage of a sample (Eq. 18, line of sight and range as the radio model) is decided by
+:class:`~aoass_env.network.Network` itself, fed with beacons at the points only. In the
+simulator the anchor beacons every ``beacon_interval`` along the whole path (the common rule),
+which can only add coverage.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import shapely
+
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import ObstacleMap
+from aoass_env.network import Network
+from aoass_env.planning.baselines.common import check_positive, free_region
+from aoass_env.planning.detour import DetourPlanner
+from aoass_env.planning.path import PlannedMethod, WaypointPath, polyline_path
+from aoass_env.radio import Radio
+from aoass_env.simulator import DETOUR_MARGIN
+
+#: Spacing (m) of the free sample points coverage is checked on.
+SAMPLE_SPACING = 2.0
+#: Extra room (m) beyond the anchor radius and the detour margin that beacon points and links
+#: keep from obstacles, so that the turn-rate-limited anchor does not touch them at corners.
+LINK_MARGIN = 0.7
+
+
+def lattice_side(radio_range: float, margin: float) -> float:
+    """Triangle side a (m) = R - sqrt(2) * margin: a field point hears the three vertices of
+    its lattice triangle even in a corner outside the lattice (module docstring)."""
+    r = check_positive("radio_range", radio_range)
+    a = r - math.sqrt(2.0) * margin
+    if not (margin >= 0 and a > 0):
+        raise ValueError(f"margin={margin!r} must lie in [0, {r / math.sqrt(2):g}) m for "
+                         f"radio_range={r:g} m")
+    return a
+
+
+def triangle_lattice(width: float, height: float, side: float, margin: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Equilateral-triangle lattice over the field shrunk by ``margin`` (m).
+
+    Rows are fitted to the shrunk field (spacing <= ``side`` sqrt(3)/2, points <= ``side``
+    apart); odd rows are offset by half a step and closed by points on the left and right
+    border. Returns (points (P, 2) (m), row index (P,)), bottom row first, left to right.
+    """
+    w, h, a = (check_positive(n, v) for n, v in (("width", width), ("height", height),
+                                                  ("side", side)))
+    if not (0.0 <= margin < min(w, h) / 2):
+        raise ValueError(f"margin={margin!r} must lie in [0, {min(w, h) / 2:g}) m")
+    span_x, span_y = w - 2 * margin, h - 2 * margin
+    n_cols = max(1, math.ceil(span_x / a - 1e-9))
+    n_rows = max(1, math.ceil(span_y / (a * math.sqrt(3) / 2) - 1e-9))
+    dx = span_x / n_cols
+    xs_even = margin + dx * np.arange(n_cols + 1)
+    xs_odd = np.r_[margin, margin + dx * (np.arange(n_cols) + 0.5), w - margin]
+    points, rows = [], []
+    for k, y in enumerate(np.linspace(margin, h - margin, n_rows + 1)):
+        xs = xs_even if k % 2 == 0 else xs_odd
+        points.append(np.stack([xs, np.full(len(xs), y)], axis=1))
+        rows.append(np.full(len(xs), k))
+    return np.concatenate(points), np.concatenate(rows)
+
+
+def free_samples(obstacle_map: ObstacleMap, spacing: float = SAMPLE_SPACING) -> np.ndarray:
+    """Cell centres (S, 2) (m) of a ``spacing`` (m) grid that lie outside every obstacle."""
+    s = check_positive("spacing", spacing)
+    xs = np.arange(s / 2, obstacle_map.width, s)
+    ys = np.arange(s / 2, obstacle_map.height, s)
+    grid = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
+    return grid[~obstacle_map.inside_obstacle(grid)]
+
+
+def hearing(points: np.ndarray, samples: np.ndarray, obstacle_map: ObstacleMap,
+            config: AOASSConfig) -> np.ndarray:
+    """(P, S) True where sample s hears a beacon sent at point p: within ``radio_range`` and,
+    with ``line_of_sight``, not blocked by an obstacle (the unit-disk radio of the config)."""
+    radio = Radio(samples, obstacle_map, config.radio_range, line_of_sight=config.line_of_sight)
+    heard = np.zeros((len(points), len(samples)), dtype=bool)
+    for i, p in enumerate(np.asarray(points, dtype=np.float64).reshape(-1, 2)):
+        heard[i, radio.receivers(p)] = True
+    return heard
+
+
+def triple_covered(points: np.ndarray, heard: np.ndarray, config: AOASSConfig) -> np.ndarray:
+    """(S,) True where a sample hears >= 3 non-collinear beacons among ``points`` (P, 2) (m)
+    with hearing matrix ``heard`` (P, S) -- Eq. 18 as :class:`Network` decides it."""
+    if heard.shape[1] == 0:
+        return np.zeros(0, dtype=bool)
+    net = Network(heard.shape[1], config)
+    for p, row in zip(np.asarray(points).reshape(-1, 2), heard, strict=True):
+        net.record_beacon(p, np.flatnonzero(row))
+    return net.covered.copy()
+
+
+def restore_coverage(points: np.ndarray, candidates: np.ndarray, heard: np.ndarray,
+                     heard_candidates: np.ndarray, config: AOASSConfig) -> np.ndarray:
+    """Indices into ``candidates`` (C, 2) to add to ``points`` (P, 2) (m), greedily: each round
+    the candidate heard by the most still-uncovered samples is tried and kept when the number
+    of covered samples grows; ends when no untried candidate hears an uncovered sample.
+    ``heard`` (P, S) and ``heard_candidates`` (C, S) are the hearing matrices."""
+    added: list[int] = []
+    tried = np.zeros(len(candidates), dtype=bool)
+    pts, hrd = np.asarray(points).reshape(-1, 2), heard
+    covered = triple_covered(pts, hrd, config)
+    while True:
+        gain = np.where(tried, -1, (heard_candidates & ~covered).sum(axis=1))
+        if len(gain) == 0 or gain.max() <= 0:
+            return np.array(added, dtype=np.int64)
+        best = int(np.argmax(gain))
+        tried[best] = True
+        trial = triple_covered(np.vstack([pts, candidates[best]]),
+                               np.vstack([hrd, heard_candidates[best]]), config)
+        if trial.sum() > covered.sum():
+            pts, hrd, covered = np.vstack([pts, candidates[best]]), \
+                np.vstack([hrd, heard_candidates[best]]), trial
+            added.append(best)
+
+
+def prune(points: np.ndarray, heard: np.ndarray, config: AOASSConfig) -> np.ndarray:
+    """Mask (P,) of the points kept after greedy removal of redundant ones: a point (fewest
+    hearing samples first) goes when every sample it helped cover still hears >= 3
+    non-collinear kept points."""
+    pts = np.asarray(points).reshape(-1, 2)
+    keep = np.ones(len(pts), dtype=bool)
+    covered = triple_covered(pts, heard, config)
+    for i in np.argsort(heard.sum(axis=1), kind="stable"):
+        affected = heard[i] & covered
+        keep[i] = False
+        if affected.any():
+            still = triple_covered(pts[keep], heard[keep][:, affected], config)
+            if not still.all():
+                keep[i] = True
+    return keep
+
+
+def scan_order(points: np.ndarray, row_y: np.ndarray) -> np.ndarray:
+    """Order (P,) of ``points`` (m) by SCAN: grouped by the nearest of the rows at heights
+    ``row_y`` (m), bottom row first, left to right and right to left alternately."""
+    pts = np.asarray(points).reshape(-1, 2)
+    rows = np.argmin(np.abs(pts[:, 1:2] - np.asarray(row_y)[None]), axis=1)
+    x = np.where(rows % 2 == 0, pts[:, 0], -pts[:, 0])
+    return np.lexsort((x, rows))
+
+
+def boundary_points(region: shapely.Geometry, spacing: float) -> np.ndarray:
+    """Points (K, 2) (m) every ``spacing`` (m) along every boundary ring of ``region``."""
+    s = check_positive("spacing", spacing)
+    rings = [r for poly in shapely.get_parts(region) if not poly.is_empty
+             for r in (poly.exterior, *poly.interiors)]
+    pts = [shapely.get_coordinates(shapely.line_interpolate_point(r, np.arange(0.0, r.length, s)))
+           for r in rings]
+    return np.concatenate(pts) if pts else np.zeros((0, 2))
+
+
+def beacon_points(obstacle_map: ObstacleMap, config: AOASSConfig) -> np.ndarray:
+    """M-ANCHORO's beacon points (K, 2) (m) in SCAN order after pruning (steps 1-4)."""
+    m = config.edge_margin
+    a = lattice_side(config.radio_range, m)
+    lattice, rows = triangle_lattice(obstacle_map.width, obstacle_map.height, a, m)
+    row_y = np.unique(lattice[:, 1])
+    clearance = config.anchor_radius + DETOUR_MARGIN + LINK_MARGIN
+    points = lattice[~obstacle_map.inside_obstacle(lattice, dilation=clearance)]
+    samples = free_samples(obstacle_map)
+    heard = hearing(points, samples, obstacle_map, config)
+    if obstacle_map.polygons:
+        candidates = boundary_points(free_region(obstacle_map, clearance, m), a / 2)
+        heard_c = hearing(candidates, samples, obstacle_map, config)
+        extra = restore_coverage(points, candidates, heard, heard_c, config)
+        points = np.vstack([points, candidates[extra]])
+        heard = np.vstack([heard, heard_c[extra]])
+    keep = prune(points, heard, config)
+    points = points[keep]
+    return points[scan_order(points, row_y)]
+
+
+def plan(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
+    """The beacon points in SCAN order, consecutive ones joined straight where a disc of the
+    detour clearance passes and by the shortest detour otherwise; waypoints every
+    ``waypoint_step`` / ``beacon_interval`` metres."""
+    points = beacon_points(obstacle_map, config)
+    planner = DetourPlanner(obstacle_map, config.anchor_radius + DETOUR_MARGIN + LINK_MARGIN)
+    vertices = [points[:1]]
+    for a, b in zip(points[:-1], points[1:], strict=True):
+        link = None if planner.visible(a, b) else planner.path(a, b)
+        vertices.append(b[None] if link is None else link[1:])
+    return polyline_path(np.concatenate(vertices), config.waypoint_step or config.beacon_interval)
+
+
+M_ANCHORO = PlannedMethod(
+    name="m-anchoro",
+    label="M-ANCHORO (reconstructed)",
+    source=("Tsai et al., \"M-ANCHORO: Mobile Anchor Node-Based Path Optimization for Full "
+            "Coverage Path Planning Algorithm\", 2024 (Hindawi/Wiley journal, venue not "
+            "retrieved), doi 10.1155/2024/7347796"),
+    plan=plan,
+    reconstructed=True,
+)

@@ -1,0 +1,166 @@
+"""The reconstructed baselines: OHM, FDPP, M-ANCHORO (docs/baselines.md)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import ObstacleMap
+from aoass_env.planning.baselines import BASELINE_METHODS
+from aoass_env.planning.baselines import fdpp, m_anchoro, ohm
+from aoass_env.planning.baselines.common import free_region
+from aoass_env.simulator import Simulator, episode_map
+
+SMALL = AOASSConfig(field_size=40, n_nodes=30, obstacle_density=0.2, n_moving_obstacles=0)
+
+
+def _episode(name: str, config: AOASSConfig = SMALL, seed: int = 0,
+             obstacle_map: ObstacleMap | None = None) -> tuple[Simulator, object]:
+    method = BASELINE_METHODS[name]
+    rng = np.random.default_rng(seed)
+    omap = obstacle_map if obstacle_map is not None else episode_map(config, rng)
+    sim = Simulator(config, rng, obstacle_map=omap, path=method.plan(omap, config))
+    ctl = method.controller(sim) if method.controller else None
+    sim.run(controller=ctl)
+    return sim, ctl
+
+
+def test_registry_labels_and_sources():
+    assert set(BASELINE_METHODS) == {"ohm", "fdpp", "m-anchoro"}
+    for name, m in BASELINE_METHODS.items():
+        assert m.name == name and m.reconstructed and "(reconstructed)" in m.label
+        assert "doi 10." in m.source
+    assert BASELINE_METHODS["m-anchoro"].controller is None
+
+
+@pytest.mark.parametrize("name", ["ohm", "fdpp", "m-anchoro"])
+def test_small_episode_completes(name):
+    sim, ctl = _episode(name)
+    assert ctl is None or ctl.done
+    assert math.isfinite(sim.network.distance_travelled) and sim.network.distance_travelled > 0
+    assert 0.0 <= sim.network.coverage_ratio <= 1.0 and math.isfinite(sim.network.energy_total)
+    if name != "fdpp":                  # the planned sweeps cover the small field
+        assert sim.network.coverage_ratio > 0.5
+    assert sim.collisions == 0
+
+
+@pytest.mark.parametrize("name", ["ohm", "fdpp", "m-anchoro"])
+def test_same_seed_same_path(name):
+    a, _ = _episode(name, seed=3)
+    b, _ = _episode(name, seed=3)
+    np.testing.assert_array_equal(a.recorder.path_points, b.recorder.path_points)
+
+
+# --- OHM ------------------------------------------------------------------------------------
+SQUARE = ObstacleMap(40.0, 40.0, (np.array([[15.0, 5.0], [25.0, 5.0], [25.0, 15.0],
+                                            [15.0, 15.0]]),))
+
+
+def test_ohm_sweep_vertices_spacing_and_errors():
+    v = ohm.sweep_vertices(40.0, 40.0, 10.0, 1.5)
+    ys = np.unique(v[:, 1])
+    assert ys[0] == 1.5 and ys[-1] == 38.5 and np.all(np.diff(ys) <= 10.0 + 1e-9)
+    assert v[0, 0] == 1.5 and v[1, 0] == 38.5 and v[2, 0] == 38.5   # boustrophedon
+    with pytest.raises(ValueError, match="spacing"):
+        ohm.sweep_vertices(40.0, 40.0, 0.0, 1.5)
+    with pytest.raises(ValueError, match="margin"):
+        ohm.sweep_vertices(40.0, 40.0, 5.0, 25.0)
+
+
+def test_ohm_boundary_route_rejoins_the_line():
+    region = free_region(SQUARE, 1.0, 1.0)
+    base = shapely.LineString([(1.5, 10.0), (38.5, 10.0), (38.5, 30.0), (1.5, 30.0)])
+    hit = ohm.first_exit(np.array([1.5, 10.0]), np.array([38.5, 10.0]), region)
+    assert hit == pytest.approx(12.5, abs=1e-6)
+    points, leave = ohm.boundary_route(region, base, hit, 100.0)
+    assert leave == pytest.approx(26.0 - 1.5, abs=1e-6)      # x = 26: same line, far side
+    assert points[-1] == pytest.approx([26.0, 10.0])
+    gap = shapely.distance(SQUARE.union, shapely.points(points))
+    assert gap.min() >= 1.0 - 1e-6
+    assert ohm.boundary_route(region, base, hit, 5.0) is None   # beyond the follow budget
+
+
+def test_ohm_episode_keeps_clearance_and_rejoins():
+    config = AOASSConfig(field_size=40, n_nodes=20, obstacle_density=0.0, n_moving_obstacles=0,
+                         spiral_spacing=8.5)
+    sim, ctl = _episode("ohm", config, obstacle_map=SQUARE)
+    assert ctl.walks >= 1 and ctl.skips == 0 and ctl.done
+    path = sim.recorder.path_points
+    gap = shapely.distance(SQUARE.union, shapely.points(path))
+    assert gap.min() >= config.anchor_radius + ohm.DEFAULT_GAP - 0.35   # turn-rate corner cut
+    assert np.linalg.norm(path[-1] - sim.path.waypoints[-1]) < 1.0      # swept to the end
+    with pytest.raises(ValueError, match="max_follow"):
+        ohm.OHMController(sim, max_follow=-1.0)
+
+
+# --- FDPP -----------------------------------------------------------------------------------
+def test_fdpp_prefers_the_heading_with_more_unlocalized_nodes():
+    flc = fdpp.fdpp_rules()
+    pos = np.zeros(2)
+    nodes = np.array([[15.0, 1.0], [18.0, -1.0], [12.0, 0.0], [20.0, 2.0], [0.0, 15.0]])
+    k, step = fdpp.choose_heading(pos, math.pi / 2, nodes, np.full(6, 25.0), 25.0, flc)
+    assert k == 0 and 0 < step <= 25.0
+    reach = np.array([0.0, 25, 25, 25, 25, 25])          # east blocked: the next best, north
+    k, _ = fdpp.choose_heading(pos, 0.0, nodes, reach, 25.0, flc)
+    assert k in (1, 2)
+    assert fdpp.choose_heading(pos, 0.0, nodes, np.zeros(6), 25.0, flc) is None
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.floats(-25, 25), st.floats(-25, 25)), min_size=0, max_size=20))
+def test_fdpp_sector_inputs_are_fuzzy_ranges(pts):
+    mean, share = fdpp.sector_inputs(np.zeros(2), np.array(pts).reshape(-1, 2), 25.0)
+    assert np.all((0 <= mean) & (mean <= 1)) and np.all((0 <= share) & (share <= 1))
+    assert share.sum() == pytest.approx(1.0 if pts else 0.0)
+
+
+def test_fdpp_respects_its_budget():
+    rng = np.random.default_rng(1)
+    omap = episode_map(SMALL, rng)
+    sim = Simulator(SMALL, rng, obstacle_map=omap, path=fdpp.plan(omap, SMALL))
+    ctl = fdpp.FDPPController(sim, budget=30.0, patience=100)
+    sim.run(controller=ctl)
+    assert ctl.done and sim.network.distance_travelled <= 30.0 + SMALL.anchor_max_speed * SMALL.dt
+    full, full_ctl = _episode("fdpp", seed=1)
+    assert full.network.distance_travelled <= full.spiral.length + 2.0
+    with pytest.raises(ValueError, match="patience"):
+        fdpp.FDPPController(sim, patience=0)
+
+
+# --- M-ANCHORO ------------------------------------------------------------------------------
+def test_m_anchoro_lattice_spacing():
+    a = m_anchoro.lattice_side(25.0, 1.5)
+    assert a == pytest.approx(25.0 - 1.5 * math.sqrt(2))
+    pts, rows = m_anchoro.triangle_lattice(100.0, 100.0, a, 1.5)
+    ys = np.unique(pts[:, 1])
+    assert np.all(np.diff(ys) <= a * math.sqrt(3) / 2 + 1e-9)
+    for k in np.unique(rows):
+        assert np.all(np.diff(np.sort(pts[rows == k, 0])) <= a + 1e-9)
+    assert pts.min() == pytest.approx(1.5) and pts.max() == pytest.approx(98.5)
+    with pytest.raises(ValueError, match="margin"):
+        m_anchoro.lattice_side(25.0, 20.0)
+
+
+def test_m_anchoro_points_avoid_obstacles():
+    rng = np.random.default_rng(2)
+    omap = episode_map(SMALL, rng)
+    pts = m_anchoro.beacon_points(omap, SMALL)
+    assert len(pts) >= 3
+    assert not omap.inside_obstacle(pts, dilation=SMALL.anchor_radius).any()
+
+
+def test_m_anchoro_pruned_points_still_cover_an_empty_field():
+    config = AOASSConfig(field_size=60, n_nodes=10, obstacle_density=0.0, n_moving_obstacles=0)
+    empty = ObstacleMap(60.0, 60.0)
+    pts = m_anchoro.beacon_points(empty, config)
+    full, _ = m_anchoro.triangle_lattice(60.0, 60.0, m_anchoro.lattice_side(25.0, 1.5), 1.5)
+    assert len(pts) < len(full)                                       # pruning removed some
+    samples = m_anchoro.free_samples(empty, 1.7)                      # not the pruning grid
+    heard = m_anchoro.hearing(pts, samples, empty, config)
+    assert m_anchoro.triple_covered(pts, heard, config).all()
