@@ -1,0 +1,135 @@
+"""``python3 evaluate.py``: run a preset's episodes for the chosen methods, localize every beacon
+log, write episodes.csv, summary.csv, summary.md and the figures (docs/evaluation.md).
+
+Exit status: 0 done, 1 some episodes failed (the others are written), 2 bad input (nothing run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+import torch
+
+from aoass_env.atomic import write_text_atomic
+from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, RunOptions, select_methods
+from aoass_env.evaluation.report import (
+    draw_figures,
+    label,
+    seconds_per_episode,
+    summary_markdown,
+    write_summary_csv,
+)
+from aoass_env.evaluation.store import EpisodeStore, EvaluationError
+from aoass_env.evaluation.sweep import PRESETS, episode_jobs, log_jobs, run_jobs
+from aoass_env.localization import METHODS as LOCALIZERS
+from aoass_env.localization.olstm import DEFAULT_CHECKPOINT
+
+DEFAULT_LOCALIZERS = ("dvhop", "olstm-dvhop")
+LOCALIZER_COMMAND = "python3 train.py localizer"
+
+
+def _names(values: list[str] | None) -> list[str] | None:
+    """Names given as separate words and/or comma-separated."""
+    if values is None:
+        return None
+    return [n for v in values for n in v.split(",") if n]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    presets = "\n".join(f"  {p.name:6s} {p.description}; {p.seeds} seed(s)"
+                        for p in PRESETS.values())
+    parser = argparse.ArgumentParser(
+        prog="evaluate.py", formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Benchmark the sweep methods on the shipped test maps (Eq. 15-19).",
+        epilog=f"presets:\n{presets}\n\nmethods: {', '.join(METHODS)}\n"
+               f"localizers: {', '.join(LOCALIZERS)}\n\nSee docs/evaluation.md.")
+    parser.add_argument("--preset", choices=list(PRESETS), default="quick",
+                        help="episode grid (default: quick)")
+    parser.add_argument("--methods", nargs="+", metavar="M",
+                        help="methods to run (default: all)")
+    parser.add_argument("--localizers", nargs="+", metavar="L",
+                        help=f"localizers (default: {' '.join(DEFAULT_LOCALIZERS)})")
+    parser.add_argument("--seeds", type=int, metavar="S",
+                        help="seeds 0..S-1 per grid point (default: the preset's)")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, metavar="W",
+                        help="worker processes (default: all cores)")
+    parser.add_argument("--out", type=Path, metavar="DIR",
+                        help="output folder (default: out/<preset>, with --logs out/localized)")
+    parser.add_argument("--save-logs", action="store_true",
+                        help="save every episode's beacon log to DIR/logs/<method>/")
+    parser.add_argument("--logs", type=Path, metavar="DIR",
+                        help="localize the saved beacon logs (*.npz) in DIR instead of running "
+                             "episodes")
+    parser.add_argument("--policy", type=Path, default=DEFAULT_POLICY, metavar="ZIP",
+                        help="checkpoint of the aoass policy (default: the shipped one)")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    return parser
+
+
+def _check_localizers(names: list[str] | None) -> tuple[str, ...]:
+    chosen = tuple(dict.fromkeys(names or DEFAULT_LOCALIZERS))
+    unknown = [n for n in chosen if n not in LOCALIZERS]
+    if unknown:
+        raise EvaluationError(f"unknown localizer(s) {', '.join(map(repr, unknown))}; valid: "
+                              f"{', '.join(LOCALIZERS)}")
+    if "olstm-dvhop" in chosen and not DEFAULT_CHECKPOINT.is_file():
+        raise EvaluationError(f"localizer olstm-dvhop needs its checkpoint {DEFAULT_CHECKPOINT}, "
+                              f"which is missing; produce it with `{LOCALIZER_COMMAND}`")
+    return chosen
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.seeds is not None and args.seeds < 1:
+            raise EvaluationError(f"--seeds must be at least 1, got {args.seeds}")
+        if args.workers < 1:
+            raise EvaluationError(f"--workers must be at least 1, got {args.workers}")
+        localizers = _check_localizers(_names(args.localizers))
+        preset = PRESETS[args.preset]
+        if args.logs is not None:
+            if args.methods or args.seeds or args.save_logs:
+                raise EvaluationError("--logs localizes every log in its folder; --methods, "
+                                      "--seeds and --save-logs do not apply")
+            out = args.out or Path("out") / "localized"
+            jobs = log_jobs(args.logs, localizers)
+            title = f"AOASS evaluation: beacon logs of {args.logs}"
+        else:
+            methods = select_methods(_names(args.methods), args.policy)
+            out = args.out or Path("out") / preset.name
+            jobs = episode_jobs(preset, methods, localizers, args.seeds)
+            title = f"AOASS evaluation: preset {preset.name}"
+        store = EpisodeStore(out / "episodes.csv")
+    except EvaluationError as exc:
+        parser.error(str(exc))
+
+    torch.set_num_threads(1)
+    with store:
+        report = run_jobs(jobs, store, workers=args.workers,
+                          options=RunOptions(policy=str(args.policy)),
+                          log_dir=out / "logs" if args.save_logs else None,
+                          progress=not args.no_progress,
+                          desc=args.logs.name if args.logs else preset.name)
+    rows = store.rows
+    timing = seconds_per_episode(rows)
+    notes = ("" if args.logs else f"{preset.description}. ") + (
+        f"This run: {report.finished} episode(s) finished, {report.skipped} already in "
+        f"episodes.csv, {len(report.failed)} failed; wall time {report.wall_seconds:.0f} s on "
+        f"{args.workers} worker(s). Maps from maps/test, the k maps of each field size and "
+        f"density taken in turn by seed (seed s: map s mod k), the episode's random generator "
+        f"seeded with s. Mean wall seconds per episode (simulation + localizers): "
+        + ", ".join(f"{label(m)} {s:.1f}" for m, s in timing.items()) + ".")
+    markdown = summary_markdown(rows, title, notes)
+    write_text_atomic(out / "summary.md", markdown)
+    write_summary_csv(rows, out / "summary.csv")
+    figures = draw_figures(rows, out)
+    print(markdown)
+    print(f"wrote {out / 'episodes.csv'}, {out / 'summary.csv'}, {out / 'summary.md'}"
+          + "".join(f", {f}" for f in figures))
+    for key, _ in report.failed:
+        print(f"FAILED: {key} (traceback above)", file=sys.stderr)
+    return 1 if report.failed else 0

@@ -1,0 +1,185 @@
+"""The evaluated methods: one registry, name -> :class:`MethodSpec`, and a runner per kind.
+
+Every runner plays one episode in AOASS-v0's simulator (same radio, energy model and beacon
+interval) and returns the finished :class:`~aoass_env.simulator.Simulator` with its beacon log:
+
+* ``aoass``: the full stack of :func:`aoass_env.make_safe_env` (square spiral + Kalman tracks +
+  fuzzy-ORCA) driven by the shipped TD3-LSTM policy;
+* ``aoass-scripted``: the same stack with the zero action (the ablation without the policy);
+* ``spiral``: the plain square spiral with the nominal follower, no safety stack;
+* every :class:`~aoass_env.planning.PlannedMethod` of
+  :data:`~aoass_env.planning.classical.CLASSICAL_METHODS` and
+  :data:`~aoass_env.planning.baselines.BASELINE_METHODS`, registered here at import time.
+
+A runner draws every random number from one generator seeded with the episode's seed, nodes
+first, so all methods see the same nodes on the same map and seed.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aoass_env.beacon_log import BeaconLog
+from aoass_env.config import AOASSConfig
+from aoass_env.evaluation.store import EvaluationError
+from aoass_env.maps import ObstacleMap
+from aoass_env.planning import PlannedMethod
+from aoass_env.planning.baselines import BASELINE_METHODS
+from aoass_env.planning.classical import CLASSICAL_METHODS
+from aoass_env.simulator import Simulator
+from aoass_env.wrappers import make_safe_env
+
+__all__ = ["DEFAULT_POLICY", "METHODS", "MethodRun", "MethodSpec", "RunOptions",
+           "select_methods"]
+
+#: The shipped AOASS policy and the algorithm that saved it.
+DEFAULT_POLICY = Path(__file__).resolve().parents[2] / "checkpoints" / "aoass_td3_lstm" / "best.zip"
+POLICY_ALGO = "td3-lstm"
+#: The command that produces :data:`DEFAULT_POLICY`.
+POLICY_COMMAND = "python3 train.py --algo td3-lstm --out checkpoints/aoass_td3_lstm"
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Settings shared by every episode of a sweep.
+
+    Attributes:
+        policy: checkpoint of the ``aoass`` policy (a ``td3-lstm`` .zip).
+        max_steps: stop an episode after this many control periods (``dt`` = 0.5 s each);
+            None: each method's own limit (the environment's time limit for the safety stack,
+            ``Simulator.run``'s for the others).
+    """
+
+    policy: str = str(DEFAULT_POLICY)
+    max_steps: int | None = None
+
+
+@dataclass(frozen=True)
+class MethodRun:
+    """A finished episode: the simulator, its beacon log and, for the safety stack, the mean
+    safety intervention |v* - v_des| (m/s) per control period (None for other methods)."""
+
+    sim: Simulator
+    log: BeaconLog
+    safety_intervention: float | None = None
+
+
+#: (config, obstacle map, seed, options) -> the finished episode.
+Runner = Callable[[AOASSConfig, ObstacleMap, int, RunOptions], MethodRun]
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """One evaluated method: command-line name, label for tables and figures, kind ("aoass",
+    "ablation", "spiral", "classical" or "baseline"), runner, and whether it needs the policy
+    checkpoint."""
+
+    name: str
+    label: str
+    kind: str
+    runner: Runner
+    uses_policy: bool = False
+
+
+@functools.lru_cache(maxsize=2)
+def load_policy(path: str) -> Any:
+    """The ``td3-lstm`` policy saved at ``path``, loaded once per process (on the CPU)."""
+    from agents.hyperparams import ALGORITHMS  # the agent's stack: imported only when used
+    return ALGORITHMS[POLICY_ALGO].load(path, device="cpu")
+
+
+def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
+                      options: RunOptions, *, learned: bool) -> MethodRun:
+    """AOASS-v0 inside the Kalman + fuzzy-ORCA stack, driven by the policy (``learned``) or the
+    zero action, until the episode ends or ``options.max_steps``."""
+    env = make_safe_env(config=config)
+    policy = load_policy(options.policy) if learned else None
+    obs, _ = env.reset(seed=seed, options={"map": obstacle_map})
+    state, start = None, np.ones(1, dtype=bool)
+    interventions: list[float] = []
+    limit = options.max_steps if options.max_steps is not None else math.inf
+    steps, done = 0, False
+    while not done and steps < limit:
+        if policy is None:
+            action = np.zeros(2, np.float32)
+        else:
+            action, state = policy.predict(obs, state=state, episode_start=start,
+                                           deterministic=True)
+            start = np.zeros(1, dtype=bool)
+        obs, _, terminated, truncated, info = env.step(action)
+        if "safety" in info:
+            interventions.append(info["safety"]["intervention"])
+        done, steps = terminated or truncated, steps + 1
+    base = env.unwrapped
+    run = MethodRun(base.sim, base.beacon_log,
+                    float(np.mean(interventions)) if interventions else None)
+    env.close()
+    return run
+
+
+def _run_spiral(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
+                options: RunOptions) -> MethodRun:
+    """The square spiral with the nominal follower, no safety stack."""
+    sim = Simulator(config, np.random.default_rng(seed), obstacle_map=obstacle_map, seed=seed,
+                    method="spiral")
+    return MethodRun(sim, sim.run(max_steps=options.max_steps))
+
+
+def _run_planned(method: PlannedMethod, config: AOASSConfig, obstacle_map: ObstacleMap,
+                 seed: int, options: RunOptions) -> MethodRun:
+    """A classical path or a baseline: its planned path in the simulator, driven by its own
+    controller or else the nominal follower."""
+    sim = Simulator(config, np.random.default_rng(seed), obstacle_map=obstacle_map, seed=seed,
+                    method=method.name, path=method.plan(obstacle_map, config))
+    controller = method.controller(sim) if method.controller is not None else None
+    return MethodRun(sim, sim.run(max_steps=options.max_steps, controller=controller))
+
+
+def _registry() -> dict[str, MethodSpec]:
+    methods = {
+        "aoass": MethodSpec("aoass", "AOASS", "aoass",
+                            functools.partial(_run_safety_stack, learned=True), uses_policy=True),
+        "aoass-scripted": MethodSpec("aoass-scripted", "AOASS, zero action (ablation)",
+                                     "ablation",
+                                     functools.partial(_run_safety_stack, learned=False)),
+        "spiral": MethodSpec("spiral", "Square spiral", "spiral", _run_spiral),
+    }
+    for kind, planned in (("classical", CLASSICAL_METHODS), ("baseline", BASELINE_METHODS)):
+        for name, method in planned.items():
+            if name in methods:
+                raise RuntimeError(f"method name {name!r} is registered twice")
+            methods[name] = MethodSpec(name, method.label, kind,
+                                       functools.partial(_run_planned, method))
+    return methods
+
+
+#: Every evaluated method by command-line name, in the order of tables and figures.
+METHODS: dict[str, MethodSpec] = _registry()
+
+
+def select_methods(names: Sequence[str] | None, policy: str | Path = DEFAULT_POLICY
+                   ) -> list[str]:
+    """The methods to run (None: all), checked before any work.
+
+    Raises:
+        EvaluationError: an unknown name (the message lists the valid ones), or a method that
+            needs the policy while its checkpoint file is missing.
+    """
+    chosen = list(METHODS) if names is None else list(dict.fromkeys(names))
+    unknown = [n for n in chosen if n not in METHODS]
+    if unknown:
+        raise EvaluationError(f"unknown method(s) {', '.join(map(repr, unknown))}; valid: "
+                              f"{', '.join(METHODS)}")
+    needs = [n for n in chosen if METHODS[n].uses_policy]
+    if needs and not Path(policy).is_file():
+        raise EvaluationError(
+            f"method(s) {', '.join(needs)} need the AOASS policy checkpoint {policy}, which is "
+            f"missing; produce it with `{POLICY_COMMAND}` (see docs/training.md)")
+    return chosen

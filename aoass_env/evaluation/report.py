@@ -1,0 +1,280 @@
+"""Summary statistics, tables and figures from the rows of ``episodes.csv``.
+
+* :func:`write_summary_csv`: per (method, localizer, field size, N, density): the episode count
+  and the mean, standard deviation and 95 % confidence half-width (Student t) of every metric.
+* :func:`summary_markdown`: readable tables, methods as rows, mean ± 95 % CI: all episodes
+  together, then per value of each grid dimension that varies.
+* :func:`draw_figures`: the paper's Figures 2-4 as PNG, each drawn only when episodes of its
+  preset's grid are in the rows.
+
+Statistics use the finite values only: an episode in which no node was localized has no RMSE
+(its localized fraction, 0, is still counted).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections import defaultdict
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats as st
+
+from aoass_env.atomic import write_text_atomic
+from aoass_env.evaluation.methods import METHODS
+from aoass_env.evaluation.store import EPISODE_FIELDS, KEY_FIELDS, EpisodeKey
+from aoass_env.evaluation.sweep import PRESETS
+
+__all__ = ["SUMMARY_METRICS", "ci_stats", "draw_figures", "seconds_per_episode",
+           "summary_markdown", "summarize", "write_summary_csv"]
+
+#: Metrics of summary.csv: the localization columns, then the episode columns.
+SUMMARY_METRICS = ("rmse", "localized", "localize_seconds") + EPISODE_FIELDS
+GROUP_FIELDS = ("method", "localizer", "field_size", "n_nodes", "obstacle_density")
+PRIMARY_LOCALIZER = "olstm-dvhop"
+
+
+def ci_stats(values: Iterable[float], level: float = 0.95) -> tuple[int, float, float, float]:
+    """(n, mean, std, CI half-width) of the finite values: std with n - 1 degrees of freedom,
+    half-width ``t_{(1+level)/2, n-1} * std / sqrt(n)``; NaN where undefined (n = 0, or n = 1
+    for std and CI)."""
+    v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=np.float64)
+    n = len(v)
+    if n == 0:
+        return 0, math.nan, math.nan, math.nan
+    if n == 1:
+        return 1, float(v[0]), math.nan, math.nan
+    std = float(v.std(ddof=1))
+    return n, float(v.mean()), std, float(st.t.ppf((1 + level) / 2, n - 1) * std / math.sqrt(n))
+
+
+def label(method: str) -> str:
+    """A method's name in tables and figures."""
+    return METHODS[method].label if method in METHODS else method
+
+
+def _method_order(methods: Iterable[str]) -> list[str]:
+    present = set(methods)
+    return [m for m in METHODS if m in present] + sorted(present - set(METHODS))
+
+
+def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Rows of summary.csv (one per group of :data:`GROUP_FIELDS`, in method order)."""
+    groups: dict[tuple, list[dict[str, Any]]] = defaultdict(list)
+    for r in rows:
+        groups[tuple(r[k] for k in GROUP_FIELDS)].append(r)
+    order = {m: i for i, m in enumerate(_method_order(r["method"] for r in rows))}
+    out = []
+    for group in sorted(groups, key=lambda g: (order[g[0]], *g[1:])):
+        members = groups[group]
+        entry: dict[str, Any] = {**dict(zip(GROUP_FIELDS, group, strict=True)),
+                                 "label": label(group[0]), "n": len(members)}
+        for metric in SUMMARY_METRICS:
+            _, mean, std, ci = ci_stats(r[metric] for r in members)
+            entry.update({f"{metric}_mean": mean, f"{metric}_std": std, f"{metric}_ci95": ci})
+        out.append(entry)
+    return out
+
+
+def write_summary_csv(rows: list[dict[str, Any]], path: Path) -> None:
+    """summary.csv of ``rows`` (empty cells where a statistic is undefined)."""
+    columns = [*GROUP_FIELDS, "label", "n"] + [f"{m}_{s}" for m in SUMMARY_METRICS
+                                               for s in ("mean", "std", "ci95")]
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for entry in summarize(rows):
+        writer.writerow({k: "" if isinstance(v, float) and math.isnan(v) else v
+                         for k, v in entry.items()})
+    write_text_atomic(path, buf.getvalue())
+
+
+def _episodes(rows: list[dict[str, Any]]) -> dict[EpisodeKey, dict[str, Any]]:
+    """One record per episode: its episode columns, ``rmse:<localizer>`` and
+    ``localized:<localizer>`` per localizer, and ``seconds`` (simulation + localizers)."""
+    out: dict[EpisodeKey, dict[str, Any]] = {}
+    for r in rows:
+        key = EpisodeKey(**{k: r[k] for k in KEY_FIELDS})
+        ep = out.setdefault(key, {**{k: r[k] for k in KEY_FIELDS + EPISODE_FIELDS},
+                                  "seconds": r["wall_seconds"]})
+        ep[f"rmse:{r['localizer']}"] = r["rmse"]
+        ep[f"localized:{r['localizer']}"] = r["localized"]
+        ep["seconds"] += r["localize_seconds"]
+    return out
+
+
+def _localizers(rows: list[dict[str, Any]]) -> list[str]:
+    present = list(dict.fromkeys(r["localizer"] for r in rows))
+    return sorted(present, key=lambda n: n != PRIMARY_LOCALIZER)
+
+
+def seconds_per_episode(rows: list[dict[str, Any]]) -> dict[str, float]:
+    """Mean wall seconds per episode (simulation + every localizer) of each method."""
+    per: dict[str, list[float]] = defaultdict(list)
+    for ep in _episodes(rows).values():
+        per[ep["method"]].append(ep["seconds"])
+    return {m: float(np.mean(per[m])) for m in _method_order(per)}
+
+
+def _cell(values: list[float], fmt: Callable[[float], str]) -> str:
+    n, mean, _, ci = ci_stats(values)
+    if n == 0:
+        return "–"
+    return fmt(mean) if math.isnan(ci) else f"{fmt(mean)} ± {fmt(ci)}"
+
+
+def _table(episodes: list[dict[str, Any]], localizers: list[str]) -> str:
+    """Markdown table of ``episodes``: one row per method, mean ± 95 % CI."""
+    columns: list[tuple[str, Callable[[list[dict[str, Any]]], str]]] = []
+    for name in localizers:
+        def rmse(eps: list[dict[str, Any]], name: str = name) -> str:
+            loc = np.mean([e[f"localized:{name}"] for e in eps if f"localized:{name}" in e])
+            return (f"{_cell([e.get(f'rmse:{name}', math.nan) for e in eps], '{:.2f}'.format)}"
+                    f" ({loc:.0%})")
+        columns.append((f"RMSE {name} [m] (localized)", rmse))
+    for title, key, fmt in (
+            ("coverage", "coverage", "{:.1%}"), ("EER [1/J]", "eer", "{:.3f}"),
+            ("E_total [J]", "energy_total", "{:.0f}"), ("η_traj", "eta_traj", "{:.3f}"),
+            ("path [m]", "path_length", "{:.0f}"), ("time [s]", "travel_time", "{:.0f}"),
+            ("beacons", "beacons", "{:.0f}"), ("contacts", "collisions", "{:.1f}"),
+            ("s/episode", "seconds", "{:.1f}")):
+        columns.append((title, lambda eps, key=key, fmt=fmt:
+                        _cell([e[key] for e in eps], fmt.format)))
+    by_method: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for e in episodes:
+        by_method[e["method"]].append(e)
+    lines = ["| method | " + " | ".join(c[0] for c in columns) + " | n |",
+             "|---|" + "---|" * (len(columns) + 1)]
+    for method in _method_order(by_method):
+        eps = by_method[method]
+        lines.append(f"| {label(method)} | " + " | ".join(f(eps) for _, f in columns)
+                     + f" | {len(eps)} |")
+    return "\n".join(lines)
+
+
+def summary_markdown(rows: list[dict[str, Any]], title: str, notes: str = "") -> str:
+    """summary.md: a table of all episodes, then one per value of each grid dimension that
+    varies (field size, node count, obstacle density)."""
+    episodes = list(_episodes(rows).values())
+    localizers = _localizers(rows)
+    parts = [f"# {title}", notes, "Mean ± 95 % confidence half-width (Student t) over "
+             "episodes; RMSE (Eq. 15) over the localized nodes, their share in brackets.",
+             "## All episodes", _table(episodes, localizers)]
+    for dim, name, fmt in (("field_size", "field", "{:g} m"), ("n_nodes", "N", "{:d}"),
+                           ("obstacle_density", "obstacle density", "{:.2f}")):
+        values = sorted({e[dim] for e in episodes})
+        if len(values) < 2:
+            continue
+        parts.append(f"## By {name}")
+        for v in values:
+            parts += [f"### {name} {fmt.format(v)}",
+                      _table([e for e in episodes if e[dim] == v], localizers)]
+    return "\n\n".join(p for p in parts if p) + "\n"
+
+
+# --- figures -----------------------------------------------------------------------------------
+def _in_grid(preset: str, ep: dict[str, Any], any_density: bool = False) -> bool:
+    p = PRESETS[preset]
+    return (ep["field_size"] in p.field_sizes and ep["n_nodes"] in p.n_nodes
+            and (any_density or ep["obstacle_density"] in p.densities))
+
+
+def _colors(methods: list[str]) -> dict[str, Any]:
+    import matplotlib.pyplot as plt
+    cmap = plt.get_cmap("tab20")
+    order = _method_order([*METHODS, *methods])
+    return {m: cmap(order.index(m) % 20) for m in methods}
+
+
+def _fig2(episodes: list[dict[str, Any]], localizers: list[str], path: Path) -> None:
+    import matplotlib.pyplot as plt
+    methods = _method_order(e["method"] for e in episodes)
+    colors = _colors(methods)
+    x = np.arange(len(methods))
+    fig, axes = plt.subplots(2, 2, figsize=(max(10, 0.9 * len(methods) + 4), 8))
+    panels = (("(a) localization RMSE (Eq. 15) [m]", [f"rmse:{n}" for n in localizers]),
+              ("(b) energy efficiency ratio EER (Eq. 17) [beacons/J]", ["eer"]),
+              ("(c) coverage ratio (Eq. 18)", ["coverage"]),
+              ("(d) trajectory efficiency η_traj (Eq. 19)", ["eta_traj"]))
+    for ax, (title, keys) in zip(axes.ravel(), panels, strict=True):
+        width = 0.8 / len(keys)
+        for k, key in enumerate(keys):
+            means, cis = zip(*[ci_stats(e.get(key, math.nan) for e in episodes
+                                        if e["method"] == m)[1::2] for m in methods],
+                             strict=True)
+            ax.bar(x + (k - (len(keys) - 1) / 2) * width, means, width,
+                   yerr=np.nan_to_num(cis), capsize=3, color=[colors[m] for m in methods],
+                   edgecolor="black", linewidth=0.5, hatch="//" if k else None,
+                   label=key.split(":")[-1])
+        ax.set_title(title, fontsize=10)
+        ax.set_xticks(x, [label(m) for m in methods], rotation=40, ha="right", fontsize=8)
+        if len(keys) > 1:
+            ax.legend(fontsize=8, title="localizer", title_fontsize=8)
+    fig.suptitle(f"Figure 2: methods compared ({len(episodes)} episodes; mean, 95 % CI)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _lines(episodes: list[dict[str, Any]], localizer: str, x_key: str, x_label: str,
+           panel_key: str | None, title: str, path: Path) -> None:
+    """Figure 3 / 4 layout: RMSE, E_total and η_traj against ``x_key``, one line per method;
+    with ``panel_key`` a row per metric and a column per value of it, else one row."""
+    import matplotlib.pyplot as plt
+    methods = _method_order(e["method"] for e in episodes)
+    colors = _colors(methods)
+    panels = sorted({e[panel_key] for e in episodes}) if panel_key else [None]
+    metrics = ((f"rmse:{localizer}", f"RMSE ({localizer}) [m]"), ("energy_total",
+               "E_total [J]"), ("eta_traj", "η_traj (Eq. 19)"))
+    rows, cols = (len(metrics), len(panels)) if panel_key else (1, len(metrics))
+    fig, axes = plt.subplots(rows, cols, squeeze=False,
+                             figsize=(5 * cols + 3, max(3.4 * rows, 4.5)))
+    for col, panel in enumerate(panels):
+        sel = [e for e in episodes if panel_key is None or e[panel_key] == panel]
+        xs = sorted({e[x_key] for e in sel})
+        for row, (key, name) in enumerate(metrics):
+            ax = axes[row][col] if panel_key else axes[0][row]
+            for m in methods:
+                s = [ci_stats(e.get(key, math.nan) for e in sel
+                              if e["method"] == m and e[x_key] == v) for v in xs]
+                ax.errorbar(xs, [t[1] for t in s], yerr=np.nan_to_num([t[3] for t in s]),
+                            color=colors[m], marker="o", ms=3, capsize=3, label=label(m))
+            ax.set(xlabel=x_label, ylabel=name)
+            if panel_key:
+                ax.set_title(f"{panel:g} m × {panel:g} m field", fontsize=10)
+    fig.legend(*axes[0][0].get_legend_handles_labels(), loc="center right", fontsize=8)
+    fig.suptitle(f"{title} (mean, 95 % CI)")
+    fig.tight_layout(rect=(0, 0, 1 - 2.6 / fig.get_figwidth(), 1))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def draw_figures(rows: list[dict[str, Any]], out: Path) -> list[Path]:
+    """fig2.png, fig3.png and fig4.png in ``out``, each when episodes of its preset's grid are
+    in ``rows`` (fig4 shows every density at its N and field size); returns the paths."""
+    import matplotlib
+    matplotlib.use("Agg")
+    episodes = list(_episodes(rows).values())
+    localizers = _localizers(rows)
+    if not episodes:
+        return []
+    written = []
+    fig2 = [e for e in episodes if _in_grid("fig2", e)]
+    if fig2:
+        written.append(out / "fig2.png")
+        _fig2(fig2, localizers, written[-1])
+    fig3 = [e for e in episodes if _in_grid("fig3", e)]
+    if fig3:
+        written.append(out / "fig3.png")
+        _lines(fig3, localizers[0], "n_nodes", "number of nodes N", "field_size",
+               "Figure 3: scalability", written[-1])
+    if any(_in_grid("fig4", e) for e in episodes):
+        written.append(out / "fig4.png")
+        _lines([e for e in episodes if _in_grid("fig4", e, any_density=True)], localizers[0],
+               "obstacle_density", "obstacle density", None,
+               "Figure 4: robustness to obstacle density", written[-1])
+    return written

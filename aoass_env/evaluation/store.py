@@ -1,0 +1,174 @@
+"""``episodes.csv``: its schema, appending finished episodes safely, and reading it back.
+
+One row per (method, map, field_size, n_nodes, obstacle_density, seed, localizer). The rows of
+one episode (one per localizer) are appended with a single write followed by ``fsync``, so an
+interrupted sweep leaves every finished episode on disk; a crash in the middle of that write can
+leave at most one half-written trailing line, which :meth:`EpisodeStore.open` detects, drops
+with a warning and removes from the file (rewritten atomically) before anything is appended.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import warnings
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from aoass_env.atomic import write_text_atomic
+
+__all__ = ["COLUMNS", "EPISODE_FIELDS", "KEY_FIELDS", "LOCALIZATION_FIELDS", "EpisodeKey",
+           "EpisodeStore", "EvaluationError", "read_episodes"]
+
+
+class EvaluationError(ValueError):
+    """Bad input to the evaluation (unknown name, missing checkpoint, unusable folder)."""
+
+
+@dataclass(frozen=True, order=True)
+class EpisodeKey:
+    """What fixes one episode: the method, the map (shipped name or file path), the field side
+    (m), the node count, the map's obstacle density (nominal, fraction of the field) and the
+    seed of the episode's random generator."""
+
+    method: str
+    map: str
+    field_size: float
+    n_nodes: int
+    obstacle_density: float
+    seed: int
+
+    def __str__(self) -> str:
+        return (f"{self.method} {self.map} f{self.field_size:g} N={self.n_nodes} "
+                f"d={self.obstacle_density:g} seed={self.seed}")
+
+
+KEY_FIELDS = tuple(f.name for f in fields(EpisodeKey))
+#: Columns of one localizer's result: Eq. 15 RMSE (m) over the localized nodes, the localized
+#: fraction, and the localizer's wall time (s).
+LOCALIZATION_FIELDS = ("localizer", "rmse", "localized", "localize_seconds")
+#: Columns of the episode, the same on each of its localizer rows (units in docs/evaluation.md).
+EPISODE_FIELDS = ("coverage", "beacons", "path_length", "ideal_length", "travel_time",
+                  "ideal_time", "eta_traj", "collisions", "collisions_static",
+                  "collisions_moving", "energy_total", "e_norm", "eer", "safety_intervention",
+                  "wall_seconds")
+COLUMNS = KEY_FIELDS + LOCALIZATION_FIELDS + EPISODE_FIELDS
+_TEXT = ("method", "map", "localizer")
+_INTEGER = ("n_nodes", "seed", "beacons", "collisions", "collisions_static",
+            "collisions_moving")
+
+
+def _cell(value: Any) -> Any:
+    """A CSV cell: missing values (None, NaN) are empty."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    return value
+
+
+def _parsed(row: dict[str, str]) -> dict[str, Any]:
+    """A CSV row with typed values: text, int, float (empty cells: NaN)."""
+    out: dict[str, Any] = {}
+    for name in COLUMNS:
+        text = row[name]
+        if name in _TEXT:
+            out[name] = text
+        elif name in _INTEGER:
+            out[name] = int(text)
+        else:
+            out[name] = float(text) if text != "" else math.nan
+    return out
+
+
+def row_key(row: dict[str, Any]) -> tuple[EpisodeKey, str]:
+    """(episode key, localizer) of a typed row."""
+    return EpisodeKey(**{k: row[k] for k in KEY_FIELDS}), row["localizer"]
+
+
+def _csv_text(rows: list[dict[str, Any]], header: bool) -> str:
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(COLUMNS), lineterminator="\n")
+    if header:
+        writer.writeheader()
+    writer.writerows({k: _cell(r[k]) for k in COLUMNS} for r in rows)
+    return buf.getvalue()
+
+
+def _split_complete(path: Path, text: str) -> tuple[list[dict[str, Any]], str]:
+    """Typed rows of ``text`` and the text of its complete lines; a half-written trailing line
+    is dropped with a warning. Raises EvaluationError for another schema or a broken row."""
+    lines = text.splitlines(keepends=True)
+    if not lines or not lines[0].endswith("\n"):
+        return [], ""            # nothing, or a crash while writing the header
+    header = next(csv.reader([lines[0]]))
+    if tuple(header) != COLUMNS:
+        raise EvaluationError(
+            f"{path} has other columns than this version writes ({', '.join(header)}); "
+            f"move it away or choose another --out folder")
+    if not lines[-1].endswith("\n"):
+        warnings.warn(f"{path}: dropped a half-written last line (an interrupted write): "
+                      f"{lines[-1][:80]!r}", stacklevel=3)
+        lines = lines[:-1]
+    rows = []
+    for number, record in enumerate(csv.reader(lines[1:]), start=2):
+        try:
+            if len(record) != len(COLUMNS):
+                raise ValueError(f"{len(record)} cells, expected {len(COLUMNS)}")
+            rows.append(_parsed(dict(zip(COLUMNS, record, strict=True))))
+        except ValueError as exc:
+            raise EvaluationError(f"{path}, line {number}: broken row ({exc}); fix or remove "
+                                  f"the line, or choose another --out folder") from None
+    return rows, "".join(lines)
+
+
+def read_episodes(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    """The typed rows of an ``episodes.csv`` (a half-written last line dropped, with a
+    warning)."""
+    path = Path(path)
+    return _split_complete(path, path.read_text(encoding="utf-8"))[0]
+
+
+class EpisodeStore:
+    """``episodes.csv`` of an output folder, open for appending finished episodes.
+
+    Args:
+        path: the CSV file; created with its header if missing.
+
+    Raises:
+        EvaluationError: the folder cannot be created or written, or the file holds another
+            schema or a broken row.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            text = self.path.read_text(encoding="utf-8") if self.path.is_file() else ""
+            self.rows, complete = _split_complete(self.path, text)
+            if complete != text or not complete:
+                write_text_atomic(self.path, complete or _csv_text([], header=True))
+            self._file = open(self.path, "a", encoding="utf-8", newline="")  # noqa: SIM115
+        except OSError as exc:
+            raise EvaluationError(f"cannot write the output folder {self.path.parent}: "
+                                  f"{exc.strerror or exc}") from None
+        #: (episode key, localizer) pairs already in the file
+        self.done = {row_key(r) for r in self.rows}
+
+    def append(self, rows: list[dict[str, Any]]) -> None:
+        """Append one episode's rows (one write, flushed and synced to disk)."""
+        self._file.write(_csv_text(rows, header=False))
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        self.rows.extend({k: math.nan if r[k] is None else r[k] for k in COLUMNS} for r in rows)
+        self.done.update(row_key(r) for r in rows)
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> EpisodeStore:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,186 @@
+"""Presets, the episode grid, and running it in worker processes with resume.
+
+A preset is a grid of field sizes, node counts and obstacle densities with a number of seeds.
+Episode ``(method, field size F, density d, N, seed s)`` runs on the shipped test map
+``list_maps("test", field_size=F, densities=(d, d))[s % k]`` (the k test maps of that size and
+density taken in turn) with the random generator seeded by ``s`` alone, so every method sees the
+same map and nodes for the same seed, and the result depends on the key only -- not on the
+worker count or the order of the episodes.
+
+:func:`run_jobs` skips the (episode, localizer) pairs already in ``episodes.csv`` and appends
+each finished episode's rows as soon as it arrives, so an interrupted sweep resumes where it
+stopped.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+import traceback
+import warnings
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
+from multiprocessing import Pool
+from pathlib import Path
+from typing import Any
+
+import torch
+from tqdm import tqdm
+
+from aoass_env.evaluation.episode import localize_log, log_key, run_episode
+from aoass_env.evaluation.methods import RunOptions
+from aoass_env.evaluation.store import EpisodeKey, EpisodeStore, EvaluationError
+from aoass_env.maps import list_maps
+
+__all__ = ["PRESETS", "Job", "Preset", "SweepReport", "episode_jobs", "log_jobs", "run_jobs"]
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A grid of episodes: field sides (m), node counts, obstacle densities, seeds 0..seeds-1."""
+
+    name: str
+    field_sizes: tuple[float, ...]
+    n_nodes: tuple[int, ...]
+    densities: tuple[float, ...]
+    seeds: int
+    description: str
+
+
+PRESETS: dict[str, Preset] = {p.name: p for p in (
+    Preset("quick", (100.0,), (100,), (0.1, 0.2, 0.3, 0.4), 1,
+           "every method once per density 0.1-0.4, 100 m, N = 100 (a few minutes on 2 cores)"),
+    Preset("fig2", (100.0,), (100, 200, 300, 400, 500), (0.1, 0.2, 0.3, 0.4), 30,
+           "Figure 2: 100 m, N = 100-500, densities 0.1-0.4"),
+    Preset("fig3", (100.0, 200.0), (600, 700, 800, 900, 1000), (0.2,), 30,
+           "Figure 3: N = 600-1000 on 100 m and 200 m fields, density 0.2"),
+    Preset("fig4", (100.0,), (100,), (0.5, 0.6), 30,
+           "Figure 4: densities 0.5 and 0.6, 100 m, N = 100"),
+    Preset("smoke", (100.0,), (60,), (0.1,), 1,
+           "one episode per method, 100 m, density 0.1, N = 60 (the test suite's)"),
+)}
+
+
+@dataclass(frozen=True)
+class Job:
+    """One unit of work: play episode ``key`` (or localize the saved ``log``) and localize it
+    with ``localizers``."""
+
+    key: EpisodeKey
+    localizers: tuple[str, ...]
+    log: Path | None = None
+
+
+@dataclass
+class SweepReport:
+    """What :func:`run_jobs` did: episodes finished, skipped (already in the file), failed
+    (key and traceback), and the wall time (s)."""
+
+    finished: int = 0
+    skipped: int = 0
+    failed: list[tuple[EpisodeKey, str]] = field(default_factory=list)
+    wall_seconds: float = 0.0
+
+
+def episode_jobs(preset: Preset, methods: Iterable[str], localizers: tuple[str, ...],
+                 seeds: int | None = None) -> list[Job]:
+    """The preset's episodes for ``methods`` (``seeds`` overrides the preset's count), grid
+    point by grid point, every method at each point.
+
+    Raises:
+        EvaluationError: no shipped test map of a field size and density of the grid.
+    """
+    methods = list(methods)
+    jobs = []
+    for size in preset.field_sizes:
+        for density in preset.densities:
+            maps = list_maps("test", field_size=size, densities=(density, density))
+            if not maps:
+                raise EvaluationError(f"no shipped test map of {size:g} m and density "
+                                      f"{density:g} for preset {preset.name!r}")
+            for n in preset.n_nodes:
+                for seed in range(preset.seeds if seeds is None else seeds):
+                    jobs += [Job(EpisodeKey(m, maps[seed % len(maps)], size, n, density, seed),
+                                 localizers) for m in methods]
+    return jobs
+
+
+def log_jobs(folder: Path, localizers: tuple[str, ...]) -> list[Job]:
+    """A job per beacon log (``*.npz``, searched recursively) in ``folder``; a second log with
+    the key of an earlier one is left out with a warning.
+
+    Raises:
+        EvaluationError: ``folder`` is not a folder or holds no ``.npz`` file.
+    """
+    if not folder.is_dir():
+        raise EvaluationError(f"--logs {folder}: no such folder")
+    paths = sorted(folder.rglob("*.npz"))
+    if not paths:
+        raise EvaluationError(f"--logs {folder}: no beacon log (*.npz) in it")
+    jobs: dict[EpisodeKey, Job] = {}
+    for path in paths:
+        key = log_key(path)
+        if key in jobs:
+            warnings.warn(f"{path} has the episode key of {jobs[key].log}; left out",
+                          stacklevel=2)
+            continue
+        jobs[key] = Job(key, localizers, path)
+    return list(jobs.values())
+
+
+def _init_worker() -> None:
+    torch.set_num_threads(1)     # small networks: one thread each, the processes share cores
+
+
+def _work(job: Job, options: RunOptions, log_dir: Path | None
+          ) -> tuple[Job, list[dict[str, Any]] | None, str | None]:
+    """(job, rows, None), or (job, None, traceback) when the episode failed."""
+    try:
+        if job.log is not None:
+            return job, localize_log(job.log, job.localizers), None
+        return job, run_episode(job.key, job.localizers, options, log_dir), None
+    except Exception:  # one failed episode is reported; the sweep goes on
+        return job, None, traceback.format_exc()
+
+
+def run_jobs(jobs: list[Job], store: EpisodeStore, *, workers: int = 1,
+             options: RunOptions | None = None, log_dir: Path | None = None,
+             progress: bool = True, desc: str = "episodes") -> SweepReport:
+    """Run the jobs not yet in ``store`` in ``workers`` processes (1: in this process), appending
+    each episode's rows as it finishes; a progress bar shows finished, skipped and failed
+    counts. Sets this process's torch threads to 1."""
+    t0 = time.perf_counter()
+    report = SweepReport()
+    todo = []
+    for job in jobs:
+        missing = tuple(name for name in job.localizers if (job.key, name) not in store.done)
+        if missing:
+            todo.append(replace(job, localizers=missing))
+        else:
+            report.skipped += 1
+    _init_worker()
+    work = functools.partial(_work, options=options or RunOptions(), log_dir=log_dir)
+    with tqdm(total=len(todo), desc=desc, unit="episode", disable=not progress,
+              dynamic_ncols=True) as bar:
+        bar.set_postfix(finished=0, skipped=report.skipped, failed=0)
+        pool = (Pool(min(workers, len(todo)), initializer=_init_worker)
+                if workers > 1 and len(todo) > 1 else None)
+        try:
+            results = (pool.imap_unordered(work, todo) if pool is not None
+                       else map(work, todo))
+            for job, rows, error in results:
+                if rows is not None:
+                    store.append(rows)
+                    report.finished += 1
+                else:
+                    report.failed.append((job.key, error or ""))
+                    tqdm.write(f"episode {job.key} failed:\n{error}")
+                bar.update()
+                bar.set_postfix(finished=report.finished, skipped=report.skipped,
+                                failed=len(report.failed))
+        finally:
+            if pool is not None:
+                pool.terminate()
+                pool.join()
+    report.wall_seconds = time.perf_counter() - t0
+    return report

@@ -1,0 +1,96 @@
+"""evaluate.py end to end on the smoke preset, --logs mode, and its usage errors (exit 2)."""
+
+import csv
+import math
+
+import pytest
+
+from aoass_env.evaluation import cli
+from aoass_env.evaluation.methods import METHODS, POLICY_COMMAND
+from aoass_env.evaluation.store import COLUMNS, read_episodes
+from aoass_env.evaluation.sweep import PRESETS
+from aoass_env.localization import METHODS as LOCALIZERS
+
+
+def _usage_error(capsys, argv: list[str]) -> str:
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    assert exc.value.code == 2
+    return capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def smoke_run(tmp_path_factory):
+    """The smoke preset for the spiral, DV-Hop only, logs saved: (out folder, exit status)."""
+    out = tmp_path_factory.mktemp("smoke")
+    status = cli.main(["--preset", "smoke", "--methods", "spiral", "--localizers", "dvhop",
+                       "--workers", "1", "--out", str(out), "--save-logs", "--no-progress"])
+    return out, status
+
+
+def test_smoke_preset_writes_csvs_table_and_logs(smoke_run, capsys):
+    out, status = smoke_run
+    assert status == 0
+    with (out / "episodes.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 1 and tuple(rows[0]) == COLUMNS
+    row = rows[0]
+    assert (row["method"], row["map"], row["n_nodes"], row["localizer"]) == (
+        "spiral", "test/d0.10_f100_s500", "60", "dvhop")
+    assert 0.9 <= float(row["coverage"]) <= 1.0
+    assert float(row["localized"]) == pytest.approx(float(row["coverage"]))
+    assert row["safety_intervention"] == ""
+    with (out / "summary.csv").open() as f:
+        summary = list(csv.DictReader(f))
+    assert summary[0]["n"] == "1" and float(summary[0]["rmse_mean"]) == float(row["rmse"])
+    assert "Square spiral" in (out / "summary.md").read_text()
+    assert len(list((out / "logs" / "spiral").glob("*.npz"))) == 1
+
+
+def test_logs_mode_localizes_saved_logs(smoke_run, tmp_path):
+    out, _ = smoke_run
+    assert cli.main(["--logs", str(out / "logs"), "--localizers", "dvhop", "consensus",
+                     "--out", str(tmp_path), "--workers", "1", "--no-progress"]) == 0
+    original = read_episodes(out / "episodes.csv")[0]
+    rows = read_episodes(tmp_path / "episodes.csv")
+    assert [r["localizer"] for r in rows] == ["dvhop", "consensus"]
+    for name in ("method", "map", "seed", "coverage", "eta_traj", "energy_total"):
+        assert rows[0][name] == original[name]           # the episode part, from the log
+    assert rows[0]["rmse"] == pytest.approx(original["rmse"])
+    assert math.isfinite(rows[1]["rmse"])
+
+
+@pytest.mark.parametrize("argv, valid", [
+    (["--methods", "spiral,nope"], list(METHODS)),
+    (["--preset", "huge"], list(PRESETS)),
+    (["--localizers", "trilateration"], list(LOCALIZERS)),
+])
+def test_unknown_names_list_the_valid_ones(capsys, tmp_path, argv, valid):
+    err = _usage_error(capsys, [*argv, "--out", str(tmp_path / "out")])
+    assert all(name in err for name in valid)
+    assert not (tmp_path / "out").exists()
+
+
+def test_missing_policy_checkpoint_names_file_and_command(capsys, tmp_path):
+    missing = tmp_path / "none.zip"
+    err = _usage_error(capsys, ["--methods", "aoass", "--policy", str(missing),
+                                "--out", str(tmp_path / "out")])
+    assert str(missing) in err and POLICY_COMMAND in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_unwritable_output_folder_fails_before_any_work(capsys, tmp_path):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    err = _usage_error(capsys, ["--preset", "smoke", "--out", str(blocker / "out")])
+    assert "cannot write the output folder" in err and str(blocker) in err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seeds", "0"], "--seeds must be at least 1"),
+    (["--workers", "0"], "--workers must be at least 1"),
+    (["--logs", "/nonexistent-folder"], "no such folder"),
+    (["--logs", ".", "--seeds", "2"], "do not apply"),
+])
+def test_bad_values_are_usage_errors(capsys, tmp_path, argv, message):
+    assert message in _usage_error(capsys, [*argv, "--out", str(tmp_path)])

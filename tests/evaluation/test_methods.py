@@ -1,0 +1,128 @@
+"""The method registry and its runners: every method plays a small episode; the PlannedMethod
+adapter; bad names and a missing policy checkpoint."""
+
+import math
+
+import numpy as np
+import pytest
+
+from aoass_env.config import AOASSConfig
+from aoass_env.evaluation import methods as methods_module
+from aoass_env.evaluation.episode import run_episode
+from aoass_env.evaluation.methods import (
+    METHODS,
+    POLICY_COMMAND,
+    RunOptions,
+    select_methods,
+)
+from aoass_env.evaluation.store import COLUMNS, EvaluationError
+from aoass_env.maps import load_map
+from aoass_env.planning import PlannedMethod, polyline_path
+from aoass_env.planning.classical import CLASSICAL_METHODS
+
+LOCALIZERS = ("dvhop", "olstm-dvhop")
+#: Enough control periods (0.5 s each) to sweep part of the 40 m field.
+STEPS = 160
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_every_method_plays_a_small_episode_with_finite_metrics(method, small_key):
+    rows = run_episode(small_key(method), LOCALIZERS, RunOptions(max_steps=STEPS))
+    assert [r["localizer"] for r in rows] == list(LOCALIZERS)
+    for r in rows:
+        assert set(r) == set(COLUMNS)
+        assert r["method"] == method and r["n_nodes"] == 20
+        assert 0.0 <= r["coverage"] <= 1.0 and r["beacons"] > 1  # no quality asked of policies
+        assert 0.0 < r["path_length"] and r["travel_time"] <= STEPS * 0.5 + 1e-9
+        for name in ("ideal_length", "ideal_time", "eta_traj", "energy_total", "e_norm", "eer",
+                     "wall_seconds", "localize_seconds"):
+            assert math.isfinite(r[name]) and r[name] > 0, name
+        assert r["collisions"] == r["collisions_static"] + r["collisions_moving"]
+        assert r["localized"] == pytest.approx(r["coverage"])   # both localize the covered
+        assert math.isfinite(r["rmse"]) or r["localized"] == 0.0
+        if METHODS[method].kind in ("aoass", "ablation"):
+            assert r["safety_intervention"] >= 0.0
+        else:
+            assert r["safety_intervention"] is None
+
+
+def test_every_method_sees_the_same_nodes_for_the_same_seed(small_map):
+    obstacle_map = load_map(small_map)
+    config = AOASSConfig(field_size=40.0, n_nodes=20, map=str(small_map))
+    options = RunOptions(max_steps=2)
+    nodes = [METHODS[m].runner(config, obstacle_map, 3, options).log.nodes
+             for m in ("spiral", "aoass-scripted")]
+    np.testing.assert_array_equal(nodes[0], nodes[1])
+    other = METHODS["spiral"].runner(config, obstacle_map, 4, options).log.nodes
+    assert not np.array_equal(nodes[0], other)
+
+
+def test_an_episode_depends_on_its_key_only(small_key):
+    def stable(rows):
+        return [{k: v for k, v in r.items() if not k.endswith("seconds")} for r in rows]
+    first = run_episode(small_key("aoass-scripted", seed=1), ("dvhop",), RunOptions(max_steps=60))
+    run_episode(small_key("aoass-scripted", seed=2), ("dvhop",), RunOptions(max_steps=60))
+    again = run_episode(small_key("aoass-scripted", seed=1), ("dvhop",), RunOptions(max_steps=60))
+    assert stable(first) == stable(again)
+
+
+class StopAfter:
+    """A controller that drives east at 1 m/s for ``n`` control periods."""
+
+    def __init__(self, n: int) -> None:
+        self.left = n
+
+    @property
+    def done(self) -> bool:
+        return self.left < 0
+
+    def command(self, position, heading, dt):
+        self.left -= 1
+        return 1.0, 0.0
+
+
+def _line(_map, config):
+    return polyline_path(np.array([[2.0, 5.0], [38.0, 5.0], [38.0, 15.0]]),
+                         config.beacon_interval)
+
+
+@pytest.mark.parametrize("controller", [None, lambda sim: StopAfter(10)])
+def test_a_planned_method_is_registered_and_run_by_the_adapter(monkeypatch, small_key,
+                                                               controller):
+    line = PlannedMethod("test-line", "Test line", "a test", _line, controller)
+    monkeypatch.setitem(CLASSICAL_METHODS, "test-line", line)
+    registry = methods_module._registry()
+    assert registry["test-line"].kind == "classical"
+    assert registry["test-line"].label == "Test line"
+    monkeypatch.setattr(methods_module, "METHODS", registry)
+    monkeypatch.setattr("aoass_env.evaluation.episode.METHODS", registry)
+    (row,) = run_episode(small_key("test-line"), ("dvhop",), RunOptions())
+    assert row["ideal_length"] == pytest.approx(46.0)          # 36 m east + 10 m north
+    assert row["ideal_time"] == pytest.approx(46.0)            # at the nominal 1 m/s
+    if controller is None:                                      # the follower sweeps the line
+        assert row["path_length"] == pytest.approx(46.0, rel=0.1)
+    else:                                                       # stops after 10 periods
+        assert row["travel_time"] == pytest.approx(5.0)
+
+
+def test_a_name_registered_twice_is_an_error(monkeypatch):
+    monkeypatch.setitem(CLASSICAL_METHODS, "spiral", PlannedMethod("spiral", "x", "x", _line))
+    with pytest.raises(RuntimeError, match="'spiral' is registered twice"):
+        methods_module._registry()
+
+
+def test_unknown_method_lists_the_valid_names():
+    with pytest.raises(EvaluationError) as err:
+        select_methods(["spiral", "nope"])
+    assert "'nope'" in str(err.value)
+    assert all(name in str(err.value) for name in METHODS)
+
+
+def test_missing_policy_names_the_file_and_the_command(tmp_path):
+    missing = tmp_path / "best.zip"
+    with pytest.raises(EvaluationError) as err:
+        select_methods(["spiral", "aoass"], missing)
+    assert str(missing) in str(err.value) and POLICY_COMMAND in str(err.value)
+    assert "docs/training.md" in str(err.value)
+    assert select_methods(["spiral", "aoass-scripted"], missing) == ["spiral", "aoass-scripted"]
+    assert select_methods(None) == list(METHODS)

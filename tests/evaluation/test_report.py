@@ -1,0 +1,88 @@
+"""Summary statistics, summary.csv / summary.md and the figures."""
+
+import csv
+import math
+
+import pytest
+from scipy import stats
+
+from aoass_env.evaluation.report import (
+    ci_stats,
+    draw_figures,
+    seconds_per_episode,
+    summarize,
+    summary_markdown,
+    write_summary_csv,
+)
+from aoass_env.evaluation.store import COLUMNS
+
+
+def rows_for(methods, fields=(100.0,), nodes=(100,), densities=(0.1,), seeds=2,
+             localizers=("dvhop", "olstm-dvhop")):
+    """Synthetic episodes.csv rows; values depend on method and seed."""
+    out = []
+    for i, m in enumerate(methods):
+        for f in fields:
+            for n in nodes:
+                for d in densities:
+                    for s in range(seeds):
+                        for loc in localizers:
+                            row = dict.fromkeys(COLUMNS, 1.0)
+                            row.update(method=m, map=f"test/m{d}", field_size=f, n_nodes=n,
+                                       obstacle_density=d, seed=s, localizer=loc,
+                                       rmse=(2.0 if loc == "dvhop" else 1.0) + s + i,
+                                       coverage=0.9 + 0.01 * s, wall_seconds=2.0 + i,
+                                       localize_seconds=0.5, safety_intervention=math.nan)
+                            out.append(row)
+    return out
+
+
+def test_ci_stats_by_hand():
+    n, mean, std, ci = ci_stats([1.0, 2.0, 6.0, math.nan])
+    assert (n, mean) == (3, 3.0)
+    assert std == pytest.approx(math.sqrt(((1 - 3) ** 2 + (2 - 3) ** 2 + (6 - 3) ** 2) / 2))
+    assert ci == pytest.approx(stats.t.ppf(0.975, 2) * std / math.sqrt(3))
+    assert ci_stats([5.0])[1] == 5.0 and math.isnan(ci_stats([5.0])[3])
+    assert ci_stats([])[0] == 0 and math.isnan(ci_stats([math.nan])[1])
+
+
+def test_summary_groups_by_method_localizer_and_grid_point(tmp_path):
+    rows = rows_for(["spiral", "scan"], densities=(0.1, 0.2))
+    summary = summarize(rows)
+    assert len(summary) == 2 * 2 * 2                      # methods x localizers x densities
+    first = summary[0]
+    assert (first["method"], first["localizer"], first["obstacle_density"], first["n"]) == (
+        "spiral", "dvhop", 0.1, 2)
+    assert first["rmse_mean"] == 2.5                      # seeds 0 and 1: 2 and 3 m
+    assert first["label"] == "Square spiral"
+    write_summary_csv(rows, tmp_path / "summary.csv")
+    with (tmp_path / "summary.csv").open() as f:
+        back = list(csv.DictReader(f))
+    assert {"rmse_mean", "rmse_std", "rmse_ci95", "eta_traj_ci95", "n"} <= set(back[0])
+    assert back[0]["safety_intervention_mean"] == ""      # undefined: empty cell
+
+
+def test_markdown_has_methods_as_rows_and_a_table_per_varying_dimension():
+    rows = rows_for(["spiral", "scan"], densities=(0.1, 0.2))
+    text = summary_markdown(rows, "Title", "Notes.")
+    assert text.startswith("# Title\n\nNotes.")
+    assert "## By obstacle density" in text and "## By N" not in text
+    assert "| Square spiral | 1.50 ± " in text           # olstm-dvhop first: 1 and 2 m
+    assert "RMSE olstm-dvhop [m] (localized)" in text
+
+
+def test_seconds_per_episode_add_the_localizers():
+    rows = rows_for(["spiral", "scan"])
+    assert seconds_per_episode(rows) == {"spiral": 3.0, "scan": 4.0}   # 2 + i + 2 x 0.5
+
+
+@pytest.mark.parametrize("grid, expected", [
+    (dict(nodes=(100,), densities=(0.1, 0.2)), ["fig2.png"]),                      # quick
+    (dict(fields=(100.0, 200.0), nodes=(600, 700), densities=(0.2,)), ["fig3.png"]),
+    (dict(nodes=(100,), densities=(0.4, 0.5, 0.6)), ["fig2.png", "fig4.png"]),
+    (dict(nodes=(60,)), []),                                                       # smoke
+])
+def test_figures_are_drawn_when_their_grid_is_in_the_data(tmp_path, grid, expected):
+    written = draw_figures(rows_for(["aoass", "spiral", "scan"], **grid), tmp_path)
+    assert [p.name for p in written] == expected
+    assert all(p.stat().st_size > 10_000 for p in written)

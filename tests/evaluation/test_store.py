@@ -1,0 +1,86 @@
+"""episodes.csv: schema, appending, a half-written last line, other schemas, bad folders."""
+
+import math
+
+import pytest
+
+from aoass_env.evaluation.store import (
+    COLUMNS,
+    EpisodeKey,
+    EpisodeStore,
+    EvaluationError,
+    read_episodes,
+)
+
+
+def row(seed: int = 0, localizer: str = "dvhop", **values) -> dict:
+    base = {name: 1.0 for name in COLUMNS}
+    base.update(method="spiral", map="test/d0.10_f100_s500", field_size=100.0, n_nodes=100,
+                obstacle_density=0.1, seed=seed, localizer=localizer, beacons=5, collisions=0,
+                collisions_static=0, collisions_moving=0, safety_intervention=None)
+    base.update(values)
+    return base
+
+
+def test_schema_holds_the_design_columns_key_first():
+    design = ("method", "field_size", "n_nodes", "obstacle_density", "seed", "localizer",
+              "rmse", "coverage", "eer", "energy_total", "path_length", "travel_time",
+              "eta_traj", "collisions")
+    assert set(design) <= set(COLUMNS)
+    assert COLUMNS[:7] == ("method", "map", "field_size", "n_nodes", "obstacle_density", "seed",
+                           "localizer")
+    assert len(set(COLUMNS)) == len(COLUMNS)
+
+
+def test_rows_round_trip_with_types_and_empty_cells(tmp_path):
+    path = tmp_path / "out" / "episodes.csv"
+    with EpisodeStore(path) as store:
+        assert store.rows == [] and path.read_text() == ",".join(COLUMNS) + "\n"
+        store.append([row(rmse=math.nan), row(localizer="olstm-dvhop", rmse=0.25)])
+    lines = path.read_text().splitlines()
+    assert len(lines) == 3 and ",,"in lines[1]               # NaN and None are empty cells
+    back = read_episodes(path)
+    assert [r["localizer"] for r in back] == ["dvhop", "olstm-dvhop"]
+    assert math.isnan(back[0]["rmse"]) and back[1]["rmse"] == 0.25
+    assert math.isnan(back[0]["safety_intervention"])
+    assert back[0]["n_nodes"] == 100 and isinstance(back[0]["beacons"], int)
+    again = EpisodeStore(path)
+    key = EpisodeKey("spiral", "test/d0.10_f100_s500", 100.0, 100, 0.1, 0)
+    assert again.done == {(key, "dvhop"), (key, "olstm-dvhop")}
+    again.close()
+
+
+def test_a_half_written_last_line_is_dropped_with_a_warning(tmp_path):
+    path = tmp_path / "episodes.csv"
+    with EpisodeStore(path) as store:
+        store.append([row(seed=0), row(seed=1)])
+    text = path.read_text()
+    path.write_text(text + "spiral,test/d0.10_f100_s500,100.0,10")    # a crash mid-write
+    with pytest.warns(UserWarning, match="half-written last line"):
+        store = EpisodeStore(path)
+    assert len(store.rows) == 2 and path.read_text() == text       # removed from the file
+    store.append([row(seed=2)])
+    store.close()
+    assert [r["seed"] for r in read_episodes(path)] == [0, 1, 2]
+
+
+def test_a_broken_row_inside_the_file_is_an_error(tmp_path):
+    path = tmp_path / "episodes.csv"
+    with EpisodeStore(path) as store:
+        store.append([row(seed=0)])
+    path.write_text(path.read_text() + "spiral,x\n" + path.read_text().splitlines()[1] + "\n")
+    with pytest.raises(EvaluationError, match="line 3: broken row"):
+        EpisodeStore(path)
+
+
+def test_another_schema_is_an_error(tmp_path):
+    path = tmp_path / "episodes.csv"
+    path.write_text("method,map,rmse\nspiral,x,1.0\n")
+    with pytest.raises(EvaluationError, match="other columns"):
+        EpisodeStore(path)
+
+
+def test_a_folder_that_cannot_be_created_is_an_error(tmp_path):
+    (tmp_path / "file").write_text("")
+    with pytest.raises(EvaluationError, match="cannot write the output folder"):
+        EpisodeStore(tmp_path / "file" / "sub" / "episodes.csv")
