@@ -12,8 +12,7 @@ from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.planning.baselines import BASELINE_METHODS
-from aoass_env.planning.baselines import fdpp, m_anchoro, ohm
+from aoass_env.planning.baselines import BASELINE_METHODS, fdpp, m_anchoro, ohm
 from aoass_env.planning.baselines.common import free_region
 from aoass_env.simulator import Simulator, episode_map
 

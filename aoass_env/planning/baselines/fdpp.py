@@ -18,7 +18,8 @@ is ours (docs/baselines.md):
   (0..1) and a step as a fraction of R. Each heading's step is cut to the longest of R, R/2,
   R/4 that stays clear of the obstacles dilated by the anchor radius plus the detour margin and
   inside the field shrunk by the edge margin; a heading with none is dropped (obstacle
-  extension). Ranking: fewest earlier stops within R/2 of the step's end first (without it
+  extension); when all are dropped, R/4 hops to free ends are reached by detours.
+  Ranking: fewest earlier stops within R/2 of the step's end first (without it
   the anchor shuttles along one line, whose collinear beacons localize nobody -- our
   addition), then desirability, then the smallest turn, so with nobody answering the anchor
   keeps going straight where it can.
@@ -141,7 +142,8 @@ def free_reach(planner: DetourPlanner, obstacle_map: ObstacleMap, position: np.n
                radio_range: float, margin: float) -> np.ndarray:
     """(6,) the longest of R, R/2, R/4 (m) that a straight step along each heading can go from
     ``position`` (m) clear of the planner's dilated obstacles and inside the field shrunk by
-    ``margin`` (m); 0 where none can."""
+    ``margin`` (m); 0 where none can. When no heading has a straight step, R/4 wherever the
+    step's end is free (the follower then detours to it)."""
     p = np.asarray(position, dtype=np.float64)
     unit = np.stack([np.cos(HEADINGS), np.sin(HEADINGS)], axis=1)
     reach = np.zeros(len(HEADINGS))
@@ -150,6 +152,11 @@ def free_reach(planner: DetourPlanner, obstacle_map: ObstacleMap, position: np.n
         ok = obstacle_map.bounds_contain(ends, margin) & np.array(
             [planner.visible(p, e) for e in ends])
         reach[ok] = length
+    if not reach.any():     # hemmed in (e.g. a stop by an obstacle): short hops to free ends
+        ends = p + radio_range / 4 * unit
+        ok = obstacle_map.bounds_contain(ends, margin) & np.array(
+            [planner.visible(e, e) for e in ends])
+        reach[ok] = radio_range / 4
     return reach
 
 
