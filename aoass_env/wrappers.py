@@ -9,6 +9,8 @@
   static obstacles near the anchor and the Kalman-tracked moving obstacles -> the speed and
   heading the anchor executes (:mod:`aoass_env.safety.unicycle`), sent to AOASS-v0 as its action.
   ``info["safety"]`` reports the intervention.
+* :class:`ActionRepeat`: holds each agent action for several control periods (the safety stack
+  still filters every period), so that one decision has a measurable effect on the reward.
 
 The full stack in one line (also registered as ``AOASS-Safe-v0``)::
 
@@ -38,7 +40,8 @@ from aoass_env.safety.orca import StaticObstacles, orca_lines, solve_velocity
 from aoass_env.safety.unicycle import unicycle_command
 from aoass_env.world import wrap_angle
 
-__all__ = ["FuzzyORCASafety", "KalmanObstacleTracker", "MapSampler", "make_safe_env"]
+__all__ = ["ActionRepeat", "FuzzyORCASafety", "KalmanObstacleTracker", "MapSampler",
+           "make_safe_env"]
 
 #: Measurement-noise floor of the tracker (m, m/s): a noiseless observation still needs a
 #: positive noise for the filter's innovation covariance.
@@ -340,11 +343,37 @@ class FuzzyORCASafety(gym.ActionWrapper):
         return executed, report
 
 
+class ActionRepeat(gym.Wrapper):
+    """Holds each action for ``repeat`` steps of the wrapped environment (fewer when the episode
+    ends first); the reward is their sum and the observation and info are the last step's.
+
+    An agent's decision period becomes ``repeat`` x ``dt`` seconds: a residual speed command held
+    for one 0.5 s period moves the anchor at most 0.5 m, too little for a critic to tell its
+    effect on Eq. 14 from noise. Wrapped outside the safety stack, the velocity filter still runs
+    every control period.
+    """
+
+    def __init__(self, env: gym.Env, repeat: int) -> None:
+        if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
+            raise ValueError(f"action_repeat must be an integer >= 1, got {repeat!r}")
+        super().__init__(env)
+        self.repeat = repeat
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        total = 0.0
+        for _ in range(self.repeat):
+            obs, reward, terminated, truncated, info = self.env.step(action)
+            total += float(reward)
+            if terminated or truncated:
+                break
+        return obs, total, terminated, truncated, info
+
+
 def make_safe_env(*, config: AOASSConfig | None = None, render_mode: str | None = None,
                   tracker: dict[str, Any] | None = None, safety: dict[str, Any] | None = None,
-                  **kwargs: Any) -> gym.Env:
+                  action_repeat: int = 1, **kwargs: Any) -> gym.Env:
     """The full AOASS stack: AOASS-v0 (in its ``TimeLimit``) -> :class:`KalmanObstacleTracker`
-    -> :class:`FuzzyORCASafety`.
+    -> :class:`FuzzyORCASafety` (-> :class:`ActionRepeat` when ``action_repeat`` > 1).
 
     Args:
         config, kwargs: the environment's configuration, as for ``gymnasium.make("AOASS-v0")``;
@@ -353,6 +382,7 @@ def make_safe_env(*, config: AOASSConfig | None = None, render_mode: str | None 
         render_mode: as for AOASS-v0.
         tracker: keywords of :class:`KalmanObstacleTracker`.
         safety: keywords of :class:`FuzzyORCASafety`.
+        action_repeat: control periods each agent action is held (1: every period).
     """
     for key in ("action_speed_scale", "action_heading_scale"):
         if key in kwargs:
@@ -365,7 +395,10 @@ def make_safe_env(*, config: AOASSConfig | None = None, render_mode: str | None 
     cfg = cfg.replace(action_speed_scale=cfg.anchor_max_speed, action_heading_scale=math.pi)
     env = make_env(config=cfg, render_mode=render_mode)
     env = KalmanObstacleTracker(env, **(tracker or {}))
-    return FuzzyORCASafety(env, **(safety or {}))
+    env = FuzzyORCASafety(env, **(safety or {}))
+    if type(action_repeat) is int and action_repeat == 1:
+        return env
+    return ActionRepeat(env, action_repeat)   # which checks action_repeat
 
 
 make_safe_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render modes

@@ -15,7 +15,13 @@ import aoass_env  # noqa: F401  (registers the environments)
 from aoass_env import AOASSEnv, ConfigError
 from aoass_env.maps import ObstacleMap
 from aoass_env.registration import SAFE_ENV_ID
-from aoass_env.wrappers import FuzzyORCASafety, KalmanObstacleTracker, MapSampler, make_safe_env
+from aoass_env.wrappers import (
+    ActionRepeat,
+    FuzzyORCASafety,
+    KalmanObstacleTracker,
+    MapSampler,
+    make_safe_env,
+)
 
 SMALL = dict(field_size=40.0, n_nodes=30, obstacle_density=0.1, n_moving_obstacles=2)
 
@@ -122,6 +128,29 @@ def test_same_seed_and_actions_give_the_same_episode():
     for (oa, ra, ia), (ob, rb, ib) in zip(a, b, strict=True):
         np.testing.assert_array_equal(oa, ob)
         assert ra == rb and ia.get("safety") == ib.get("safety")
+
+
+def test_action_repeat_holds_the_action_and_sums_the_rewards():
+    """Four held steps of the repeated env are the same four steps of the plain stack."""
+    action = np.array([0.4, -0.2], np.float32)
+    plain = run(make_safe_env(**SMALL), seed=3, steps=400, actions=action)
+    held = run(make_safe_env(**SMALL, action_repeat=4), seed=3, steps=100, actions=action)
+    assert isinstance(make_safe_env(**SMALL, action_repeat=4), ActionRepeat)
+    for k in range(1, len(held)):
+        obs, reward, info = held[k]
+        np.testing.assert_array_equal(obs, plain[4 * k][0])
+        assert reward == pytest.approx(sum(r for _, r, _ in plain[4 * k - 3:4 * k + 1]))
+        assert info.get("safety") == plain[4 * k][2].get("safety")
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="action_repeat"):
+            make_safe_env(**SMALL, action_repeat=bad)
+
+
+def test_action_repeat_stops_at_the_end_of_the_episode():
+    env = ActionRepeat(gym.wrappers.TimeLimit(make_safe_env(**SMALL), 10), 4)
+    env.reset(seed=0)
+    ends = [env.step(np.zeros(2, np.float32))[3] for _ in range(3)]
+    assert ends == [False, False, True]   # 4 + 4 + the 2 left
 
 
 def test_random_agent_in_a_dense_field_never_touches_a_static_obstacle():
