@@ -41,7 +41,8 @@ def episode_metrics(run: MethodRun) -> dict[str, Any]:
     """The episode columns of ``episodes.csv`` from a finished run (all but ``wall_seconds``):
     coverage (Eq. 18), beacons, path length and its ideal (m), travel time and its ideal (s),
     eta_traj (Eq. 19), anchor contacts, E_total (J), E_norm (Eq. 16, J/beacon), EER (Eq. 17,
-    beacons/J) and the mean safety intervention (m/s)."""
+    beacons/J), whether the method ended the episode itself (1) or the step limit did (0), and
+    the mean safety intervention (m/s)."""
     sim, net = run.sim, run.sim.network
     ideal_time = sim.path.nominal_time(sim.config.anchor_nominal_speed)
     return {"coverage": net.coverage_ratio, "beacons": net.beacons_sent,
@@ -55,7 +56,7 @@ def episode_metrics(run: MethodRun) -> dict[str, Any]:
             "energy_total": net.energy_total,
             "e_norm": energy_per_beacon(net.energy_total, net.beacons_sent),
             "eer": energy_efficiency_ratio(net.energy_total, net.beacons_sent),
-            "safety_intervention": run.safety_intervention}
+            "path_complete": int(run.complete), "safety_intervention": run.safety_intervention}
 
 
 def localization_row(log: BeaconLog, localizer: str) -> dict[str, Any]:

@@ -33,7 +33,7 @@ from aoass_env.maps import ObstacleMap
 from aoass_env.planning import PlannedMethod
 from aoass_env.planning.baselines import BASELINE_METHODS
 from aoass_env.planning.classical import CLASSICAL_METHODS
-from aoass_env.simulator import Simulator
+from aoass_env.simulator import RUN_LIMIT, Controller, Simulator
 from aoass_env.wrappers import make_safe_env
 
 __all__ = ["DEFAULT_POLICY", "METHODS", "MethodRun", "MethodSpec", "RunOptions",
@@ -63,11 +63,13 @@ class RunOptions:
 
 @dataclass(frozen=True)
 class MethodRun:
-    """A finished episode: the simulator, its beacon log and, for the safety stack, the mean
-    safety intervention |v* - v_des| (m/s) per control period (None for other methods)."""
+    """A finished episode: the simulator, its beacon log, whether the method ended it itself
+    (False: cut by the step limit) and, for the safety stack, the mean safety intervention
+    |v* - v_des| (m/s) per control period (None for other methods)."""
 
     sim: Simulator
     log: BeaconLog
+    complete: bool
     safety_intervention: float | None = None
 
 
@@ -105,8 +107,8 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
     state, start = None, np.ones(1, dtype=bool)
     interventions: list[float] = []
     limit = options.max_steps if options.max_steps is not None else math.inf
-    steps, done = 0, False
-    while not done and steps < limit:
+    steps, terminated, truncated = 0, False, False
+    while not (terminated or truncated) and steps < limit:
         if policy is None:
             action = np.zeros(2, np.float32)
         else:
@@ -116,12 +118,23 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
         obs, _, terminated, truncated, info = env.step(action)
         if "safety" in info:
             interventions.append(info["safety"]["intervention"])
-        done, steps = terminated or truncated, steps + 1
+        steps += 1
     base = env.unwrapped
-    run = MethodRun(base.sim, base.beacon_log,
+    run = MethodRun(base.sim, base.beacon_log, terminated,
                     float(np.mean(interventions)) if interventions else None)
     env.close()
     return run
+
+
+def _run_simulator(sim: Simulator, options: RunOptions,
+                   controller: Controller | None = None) -> MethodRun:
+    """Drive ``sim`` with ``controller`` (None: the nominal follower of its path) until it is
+    done or the step limit (``options.max_steps``, else ``RUN_LIMIT`` times the path's nominal
+    duration)."""
+    limit = (options.max_steps if options.max_steps is not None
+             else RUN_LIMIT * sim.nominal_steps())
+    log = sim.run(max_steps=limit, controller=controller)
+    return MethodRun(sim, log, complete=len(log.anchor_path) - 1 < limit)
 
 
 def _run_spiral(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
@@ -129,7 +142,7 @@ def _run_spiral(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
     """The square spiral with the nominal follower, no safety stack."""
     sim = Simulator(config, np.random.default_rng(seed), obstacle_map=obstacle_map, seed=seed,
                     method="spiral")
-    return MethodRun(sim, sim.run(max_steps=options.max_steps))
+    return _run_simulator(sim, options)
 
 
 def _run_planned(method: PlannedMethod, config: AOASSConfig, obstacle_map: ObstacleMap,
@@ -138,8 +151,8 @@ def _run_planned(method: PlannedMethod, config: AOASSConfig, obstacle_map: Obsta
     controller or else the nominal follower."""
     sim = Simulator(config, np.random.default_rng(seed), obstacle_map=obstacle_map, seed=seed,
                     method=method.name, path=method.plan(obstacle_map, config))
-    controller = method.controller(sim) if method.controller is not None else None
-    return MethodRun(sim, sim.run(max_steps=options.max_steps, controller=controller))
+    return _run_simulator(sim, options,
+                          method.controller(sim) if method.controller is not None else None)
 
 
 def _registry() -> dict[str, MethodSpec]:

@@ -141,6 +141,7 @@ def _table(episodes: list[dict[str, Any]], localizers: list[str]) -> str:
             ("E_total [J]", "energy_total", "{:.0f}"), ("η_traj", "eta_traj", "{:.3f}"),
             ("path [m]", "path_length", "{:.0f}"), ("time [s]", "travel_time", "{:.0f}"),
             ("beacons", "beacons", "{:.0f}"), ("contacts", "collisions", "{:.1f}"),
+            ("complete", "path_complete", "{:.0%}"),
             ("s/episode", "seconds", "{:.1f}")):
         columns.append((title, lambda eps, key=key, fmt=fmt:
                         _cell([e[key] for e in eps], fmt.format)))

@@ -53,12 +53,12 @@ LOCALIZATION_FIELDS = ("localizer", "rmse", "localized", "localize_seconds")
 #: Columns of the episode, the same on each of its localizer rows (units in docs/evaluation.md).
 EPISODE_FIELDS = ("coverage", "beacons", "path_length", "ideal_length", "travel_time",
                   "ideal_time", "eta_traj", "collisions", "collisions_static",
-                  "collisions_moving", "energy_total", "e_norm", "eer", "safety_intervention",
-                  "wall_seconds")
+                  "collisions_moving", "energy_total", "e_norm", "eer", "path_complete",
+                  "safety_intervention", "wall_seconds")
 COLUMNS = KEY_FIELDS + LOCALIZATION_FIELDS + EPISODE_FIELDS
 _TEXT = ("method", "map", "localizer")
 _INTEGER = ("n_nodes", "seed", "beacons", "collisions", "collisions_static",
-            "collisions_moving")
+            "collisions_moving", "path_complete")
 
 
 def _cell(value: Any) -> Any:
@@ -75,10 +75,10 @@ def _parsed(row: dict[str, str]) -> dict[str, Any]:
         text = row[name]
         if name in _TEXT:
             out[name] = text
-        elif name in _INTEGER:
-            out[name] = int(text)
+        elif text == "":
+            out[name] = math.nan
         else:
-            out[name] = float(text) if text != "" else math.nan
+            out[name] = int(text) if name in _INTEGER else float(text)
     return out
 
 

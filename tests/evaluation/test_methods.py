@@ -38,6 +38,7 @@ def test_every_method_plays_a_small_episode_with_finite_metrics(method, small_ke
                      "wall_seconds", "localize_seconds"):
             assert math.isfinite(r[name]) and r[name] > 0, name
         assert r["collisions"] == r["collisions_static"] + r["collisions_moving"]
+        assert r["path_complete"] == 0                 # cut at STEPS: no method sweeps 40 m
         assert r["localized"] == pytest.approx(r["coverage"])   # both localize the covered
         assert math.isfinite(r["rmse"]) or r["localized"] == 0.0
         if METHODS[method].kind in ("aoass", "ablation"):
@@ -99,6 +100,7 @@ def test_a_planned_method_is_registered_and_run_by_the_adapter(monkeypatch, smal
     (row,) = run_episode(small_key("test-line"), ("dvhop",), RunOptions())
     assert row["ideal_length"] == pytest.approx(46.0)          # 36 m east + 10 m north
     assert row["ideal_time"] == pytest.approx(46.0)            # at the nominal 1 m/s
+    assert row["path_complete"] == 1
     if controller is None:                                      # the follower sweeps the line
         assert row["path_length"] == pytest.approx(46.0, rel=0.1)
     else:                                                       # stops after 10 periods

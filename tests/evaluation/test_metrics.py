@@ -39,7 +39,7 @@ def test_episode_columns_follow_eq_16_to_19():
     path = SimpleNamespace(length=100.0, nominal_time=lambda speed: 100.0 / speed)
     sim = SimpleNamespace(network=network, world=world, path=path, collisions=7,
                           config=AOASSConfig(anchor_nominal_speed=0.5))
-    m = episode_metrics(MethodRun(sim, log=None, safety_intervention=0.3))
+    m = episode_metrics(MethodRun(sim, log=None, complete=True, safety_intervention=0.3))
     assert m["ideal_length"] == 100.0 and m["ideal_time"] == 200.0      # 100 m at 0.5 m/s
     assert m["eta_traj"] == pytest.approx((100 / 120) * (200 / 150))   # Eq. 19
     assert m["e_norm"] == pytest.approx(80 / 50)                       # Eq. 16, J per beacon
@@ -48,6 +48,7 @@ def test_episode_columns_follow_eq_16_to_19():
         0.75, 50, 120.0, 150.0)
     assert (m["collisions"], m["collisions_static"], m["collisions_moving"]) == (7, 3, 4)
     assert m["energy_total"] == 80.0 and m["safety_intervention"] == 0.3
+    assert m["path_complete"] == 1
 
 
 def test_rmse_is_over_the_localized_nodes_with_the_fraction_beside_it(monkeypatch):

@@ -32,7 +32,8 @@ def rows_for(methods, fields=(100.0,), nodes=(100,), densities=(0.1,), seeds=2,
                                        obstacle_density=d, seed=s, localizer=loc,
                                        rmse=(2.0 if loc == "dvhop" else 1.0) + s + i,
                                        coverage=0.9 + 0.01 * s, wall_seconds=2.0 + i,
-                                       localize_seconds=0.5, safety_intervention=math.nan)
+                                       localize_seconds=0.5, path_complete=1,
+                                       safety_intervention=math.nan)
                             out.append(row)
     return out
 

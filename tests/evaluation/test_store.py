@@ -17,7 +17,8 @@ def row(seed: int = 0, localizer: str = "dvhop", **values) -> dict:
     base = {name: 1.0 for name in COLUMNS}
     base.update(method="spiral", map="test/d0.10_f100_s500", field_size=100.0, n_nodes=100,
                 obstacle_density=0.1, seed=seed, localizer=localizer, beacons=5, collisions=0,
-                collisions_static=0, collisions_moving=0, safety_intervention=None)
+                collisions_static=0, collisions_moving=0, path_complete=1,
+                safety_intervention=None)
     base.update(values)
     return base
 
