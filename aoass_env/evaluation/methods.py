@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.config import AOASSConfig
@@ -42,6 +43,10 @@ __all__ = ["DEFAULT_POLICY", "METHODS", "MethodRun", "MethodSpec", "RunOptions",
 #: The shipped AOASS policy and the algorithm that saved it.
 DEFAULT_POLICY = Path(__file__).resolve().parents[2] / "checkpoints" / "aoass_td3_lstm" / "best.zip"
 POLICY_ALGO = "td3-lstm"
+#: Training-environment keywords that set up the stack the policy acts in (reused when it is
+#: evaluated): decisions held for ``action_repeat`` control periods, the tracker's and the
+#: safety filter's keywords.
+POLICY_STACK_KEYS = ("action_repeat", "tracker", "safety")
 #: The command that produces :data:`DEFAULT_POLICY`.
 POLICY_COMMAND = "python3 train.py --algo td3-lstm --out checkpoints/aoass_td3_lstm"
 
@@ -97,11 +102,27 @@ def load_policy(path: str) -> Any:
     return ALGORITHMS[POLICY_ALGO].load(path, device="cpu")
 
 
+def policy_stack(path: str) -> dict[str, Any]:
+    """The :func:`~aoass_env.make_safe_env` keywords of :data:`POLICY_STACK_KEYS` that the policy
+    at ``path`` was trained with, read from the ``run.yml`` that ``train.py`` writes beside it
+    (``hyperparameters.env``); empty when there is no such file."""
+    record = Path(path).with_name("run.yml")
+    if not record.is_file():
+        return {}
+    env = (yaml.safe_load(record.read_text(encoding="utf-8")) or {}).get(
+        "hyperparameters", {}).get("env") or {}
+    return {k: env[k] for k in POLICY_STACK_KEYS if k in env}
+
+
 def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
                       options: RunOptions, *, learned: bool) -> MethodRun:
-    """AOASS-v0 inside the Kalman + fuzzy-ORCA stack, driven by the policy (``learned``) or the
-    zero action, until the episode ends or ``options.max_steps``."""
-    env = make_safe_env(config=config)
+    """AOASS-v0 inside the Kalman + fuzzy-ORCA stack (set up as the policy was trained), driven
+    by the policy (``learned``, one decision every ``action_repeat`` control periods) or the
+    zero action, until the episode ends or ``options.max_steps`` control periods."""
+    stack = policy_stack(options.policy)
+    repeat = int(stack.get("action_repeat", 1)) if learned else 1
+    env = make_safe_env(config=config, tracker=stack.get("tracker"),
+                        safety=stack.get("safety"), action_repeat=repeat)
     policy = load_policy(options.policy) if learned else None
     obs, _ = env.reset(seed=seed, options={"map": obstacle_map})
     state, start = None, np.ones(1, dtype=bool)
@@ -118,7 +139,7 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
         obs, _, terminated, truncated, info = env.step(action)
         if "safety" in info:
             interventions.append(info["safety"]["intervention"])
-        steps += 1
+        steps += repeat
     base = env.unwrapped
     run = MethodRun(base.sim, base.beacon_log, terminated,
                     float(np.mean(interventions)) if interventions else None)

@@ -128,3 +128,29 @@ def test_missing_policy_names_the_file_and_the_command(tmp_path):
     assert "docs/training.md" in str(err.value)
     assert select_methods(["spiral", "aoass-scripted"], missing) == ["spiral", "aoass-scripted"]
     assert select_methods(None) == list(METHODS)
+
+
+class CountingPolicy:
+    """Stands in for the TD3-LSTM policy: the zero action, counting decisions."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=False):
+        self.calls += 1
+        return np.zeros(2, np.float32), state
+
+
+def test_the_policy_acts_in_the_stack_it_was_trained_in(monkeypatch, tmp_path, small_key):
+    policy = tmp_path / "best.zip"
+    assert methods_module.policy_stack(str(policy)) == {}
+    (tmp_path / "run.yml").write_text(
+        "algo: td3-lstm\nhyperparameters:\n  env: {n_nodes: 100, action_repeat: 4, "
+        "safety: {margin: 0.3}}\n")
+    assert methods_module.policy_stack(str(policy)) == {"action_repeat": 4,
+                                                        "safety": {"margin": 0.3}}
+    fake = CountingPolicy()
+    monkeypatch.setattr(methods_module, "load_policy", lambda path: fake)
+    (row,) = run_episode(small_key("aoass"), ("dvhop",),
+                         RunOptions(policy=str(policy), max_steps=40))
+    assert fake.calls == 10 and row["travel_time"] == pytest.approx(20.0)  # 40 periods of 0.5 s
