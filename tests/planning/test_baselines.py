@@ -44,8 +44,7 @@ def test_small_episode_completes(name):
     assert ctl is None or ctl.done
     assert math.isfinite(sim.network.distance_travelled) and sim.network.distance_travelled > 0
     assert 0.0 <= sim.network.coverage_ratio <= 1.0 and math.isfinite(sim.network.energy_total)
-    if name != "fdpp":                  # the planned sweeps cover the small field
-        assert sim.network.coverage_ratio > 0.5
+    assert sim.network.coverage_ratio > 0.5          # every sweep covers the small field
     assert sim.collisions == 0
 
 
@@ -119,17 +118,59 @@ def test_fdpp_sector_inputs_are_fuzzy_ranges(pts):
     assert share.sum() == pytest.approx(1.0 if pts else 0.0)
 
 
-def test_fdpp_respects_its_budget():
+def test_fdpp_truncate_and_route():
+    path = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])
+    cut = fdpp.truncate(path, 15.0)
+    assert fdpp.path_length(cut) == pytest.approx(15.0) and cut[-1] == pytest.approx([10, 5])
+    assert fdpp.truncate(path, 50.0) is path
+    config = AOASSConfig(field_size=40, n_nodes=10, obstacle_density=0.0, n_moving_obstacles=0)
+    planner = Simulator(config, np.random.default_rng(0), obstacle_map=SQUARE).planner
+    around = fdpp.route(planner, SQUARE, np.array([20.0, 2.0]), np.array([20.0, 20.0]), 1.5)
+    assert len(around) > 2 and fdpp.path_length(around) > 18.0          # detours the square
+    assert fdpp.route(planner, SQUARE, np.array([20.0, 2.0]), np.array([20.0, 20.0]), 1.5,
+                      max_length=18.5) is None
+    assert fdpp.route(planner, SQUARE, np.array([5.0, 5.0]), np.array([20.0, 10.0]), 1.5) is None
+
+
+def test_fdpp_explores_the_nearest_open_cell_when_nobody_answers(monkeypatch):
+    config = AOASSConfig(field_size=40, n_nodes=10, obstacle_density=0.0, n_moving_obstacles=0)
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=SQUARE,
+                    path=fdpp.plan(SQUARE, config))
+    monkeypatch.setattr(sim.radio, "receivers", lambda p: np.zeros(0, dtype=np.int64))
+    ctl = fdpp.FDPPController(sim, cell_side=10.0)
+    assert ctl.cells.shape == (4, 4) and not ctl.cells.done.any()   # every cell has a free goal
+    goal_of_square = ctl.cells.goals[ctl.cells.index(np.array([20.0, 10.0]))[0]]
+    assert not SQUARE.inside_obstacle(goal_of_square[None], dilation=0.5).any()
+    start = sim.world.position.copy()
+    ctl.command(start, sim.world.heading, config.dt)
+    assert ctl.explored == 1 and ctl.cells.done.sum() == 2          # the start cell + the goal
+    target = ctl._follower.waypoints[-1]
+    goals = ctl.cells.goals[~ctl.cells.done]
+    assert np.linalg.norm(target - start) <= np.linalg.norm(goals - start, axis=1).min() + 1e-9
+    assert ctl.cells.done[ctl.cells.index(target)[0]]
+
+
+def test_fdpp_respects_its_budget_with_detours():
     rng = np.random.default_rng(1)
     omap = episode_map(SMALL, rng)
     sim = Simulator(SMALL, rng, obstacle_map=omap, path=fdpp.plan(omap, SMALL))
-    ctl = fdpp.FDPPController(sim, budget=30.0, patience=100)
+    ctl = fdpp.FDPPController(sim, budget=60.0)
     sim.run(controller=ctl)
-    assert ctl.done and sim.network.distance_travelled <= 30.0 + SMALL.anchor_max_speed * SMALL.dt
-    full, full_ctl = _episode("fdpp", seed=1)
-    assert full.network.distance_travelled <= full.spiral.length + 2.0
-    with pytest.raises(ValueError, match="patience"):
-        fdpp.FDPPController(sim, patience=0)
+    assert ctl.done and sim.network.distance_travelled <= 60.0 + SMALL.anchor_max_speed * SMALL.dt
+    for bad in ({"budget": 0.0}, {"cell_side": -1.0}, {"min_cell_side": 100.0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            fdpp.FDPPController(sim, **bad)
+
+
+def test_fdpp_ends_when_every_cell_is_visited():
+    config = AOASSConfig(field_size=40, n_nodes=30, obstacle_density=0.0, n_moving_obstacles=0)
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=SQUARE,
+                    path=fdpp.plan(SQUARE, config))
+    ctl = fdpp.FDPPController(sim, budget=2000.0)
+    sim.run(controller=ctl)
+    assert ctl.done and sim.network.distance_travelled < 1000.0
+    assert ctl.cells.side < config.radio_range and ctl.cells.done.all()    # refined, then done
+    assert sim.network.coverage_ratio > 0.9
 
 
 # --- M-ANCHORO ------------------------------------------------------------------------------
