@@ -1,7 +1,8 @@
 """``python3 evaluate.py``: run a preset's episodes for the chosen methods, localize every beacon
 log, write episodes.csv, summary.csv, summary.md and the figures (docs/evaluation.md).
 
-Exit status: 0 done, 1 some episodes failed (the others are written), 2 bad input (nothing run).
+Exit status: 0 done, 1 some episodes failed (the others are written), 2 bad input (nothing run),
+130 interrupted (Ctrl-C; the finished episodes are written).
 """
 
 from __future__ import annotations
@@ -109,11 +110,16 @@ def main(argv: list[str] | None = None) -> int:
 
     torch.set_num_threads(1)
     with store:
-        report = run_jobs(jobs, store, workers=args.workers,
-                          options=RunOptions(policy=str(args.policy)),
-                          log_dir=out / "logs" if args.save_logs else None,
-                          progress=not args.no_progress,
-                          desc=args.logs.name if args.logs else preset.name)
+        try:
+            report = run_jobs(jobs, store, workers=args.workers,
+                              options=RunOptions(policy=str(args.policy)),
+                              log_dir=out / "logs" if args.save_logs else None,
+                              progress=not args.no_progress,
+                              desc=args.logs.name if args.logs else preset.name)
+        except KeyboardInterrupt:
+            print(f"\ninterrupted: the finished episodes are in {store.path}; run the same "
+                  f"command again to continue", file=sys.stderr)
+            return 130
     rows = store.rows
     timing = seconds_per_episode(rows)
     notes = ("" if args.logs else f"{preset.description}. ") + (

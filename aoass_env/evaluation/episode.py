@@ -12,6 +12,7 @@ import dataclasses
 import json
 import math
 import time
+import zipfile
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -115,10 +116,15 @@ def _config_key(log: BeaconLog, path: Path) -> EpisodeKey:
 
 def log_key(path: Path) -> EpisodeKey:
     """The episode key of a saved beacon log: from the extra written by :func:`run_episode`
-    (read alone, cheaply), else from the log's config."""
-    with np.load(path, allow_pickle=False) as data:
-        if EPISODE_EXTRA in data.files:
-            return _saved_key(json.loads(str(data[EPISODE_EXTRA])))
+    (read alone, cheaply), else from the log's config.
+
+    Raises:
+        BeaconLogError: the file is not a valid beacon log.
+    """
+    if zipfile.is_zipfile(path):
+        with np.load(path, allow_pickle=False) as data:
+            if EPISODE_EXTRA in data.files:
+                return _saved_key(json.loads(str(data[EPISODE_EXTRA])))
     return _config_key(BeaconLog.load(path), path)
 
 

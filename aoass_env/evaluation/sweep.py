@@ -27,6 +27,7 @@ from typing import Any
 import torch
 from tqdm import tqdm
 
+from aoass_env.beacon_log import BeaconLogError
 from aoass_env.evaluation.episode import localize_log, log_key, run_episode
 from aoass_env.evaluation.methods import RunOptions
 from aoass_env.evaluation.store import EpisodeKey, EpisodeStore, EvaluationError
@@ -110,7 +111,8 @@ def log_jobs(folder: Path, localizers: tuple[str, ...]) -> list[Job]:
     the key of an earlier one is left out with a warning.
 
     Raises:
-        EvaluationError: ``folder`` is not a folder or holds no ``.npz`` file.
+        EvaluationError: ``folder`` is not a folder, holds no ``.npz`` file, or one that is
+            not a beacon log.
     """
     if not folder.is_dir():
         raise EvaluationError(f"--logs {folder}: no such folder")
@@ -119,7 +121,10 @@ def log_jobs(folder: Path, localizers: tuple[str, ...]) -> list[Job]:
         raise EvaluationError(f"--logs {folder}: no beacon log (*.npz) in it")
     jobs: dict[EpisodeKey, Job] = {}
     for path in paths:
-        key = log_key(path)
+        try:
+            key = log_key(path)
+        except BeaconLogError as exc:
+            raise EvaluationError(f"--logs {folder}: {exc}") from None
         if key in jobs:
             warnings.warn(f"{path} has the episode key of {jobs[key].log}; left out",
                           stacklevel=2)

@@ -94,3 +94,10 @@ def test_unwritable_output_folder_fails_before_any_work(capsys, tmp_path):
 ])
 def test_bad_values_are_usage_errors(capsys, tmp_path, argv, message):
     assert message in _usage_error(capsys, [*argv, "--out", str(tmp_path)])
+
+
+def test_a_file_that_is_no_beacon_log_is_a_usage_error(capsys, tmp_path):
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "logs" / "broken.npz").write_bytes(b"not a zip")
+    err = _usage_error(capsys, ["--logs", str(tmp_path / "logs"), "--out", str(tmp_path)])
+    assert "broken.npz" in err and "not an .npz archive" in err
