@@ -26,7 +26,7 @@ from scipy import stats as st
 
 from aoass_env.atomic import write_text_atomic
 from aoass_env.evaluation.methods import METHODS
-from aoass_env.evaluation.store import EPISODE_FIELDS, KEY_FIELDS, EpisodeKey
+from aoass_env.evaluation.store import EPISODE_FIELDS, KEY_FIELDS, EpisodeKey, row_key
 from aoass_env.evaluation.sweep import PRESETS
 
 __all__ = ["SUMMARY_METRICS", "ci_stats", "draw_figures", "seconds_per_episode",
@@ -98,8 +98,7 @@ def _episodes(rows: list[dict[str, Any]]) -> dict[EpisodeKey, dict[str, Any]]:
     ``localized:<localizer>`` per localizer, and ``seconds`` (simulation + localizers)."""
     out: dict[EpisodeKey, dict[str, Any]] = {}
     for r in rows:
-        key = EpisodeKey(**{k: r[k] for k in KEY_FIELDS})
-        ep = out.setdefault(key, {**{k: r[k] for k in KEY_FIELDS + EPISODE_FIELDS},
+        ep = out.setdefault(row_key(r)[0], {**{k: r[k] for k in KEY_FIELDS + EPISODE_FIELDS},
                                   "seconds": r["wall_seconds"]})
         ep[f"rmse:{r['localizer']}"] = r["rmse"]
         ep[f"localized:{r['localizer']}"] = r["localized"]
@@ -117,7 +116,7 @@ def seconds_per_episode(rows: list[dict[str, Any]]) -> dict[str, float]:
     per: dict[str, list[float]] = defaultdict(list)
     for ep in _episodes(rows).values():
         per[ep["method"]].append(ep["seconds"])
-    return {m: float(np.mean(per[m])) for m in _method_order(per)}
+    return {m: ci_stats(per[m])[1] for m in _method_order(per)}
 
 
 def _cell(values: list[float], fmt: Callable[[float], str]) -> str:

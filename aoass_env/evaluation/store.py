@@ -21,7 +21,7 @@ from typing import Any
 from aoass_env.atomic import write_text_atomic
 
 __all__ = ["COLUMNS", "EPISODE_FIELDS", "KEY_FIELDS", "LOCALIZATION_FIELDS", "EpisodeKey",
-           "EpisodeStore", "EvaluationError", "read_episodes"]
+           "EpisodeStore", "EvaluationError", "read_episodes", "row_key"]
 
 
 class EvaluationError(ValueError):
