@@ -21,11 +21,28 @@ from aoass_env.maps import ObstacleMap
 if TYPE_CHECKING:
     from aoass_env.simulator import Controller, Simulator
 
-__all__ = ["PlannedMethod", "WaypointPath", "polyline_path"]
+__all__ = ["ArcLengthTiming", "PlannedMethod", "WaypointPath", "polyline_path"]
+
+
+class ArcLengthTiming:
+    """``length`` and ``nominal_time`` of a path from its ``arc_length`` (m) attribute."""
+
+    arc_length: np.ndarray
+
+    @property
+    def length(self) -> float:
+        """Length of the ideal, obstacle-free path (m) -- L_ideal of Eq. 19."""
+        return float(self.arc_length[-1])
+
+    def nominal_time(self, speed: float) -> float:
+        """Travel time (s) of the ideal path at constant ``speed`` (m/s) -- T_ideal of Eq. 19."""
+        if speed <= 0:
+            raise ValueError(f"speed={speed} must be positive (m/s)")
+        return self.length / speed
 
 
 @dataclass(frozen=True)
-class WaypointPath:
+class WaypointPath(ArcLengthTiming):
     """Waypoints of a planned path.
 
     Attributes:
@@ -38,17 +55,6 @@ class WaypointPath:
     waypoints: np.ndarray
     arc_length: np.ndarray
     blocked: np.ndarray
-
-    @property
-    def length(self) -> float:
-        """Length of the ideal, obstacle-free path (m) -- L_ideal of Eq. 19."""
-        return float(self.arc_length[-1])
-
-    def nominal_time(self, speed: float) -> float:
-        """Travel time (s) of the ideal path at constant ``speed`` (m/s) -- T_ideal of Eq. 19."""
-        if speed <= 0:
-            raise ValueError(f"speed={speed} must be positive (m/s)")
-        return self.length / speed
 
     def with_obstacles(self, obstacle_map: ObstacleMap, anchor_radius: float) -> WaypointPath:
         """A copy whose ``blocked`` marks waypoints inside obstacles dilated by the radius."""

@@ -37,6 +37,7 @@ import numpy as np
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
+from aoass_env.planning.path import ArcLengthTiming
 
 #: Unit direction vectors d_n of Eq. 1, cycling right, up, left, down.
 DIRECTIONS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
@@ -75,7 +76,7 @@ def config_spacing(config: AOASSConfig, width: float, height: float) -> float:
 
 
 @dataclass(frozen=True)
-class SquareSpiral:
+class SquareSpiral(ArcLengthTiming):
     """Waypoints of a square spiral.
 
     Attributes:
@@ -94,17 +95,6 @@ class SquareSpiral:
     blocked: np.ndarray
     spacing: float
     step: float
-
-    @property
-    def length(self) -> float:
-        """Length of the ideal, obstacle-free path (m) -- L_ideal of Eq. 19."""
-        return float(self.arc_length[-1])
-
-    def nominal_time(self, speed: float) -> float:
-        """Travel time (s) of the ideal path at constant ``speed`` (m/s) -- T_ideal of Eq. 19."""
-        if speed <= 0:
-            raise ValueError(f"speed={speed} must be positive (m/s)")
-        return self.length / speed
 
     def corners(self) -> np.ndarray:
         """(C, 2) leg end points: the turning points of the spiral, origin first."""
