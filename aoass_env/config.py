@@ -226,6 +226,12 @@ class AOASSConfig:
         """Physics step (s)."""
         return self.dt / self.physics_substeps
 
+    @property
+    def path_step(self) -> float:
+        """Distance between the waypoints of a planned path (m): ``waypoint_step``, else
+        ``beacon_interval``."""
+        return self.waypoint_step or self.beacon_interval
+
 
 def _range_text(meta: dict[str, Any]) -> str:
     lo, hi = meta["low"], meta["high"]

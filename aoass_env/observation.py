@@ -92,7 +92,7 @@ class Observer:
         self._free = np.flatnonzero(~spiral.blocked)
         self._free_xy = spiral.waypoints[self._free]
         self._rng = noise_rng
-        step = config.waypoint_step or config.beacon_interval
+        step = config.path_step
         self._wp_scale = config.obs_waypoints * step
         self._v_scale = velocity_scale(config)
         self._upcoming_index = -1

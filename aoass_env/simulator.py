@@ -82,7 +82,7 @@ def episode_spiral(config: AOASSConfig, obstacle_map: ObstacleMap) -> SquareSpir
     """The square spiral of the config over the map, blocked waypoints marked."""
     w, h = obstacle_map.width, obstacle_map.height
     spacing = config_spacing(config, w, h)
-    step = config.waypoint_step or config.beacon_interval
+    step = config.path_step
     spiral = square_spiral(w, h, spacing, step, origin=config.spiral_origin,
                            margin=config.edge_margin)
     return spiral.with_obstacles(obstacle_map, config.anchor_radius)
@@ -157,12 +157,8 @@ class Simulator:
     def follower(self) -> WaypointFollower:
         """A nominal follower of this episode's path (for the spiral: the zero action of the
         environment)."""
-        c = self.config
-        return WaypointFollower(self.path.waypoints, self.path.blocked,
-                                capture_radius=max(c.anchor_radius, 0.5 * c.anchor_nominal_speed
-                                                   * c.dt),
-                                cruise_speed=c.anchor_nominal_speed,
-                                max_accel=c.anchor_max_accel, planner=self.planner)
+        return WaypointFollower.nominal(self.config, self.path.waypoints, self.path.blocked,
+                                        self.planner)
 
     def nominal_steps(self) -> int:
         """Control periods the ideal path takes at nominal speed."""

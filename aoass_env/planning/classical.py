@@ -239,11 +239,6 @@ def z_curve_vertices(width: float, height: float, spacing: float, margin: float)
     return np.stack([xs[cells[:, 0]], ys[cells[:, 1]]], axis=1)
 
 
-def _step(config: AOASSConfig) -> float:
-    """Waypoint step (m): ``config.waypoint_step``, else the beacon interval."""
-    return config.waypoint_step or config.beacon_interval
-
-
 def _at_spiral_spacing(vertices: Callable[[float, float, float, float], np.ndarray]
                        ) -> Callable[[ObstacleMap, AOASSConfig], WaypointPath]:
     """A plan function that builds ``vertices(width, height, d, edge_margin)`` with ``d`` the
@@ -251,14 +246,14 @@ def _at_spiral_spacing(vertices: Callable[[float, float, float, float], np.ndarr
     def plan(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
         w, h = obstacle_map.width, obstacle_map.height
         return polyline_path(vertices(w, h, config_spacing(config, w, h), config.edge_margin),
-                             _step(config))
+                             config.path_step)
     return plan
 
 
 def _plan_lmat(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
     """LMAT over the map's field with triangle side at most the radio range."""
     return polyline_path(lmat_vertices(obstacle_map.width, obstacle_map.height,
-                                       config.radio_range, config.edge_margin), _step(config))
+                                       config.radio_range, config.edge_margin), config.path_step)
 
 
 _KOUTSONIKOLAS = "Koutsonikolas, Das & Hu, Computer Communications 30(13), 2007"

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from aoass_env.config import AOASSConfig
 from aoass_env.planning.detour import DetourPlanner
 
 
@@ -49,6 +50,19 @@ class WaypointFollower:
     def __post_init__(self) -> None:
         self.index = self._next_free(self.index)
         self._budget = self.stall_time
+
+    @classmethod
+    def nominal(cls, config: AOASSConfig, waypoints: np.ndarray, blocked: np.ndarray | None = None,
+                planner: DetourPlanner | None = None) -> WaypointFollower:
+        """The nominal follower of ``config``: cruise at ``anchor_nominal_speed``, brake within
+        ``anchor_max_accel``, and capture a waypoint within the anchor radius or half a control
+        period's travel, whichever is larger; ``blocked`` None: no waypoint is skipped."""
+        wps = np.asarray(waypoints, dtype=np.float64)
+        return cls(wps, np.zeros(len(wps), dtype=bool) if blocked is None else blocked,
+                   capture_radius=max(config.anchor_radius,
+                                      0.5 * config.anchor_nominal_speed * config.dt),
+                   cruise_speed=config.anchor_nominal_speed, max_accel=config.anchor_max_accel,
+                   planner=planner)
 
     @property
     def done(self) -> bool:

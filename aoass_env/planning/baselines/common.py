@@ -30,12 +30,8 @@ def point_follower(config: AOASSConfig, points: np.ndarray,
     stall time, and the simulator's nominal capture radius, speed and deceleration; ``planner``
     detours around static obstacles (None: straight legs)."""
     pts = polyline_path(np.asarray(points, dtype=np.float64).reshape(-1, 2),
-                        config.waypoint_step or config.beacon_interval).waypoints
-    return WaypointFollower(pts, np.zeros(len(pts), dtype=bool),
-                            capture_radius=max(config.anchor_radius,
-                                               0.5 * config.anchor_nominal_speed * config.dt),
-                            cruise_speed=config.anchor_nominal_speed,
-                            max_accel=config.anchor_max_accel, planner=planner)
+                        config.path_step).waypoints
+    return WaypointFollower.nominal(config, pts, planner=planner)
 
 
 def free_region(obstacle_map: ObstacleMap, clearance: float, border: float) -> BaseGeometry:

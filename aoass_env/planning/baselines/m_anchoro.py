@@ -211,7 +211,7 @@ def plan(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
     for a, b in zip(points[:-1], points[1:], strict=True):
         link = None if planner.visible(a, b) else planner.path(a, b)
         vertices.append(b[None] if link is None else link[1:])
-    return polyline_path(np.concatenate(vertices), config.waypoint_step or config.beacon_interval)
+    return polyline_path(np.concatenate(vertices), config.path_step)
 
 
 M_ANCHORO = PlannedMethod(

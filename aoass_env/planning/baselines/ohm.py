@@ -261,7 +261,7 @@ def plan(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
     """OHM's base sweep (waypoints every ``waypoint_step`` / ``beacon_interval`` metres)."""
     corners = sweep_vertices(obstacle_map.width, obstacle_map.height,
                              sweep_spacing(obstacle_map, config), config.edge_margin)
-    return polyline_path(corners, config.waypoint_step or config.beacon_interval)
+    return polyline_path(corners, config.path_step)
 
 
 OHM = PlannedMethod(
