@@ -24,10 +24,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-import aoass_env  # noqa: F401  (registers the environments)
 from aoass_env.atomic import write_text_atomic
-from aoass_env.maps import list_maps
-from aoass_env.wrappers import make_safe_env
+from aoass_env.config import AOASSConfig
+from aoass_env.evaluation.episode import episode_metrics
+from aoass_env.evaluation.methods import METHODS, RunOptions
+from aoass_env.maps import list_maps, load_map
 
 DENSITIES = ("0.10", "0.20", "0.30", "0.40")
 METRICS = ("return", "eta_traj", "coverage", "contacts", "steps")
@@ -35,33 +36,21 @@ METRICS = ("return", "eta_traj", "coverage", "contacts", "steps")
 
 def episode(task: tuple[str, str, int, str]) -> dict:
     """(policy: an algorithm name or 'zero', map name, seed, model path) -> the episode's
-    record."""
+    record. The evaluation's runners play it: the policy acts in the stack it was trained in
+    (``action_repeat`` etc. from the ``run.yml`` beside the model)."""
     policy, map_name, seed, model_path = task
     torch.set_num_threads(1)
-    env = make_safe_env(map=map_name)
-    obs, _ = env.reset(seed=seed)
-    model, state, start = None, None, np.ones(1, dtype=bool)
-    if policy != "zero":
-        from agents.hyperparams import ALGORITHMS
-        model = ALGORITHMS[policy].load(model_path, device="cpu")
-    total = 0.0
-    while True:
-        if model is None:
-            action = np.zeros(2, np.float32)
-        else:
-            action, state = model.predict(obs, state=state, episode_start=start,
-                                          deterministic=True)
-            start = np.zeros(1, dtype=bool)
-        obs, reward, terminated, truncated, info = env.step(action)
-        total += reward
-        if terminated or truncated:
-            break
-    m = info["episode_metrics"]
+    obstacle_map = load_map(map_name)
+    config = AOASSConfig(field_size=obstacle_map.width, map=map_name)
+    method = "aoass-scripted" if policy == "zero" else "aoass"
+    options = RunOptions(policy=model_path, algo="td3-lstm" if policy == "zero" else policy)
+    run = METHODS[method].runner(config, obstacle_map, seed, options)
+    m = episode_metrics(run)
     return {"policy": "zero" if policy == "zero" else "agent", "map": map_name,
             "density": map_name.split("/")[1][1:5],
-            "seed": seed, "return": total, "eta_traj": m["eta_traj"],
-            "coverage": m["coverage"], "contacts": m["collisions"], "steps": m["steps"],
-            "complete": bool(m["path_complete"])}
+            "seed": seed, "return": run.episode_return, "eta_traj": m["eta_traj"],
+            "coverage": m["coverage"], "contacts": m["collisions"],
+            "steps": round(m["travel_time"] / config.dt), "complete": bool(m["path_complete"])}
 
 
 def paired(rows: list[dict], key: str) -> tuple[float, float]:

@@ -56,13 +56,16 @@ class RunOptions:
     """Settings shared by every episode of a sweep.
 
     Attributes:
-        policy: checkpoint of the ``aoass`` policy (a ``td3-lstm`` .zip).
+        policy: checkpoint of the ``aoass`` policy (a .zip saved by ``algo``).
+        algo: the algorithm that saved ``policy`` (``td3-lstm``, or ``td3`` for the
+            feedforward ablation).
         max_steps: stop an episode after this many control periods (``dt`` = 0.5 s each);
             None: each method's own limit (the environment's time limit for the safety stack,
             ``Simulator.run``'s for the others).
     """
 
     policy: str = str(DEFAULT_POLICY)
+    algo: str = POLICY_ALGO
     max_steps: int | None = None
 
 
@@ -70,12 +73,13 @@ class RunOptions:
 class MethodRun:
     """A finished episode: the simulator, its beacon log, whether the method ended it itself
     (False: cut by the step limit) and, for the safety stack, the mean safety intervention
-    |v* - v_des| (m/s) per control period (None for other methods)."""
+    |v* - v_des| (m/s) per agent decision and the Eq. 14 return (None for other methods)."""
 
     sim: Simulator
     log: BeaconLog
     complete: bool
     safety_intervention: float | None = None
+    episode_return: float | None = None
 
 
 #: (config, obstacle map, seed, options) -> the finished episode.
@@ -96,10 +100,10 @@ class MethodSpec:
 
 
 @functools.lru_cache(maxsize=2)
-def load_policy(path: str) -> Any:
-    """The ``td3-lstm`` policy saved at ``path``, loaded once per process (on the CPU)."""
+def load_policy(path: str, algo: str = POLICY_ALGO) -> Any:
+    """The policy saved at ``path`` by ``algo``, loaded once per process (on the CPU)."""
     from agents.hyperparams import ALGORITHMS  # the agent's stack: imported only when used
-    return ALGORITHMS[POLICY_ALGO].load(path, device="cpu")
+    return ALGORITHMS[algo].load(path, device="cpu")
 
 
 def policy_stack(path: str) -> dict[str, Any]:
@@ -123,12 +127,12 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
     repeat = int(stack.get("action_repeat", 1)) if learned else 1
     env = make_safe_env(config=config, tracker=stack.get("tracker"),
                         safety=stack.get("safety"), action_repeat=repeat)
-    policy = load_policy(options.policy) if learned else None
+    policy = load_policy(options.policy, options.algo) if learned else None
     obs, _ = env.reset(seed=seed, options={"map": obstacle_map})
     state, start = None, np.ones(1, dtype=bool)
     interventions: list[float] = []
     limit = options.max_steps if options.max_steps is not None else math.inf
-    steps, terminated, truncated = 0, False, False
+    steps, total, terminated, truncated = 0, 0.0, False, False
     while not (terminated or truncated) and steps < limit:
         if policy is None:
             action = np.zeros(2, np.float32)
@@ -136,13 +140,14 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
             action, state = policy.predict(obs, state=state, episode_start=start,
                                            deterministic=True)
             start = np.zeros(1, dtype=bool)
-        obs, _, terminated, truncated, info = env.step(action)
+        obs, reward, terminated, truncated, info = env.step(action)
+        total += float(reward)
         if "safety" in info:
             interventions.append(info["safety"]["intervention"])
         steps += repeat
     base = env.unwrapped
     run = MethodRun(base.sim, base.beacon_log, terminated,
-                    float(np.mean(interventions)) if interventions else None)
+                    float(np.mean(interventions)) if interventions else None, total)
     env.close()
     return run
 

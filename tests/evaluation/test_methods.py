@@ -150,7 +150,23 @@ def test_the_policy_acts_in_the_stack_it_was_trained_in(monkeypatch, tmp_path, s
     assert methods_module.policy_stack(str(policy)) == {"action_repeat": 4,
                                                         "safety": {"margin": 0.3}}
     fake = CountingPolicy()
-    monkeypatch.setattr(methods_module, "load_policy", lambda path: fake)
+    monkeypatch.setattr(methods_module, "load_policy", lambda path, algo: fake)
     (row,) = run_episode(small_key("aoass"), ("dvhop",),
                          RunOptions(policy=str(policy), max_steps=40))
     assert fake.calls == 10 and row["travel_time"] == pytest.approx(20.0)  # 40 periods of 0.5 s
+
+
+def test_safety_stack_runs_report_the_eq14_return(small_map):
+    """The runner's return is the sum of the stack's rewards over the same control periods."""
+    from aoass_env.wrappers import make_safe_env
+
+    obstacle_map = load_map(str(small_map))
+    config = AOASSConfig(field_size=40.0, n_nodes=20, map=str(small_map))
+    run = METHODS["aoass-scripted"].runner(config, obstacle_map, 3, RunOptions(max_steps=50))
+    env = make_safe_env(config=config)
+    env.reset(seed=3, options={"map": obstacle_map})
+    expected = sum(float(env.step(np.zeros(2, np.float32))[1]) for _ in range(50))
+    assert run.episode_return == pytest.approx(expected, rel=1e-12)
+    assert run.episode_return != 0.0
+    spiral = METHODS["spiral"].runner(config, obstacle_map, 3, RunOptions(max_steps=50))
+    assert spiral.episode_return is None
