@@ -56,7 +56,8 @@ _NUMERIC: dict[str, tuple[type, float, float, bool]] = {
     "target_policy_noise": (float, 0.0, math.inf, True),
     "target_noise_clip": (float, 0.0, math.inf, True), "n_timesteps": (int, 1, math.inf, True),
     "checkpoint_freq": (int, 1, math.inf, True), "burn_in": (int, 0, math.inf, True),
-    "train_length": (int, 1, math.inf, True),
+    "train_length": (int, 1, math.inf, True), "n_steps": (int, 1, math.inf, True),
+    "critic_warmup": (int, 0, math.inf, True),
 }
 
 

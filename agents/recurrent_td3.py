@@ -10,6 +10,7 @@ per-env LSTM state during rollouts, and sequence losses.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -45,8 +46,15 @@ class RecurrentTD3(TD3):
     :param batch_size: number of windows per gradient step
     :param burn_in: leading steps of a window used only to warm up the LSTM state
     :param train_length: steps of a window after the burn-in that enter the losses
+    :param n_steps: n-step TD targets, computed inside each replayed window (SB3's
+        ``n_steps``): ``sum_{k<m} gamma^k r_{t+k} + gamma^m Q'(h_{t+m})`` with
+        ``m = min(n_steps, steps left in the window)``, no bootstrap after a terminal step and
+        no off-policy correction (as in R2D2 and D4PG). 1 is TD3's one-step target.
+    :param critic_warmup: gradient steps that train only the critics (and update their
+        targets) before the actor's first update, so the actor starts from a critic that has
+        seen the replayed data; 0 trains both from the first step (TD3)
 
-    ``optimize_memory_usage`` and n-step returns are not supported. LSTM sizes go in
+    ``optimize_memory_usage`` is not supported. LSTM sizes go in
     ``policy_kwargs`` (``lstm_hidden_size``, ``n_lstm_layers``, ``net_arch``,
     ``current_features``; see ``RecurrentTD3Policy``).
     """
@@ -80,6 +88,8 @@ class RecurrentTD3(TD3):
         target_noise_clip: float = 0.5,
         burn_in: int = 8,
         train_length: int = 16,
+        n_steps: int = 1,
+        critic_warmup: int = 0,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
@@ -95,6 +105,9 @@ class RecurrentTD3(TD3):
             raise ValueError(f"batch_size must be an integer >= 1, got {batch_size!r}")
         if isinstance(policy_delay, bool) or not isinstance(policy_delay, int) or policy_delay < 1:
             raise ValueError(f"policy_delay must be an integer >= 1, got {policy_delay!r}")
+        for key, value, low in (("n_steps", n_steps, 1), ("critic_warmup", critic_warmup, 0)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+                raise ValueError(f"{key} must be an integer >= {low}, got {value!r}")
         if replay_buffer_class is not None and not issubclass(replay_buffer_class,
                                                               SequenceReplayBuffer):
             raise ValueError("replay_buffer_class must be SequenceReplayBuffer or a subclass, got "
@@ -104,13 +117,14 @@ class RecurrentTD3(TD3):
                 raise ValueError(f"pass {key} to RecurrentTD3, not in replay_buffer_kwargs")
         self.burn_in = int(burn_in)
         self.train_length = int(train_length)
+        self.critic_warmup = int(critic_warmup)
         self._rollout_state: RolloutState | None = None
         super().__init__(
             policy, env, learning_rate=learning_rate, buffer_size=buffer_size,
             learning_starts=learning_starts, batch_size=batch_size, tau=tau, gamma=gamma,
             train_freq=train_freq, gradient_steps=gradient_steps, action_noise=action_noise,
             replay_buffer_class=replay_buffer_class, replay_buffer_kwargs=replay_buffer_kwargs,
-            optimize_memory_usage=False, n_steps=1, policy_delay=policy_delay,
+            optimize_memory_usage=False, n_steps=int(n_steps), policy_delay=policy_delay,
             target_policy_noise=target_policy_noise, target_noise_clip=target_noise_clip,
             stats_window_size=stats_window_size, tensorboard_log=tensorboard_log,
             policy_kwargs=policy_kwargs, verbose=verbose, seed=seed, device=device,
@@ -136,7 +150,10 @@ class RecurrentTD3(TD3):
                 n_envs=self.n_envs, optimize_memory_usage=False, burn_in=self.burn_in,
                 train_length=self.train_length, **self.replay_buffer_kwargs,
             )
-        super()._setup_model()
+        with warnings.catch_warnings():
+            # SB3 warns that its own n-step buffer is not set up: the windows' loss does it.
+            warnings.filterwarnings("ignore", message=r"`n_steps=\d+` is ignored")
+            super()._setup_model()
         self._rollout_state = None
 
     # ----------------------------------------------------------------------------- rollouts
@@ -217,32 +234,51 @@ class RecurrentTD3(TD3):
     # ----------------------------------------------------------------------------- training
     def _critic_targets(self, data: SequenceReplayBufferSamples,
                         select: th.Tensor | None = None) -> th.Tensor:
-        """TD targets ``r + gamma * (1 - done) * min_i Q'_i(h_{t+1}, a'_{t+1})`` at the window
-        positions where ``select`` (B, L) is True, shape (N,); all positions (B, L) when None.
+        """TD targets at the window positions where ``select`` (B, L) is True, shape (N,); all
+        positions (B, L) when None.
+
+        With ``Q'_t = min_i Q'_i(h_{t+1}, a'_{t+1})``, the value of the history after step t:
+        ``G_t = sum_{k<m} gamma^k r_{t+k} + gamma^m (1 - done_{t+m-1}) Q'_{t+m-1}`` with
+        ``m = min(n_steps, valid steps from t to the window's end)``; ``n_steps = 1`` gives
+        TD3's ``r_t + gamma (1 - done_t) Q'_t``. A window holds one episode, so only its last
+        valid step can be terminal.
 
         The target networks read the window extended by one step, ``[o_0, next_o_0, ...,
         next_o_{L-1}]`` with previous actions ``[prev_a_0, a_0, ..., a_{L-1}]``; inside an
         episode ``next_o_t = o_{t+1}``, so their output at ``t + 1`` sums the history up to the
         next observation. ``a'`` is the target actor's action plus clipped Gaussian noise.
         """
-
-        def pick(x: th.Tensor) -> th.Tensor:
-            return x if select is None else x[select]
-
         with th.no_grad():
             obs = th.cat([data.observations[:, :1], data.next_observations], dim=1)
             prev = th.cat([data.prev_actions[:, :1], data.actions], dim=1)
             actor_memory, _ = self.actor_target.memory(obs, prev)
-            next_actions = self.actor_target.act(pick(actor_memory[:, 1:]))
+            next_actions = self.actor_target.act(actor_memory[:, 1:])
             if self.target_policy_noise > 0:
                 noise = th.randn_like(next_actions) * self.target_policy_noise
                 next_actions = next_actions + noise.clamp(-self.target_noise_clip,
                                                           self.target_noise_clip)
             next_actions = next_actions.clamp(-1, 1)
             memories = self.critic_target.memory(obs, prev)
-            next_q = th.stack([self.critic_target.q_value(i, pick(m[:, 1:]), next_actions)
+            next_q = th.stack([self.critic_target.q_value(i, m[:, 1:], next_actions)
                                for i, m in enumerate(memories)]).min(dim=0).values
-            return pick(data.rewards) + (1.0 - pick(data.dones)) * self.gamma * next_q
+            targets = self._n_step_returns(data.rewards, data.dones, data.mask, next_q)
+            return targets if select is None else targets[select]
+
+    def _n_step_returns(self, rewards: th.Tensor, dones: th.Tensor, mask: th.Tensor,
+                        next_q: th.Tensor) -> th.Tensor:
+        """``G_t`` of :meth:`_critic_targets` from (B, L) rewards, dones, valid mask and
+        ``Q'_t``; positions past the valid steps hold meaningless values."""
+        length = rewards.shape[1]
+        t = th.arange(length, device=rewards.device)[None, :]
+        left = mask.sum(dim=1, keepdim=True).long() - t  # valid steps from t on
+        m = left.clamp(min=1, max=self.n_steps)
+        returns = th.zeros_like(rewards)
+        for k in range(self.n_steps):
+            r_k = rewards.gather(1, (t + k).clamp(max=length - 1).expand_as(rewards))
+            returns = returns + (k < m) * self.gamma**k * r_k
+        last = (t + m - 1).clamp(max=length - 1)
+        bootstrap = (1.0 - dones.gather(1, last)) * next_q.gather(1, last)
+        return returns + self.gamma**m * bootstrap
 
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
         """``gradient_steps`` TD3 updates on windows sampled from the sequence buffer; the MLP
@@ -267,7 +303,7 @@ class RecurrentTD3(TD3):
             critic_loss.backward()
             self.critic.optimizer.step()
 
-            if self._n_updates % self.policy_delay == 0:
+            if self._n_updates % self.policy_delay == 0 and self._n_updates > self.critic_warmup:
                 actor_memory, _ = self.actor.memory(data.observations, data.prev_actions)
                 with th.no_grad():  # the actor's gradient does not need the critic's LSTM
                     memory = self.critic.memory(data.observations, data.prev_actions, n=1)[0]
@@ -277,8 +313,9 @@ class RecurrentTD3(TD3):
                 self.actor.optimizer.zero_grad()
                 actor_loss.backward()
                 self.actor.optimizer.step()
-                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
                 polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
+            if self._n_updates % self.policy_delay == 0:
+                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
 
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         if actor_losses:

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import functools
+
 import gymnasium as gym
 import numpy as np
 import pytest
 import torch as th
 from gymnasium import spaces
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from stable_baselines3.common.callbacks import EvalCallback
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
@@ -153,6 +157,100 @@ def test_timeout_bootstraps_and_terminal_does_not() -> None:
     assert targets[1, 0].item() != pytest.approx(4.0)
 
 
+def _n_step_reference(rewards, dones, valid, next_q, gamma, n):
+    """G_t of one window by the definition, step by step."""
+    out = []
+    for t in range(valid):
+        g, k = 0.0, 0
+        while k < n and t + k < valid:
+            g += gamma**k * rewards[t + k]
+            k += 1
+        out.append(g + gamma**k * (1.0 - dones[t + k - 1]) * next_q[t + k - 1])
+    return out
+
+
+def test_n_step_returns_by_hand() -> None:
+    model = _model(1, gamma=0.5, n_steps=3)
+    rewards = th.tensor([[1.0, 2.0, 3.0, 4.0, 5.0]])
+    next_q = th.tensor([[10.0, 20.0, 30.0, 40.0, 50.0]])
+    mask, no_done = th.ones(1, 5), th.zeros(1, 5)
+    g = model._n_step_returns(rewards, no_done, mask, next_q)[0]
+    assert g[0].item() == pytest.approx(1 + 0.5 * 2 + 0.25 * 3 + 0.125 * 30)
+    assert g[3].item() == pytest.approx(4 + 0.5 * 5 + 0.25 * 50)  # 2 steps left in the window
+    assert g[4].item() == pytest.approx(5 + 0.5 * 50)
+    # A terminal last valid step (index 3; index 4 is padding): no bootstrap past it.
+    done, short = th.tensor([[0.0, 0.0, 0.0, 1.0, 0.0]]), th.tensor([[1.0, 1, 1, 1, 0]])
+    g = model._n_step_returns(rewards * short, done, short, next_q)[0]
+    assert g[2].item() == pytest.approx(3 + 0.5 * 4)
+    assert g[1].item() == pytest.approx(2 + 0.5 * 3 + 0.25 * 4)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 6), st.integers(1, 8), st.booleans(), st.floats(0.0, 1.0),
+       st.integers(0, 2**31 - 1))
+def test_n_step_returns_match_the_definition(n: int, valid: int, terminal: bool, gamma: float,
+                                             seed: int) -> None:
+    length = 8
+    rng = np.random.default_rng(seed)
+    rewards = np.zeros(length, np.float32)
+    rewards[:valid] = rng.normal(size=valid)
+    next_q = rng.normal(size=length).astype(np.float32)
+    dones = np.zeros(length, np.float32)
+    dones[valid - 1] = float(terminal)
+    mask = (np.arange(length) < valid).astype(np.float32)
+    model = _shared_model()
+    model.gamma, model.n_steps = gamma, n
+    got = model._n_step_returns(*(th.as_tensor(x)[None] for x in (rewards, dones, mask, next_q)))
+    want = _n_step_reference(rewards, dones, valid, next_q, gamma, n)
+    np.testing.assert_allclose(got[0, :valid].numpy(), want, rtol=1e-4, atol=1e-4)
+
+
+@functools.cache
+def _shared_model() -> RecurrentTD3:
+    return _model(1)
+
+
+def test_one_step_targets_do_not_depend_on_the_window_end() -> None:
+    """n_steps=1 is TD3's target at every step; n_steps>1 differs inside the window."""
+    one, many = _model(1, target_policy_noise=0.0), _model(1, target_policy_noise=0.0, n_steps=3)
+    one.learn(60)
+    data = one.replay_buffer.sample(4)
+    many.policy.load_state_dict(one.policy.state_dict())
+    t1, t3 = one._critic_targets(data), many._critic_targets(data)
+    with th.no_grad():
+        obs = th.cat([data.observations[:, :1], data.next_observations], dim=1)
+        prev = th.cat([data.prev_actions[:, :1], data.actions], dim=1)
+        a_next = one.actor_target(obs, prev)[0][:, 1:]
+        q = th.stack([one.critic_target.q_value(i, m[:, 1:], a_next)
+                      for i, m in enumerate(one.critic_target.memory(obs, prev))]).min(0).values
+    expected = data.rewards + one.gamma * (1 - data.dones) * q
+    valid = data.mask.bool()
+    th.testing.assert_close(t1[valid], expected[valid])
+    assert not th.allclose(t1[valid], t3[valid])
+    # The last valid step of each window has no step left: both agree there.
+    last = data.mask.sum(1).long() - 1
+    rows = th.arange(4)
+    th.testing.assert_close(t1[rows, last], t3[rows, last])
+
+
+def test_critic_warmup_holds_the_actor() -> None:
+    model = _model(1, learning_starts=20, critic_warmup=10_000)
+    before = {k: v.clone() for k, v in model.policy.state_dict().items()}
+    model.learn(80)
+    after = model.policy.state_dict()
+
+    def changed(prefix: str) -> bool:
+        return any(not th.equal(before[k], after[k]) for k in before if k.startswith(prefix))
+
+    assert model._n_updates > 2
+    assert not changed("actor.") and not changed("actor_target.")
+    assert changed("critic.") and changed("critic_target.")
+    model.critic_warmup = 0
+    model.learn(20, reset_num_timesteps=False)
+    assert any(not th.equal(before[k], model.policy.state_dict()[k])
+               for k in before if k.startswith("actor."))
+
+
 @pytest.mark.parametrize("n_envs", [1, 2])
 def test_learn_changes_weights(n_envs: int) -> None:
     model = _model(n_envs, learning_starts=100)
@@ -201,6 +299,9 @@ def test_eval_callback_works(tmp_path) -> None:
     (dict(train_length=0), "train_length"),
     (dict(batch_size=0), "batch_size"),
     (dict(policy_delay=0), "policy_delay"),
+    (dict(n_steps=0), "n_steps"),
+    (dict(critic_warmup=-1), "critic_warmup"),
+    (dict(critic_warmup=2.5), "critic_warmup"),
     (dict(optimize_memory_usage=True), "optimize_memory_usage"),
     (dict(replay_buffer_kwargs=dict(burn_in=3)), "burn_in"),
     (dict(policy_kwargs=dict(lstm_hidden_size=0)), "lstm_hidden_size"),
