@@ -2,7 +2,8 @@
 
     python train.py [options]            train the AOASS agent (TD3-LSTM) inside the safety
                                          stack (agents/training.py; hyperparameters in
-                                         configs/aoass.yml)
+                                         configs/aoass.yml); --seeds 0-4 trains one run per
+                                         seed, --backend ray as Ray tasks (docs/cluster.md)
     python train.py localizer [options]  simulate beacon logs on maps/train and train the
                                          OLSTM-DV-Hop localizer, writing checkpoints/olstm_dvhop.pt
 
@@ -19,6 +20,7 @@ from pathlib import Path
 
 import torch
 
+from aoass_env.backends import add_backend_arguments, make_backend
 from aoass_env.localization.training import TrainConfig, train_localizer
 
 
@@ -56,7 +58,12 @@ def _agent_parser() -> argparse.ArgumentParser:
                         "feedforward TD3 (ablation) (default: td3-lstm)")
     p.add_argument("--timesteps", type=int, default=None,
                    help="environment steps (default: the config's n_timesteps)")
-    p.add_argument("--seed", type=int, default=0, help="(default: 0)")
+    seeds = p.add_mutually_exclusive_group()
+    seeds.add_argument("--seed", type=int, default=0, help="(default: 0)")
+    seeds.add_argument("--seeds", metavar="LIST",
+                       help="one run per seed: a range 0-4 and/or a list 0,2,5; run S writes "
+                            "into <out>/seed<S>/")
+    add_backend_arguments(p, "seed", "the runs one after another in this process")
     p.add_argument("--n-envs", type=int, default=1,
                    help="parallel environments, subprocesses when > 1 (default: 1)")
     p.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
@@ -76,6 +83,7 @@ def _agent_parser() -> argparse.ArgumentParser:
 
 def _run_agent(argv: list[str]) -> None:
     from agents.hyperparams import HyperparameterError, load_hyperparams
+    from agents.seeds import parse_seeds, report_line, seed_runs, train_seeds
     from agents.training import TrainRun, train_agent
     parser = _agent_parser()
     args = parser.parse_args(argv)
@@ -85,12 +93,28 @@ def _run_agent(argv: list[str]) -> None:
         run = TrainRun(algo=args.algo, timesteps=args.timesteps, seed=args.seed,
                        n_envs=args.n_envs, config=args.config, resume=args.resume, out=out,
                        log_dir=None if args.no_tensorboard else args.log_dir,
-                       progress_bar=not args.no_progress,
+                       progress_bar=not args.no_progress and args.backend == "local",
                        command="python train.py " + " ".join(shlex.quote(a) for a in argv))
         load_hyperparams(run.config, run.algo)      # bad files fail here, before any work
+        if args.seeds is not None and args.resume is not None:
+            raise ValueError("--resume continues one run; it does not combine with --seeds")
+        runs = [run] if args.seeds is None else seed_runs(run, parse_seeds(args.seeds))
+        # local: the runs one after another in this process; ray: a task per run, no retry
+        # (a retry would start training again from step 0)
+        backend = make_backend(args.backend, workers=1 if args.backend == "local" else None,
+                               address=args.address, threads=args.threads, retries=0,
+                               task_cpus=max(args.threads, args.n_envs))
     except (HyperparameterError, ValueError) as exc:
         parser.exit(2, f"train.py: error: {exc}\n")
-    train_agent(run, report=lambda line: print(line, flush=True))
+    if args.backend == "local" and args.seeds is None:
+        train_agent(run, report=report_line)        # the single run of --seed, as always
+        return
+    failed = [(r, error) for r, _, error in train_seeds(runs, backend) if error is not None]
+    for r, error in failed:
+        print(f"seed {r.seed} failed:\n{error}", file=sys.stderr)
+    if failed:
+        parser.exit(1, f"train.py: {len(failed)} of {len(runs)} run(s) failed: seed(s) "
+                       f"{', '.join(str(r.seed) for r, _ in failed)}\n")
 
 
 def main(argv: list[str] | None = None) -> None:

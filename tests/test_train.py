@@ -153,3 +153,59 @@ def test_integer_keys_reach_the_algorithm_as_integers(tmp_path: Path):
     hp = load_hyperparams(path, "td3-lstm")
     assert hp["batch_size"] == 32 and isinstance(hp["batch_size"], int)
     assert isinstance(hp["learning_rate"], float)
+
+
+def test_seeds_train_one_run_each_in_its_own_folders(tiny: Path, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture):
+    out, tb = tmp_path / "runs", tmp_path / "tb"
+    train_script.main(["--config", str(tiny), "--timesteps", "20", "--seeds", "3,5",
+                       "--out", str(out), "--log-dir", str(tb), "--no-progress"])
+    for seed in (3, 5):
+        assert RecurrentTD3.load(out / f"seed{seed}" / "final.zip").num_timesteps == 20
+        assert yaml.safe_load((out / f"seed{seed}" / "run.yml").read_text())["seed"] == seed
+        (run,) = tb.glob(f"td3-lstm_seed{seed}_*")
+        assert list(run.glob("events.out.tfevents*"))
+    assert sorted(p.name for p in out.iterdir()) == ["seed3", "seed5"]
+    assert "seed 5: done" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("text, seeds", [
+    ("0-4", [0, 1, 2, 3, 4]), ("0,2,5", [0, 2, 5]), ("7", [7]), (" 0-1, 9 ", [0, 1, 9]),
+])
+def test_parse_seeds(text: str, seeds: list[int]):
+    from agents.seeds import parse_seeds
+    assert parse_seeds(text) == seeds
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seeds", "4-1"], "--seeds '4-1': expected non-negative integers as a range A-B"),
+    (["--seeds", "0,x"], "--seeds '0,x': expected"),
+    (["--seeds", "-1"], "--seeds '-1': expected"),
+    (["--seeds", "0-2,1"], "--seeds '0-2,1': seed(s) 1 given twice"),
+    (["--seeds", "0-1", "--seed", "3"], "--seed: not allowed with argument --seeds"),
+    (["--seeds", "0-1", "--resume", "x.zip"], "--resume continues one run"),
+    (["--address", "auto"], "--address names a Ray cluster; it needs --backend ray"),
+    (["--backend", "cloud"], "argument --backend: invalid choice: 'cloud'"),
+])
+def test_bad_seed_and_backend_options_are_usage_errors(tiny: Path, tmp_path: Path, argv,
+                                                       message, capsys: pytest.CaptureFixture,
+                                                       monkeypatch: pytest.MonkeyPatch):
+    (tmp_path / "x.zip").write_bytes(b"")                  # a model file for --resume
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["--config", str(tiny), "--out", str(tmp_path / "out"),
+                           "--no-progress", *argv])
+    assert exit_.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_backend_ray_without_ray_says_how_to_install(tiny: Path, tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch,
+                                                     capsys: pytest.CaptureFixture):
+    monkeypatch.setitem(sys.modules, "ray", None)           # `import ray` fails
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["--config", str(tiny), "--seeds", "0-1", "--backend", "ray",
+                           "--out", str(tmp_path / "out"), "--no-progress"])
+    assert exit_.value.code == 2
+    assert "--backend ray needs Ray: pip install -e '.[ray]'" in capsys.readouterr().err

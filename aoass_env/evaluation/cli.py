@@ -8,13 +8,13 @@ Exit status: 0 done, 1 some episodes failed (the others are written), 2 bad inpu
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
 import torch
 
 from aoass_env.atomic import write_text_atomic
+from aoass_env.backends import BackendError, add_backend_arguments, make_backend
 from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, RunOptions, select_methods
 from aoass_env.evaluation.report import (
     draw_figures,
@@ -55,8 +55,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f"localizers (default: {' '.join(DEFAULT_LOCALIZERS)})")
     parser.add_argument("--seeds", type=int, metavar="S",
                         help="seeds 0..S-1 per grid point (default: the preset's)")
-    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, metavar="W",
-                        help="worker processes (default: all cores)")
+    parser.add_argument("--workers", type=int, metavar="W",
+                        help="worker processes (default: all cores); with --backend ray and no "
+                             "--address, the CPUs of the local Ray instance")
+    add_backend_arguments(parser, "episode", "--workers processes")
     parser.add_argument("--out", type=Path, metavar="DIR",
                         help="output folder (default: out/<preset>, with --logs out/localized)")
     parser.add_argument("--save-logs", action="store_true",
@@ -88,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.seeds is not None and args.seeds < 1:
             raise EvaluationError(f"--seeds must be at least 1, got {args.seeds}")
-        if args.workers < 1:
+        if args.workers is not None and args.workers < 1:
             raise EvaluationError(f"--workers must be at least 1, got {args.workers}")
         localizers = _check_localizers(_names(args.localizers))
         preset = PRESETS[args.preset]
@@ -97,23 +99,25 @@ def main(argv: list[str] | None = None) -> int:
                 raise EvaluationError("--logs localizes every log in its folder; --methods, "
                                       "--seeds and --save-logs do not apply")
             out = args.out or Path("out") / "localized"
-            jobs = log_jobs(args.logs, localizers)
+            jobs = log_jobs(args.logs.resolve(), localizers)
             title = f"AOASS evaluation: beacon logs of {args.logs}"
         else:
             methods = select_methods(_names(args.methods), args.policy)
             out = args.out or Path("out") / preset.name
             jobs = episode_jobs(preset, methods, localizers, args.seeds)
             title = f"AOASS evaluation: preset {preset.name}"
+        backend = make_backend(args.backend, workers=args.workers, address=args.address)
         store = EpisodeStore(out / "episodes.csv")
-    except EvaluationError as exc:
+    except (EvaluationError, BackendError) as exc:
         parser.error(str(exc))
 
     torch.set_num_threads(1)
+    # absolute paths: the workers of a Ray cluster may run in another folder
+    options = RunOptions(policy=str(args.policy.resolve()))
+    log_dir = (out / "logs").resolve() if args.save_logs else None
     with store:
         try:
-            report = run_jobs(jobs, store, workers=args.workers,
-                              options=RunOptions(policy=str(args.policy)),
-                              log_dir=out / "logs" if args.save_logs else None,
+            report = run_jobs(jobs, store, backend=backend, options=options, log_dir=log_dir,
                               progress=not args.no_progress,
                               desc=args.logs.name if args.logs else preset.name)
         except KeyboardInterrupt:
@@ -125,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     notes = ("" if args.logs else f"{preset.description}. ") + (
         f"This run: {report.finished} episode(s) finished, {report.skipped} already in "
         f"episodes.csv, {len(report.failed)} failed; wall time {report.wall_seconds:.0f} s on "
-        f"{args.workers} worker(s). Maps from maps/test, the k maps of each field size and "
+        f"{backend.description}. Maps from maps/test, the k maps of each field size and "
         f"density taken in turn by seed (seed s: map s mod k), the episode's random generator "
         f"seeded with s. Mean wall seconds per episode (simulation + localizers): "
         + ", ".join(f"{label(m)} {s:.1f}" for m, s in timing.items()) + ".")

@@ -20,8 +20,9 @@ from typing import Any
 
 from aoass_env.atomic import write_text_atomic
 
-__all__ = ["COLUMNS", "EPISODE_FIELDS", "KEY_FIELDS", "LOCALIZATION_FIELDS", "EpisodeKey",
-           "EpisodeStore", "EvaluationError", "read_episodes", "row_key"]
+__all__ = ["COLUMNS", "EPISODE_FIELDS", "KEY_FIELDS", "LOCALIZATION_FIELDS", "TIMING_FIELDS",
+           "EpisodeKey", "EpisodeStore", "EvaluationError", "comparable_lines", "read_episodes",
+           "row_key"]
 
 
 class EvaluationError(ValueError):
@@ -56,6 +57,8 @@ EPISODE_FIELDS = ("coverage", "beacons", "path_length", "ideal_length", "travel_
                   "collisions_moving", "energy_total", "e_norm", "eer", "path_complete",
                   "safety_intervention", "wall_seconds")
 COLUMNS = KEY_FIELDS + LOCALIZATION_FIELDS + EPISODE_FIELDS
+#: The wall-clock columns: they differ between any two runs of the same episode.
+TIMING_FIELDS = ("localize_seconds", "wall_seconds")
 _TEXT = ("method", "map", "localizer")
 _INTEGER = ("n_nodes", "seed", "beacons", "collisions", "collisions_static",
             "collisions_moving", "path_complete")
@@ -128,6 +131,21 @@ def read_episodes(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
     warning)."""
     path = Path(path)
     return _split_complete(path, path.read_text(encoding="utf-8"))[0]
+
+
+def comparable_lines(path: str | os.PathLike[str]) -> set[str]:
+    """The lines of an ``episodes.csv``, header included, without the :data:`TIMING_FIELDS`
+    cells: the same set for two runs of the same episodes, in any order, on any backend."""
+    with open(path, encoding="utf-8", newline="") as f:
+        records = list(csv.reader(f))
+    keep = [i for i, name in enumerate(records[0]) if name not in TIMING_FIELDS]
+    return {_csv_line([record[i] for i in keep]) for record in records}
+
+
+def _csv_line(cells: list[str]) -> str:
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(cells)
+    return buf.getvalue()
 
 
 class EpisodeStore:

@@ -7,33 +7,34 @@ density taken in turn) with the random generator seeded by ``s`` alone, so every
 same map and nodes for the same seed, and the result depends on the key only -- not on the
 worker count or the order of the episodes.
 
-:func:`run_jobs` skips the (episode, localizer) pairs already in ``episodes.csv`` and appends
+:func:`run_jobs` skips the (episode, localizer) pairs already in ``episodes.csv``, runs the
+others on a backend (:mod:`aoass_env.backends`: local worker processes, or Ray tasks) and appends
 each finished episode's rows as soon as it arrives, so an interrupted sweep resumes where it
-stopped.
+stopped. This process is the only writer of ``episodes.csv``, whatever the backend.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import time
-import traceback
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
-from multiprocessing import Pool
 from pathlib import Path
 from typing import Any
 
-import torch
 from tqdm import tqdm
 
+from aoass_env.backends import Backend, LocalBackend, set_threads
 from aoass_env.beacon_log import BeaconLogError
 from aoass_env.evaluation.episode import localize_log, log_key, run_episode
 from aoass_env.evaluation.methods import RunOptions
 from aoass_env.evaluation.store import EpisodeKey, EpisodeStore, EvaluationError
 from aoass_env.maps import list_maps
 
-__all__ = ["PRESETS", "Job", "Preset", "SweepReport", "episode_jobs", "log_jobs", "run_jobs"]
+__all__ = ["PRESETS", "Job", "Preset", "SweepReport", "episode_jobs", "job_rows", "log_jobs",
+           "run_jobs"]
 
 
 @dataclass(frozen=True)
@@ -133,27 +134,21 @@ def log_jobs(folder: Path, localizers: tuple[str, ...]) -> list[Job]:
     return list(jobs.values())
 
 
-def _init_worker() -> None:
-    torch.set_num_threads(1)     # small networks: one thread each, the processes share cores
-
-
-def _work(job: Job, options: RunOptions, log_dir: Path | None
-          ) -> tuple[Job, list[dict[str, Any]] | None, str | None]:
-    """(job, rows, None), or (job, None, traceback) when the episode failed."""
-    try:
-        if job.log is not None:
-            return job, localize_log(job.log, job.localizers), None
-        return job, run_episode(job.key, job.localizers, options, log_dir), None
-    except Exception:  # one failed episode is reported; the sweep goes on
-        return job, None, traceback.format_exc()
+def job_rows(job: Job, options: RunOptions, log_dir: Path | None) -> list[dict[str, Any]]:
+    """The ``episodes.csv`` rows of ``job`` (run on a backend's worker; raises when the episode
+    fails, so that a Ray task is retried)."""
+    if job.log is not None:
+        return localize_log(job.log, job.localizers)
+    return run_episode(job.key, job.localizers, options, log_dir)
 
 
 def run_jobs(jobs: list[Job], store: EpisodeStore, *, workers: int = 1,
-             options: RunOptions | None = None, log_dir: Path | None = None,
-             progress: bool = True, desc: str = "episodes") -> SweepReport:
-    """Run the jobs not yet in ``store`` in ``workers`` processes (1: in this process), appending
-    each episode's rows as it finishes; a progress bar shows finished, skipped and failed
-    counts. Sets this process's torch threads to 1."""
+             backend: Backend | None = None, options: RunOptions | None = None,
+             log_dir: Path | None = None, progress: bool = True,
+             desc: str = "episodes") -> SweepReport:
+    """Run the jobs not yet in ``store`` on ``backend`` (default: ``workers`` local processes;
+    1: in this process), appending each episode's rows as it finishes; a progress bar shows
+    finished, skipped and failed counts. Sets this process's torch threads to 1."""
     t0 = time.perf_counter()
     report = SweepReport()
     todo = []
@@ -163,16 +158,13 @@ def run_jobs(jobs: list[Job], store: EpisodeStore, *, workers: int = 1,
             todo.append(replace(job, localizers=missing))
         else:
             report.skipped += 1
-    _init_worker()
-    work = functools.partial(_work, options=options or RunOptions(), log_dir=log_dir)
+    set_threads(1)
+    backend = backend or LocalBackend(workers)
+    work = functools.partial(job_rows, options=options or RunOptions(), log_dir=log_dir)
     with tqdm(total=len(todo), desc=desc, unit="episode", disable=not progress,
               dynamic_ncols=True) as bar:
         bar.set_postfix(finished=0, skipped=report.skipped, failed=0)
-        pool = (Pool(min(workers, len(todo)), initializer=_init_worker)
-                if workers > 1 and len(todo) > 1 else None)
-        try:
-            results = (pool.imap_unordered(work, todo) if pool is not None
-                       else map(work, todo))
+        with contextlib.closing(backend.run(work, todo)) as results:
             for job, rows, error in results:
                 if rows is not None:
                     store.append(rows)
@@ -183,9 +175,5 @@ def run_jobs(jobs: list[Job], store: EpisodeStore, *, workers: int = 1,
                 bar.update()
                 bar.set_postfix(finished=report.finished, skipped=report.skipped,
                                 failed=len(report.failed))
-        finally:
-            if pool is not None:
-                pool.terminate()
-                pool.join()
     report.wall_seconds = time.perf_counter() - t0
     return report

@@ -2,6 +2,7 @@
 
 import csv
 import math
+import sys
 
 import pytest
 
@@ -91,6 +92,7 @@ def test_unwritable_output_folder_fails_before_any_work(capsys, tmp_path):
     (["--workers", "0"], "--workers must be at least 1"),
     (["--logs", "/nonexistent-folder"], "no such folder"),
     (["--logs", ".", "--seeds", "2"], "do not apply"),
+    (["--address", "auto"], "--address names a Ray cluster; it needs --backend ray"),
 ])
 def test_bad_values_are_usage_errors(capsys, tmp_path, argv, message):
     assert message in _usage_error(capsys, [*argv, "--out", str(tmp_path)])
@@ -101,3 +103,11 @@ def test_a_file_that_is_no_beacon_log_is_a_usage_error(capsys, tmp_path):
     (tmp_path / "logs" / "broken.npz").write_bytes(b"not a zip")
     err = _usage_error(capsys, ["--logs", str(tmp_path / "logs"), "--out", str(tmp_path)])
     assert "broken.npz" in err and "not an .npz archive" in err
+
+
+def test_backend_ray_without_ray_says_how_to_install(capsys, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)           # `import ray` fails
+    err = _usage_error(capsys, ["--preset", "smoke", "--methods", "spiral", "--backend", "ray",
+                                "--out", str(tmp_path / "out")])
+    assert "--backend ray needs Ray: pip install -e '.[ray]'" in err
+    assert not (tmp_path / "out").exists()

@@ -6,9 +6,11 @@ import pytest
 
 from aoass_env.evaluation.store import (
     COLUMNS,
+    TIMING_FIELDS,
     EpisodeKey,
     EpisodeStore,
     EvaluationError,
+    comparable_lines,
     read_episodes,
 )
 
@@ -85,3 +87,10 @@ def test_a_folder_that_cannot_be_created_is_an_error(tmp_path):
     (tmp_path / "file").write_text("")
     with pytest.raises(EvaluationError, match="cannot write the output folder"):
         EpisodeStore(tmp_path / "file" / "sub" / "episodes.csv")
+
+
+def test_comparable_lines_leave_out_the_timings(tmp_path):
+    path = tmp_path / "episodes.csv"
+    path.write_text("method,localize_seconds,rmse,wall_seconds\nscan,0.5,\"1,5\",2.0\n")
+    assert TIMING_FIELDS == ("localize_seconds", "wall_seconds")
+    assert comparable_lines(path) == {"method,rmse\n", 'scan,"1,5"\n'}

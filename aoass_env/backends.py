@@ -1,0 +1,264 @@
+"""Where independent pieces of work run: local processes (the default) or a Ray cluster.
+
+A backend maps a function over items and yields ``(item, result, None)`` or
+``(item, None, traceback)`` as each piece finishes, in completion order. The caller (this
+process) consumes the results and stays the only writer of its output files; only the work
+moves. ``evaluate.py`` runs its episodes through a backend, ``train.py --seeds`` its training
+runs (docs/cluster.md).
+
+* :class:`LocalBackend`: ``workers`` processes of a :class:`multiprocessing.Pool`, or this
+  process alone when ``workers`` is 1.
+* :class:`RayBackend`: one Ray task per item on a cluster (``address``) or on a local Ray
+  instance started here. A task that raises, or whose worker dies, is retried ``retries``
+  times by Ray; then its failure is yielded like any other.
+
+Ray is an optional dependency (``pip install -e '.[ray]'``), imported only by
+:func:`require_ray`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import multiprocessing
+import os
+import re
+import traceback
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any, Protocol, TypeVar
+
+import torch
+
+__all__ = ["BACKENDS", "Backend", "BackendError", "LocalBackend", "RayBackend",
+           "add_backend_arguments", "init_ray", "make_backend", "require_ray", "set_threads"]
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+#: Names accepted by ``--backend``.
+BACKENDS = ("local", "ray")
+#: How to install the optional Ray dependency.
+RAY_INSTALL = "pip install -e '.[ray]'"
+#: Ray retries of a failed task (an exception, or its worker died) before it is reported.
+RAY_RETRIES = 2
+
+#: Seconds to wait for cancelled Ray tasks to stop when the caller stops early.
+_CANCEL_WAIT = 10.0
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+class BackendError(ValueError):
+    """A backend that cannot be used: Ray missing, a cluster that cannot be reached, bad
+    settings."""
+
+
+class Backend(Protocol):
+    """Runs ``fn`` on each item; yields ``(item, result, None)`` or ``(item, None, traceback)``
+    in completion order. Closing the iterator early stops the outstanding work."""
+
+    @property
+    def description(self) -> str:
+        """Where the work runs, for reports."""
+
+    def run(self, fn: Callable[[T], R], items: Sequence[T]
+            ) -> Iterator[tuple[T, R | None, str | None]]: ...
+
+
+def set_threads(threads: int) -> None:
+    """Torch threads of this process (small networks: one each, the processes share cores)."""
+    torch.set_num_threads(threads)
+
+
+def _attempt(fn: Callable[[T], R], item: T) -> tuple[T, R | None, str | None]:
+    """``(item, fn(item), None)``, or ``(item, None, traceback)`` when ``fn`` raised."""
+    try:
+        return item, fn(item), None
+    except Exception:  # one failed item is reported; the others go on
+        return item, None, traceback.format_exc()
+
+
+class LocalBackend:
+    """``workers`` processes on this machine, each with ``threads`` torch threads; with one
+    worker (or one item) the items run one after another in this process, which keeps its
+    own thread setting.
+
+    Raises:
+        BackendError: ``workers`` or ``threads`` below 1.
+    """
+
+    def __init__(self, workers: int = 1, *, threads: int = 1) -> None:
+        for name, value in (("workers", workers), ("threads", threads)):
+            if value < 1:
+                raise BackendError(f"{name} must be at least 1, got {value}")
+        self.workers = workers
+        self.threads = threads
+
+    @property
+    def description(self) -> str:
+        return (f"{self.workers} local worker process(es)" if self.workers > 1
+                else "this process")
+
+    def run(self, fn: Callable[[T], R], items: Sequence[T]
+            ) -> Iterator[tuple[T, R | None, str | None]]:
+        guarded = functools.partial(_attempt, fn)
+        if self.workers == 1 or len(items) <= 1:
+            yield from map(guarded, items)
+            return
+        pool = multiprocessing.Pool(min(self.workers, len(items)), initializer=set_threads,
+                                    initargs=(self.threads,))
+        try:
+            yield from pool.imap_unordered(guarded, items)
+        finally:
+            pool.terminate()
+            pool.join()
+
+
+def require_ray() -> Any:
+    """The ``ray`` module.
+
+    Raises:
+        BackendError: Ray is not installed; the message says how to install it.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise BackendError(f"--backend ray needs Ray: {RAY_INSTALL}") from None
+    return ray
+
+
+def init_ray(address: str | None = None, num_cpus: int | None = None) -> None:
+    """Connect this process to Ray, unless it already is (then nothing changes).
+
+    Args:
+        address: a running cluster: ``auto`` (the one started on this machine with
+            ``ray start``) or ``HOST:PORT`` of its head. None: ``$RAY_ADDRESS`` when set (as in
+            ``ray job submit``), else a new local Ray instance of ``num_cpus`` CPUs (default: all
+            cores), stopped when this process exits.
+        num_cpus: CPUs of a new local instance; not allowed with a cluster ``address``.
+
+    Raises:
+        BackendError: Ray is missing, ``num_cpus`` is given with an address or is below 1, or
+            the cluster cannot be reached.
+    """
+    ray = require_ray()
+    if ray.is_initialized():
+        return
+    address = address or os.environ.get("RAY_ADDRESS") or None
+    if num_cpus is not None and (address is not None or num_cpus < 1):
+        raise BackendError(f"num_cpus={num_cpus} sets the size of a new local Ray instance: "
+                           f"at least 1, and only without an address (got {address!r})")
+    try:
+        if address is None:
+            ray.init(address="local", num_cpus=num_cpus, include_dashboard=False)
+        else:
+            ray.init(address=address)
+    except ConnectionError as exc:
+        raise BackendError(f"cannot reach the Ray cluster at --address {address}: {exc}; start "
+                           f"one with `ray start --head`, or leave out --address to start a "
+                           f"local Ray instance") from None
+
+
+def _ray_task(fn: Callable[[T], R], item: T, threads: int) -> R:
+    """The body of a Ray task: ``fn(item)`` with ``threads`` torch threads. Raises what ``fn``
+    raises, so that Ray retries it."""
+    set_threads(threads)
+    return fn(item)
+
+
+class RayBackend:
+    """One Ray task per item, each with ``task_cpus`` CPUs and ``threads`` torch threads.
+
+    Connects to Ray on construction (:func:`init_ray` with ``address`` and ``num_cpus``). A
+    task that raises, or whose worker process or node dies, is run again up to ``retries``
+    times; after that its last error is yielded as the item's failure. Items, ``fn`` and the
+    results travel by pickle: ``fn`` must be importable on the workers (the package installed
+    there) and the paths it opens must exist there.
+
+    Raises:
+        BackendError: Ray is missing or unreachable, or a setting is out of range.
+    """
+
+    def __init__(self, address: str | None = None, *, num_cpus: int | None = None,
+                 retries: int = RAY_RETRIES, task_cpus: float = 1.0, threads: int = 1) -> None:
+        if retries < 0:
+            raise BackendError(f"retries must be at least 0, got {retries}")
+        if task_cpus <= 0 or threads < 1:
+            raise BackendError(f"task_cpus must be positive and threads at least 1, got "
+                               f"task_cpus={task_cpus}, threads={threads}")
+        init_ray(address, num_cpus)
+        self.retries = retries
+        self.task_cpus = task_cpus
+        self.threads = threads
+
+    @property
+    def description(self) -> str:
+        ray = require_ray()
+        cpus = ray.cluster_resources().get("CPU", 0)
+        nodes = sum(1 for node in ray.nodes() if node.get("Alive"))
+        return f"Ray ({cpus:g} CPU(s) on {nodes} node(s))"
+
+    def _failure(self, exc: BaseException) -> str:
+        """The report of a task that failed on every attempt: the last attempt's traceback
+        (Ray's text, which names the worker's pid and node)."""
+        return (f"failed on Ray after {self.retries + 1} attempt(s); the last one "
+                f"({type(exc).__name__}):\n" + _ANSI.sub("", str(exc)))
+
+    def run(self, fn: Callable[[T], R], items: Sequence[T]
+            ) -> Iterator[tuple[T, R | None, str | None]]:
+        ray = require_ray()
+        task = ray.remote(_ray_task).options(num_cpus=self.task_cpus, max_retries=self.retries,
+                                             retry_exceptions=True)
+        fn_ref = ray.put(fn)
+        pending = {task.remote(fn_ref, item, self.threads): item for item in items}
+        try:
+            while pending:
+                ready, _ = ray.wait(list(pending), num_returns=1)
+                for ref in ready:
+                    item = pending.pop(ref)
+                    try:
+                        outcome = (item, ray.get(ref), None)
+                    except Exception as exc:  # the task failed on every attempt
+                        outcome = (item, None, self._failure(exc))
+                    yield outcome
+        finally:
+            if pending:                  # stopped early (Ctrl-C, an error in the caller)
+                for ref in pending:
+                    ray.cancel(ref)
+                # let the cancellations settle: Ray can abort when this process exits while
+                # they are in flight
+                ray.wait(list(pending), num_returns=len(pending), timeout=_CANCEL_WAIT)
+
+
+def make_backend(name: str, *, workers: int | None = None, address: str | None = None,
+                 threads: int = 1, task_cpus: float = 1.0, retries: int = RAY_RETRIES
+                 ) -> LocalBackend | RayBackend:
+    """The backend called ``name`` (``--backend``): ``local`` with ``workers`` processes
+    (default: all cores), or ``ray`` at ``address`` (``workers``: the CPUs of a new local Ray
+    instance; default all cores).
+
+    Raises:
+        BackendError: an unknown name, ``--address`` with the local backend, ``--workers``
+            with a cluster address, Ray missing or unreachable.
+    """
+    if name not in BACKENDS:
+        raise BackendError(f"--backend {name!r} is not one of {', '.join(BACKENDS)}")
+    if name == "local":
+        if address is not None:
+            raise BackendError("--address names a Ray cluster; it needs --backend ray")
+        return LocalBackend(workers or os.cpu_count() or 1, threads=threads)
+    if workers is not None and (address or os.environ.get("RAY_ADDRESS")):
+        raise BackendError("--workers sets the CPUs of a local Ray instance; a cluster "
+                           "(--address or $RAY_ADDRESS) runs one task per CPU it has")
+    return RayBackend(address, num_cpus=workers, retries=retries, task_cpus=task_cpus,
+                      threads=threads)
+
+
+def add_backend_arguments(parser: argparse.ArgumentParser, unit: str, local: str) -> None:
+    """Add ``--backend`` and ``--address`` to ``parser``; for the help, ``unit`` names what one
+    Ray task runs and ``local`` says how the local backend runs them."""
+    parser.add_argument("--backend", choices=BACKENDS, default="local",
+                        help=f"local (default): {local}; ray: one Ray task per {unit} "
+                             f"(docs/cluster.md)")
+    parser.add_argument("--address", metavar="ADDR",
+                        help="with --backend ray: the cluster, 'auto' or HOST:PORT (default: "
+                             "$RAY_ADDRESS, else a new local Ray instance)")
