@@ -248,26 +248,35 @@ class RecurrentTD3(TD3):
         episode ``next_o_t = o_{t+1}``, so their output at ``t + 1`` sums the history up to the
         next observation. ``a'`` is the target actor's action plus clipped Gaussian noise.
         """
+        batch, length = data.rewards.shape
         with th.no_grad():
+            returns, discount, last = self._n_step_parts(data.rewards, data.mask)
+            chosen = th.ones_like(data.mask, dtype=th.bool) if select is None else select
+            # The heads run only where a selected target bootstraps: (rows, cols) of Q'.
+            rows = th.arange(batch, device=last.device)[:, None].expand_as(last)[chosen]
+            cols = last[chosen]
             obs = th.cat([data.observations[:, :1], data.next_observations], dim=1)
             prev = th.cat([data.prev_actions[:, :1], data.actions], dim=1)
             actor_memory, _ = self.actor_target.memory(obs, prev)
-            next_actions = self.actor_target.act(actor_memory[:, 1:])
+            next_actions = self.actor_target.act(actor_memory[:, 1:][rows, cols])
             if self.target_policy_noise > 0:
                 noise = th.randn_like(next_actions) * self.target_policy_noise
                 next_actions = next_actions + noise.clamp(-self.target_noise_clip,
                                                           self.target_noise_clip)
             next_actions = next_actions.clamp(-1, 1)
             memories = self.critic_target.memory(obs, prev)
-            next_q = th.stack([self.critic_target.q_value(i, m[:, 1:], next_actions)
+            next_q = th.stack([self.critic_target.q_value(i, m[:, 1:][rows, cols], next_actions)
                                for i, m in enumerate(memories)]).min(dim=0).values
-            targets = self._n_step_returns(data.rewards, data.dones, data.mask, next_q)
-            return targets if select is None else targets[select]
+            targets = (returns[chosen]
+                       + discount[chosen] * (1.0 - data.dones[rows, cols]) * next_q)
+            return targets.view(batch, length) if select is None else targets
 
-    def _n_step_returns(self, rewards: th.Tensor, dones: th.Tensor, mask: th.Tensor,
-                        next_q: th.Tensor) -> th.Tensor:
-        """``G_t`` of :meth:`_critic_targets` from (B, L) rewards, dones, valid mask and
-        ``Q'_t``; positions past the valid steps hold meaningless values."""
+    def _n_step_parts(self, rewards: th.Tensor, mask: th.Tensor
+                      ) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+        """Per (B, L) window position t of :meth:`_critic_targets`: the discounted reward sum
+        ``sum_{k<m} gamma^k r_{t+k}``, the bootstrap discount ``gamma^m`` and the index
+        ``t + m - 1`` of the step whose ``Q'`` it bootstraps from, with
+        ``m = min(n_steps, valid steps from t on)``; meaningless past the valid steps."""
         length = rewards.shape[1]
         t = th.arange(length, device=rewards.device)[None, :]
         left = mask.sum(dim=1, keepdim=True).long() - t  # valid steps from t on
@@ -276,9 +285,7 @@ class RecurrentTD3(TD3):
         for k in range(self.n_steps):
             r_k = rewards.gather(1, (t + k).clamp(max=length - 1).expand_as(rewards))
             returns = returns + (k < m) * self.gamma**k * r_k
-        last = (t + m - 1).clamp(max=length - 1)
-        bootstrap = (1.0 - dones.gather(1, last)) * next_q.gather(1, last)
-        return returns + self.gamma**m * bootstrap
+        return returns, self.gamma**m, (t + m - 1).clamp(max=length - 1).expand_as(rewards)
 
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
         """``gradient_steps`` TD3 updates on windows sampled from the sequence buffer; the MLP

@@ -169,18 +169,24 @@ def _n_step_reference(rewards, dones, valid, next_q, gamma, n):
     return out
 
 
+def _targets(model: RecurrentTD3, rewards, dones, mask, next_q) -> th.Tensor:
+    """The targets of ``model._n_step_parts`` for given (B, L) values ``Q'_t``."""
+    returns, discount, last = model._n_step_parts(rewards, mask)
+    return returns + discount * (1.0 - dones.gather(1, last)) * next_q.gather(1, last)
+
+
 def test_n_step_returns_by_hand() -> None:
     model = _model(1, gamma=0.5, n_steps=3)
     rewards = th.tensor([[1.0, 2.0, 3.0, 4.0, 5.0]])
     next_q = th.tensor([[10.0, 20.0, 30.0, 40.0, 50.0]])
     mask, no_done = th.ones(1, 5), th.zeros(1, 5)
-    g = model._n_step_returns(rewards, no_done, mask, next_q)[0]
+    g = _targets(model, rewards, no_done, mask, next_q)[0]
     assert g[0].item() == pytest.approx(1 + 0.5 * 2 + 0.25 * 3 + 0.125 * 30)
     assert g[3].item() == pytest.approx(4 + 0.5 * 5 + 0.25 * 50)  # 2 steps left in the window
     assert g[4].item() == pytest.approx(5 + 0.5 * 50)
     # A terminal last valid step (index 3; index 4 is padding): no bootstrap past it.
     done, short = th.tensor([[0.0, 0.0, 0.0, 1.0, 0.0]]), th.tensor([[1.0, 1, 1, 1, 0]])
-    g = model._n_step_returns(rewards * short, done, short, next_q)[0]
+    g = _targets(model, rewards * short, done, short, next_q)[0]
     assert g[2].item() == pytest.approx(3 + 0.5 * 4)
     assert g[1].item() == pytest.approx(2 + 0.5 * 3 + 0.25 * 4)
 
@@ -200,7 +206,7 @@ def test_n_step_returns_match_the_definition(n: int, valid: int, terminal: bool,
     mask = (np.arange(length) < valid).astype(np.float32)
     model = _shared_model()
     model.gamma, model.n_steps = gamma, n
-    got = model._n_step_returns(*(th.as_tensor(x)[None] for x in (rewards, dones, mask, next_q)))
+    got = _targets(model, *(th.as_tensor(x)[None] for x in (rewards, dones, mask, next_q)))
     want = _n_step_reference(rewards, dones, valid, next_q, gamma, n)
     np.testing.assert_allclose(got[0, :valid].numpy(), want, rtol=1e-4, atol=1e-4)
 
@@ -227,6 +233,12 @@ def test_one_step_targets_do_not_depend_on_the_window_end() -> None:
     valid = data.mask.bool()
     th.testing.assert_close(t1[valid], expected[valid])
     assert not th.allclose(t1[valid], t3[valid])
+    # The n-step targets bootstrap from the same Q' (heads evaluated only where needed) ...
+    th.testing.assert_close(t3[valid], _targets(many, data.rewards, data.dones, data.mask,
+                                                q)[valid])
+    # ... and a selection gives the same values as the full window.
+    select = data.loss_mask.bool()
+    th.testing.assert_close(many._critic_targets(data, select), t3[select])
     # The last valid step of each window has no step left: both agree there.
     last = data.mask.sum(1).long() - 1
     rows = th.arange(4)
