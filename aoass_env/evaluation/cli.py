@@ -23,7 +23,7 @@ from aoass_env.evaluation.report import (
     summary_markdown,
     write_summary_csv,
 )
-from aoass_env.evaluation.store import EpisodeStore, EvaluationError
+from aoass_env.evaluation.store import EpisodeStore, EvaluationError, check_inputs, file_digest
 from aoass_env.evaluation.sweep import PRESETS, episode_jobs, log_jobs, run_jobs
 from aoass_env.localization import METHODS as LOCALIZERS
 from aoass_env.localization.olstm import DEFAULT_CHECKPOINT
@@ -106,8 +106,14 @@ def main(argv: list[str] | None = None) -> int:
             out = args.out or Path("out") / preset.name
             jobs = episode_jobs(preset, methods, localizers, args.seeds)
             title = f"AOASS evaluation: preset {preset.name}"
+        inputs = {}
+        if args.logs is None and any(METHODS[m].uses_policy for m in methods):
+            inputs["policy"] = file_digest(args.policy, args.policy.with_name("run.yml"))
+        if "olstm-dvhop" in localizers:
+            inputs["olstm-dvhop"] = file_digest(DEFAULT_CHECKPOINT)
         backend = make_backend(args.backend, workers=args.workers, address=args.address)
         store = EpisodeStore(out / "episodes.csv")
+        check_inputs(store, inputs)
     except (EvaluationError, BackendError) as exc:
         parser.error(str(exc))
 

@@ -10,7 +10,9 @@ with a warning and removes from the file (rewritten atomically) before anything 
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
+import json
 import math
 import os
 import warnings
@@ -20,9 +22,9 @@ from typing import Any
 
 from aoass_env.atomic import write_text_atomic
 
-__all__ = ["COLUMNS", "EPISODE_FIELDS", "KEY_FIELDS", "LOCALIZATION_FIELDS", "TIMING_FIELDS",
-           "EpisodeKey", "EpisodeStore", "EvaluationError", "comparable_lines", "read_episodes",
-           "row_key"]
+__all__ = ["COLUMNS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS", "LOCALIZATION_FIELDS",
+           "TIMING_FIELDS", "EpisodeKey", "EpisodeStore", "EvaluationError", "check_inputs",
+           "comparable_lines", "file_digest", "read_episodes", "row_key"]
 
 
 class EvaluationError(ValueError):
@@ -146,6 +148,56 @@ def _csv_line(cells: list[str]) -> str:
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerow(cells)
     return buf.getvalue()
+
+
+#: The file beside ``episodes.csv`` that names the checkpoints its rows were produced with.
+INPUTS_FILE = "inputs.json"
+
+
+def file_digest(*paths: str | os.PathLike[str]) -> str:
+    """SHA-256 (hex) of the bytes of ``paths`` in turn; a missing path counts as empty."""
+    digest = hashlib.sha256()
+    for path in paths:
+        digest.update(str(Path(path).name).encode())
+        if Path(path).is_file():
+            digest.update(Path(path).read_bytes())
+    return digest.hexdigest()
+
+
+def check_inputs(store: EpisodeStore, inputs: dict[str, str]) -> None:
+    """Refuse to resume ``store`` with other checkpoints than its rows were produced with.
+
+    ``inputs`` maps a name (``"policy"``, ``"olstm-dvhop"``) to the digest
+    (:func:`file_digest`) of the files that name stands for. They are recorded in
+    :data:`INPUTS_FILE` beside the CSV (written atomically, merged with earlier records; while
+    the CSV has no rows, a new digest simply replaces the recorded one).
+
+    Raises:
+        EvaluationError: the CSV holds rows and the record gives another digest for a name,
+            i.e. resuming would mix episodes of two checkpoints in one table.
+    """
+    record_path = store.path.with_name(INPUTS_FILE)
+    recorded: dict[str, str] = {}
+    if record_path.is_file():
+        try:
+            recorded = dict(json.loads(record_path.read_text(encoding="utf-8")))
+        except (OSError, TypeError, ValueError) as exc:
+            raise EvaluationError(f"{record_path} is unreadable ({exc}); delete it and "
+                                  f"{store.path}, or choose another --out folder") from None
+    if store.rows:
+        changed = [name for name, value in inputs.items()
+                   if recorded.get(name, value) != value]
+        if changed:
+            raise EvaluationError(
+                f"{store.path} holds episodes produced with another {' and '.join(changed)} "
+                f"checkpoint than this run's ({record_path} records its SHA-256); resuming "
+                f"would mix the two in one table. Delete {store.path} (or the folder), or "
+                f"choose another --out folder")
+    try:
+        write_text_atomic(record_path, json.dumps(recorded | inputs, indent=1,
+                                                  sort_keys=True) + "\n")
+    except OSError as exc:
+        raise EvaluationError(f"cannot write {record_path}: {exc.strerror or exc}") from None
 
 
 class EpisodeStore:

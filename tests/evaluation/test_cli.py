@@ -2,6 +2,7 @@
 
 import csv
 import math
+import shutil
 import sys
 
 import pytest
@@ -78,6 +79,23 @@ def test_missing_policy_checkpoint_names_file_and_command(capsys, tmp_path):
                                 "--out", str(tmp_path / "out")])
     assert str(missing) in err and POLICY_COMMAND in err
     assert not (tmp_path / "out").exists()
+
+
+def test_resuming_with_another_policy_fails_before_any_work(smoke_run, capsys, tmp_path):
+    out, _ = smoke_run
+    shutil.copy(out / "episodes.csv", tmp_path / "episodes.csv")
+    first, second = tmp_path / "first.zip", tmp_path / "second.zip"
+    first.write_bytes(b"one policy")
+    second.write_bytes(b"another policy")
+    argv = ["--preset", "smoke", "--methods", "aoass", "--localizers", "dvhop",
+            "--out", str(tmp_path), "--no-progress"]
+    # records first.zip's digest; its episode fails (the dummy is no policy) and is reported
+    assert cli.main([*argv, "--policy", str(first)]) == 1
+    capsys.readouterr()
+    before = (tmp_path / "episodes.csv").read_text()
+    err = _usage_error(capsys, [*argv, "--policy", str(second)])
+    assert "another policy checkpoint" in err and str(tmp_path / "episodes.csv") in err
+    assert (tmp_path / "episodes.csv").read_text() == before
 
 
 def test_unwritable_output_folder_fails_before_any_work(capsys, tmp_path):

@@ -6,11 +6,14 @@ import pytest
 
 from aoass_env.evaluation.store import (
     COLUMNS,
+    INPUTS_FILE,
     TIMING_FIELDS,
     EpisodeKey,
     EpisodeStore,
     EvaluationError,
+    check_inputs,
     comparable_lines,
+    file_digest,
     read_episodes,
 )
 
@@ -94,3 +97,40 @@ def test_comparable_lines_leave_out_the_timings(tmp_path):
     path.write_text("method,localize_seconds,rmse,wall_seconds\nscan,0.5,\"1,5\",2.0\n")
     assert TIMING_FIELDS == ("localize_seconds", "wall_seconds")
     assert comparable_lines(path) == {"method,rmse\n", 'scan,"1,5"\n'}
+
+
+def test_file_digest_follows_the_bytes_and_treats_a_missing_file_as_empty(tmp_path):
+    a, b = tmp_path / "a.zip", tmp_path / "run.yml"
+    a.write_bytes(b"weights")
+    first = file_digest(a, b)
+    assert file_digest(a, b) == first
+    b.write_text("env: {}")
+    assert file_digest(a, b) != first                  # the run record counts too
+    a.write_bytes(b"weights!")
+    assert file_digest(a) != file_digest(tmp_path / "missing.zip")
+
+
+def test_resuming_with_another_checkpoint_is_refused_and_nothing_is_lost(tmp_path):
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        check_inputs(store, {"policy": "aaa", "olstm-dvhop": "bbb"})
+        store.append([row()])
+    record = (tmp_path / INPUTS_FILE).read_text()
+    csv_text = (tmp_path / "episodes.csv").read_text()
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        check_inputs(store, {"policy": "aaa"})             # same policy: resumes
+        check_inputs(store, {"olstm-dvhop": "bbb"})
+        with pytest.raises(EvaluationError, match="another policy checkpoint") as exc:
+            check_inputs(store, {"policy": "ccc", "olstm-dvhop": "bbb"})
+    assert "episodes.csv" in str(exc.value) and "--out" in str(exc.value)
+    assert (tmp_path / INPUTS_FILE).read_text() == record   # the record is kept as it was
+    assert (tmp_path / "episodes.csv").read_text() == csv_text
+
+
+def test_a_new_or_empty_store_records_the_inputs_of_its_run(tmp_path):
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        check_inputs(store, {"policy": "aaa"})
+        check_inputs(store, {"policy": "ccc"})             # no rows yet: nothing to mix
+        check_inputs(store, {"olstm-dvhop": "bbb"})        # merged with the earlier record
+        store.append([row()])
+        with pytest.raises(EvaluationError, match="another policy"):
+            check_inputs(store, {"policy": "aaa"})
