@@ -1,4 +1,4 @@
-"""The reconstructed baselines: OHM, FDPP, M-ANCHORO (docs/baselines.md)."""
+"""The reconstructed baselines: OHM, FDPP, M-ANCHORO, OTPP (docs/baselines.md)."""
 
 from __future__ import annotations
 
@@ -31,14 +31,15 @@ def _episode(name: str, config: AOASSConfig = SMALL, seed: int = 0,
 
 
 def test_registry_labels_and_sources():
-    assert set(BASELINE_METHODS) == {"ohm", "fdpp", "m-anchoro"}
+    assert set(BASELINE_METHODS) == {"ohm", "fdpp", "m-anchoro", "otpp"}
     for name, m in BASELINE_METHODS.items():
         assert m.name == name and m.reconstructed and "(reconstructed)" in m.label
         assert "doi 10." in m.source
     assert BASELINE_METHODS["m-anchoro"].controller is None
+    assert BASELINE_METHODS["otpp"].controller is None
 
 
-@pytest.mark.parametrize("name", ["ohm", "fdpp", "m-anchoro"])
+@pytest.mark.parametrize("name", ["ohm", "fdpp", "m-anchoro", "otpp"])
 def test_small_episode_completes(name):
     sim, ctl = _episode(name)
     assert ctl is None or ctl.done
@@ -48,7 +49,7 @@ def test_small_episode_completes(name):
     assert sim.collisions == 0
 
 
-@pytest.mark.parametrize("name", ["ohm", "fdpp", "m-anchoro"])
+@pytest.mark.parametrize("name", ["ohm", "fdpp", "m-anchoro", "otpp"])
 def test_same_seed_same_path(name):
     a, _ = _episode(name, seed=3)
     b, _ = _episode(name, seed=3)
