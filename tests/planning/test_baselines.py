@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig
-from aoass_env.maps import ObstacleMap
+from aoass_env.maps import ObstacleMap, load_map
 from aoass_env.planning.baselines import BASELINE_METHODS, fdpp, m_anchoro, ohm
 from aoass_env.planning.baselines.common import free_region
 from aoass_env.simulator import Simulator, episode_map
@@ -205,3 +205,20 @@ def test_m_anchoro_pruned_points_still_cover_an_empty_field():
     samples = m_anchoro.free_samples(empty, 1.7)                      # not the pruning grid
     heard = m_anchoro.hearing(pts, samples, empty, config)
     assert m_anchoro.triple_covered(pts, heard, config).all()
+
+
+def test_m_anchoro_keeps_its_points_when_none_covers_a_sample():
+    # two points and one sample: nothing is triple covered, so nothing is redundant; before,
+    # pruning removed every point and a dense map (test/d0.50_f100_s514) had no path at all
+    pts = np.array([[10.0, 10.0], [20.0, 10.0]])
+    heard = np.ones((2, 1), dtype=bool)
+    assert m_anchoro.prune(pts, heard, SMALL).all()
+    assert not m_anchoro.prune(np.vstack([pts, [[10.0, 20.0], [20.0, 20.0]]]),
+                               np.ones((4, 1), dtype=bool), SMALL).all()   # 4th is redundant
+
+
+def test_m_anchoro_plans_a_path_on_the_densest_test_map():
+    omap = load_map("test/d0.50_f100_s514")
+    config = AOASSConfig(field_size=100, n_nodes=100, obstacle_density=0.5)
+    path = m_anchoro.plan(omap, config)
+    assert len(path.waypoints) >= 2 and np.isfinite(path.waypoints).all()

@@ -147,10 +147,14 @@ def restore_coverage(points: np.ndarray, candidates: np.ndarray, heard: np.ndarr
 def prune(points: np.ndarray, heard: np.ndarray, config: AOASSConfig) -> np.ndarray:
     """Mask (P,) of the points kept after greedy removal of redundant ones: a point (fewest
     hearing samples first) goes when every sample it helped cover still hears >= 3
-    non-collinear kept points."""
+    non-collinear kept points. When no sample is covered (a dense map where no free spot hears
+    three lattice points) nothing is pruned: there is no coverage to preserve, and removing
+    every point would leave no path."""
     pts = np.asarray(points).reshape(-1, 2)
     keep = np.ones(len(pts), dtype=bool)
     covered = triple_covered(pts, heard, config)
+    if not covered.any():
+        return keep
     for i in np.argsort(heard.sum(axis=1), kind="stable"):
         affected = heard[i] & covered
         keep[i] = False
