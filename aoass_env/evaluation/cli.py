@@ -23,7 +23,13 @@ from aoass_env.evaluation.report import (
     summary_markdown,
     write_summary_csv,
 )
-from aoass_env.evaluation.store import EpisodeStore, EvaluationError, check_inputs, file_digest
+from aoass_env.evaluation.store import (
+    EpisodeStore,
+    EvaluationError,
+    check_inputs,
+    file_digest,
+    record_run,
+)
 from aoass_env.evaluation.sweep import PRESETS, episode_jobs, log_jobs, run_jobs
 from aoass_env.localization import METHODS as LOCALIZERS
 from aoass_env.localization.olstm import DEFAULT_CHECKPOINT
@@ -130,6 +136,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"\ninterrupted: the finished episodes are in {store.path}; run the same "
                   f"command again to continue", file=sys.stderr)
             return 130
+        record_run(store, {"preset": None if args.logs else preset.name,
+                           "seeds": None if args.logs else args.seeds or preset.seeds,
+                           "finished": report.finished, "skipped": report.skipped,
+                           "failed": len(report.failed), "wall_seconds": report.wall_seconds,
+                           "backend": backend.description})
     rows = store.rows
     timing = seconds_per_episode(rows)
     notes = ("" if args.logs else f"{preset.description}. ") + (

@@ -29,8 +29,8 @@ from aoass_env.evaluation.methods import METHODS
 from aoass_env.evaluation.store import EPISODE_FIELDS, KEY_FIELDS, EpisodeKey, row_key
 from aoass_env.evaluation.sweep import PRESETS
 
-__all__ = ["SUMMARY_METRICS", "ci_stats", "draw_figures", "seconds_per_episode",
-           "summary_markdown", "summarize", "write_summary_csv"]
+__all__ = ["SUMMARY_METRICS", "ci_stats", "draw_figures", "method_stats", "method_table",
+           "seconds_per_episode", "summary_markdown", "summarize", "write_summary_csv"]
 
 #: Metrics of summary.csv: the localization columns, then the episode columns.
 SUMMARY_METRICS = ("rmse", "localized", "localize_seconds") + EPISODE_FIELDS
@@ -119,6 +119,18 @@ def seconds_per_episode(rows: list[dict[str, Any]]) -> dict[str, float]:
     return {m: ci_stats(per[m])[1] for m in _method_order(per)}
 
 
+def method_stats(rows: list[dict[str, Any]], metric: str,
+                 localizer: str = PRIMARY_LOCALIZER) -> dict[str, tuple[int, float, float, float]]:
+    """:func:`ci_stats` of ``metric`` per method over the episodes in ``rows``: an episode
+    column (``coverage``, ``energy_total``, ...), ``seconds``, or ``rmse`` / ``localized`` of
+    ``localizer``."""
+    key = f"{metric}:{localizer}" if metric in ("rmse", "localized") else metric
+    per: dict[str, list[float]] = defaultdict(list)
+    for ep in _episodes(rows).values():
+        per[ep["method"]].append(ep.get(key, math.nan))
+    return {m: ci_stats(per[m]) for m in _method_order(per)}
+
+
 def _cell(values: list[float], fmt: Callable[[float], str]) -> str:
     n, mean, _, ci = ci_stats(values)
     if n == 0:
@@ -154,6 +166,12 @@ def _table(episodes: list[dict[str, Any]], localizers: list[str]) -> str:
         lines.append(f"| {label(method)} | " + " | ".join(f(eps) for _, f in columns)
                      + f" | {len(eps)} |")
     return "\n".join(lines)
+
+
+def method_table(rows: list[dict[str, Any]]) -> str:
+    """The table of summary.md's "All episodes" section for ``rows``: a row per method,
+    mean ± 95 % CI of every metric."""
+    return _table(list(_episodes(rows).values()), _localizers(rows))
 
 
 def summary_markdown(rows: list[dict[str, Any]], title: str, notes: str = "") -> str:

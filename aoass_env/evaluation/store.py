@@ -9,6 +9,7 @@ with a warning and removes from the file (rewritten atomically) before anything 
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import io
@@ -24,7 +25,8 @@ from aoass_env.atomic import write_text_atomic
 
 __all__ = ["COLUMNS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS", "LOCALIZATION_FIELDS",
            "TIMING_FIELDS", "EpisodeKey", "EpisodeStore", "EvaluationError", "check_inputs",
-           "comparable_lines", "file_digest", "read_episodes", "row_key"]
+           "RUNS_FILE", "comparable_lines", "file_digest", "read_episodes", "read_runs",
+           "record_run", "row_key"]
 
 
 class EvaluationError(ValueError):
@@ -198,6 +200,42 @@ def check_inputs(store: EpisodeStore, inputs: dict[str, str]) -> None:
                                                   sort_keys=True) + "\n")
     except OSError as exc:
         raise EvaluationError(f"cannot write {record_path}: {exc.strerror or exc}") from None
+
+
+#: The file beside ``episodes.csv`` with one JSON line per run of evaluate.py on the folder:
+#: what the run did and its wall time (s), so that the time of a resumed sweep adds up.
+RUNS_FILE = "runs.jsonl"
+
+
+def record_run(store: EpisodeStore, record: dict[str, Any]) -> None:
+    """Append ``record`` as one line of :data:`RUNS_FILE` beside ``store`` (one write, synced).
+
+    Raises:
+        EvaluationError: the file cannot be written.
+    """
+    path = store.path.with_name(RUNS_FILE)
+    try:
+        with open(path, "a", encoding="utf-8") as f:
+            f.write(json.dumps(record, sort_keys=True) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as exc:
+        raise EvaluationError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def read_runs(folder: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    """The records of :data:`RUNS_FILE` in ``folder`` (none if it is missing); a line that is
+    not a JSON object (a torn last write) is left out."""
+    path = Path(folder) / RUNS_FILE
+    if not path.is_file():
+        return []
+    records = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        with contextlib.suppress(ValueError):
+            record = json.loads(line)
+            if isinstance(record, dict):
+                records.append(record)
+    return records
 
 
 class EpisodeStore:

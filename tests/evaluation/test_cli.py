@@ -9,7 +9,7 @@ import pytest
 
 from aoass_env.evaluation import cli
 from aoass_env.evaluation.methods import METHODS, POLICY_COMMAND
-from aoass_env.evaluation.store import COLUMNS, read_episodes
+from aoass_env.evaluation.store import COLUMNS, read_episodes, read_runs
 from aoass_env.evaluation.sweep import PRESETS
 from aoass_env.localization import METHODS as LOCALIZERS
 
@@ -47,6 +47,10 @@ def test_smoke_preset_writes_csvs_table_and_logs(smoke_run, capsys):
     assert summary[0]["n"] == "1" and float(summary[0]["rmse_mean"]) == float(row["rmse"])
     assert "Square spiral" in (out / "summary.md").read_text()
     assert len(list((out / "logs" / "spiral").glob("*.npz"))) == 1
+    [run] = read_runs(out)
+    assert (run["preset"], run["seeds"], run["finished"], run["skipped"], run["failed"]) == (
+        "smoke", 1, 1, 0, 0)
+    assert 0 < run["wall_seconds"] < 600
 
 
 def test_logs_mode_localizes_saved_logs(smoke_run, tmp_path):

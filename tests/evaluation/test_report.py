@@ -9,6 +9,8 @@ from scipy import stats
 from aoass_env.evaluation.report import (
     ci_stats,
     draw_figures,
+    method_stats,
+    method_table,
     seconds_per_episode,
     summarize,
     summary_markdown,
@@ -87,3 +89,25 @@ def test_figures_are_drawn_when_their_grid_is_in_the_data(tmp_path, grid, expect
     written = draw_figures(rows_for(["aoass", "spiral", "scan"], **grid), tmp_path)
     assert [p.name for p in written] == expected
     assert all(p.stat().st_size > 10_000 for p in written)
+
+
+def test_method_stats_per_method_and_localizer():
+    rows = rows_for(["spiral", "scan"], seeds=3)
+    # olstm-dvhop RMSE = 1 + seed + method index: seeds 0..2 -> mean 2 (spiral), 3 (scan)
+    rmse = method_stats(rows, "rmse")
+    assert list(rmse) == ["spiral", "scan"]
+    n, mean, std, ci = rmse["spiral"]
+    assert (n, mean, std) == (3, pytest.approx(2.0), pytest.approx(1.0))
+    assert ci == pytest.approx(stats.t.ppf(0.975, 2) / math.sqrt(3))
+    assert method_stats(rows, "rmse", "dvhop")["scan"][1] == pytest.approx(4.0)
+    assert method_stats(rows, "coverage")["scan"][1] == pytest.approx(0.91)
+    # seconds: simulation (2 + index) plus 0.5 s per localizer
+    assert method_stats(rows, "seconds")["scan"][1] == pytest.approx(4.0)
+
+
+def test_method_table_is_the_all_episodes_table():
+    rows = rows_for(["spiral", "scan"], nodes=(100, 200))
+    table = method_table(rows)
+    assert table.splitlines()[0].startswith("| method | RMSE olstm-dvhop [m] (localized)")
+    assert len(table.splitlines()) == 4
+    assert table in summary_markdown(rows, "t").split("## All episodes")[1]

@@ -7,6 +7,7 @@ import pytest
 from aoass_env.evaluation.store import (
     COLUMNS,
     INPUTS_FILE,
+    RUNS_FILE,
     TIMING_FIELDS,
     EpisodeKey,
     EpisodeStore,
@@ -15,6 +16,8 @@ from aoass_env.evaluation.store import (
     comparable_lines,
     file_digest,
     read_episodes,
+    read_runs,
+    record_run,
 )
 
 
@@ -134,3 +137,14 @@ def test_a_new_or_empty_store_records_the_inputs_of_its_run(tmp_path):
         store.append([row()])
         with pytest.raises(EvaluationError, match="another policy"):
             check_inputs(store, {"policy": "aaa"})
+
+
+def test_run_records_append_and_a_torn_line_is_left_out(tmp_path):
+    assert read_runs(tmp_path) == []
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        record_run(store, {"finished": 3, "wall_seconds": 1.5})
+        record_run(store, {"finished": 0, "wall_seconds": 0.25})
+    with (tmp_path / RUNS_FILE).open("a") as f:
+        f.write('{"finished": 7, "wall_')                   # a write cut short
+    assert read_runs(tmp_path) == [{"finished": 3, "wall_seconds": 1.5},
+                                   {"finished": 0, "wall_seconds": 0.25}]
