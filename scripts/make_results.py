@@ -1,0 +1,244 @@
+"""Regenerate docs/results.md: run the benchmark presets and fill the page's template.
+
+Run: ``python3 scripts/make_results.py [--workers W] [--skip-runs]``
+
+1. Runs ``evaluate.py --preset P --seeds S`` for each preset of :data:`SEEDS` into ``out/P``.
+   The sweeps resume: episodes already in ``out/P/episodes.csv`` are not run again, so an
+   interrupted regeneration continues where it stopped.
+2. Reads the episodes back (only the seeds of :data:`SEEDS`, so a folder that holds more seeds
+   gives the same page; the figures are drawn from the same rows) and the wall times that ``evaluate.py`` recorded in ``out/P/runs.jsonl``.
+3. Draws the figures to ``docs/figures/results_<preset>.png`` and writes docs/results.md from
+   ``scripts/results_template.md``: every ``$name`` there is a table, a figure's path or a
+   number computed here (:func:`page_values`), so no number on the page is typed by hand.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import shutil
+import string
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from aoass_env.atomic import write_text_atomic
+from aoass_env.evaluation import cli
+from aoass_env.evaluation.report import draw_figures, label, method_stats, method_table
+from aoass_env.evaluation.store import read_episodes, read_runs
+from aoass_env.evaluation.sweep import PRESETS
+
+ROOT = Path(__file__).resolve().parents[1]
+TEMPLATE = Path(__file__).with_name("results_template.md")
+PAGE = ROOT / "docs" / "results.md"
+FIGURES = ROOT / "docs" / "figures"
+
+#: Seeds per grid point of each preset on the page (the presets' default is 30; see the page).
+SEEDS = {"quick": 1, "fig2": 5, "fig3": 2, "fig4": 10}
+#: The figure of each preset that the page shows.
+FIGURE = {"quick": "fig2.png", "fig2": "fig2.png", "fig3": "fig3.png", "fig4": "fig4.png"}
+
+Rows = list[dict[str, Any]]
+
+
+def run_presets(out: Path, seeds: dict[str, int], workers: int | None) -> None:
+    """``evaluate.py`` for every preset (resumable); exits with its status if one fails."""
+    for preset, n in seeds.items():
+        argv = ["--preset", preset, "--seeds", str(n), "--out", str(out / preset),
+                "--no-progress"] + (["--workers", str(workers)] if workers else [])
+        print(f"== evaluate.py {' '.join(argv)}", flush=True)
+        status = cli.main(argv)
+        if status != 0:
+            sys.exit(f"evaluate.py {' '.join(argv)} exited with {status}; fix it and run "
+                     f"this script again (finished episodes are kept)")
+
+
+def _fmt(value: float, spec: str) -> str:
+    return "–" if not math.isfinite(value) else format(value, spec)
+
+
+class Numbers:
+    """Per-method means and 95 % CIs of one preset's rows (optionally filtered)."""
+
+    def __init__(self, rows: Rows) -> None:
+        self.rows = rows
+
+    def where(self, **match: Any) -> Numbers:
+        return Numbers([r for r in self.rows if all(r[k] == v for k, v in match.items())])
+
+    def stat(self, method: str, metric: str) -> tuple[int, float, float, float]:
+        return method_stats(self.rows, metric).get(method, (0, math.nan, math.nan, math.nan))
+
+    def mean(self, method: str, metric: str) -> float:
+        return self.stat(method, metric)[1]
+
+    def rmse(self, method: str) -> str:
+        """'mean ± CI m over P % of nodes' (OLSTM-DV-Hop)."""
+        _, mean, _, ci = self.stat(method, "rmse")
+        share = self.mean(method, "localized")
+        ci_text = "" if not math.isfinite(ci) else f" ± {ci:.2f}"
+        return f"{_fmt(mean, '.2f')}{ci_text} m over {_fmt(100 * share, '.0f')} % of nodes"
+
+    def coverage(self, method: str) -> str:
+        _, mean, _, ci = self.stat(method, "coverage")
+        ci_text = "" if not math.isfinite(ci) else f" ± {100 * ci:.1f}"
+        return f"{_fmt(100 * mean, '.1f')}{ci_text} %"
+
+
+def _relative(a: float, b: float) -> str:
+    """'x % less' / 'x % more' of a against b."""
+    change = 100.0 * (a / b - 1.0)
+    return f"{abs(change):.0f} % {'less' if change < 0 else 'more'}"
+
+
+def _met(ok: bool) -> str:
+    return "met" if ok else "**missed**"
+
+
+def _yes(ok: bool) -> str:
+    return "yes" if ok else "**no**"
+
+
+def paper_table(fig2: Numbers, fig3: Numbers, fig4: Numbers) -> str:
+    """The paper's claims beside this project's measurements, with a verdict per row."""
+    a = "aoass"
+    lines = ["| quantity | paper | this project (measured, OLSTM-DV-Hop) | agree? |",
+             "|---|---|---|---|"]
+
+    def row(quantity: str, paper: str, measured: str, verdict: str) -> None:
+        lines.append(f"| {quantity} | {paper} | {measured} | {verdict} |")
+
+    rmse = fig2.mean(a, "rmse")
+    row("AOASS RMSE, `fig2` grid", "≈ 1.3 m (target ≤ 1.3 m, stretch 1.0 m)",
+        f"{fig2.rmse(a)} (zero-action stack {fig2.rmse('aoass-scripted')})",
+        f"target {_met(rmse <= 1.3)}, stretch {_met(rmse <= 1.0)}")
+    cov = fig2.mean(a, "coverage")
+    row("AOASS coverage, `fig2` grid", "≈ 97 % (target ≥ 97 %, stretch 99 %)",
+        f"{fig2.coverage(a)} (zero-action stack {fig2.coverage('aoass-scripted')})",
+        f"target {_met(cov >= 0.97)}, stretch {_met(cov >= 0.99)}")
+    for method, paper in (("fdpp", "≈ 1.9 m / 91 %"), ("m-anchoro", "≈ 1.8 m / 93 %"),
+                          ("ohm", "≈ 2.35 m / 90 %")):
+        better_rmse = rmse < fig2.mean(method, "rmse")
+        better_cov = cov > fig2.mean(method, "coverage")
+        row(f"{label(method)} RMSE / coverage", paper,
+            f"{fig2.rmse(method)} / {fig2.coverage(method)}",
+            f"AOASS lower RMSE: {_yes(better_rmse)}; higher coverage: {_yes(better_cov)}")
+    energy = fig2.mean(a, "energy_total")
+    for method, paper in (("fdpp", "25–30 % less than FDPP"), ("ohm", "≈ 40 % less than OHM")):
+        other = fig2.mean(method, "energy_total")
+        row(f"AOASS energy against {label(method)}", paper,
+            f"{energy:.0f} J against {other:.0f} J: {_relative(energy, other)}",
+            f"target (lower E_total) {_met(energy < other)}")
+    path, other = fig2.mean(a, "path_length"), fig2.mean("m-anchoro", "path_length")
+    row("AOASS path against M-ANCHORO", "14 % shorter",
+        f"{path:.0f} m against {other:.0f} m: {_relative(path, other).replace('less', 'shorter').replace('more', 'longer')}",
+        f"target (shorter) {_met(path < other)}")
+    for size in sorted({r["field_size"] for r in fig3.rows}):
+        part = fig3.where(field_size=size)
+        rm = part.mean(a, "rmse")
+        row(f"AOASS RMSE at N = 600–1000, {size:g} m field", "1.5–1.7 m", part.rmse(a),
+            f"within or below the paper's: {_yes(rm <= 1.7)}")
+    for density in sorted({r["obstacle_density"] for r in fig4.rows}):
+        part = fig4.where(obstacle_density=density)
+        rm = part.mean(a, "rmse")
+        others = ", ".join(f"{label(m).split(' ')[0]} {_fmt(part.mean(m, 'rmse'), '.2f')} m"
+                           for m in ("fdpp", "m-anchoro", "ohm"))
+        lowest = all(rm < part.mean(m, "rmse") for m in ("fdpp", "m-anchoro", "ohm"))
+        row(f"RMSE at {100 * density:.0f} % obstacles",
+            "AOASS 1.6–1.8 m; FDPP, M-ANCHORO 2.5–3.0 m; OHM ≈ 3.2 m",
+            f"AOASS {part.rmse(a)}; {others}",
+            f"AOASS lowest of the four: {_yes(lowest)}")
+    e4, f4 = fig4.mean(a, "energy_total"), fig4.mean("fdpp", "energy_total")
+    row("AOASS energy against FDPP at 50–60 % obstacles", "20–25 % less",
+        f"{e4:.0f} J against {f4:.0f} J: {_relative(e4, f4)}", _yes(e4 < f4))
+    return "\n".join(lines)
+
+
+def _wall(name: str, rows: Rows, runs: list[dict[str, Any]]) -> str:
+    """How long the preset took: the wall time evaluate.py recorded, and how many of the
+    page's episodes those runs cover."""
+    episodes = len({(r["method"], r["map"], r["n_nodes"], r["seed"]) for r in rows})
+    timed = sum(r.get("finished", 0) for r in runs)
+    seconds = sum(r.get("wall_seconds", 0.0) for r in runs)
+    where = sorted({r.get("backend", "?") for r in runs if r.get("finished")})
+    if not timed:
+        return f"{episodes} episodes (no wall time recorded)"
+    text = f"{episodes} episodes, {seconds:.0f} s of wall time on {' / '.join(where)}"
+    if timed < episodes:
+        text += (f" for the {timed} of them run since evaluate.py records its runs "
+                 f"(`out/{name}/runs.jsonl`)")
+    return text
+
+
+def page_values(rows: dict[str, Rows], runs: dict[str, list[dict[str, Any]]],
+                seeds: dict[str, int], figures: dict[str, str]) -> dict[str, str]:
+    """Every ``$name`` of the template from the presets' rows and recorded runs."""
+    values: dict[str, str] = {"paper_table": paper_table(
+        Numbers(rows["fig2"]), Numbers(rows["fig3"]), Numbers(rows["fig4"]))}
+    for name in SEEDS:
+        values[f"seeds_{name}"] = str(seeds[name])
+        values[f"wall_{name}"] = _wall(name, rows[name], runs[name])
+        values[f"table_{name}"] = method_table(rows[name])
+        values[f"figure_{name}"] = figures[name]
+        per_method = Numbers(rows[name]).stat("aoass", "coverage")[0]
+        values[f"per_method_{name}"] = str(per_method)
+    splits: dict[str, tuple[str, Callable[[float], str]]] = {
+        "fig3": ("field_size", lambda v: f"{v:g}"), "fig4": ("obstacle_density",
+                                                           lambda v: f"{100 * v:.0f}")}
+    for name, (column, key) in splits.items():
+        for v in sorted({r[column] for r in rows[name]}):
+            values[f"table_{name}_{key(v)}"] = method_table(
+                [r for r in rows[name] if r[column] == v])
+    fig2 = Numbers(rows["fig2"])
+    seconds = method_stats(rows["fig2"], "seconds")
+    values["fig2_seconds"] = ", ".join(f"{label(m)} {s[1]:.1f}" for m, s in seconds.items())
+    for method in ("aoass", "aoass-scripted", "spiral", "fdpp", "ohm", "m-anchoro", "otpp"):
+        key = method.replace("-", "_")
+        values[f"fig2_{key}_rmse"] = fig2.rmse(method)
+        values[f"fig2_{key}_contacts"] = _fmt(fig2.mean(method, "collisions"), ".1f")
+        for metric, spec in (("energy_total", ".0f"), ("path_length", ".0f"),
+                             ("travel_time", ".0f"), ("coverage", ".3f"),
+                             ("ideal_length", ".0f")):
+            values[f"fig2_{key}_{metric}"] = _fmt(fig2.mean(method, metric), spec)
+        values[f"fig2_{key}_dvhop"] = _fmt(method_stats(rows["fig2"], "rmse", "dvhop").get(
+            method, (0, math.nan))[1], ".1f")
+    return values
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--workers", type=int, help="evaluate.py --workers (default: all cores)")
+    parser.add_argument("--out", type=Path, default=ROOT / "out", help="the presets' folders")
+    parser.add_argument("--skip-runs", action="store_true",
+                        help="only rebuild the page from the episodes already in --out")
+    args = parser.parse_args(argv)
+    if not args.skip_runs:
+        run_presets(args.out, SEEDS, args.workers)
+    rows, runs, figures = {}, {}, {}
+    for name, n in SEEDS.items():
+        folder = args.out / name
+        if not (folder / "episodes.csv").is_file():
+            sys.exit(f"{folder / 'episodes.csv'} is missing: run this script without "
+                     f"--skip-runs")
+        rows[name] = [r for r in read_episodes(folder / "episodes.csv") if r["seed"] < n]
+        runs[name] = [r for r in read_runs(folder) if r.get("preset") == name]
+        with tempfile.TemporaryDirectory() as tmp:
+            drawn = {p.name: p for p in draw_figures(rows[name], Path(tmp))}
+            target = FIGURES / f"results_{name}.png"
+            shutil.copyfile(drawn[FIGURE[name]], target)
+        figures[name] = target.relative_to(PAGE.parent).as_posix()
+    missing = [p for p in ("fig2", "fig3", "fig4") if
+               {r["field_size"] for r in rows[p]} != set(PRESETS[p].field_sizes)]
+    if missing:
+        sys.exit(f"preset(s) {', '.join(missing)} lack a field size of their grid in {args.out}")
+    values = page_values(rows, runs, SEEDS, figures)
+    page = string.Template(TEMPLATE.read_text(encoding="utf-8")).substitute(values)
+    write_text_atomic(PAGE, page)
+    print(f"wrote {PAGE}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
