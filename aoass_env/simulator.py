@@ -98,7 +98,7 @@ class Simulator:
         seed: recorded in the beacon log's config (the seed that made ``rng``).
         method: recorded in the beacon log's config (the method that drives the anchor).
         path: the path the anchor sweeps (a baseline planner's); default the square spiral.
-            The anchor starts on its first free waypoint.
+            The anchor starts on its first free waypoint from which the field is reachable.
 
     Attributes:
         spiral: the episode's square spiral (the environment's reference path).
@@ -115,10 +115,9 @@ class Simulator:
         self.spiral = episode_spiral(config, self.map)
         self.path: SquareSpiral | WaypointPath = (
             self.spiral if path is None else path.with_obstacles(self.map, config.anchor_radius))
-        free = np.flatnonzero(~self.path.blocked)
-        if len(free) == 0:
-            raise MapError("every waypoint of the path lies inside an obstacle; nowhere to start")
-        start = self.path.waypoints[free[0]]
+        #: index of the waypoint the anchor starts on; the nominal follower sweeps from there
+        self.start_index = self._start_index()
+        start = self.path.waypoints[self.start_index]
         self.world = World(config, self.map, rng, tuple(start))
         self.radio = Radio.from_config(self.nodes, self.map, config, rng)
         self.network = Network(config.n_nodes, config)
@@ -128,6 +127,21 @@ class Simulator:
         self._odometer = 0.0
         self.recorder.add_path_point(0.0, start)
         self._broadcast(np.array([[0.0, *start]]))
+
+    def _start_index(self) -> int:
+        """The waypoint the anchor starts on: the path's first free waypoint from which the
+        detour planner reaches the map's main free region (not one shut in a pocket, or wedged
+        against an obstacle's corner), else its first free waypoint.
+
+        Raises:
+            MapError: every waypoint lies inside an obstacle.
+        """
+        free = np.flatnonzero(~self.path.blocked)
+        if len(free) == 0:
+            raise MapError("every waypoint of the path lies inside an obstacle; nowhere to start")
+        radius = self.config.anchor_radius
+        return int(next((i for i in free
+                         if self.planner.can_start(self.path.waypoints[i], radius)), free[0]))
 
     def _broadcast(self, beacons: np.ndarray) -> int:
         newly = 0
@@ -155,10 +169,10 @@ class Simulator:
         return DetourPlanner(self.map, self.config.anchor_radius + DETOUR_MARGIN)
 
     def follower(self) -> WaypointFollower:
-        """A nominal follower of this episode's path (for the spiral: the zero action of the
-        environment)."""
+        """A nominal follower of this episode's path from the start waypoint on (for the
+        spiral: the zero action of the environment)."""
         return WaypointFollower.nominal(self.config, self.path.waypoints, self.path.blocked,
-                                        self.planner)
+                                        self.planner, start=self.start_index)
 
     def nominal_steps(self) -> int:
         """Control periods the ideal path takes at nominal speed."""

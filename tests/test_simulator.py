@@ -3,8 +3,9 @@ import pytest
 
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.config import AOASSConfig
-from aoass_env.maps import ObstacleMap
+from aoass_env.maps import ObstacleMap, load_map
 from aoass_env.network import Network
+from aoass_env.planning.classical import CLASSICAL_METHODS
 from aoass_env.radio import Radio
 from aoass_env.simulator import Simulator, episode_spiral
 from aoass_env.trajectory import beacons_along
@@ -127,3 +128,19 @@ def test_run_drives_a_given_controller():
     sim.run(controller=Straight())
     assert sim.world.time == pytest.approx(10 * config.dt)   # the 11th command said done
     assert sim.world.position[0] > x0 + 3.0
+
+
+@pytest.mark.parametrize("method, map_name", [("hilbert", "test/d0.50_f100_s514"),
+                                              ("scan", "test/d0.60_f100_s517")])
+def test_the_anchor_starts_where_the_field_is_reachable(method, map_name):
+    """Regression: these paths' first free waypoints lie in a pocket (HILBERT) and wedged
+    against an obstacle's corner (SCAN); the anchor used to end there at once or stay there the
+    whole episode (coverage 0). It now starts on a later waypoint and sweeps."""
+    obstacle_map = load_map(map_name)
+    config = AOASSConfig(field_size=100.0, n_nodes=100, map=map_name)
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=obstacle_map, method=method,
+                    path=CLASSICAL_METHODS[method].plan(obstacle_map, config))
+    assert sim.start_index > np.flatnonzero(~sim.path.blocked)[0]
+    np.testing.assert_array_equal(sim.world.position, sim.path.waypoints[sim.start_index])
+    sim.run(max_steps=400)
+    assert sim.network.distance_travelled > 100.0

@@ -56,7 +56,12 @@ class DetourPlanner:
         _, nearest = ndimage.distance_transform_edt(~self.free, return_indices=True)
         self._nearest = np.ravel_multi_index((nearest[0], nearest[1]), self.shape).ravel()
         self._graph = self._build_graph(1.0 + 1.0 / np.maximum(clearance, 1e-3))
-        self._blocker = shapely.buffer(obstacle_map.union, radius) if obstacle_map.polygons \
+        # the largest 8-connected region of free cells: where most of the field can be reached
+        labels, count = ndimage.label(self.free, structure=np.ones((3, 3), dtype=bool))
+        sizes = np.bincount(labels.ravel(), minlength=count + 1)[1:]
+        self._main = (labels == 1 + int(np.argmax(sizes))).ravel() if count else self.free.ravel()
+        self._obstacles = obstacle_map.union if obstacle_map.polygons else shapely.Polygon()
+        self._blocker = shapely.buffer(self._obstacles, radius) if obstacle_map.polygons \
             else shapely.Polygon()
         shapely.prepare(self._blocker)
         self._tree: tuple[int, float, np.ndarray, np.ndarray] | None = None
@@ -84,10 +89,26 @@ class DetourPlanner:
         return coo_matrix((np.concatenate([w, w]), (np.concatenate([a, b]),
                            np.concatenate([b, a]))), shape=(n, n)).tocsr()
 
-    def _cell(self, point: np.ndarray) -> int:
+    def _index(self, point: np.ndarray) -> int:
+        """Flat index of the grid cell holding ``point`` (clipped to the field)."""
         i = min(max(int(point[0] / self.res), 0), self.shape[0] - 1)
         j = min(max(int(point[1] / self.res), 0), self.shape[1] - 1)
-        return int(self._nearest[i * self.shape[1] + j])
+        return i * self.shape[1] + j
+
+    def _cell(self, point: np.ndarray) -> int:
+        return int(self._nearest[self._index(point)])
+
+    def can_start(self, point: np.ndarray, clearance: float) -> bool:
+        """Whether the field is reachable from ``point`` (m): the free cell the planner snaps it
+        to lies in the largest connected free region, and a disc of radius ``clearance`` (m)
+        can move straight from ``point`` to that cell. False for a point shut in a pocket, or
+        wedged where the first leg of every detour would cut an obstacle's corner."""
+        cell = self._cell(point)
+        if not self._main[cell]:
+            return False
+        leg = shapely.LineString([point, self.centres[cell]])
+        return bool(self._obstacles.is_empty
+                    or shapely.distance(self._obstacles, leg) >= clearance)
 
     def visible(self, a: np.ndarray, b: np.ndarray) -> bool:
         """True when a disc of the planner's radius can move straight from ``a`` to ``b``."""

@@ -53,16 +53,17 @@ class WaypointFollower:
 
     @classmethod
     def nominal(cls, config: AOASSConfig, waypoints: np.ndarray, blocked: np.ndarray | None = None,
-                planner: DetourPlanner | None = None) -> WaypointFollower:
+                planner: DetourPlanner | None = None, start: int = 0) -> WaypointFollower:
         """The nominal follower of ``config``: cruise at ``anchor_nominal_speed``, brake within
         ``anchor_max_accel``, and capture a waypoint within the anchor radius or half a control
-        period's travel, whichever is larger; ``blocked`` None: no waypoint is skipped."""
+        period's travel, whichever is larger; ``blocked`` None: no waypoint is skipped; the
+        waypoints before ``start`` are skipped."""
         wps = np.asarray(waypoints, dtype=np.float64)
         return cls(wps, np.zeros(len(wps), dtype=bool) if blocked is None else blocked,
                    capture_radius=max(config.anchor_radius,
                                       0.5 * config.anchor_nominal_speed * config.dt),
                    cruise_speed=config.anchor_nominal_speed, max_accel=config.anchor_max_accel,
-                   planner=planner)
+                   planner=planner, index=start)
 
     @property
     def done(self) -> bool:

@@ -62,3 +62,10 @@ def test_bounded_search_finds_the_same_paths_as_a_full_search(monkeypatch):
     monkeypatch.setattr(detour, "SEARCH_FACTOR", 0.0)
     monkeypatch.setattr(detour, "SEARCH_SLACK", 1.0)
     assert far.path(np.array([20.0, 50.0]), np.array([70.0, 50.0])) is not None
+
+
+def test_a_start_in_open_space_reaches_the_field_but_not_one_shut_in_a_pocket():
+    p = DetourPlanner(ObstacleMap(100, 100, [C_SHAPE]), radius=0.8)
+    assert p.can_start(np.array([20.0, 20.0]), 0.5)
+    assert p.can_start(np.array([59.2, 70.0]), 0.5)      # tight by the C, the field at hand
+    assert not p.can_start(np.array([70.0, 70.0]), 0.5)  # inside the C: its mouth is too narrow
