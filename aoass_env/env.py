@@ -98,7 +98,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
     Each ``reset`` builds a new episode from ``self.np_random``: a generated obstacle map of
     ``obstacle_density`` (unless ``map`` is set), ``n_nodes`` nodes uniform over free space,
     moving obstacles at random free places with random headings, and the anchor at rest on the
-    first free spiral waypoint (the field centre by default), facing +x.
+    first free spiral waypoint from which the field is reachable (the field centre by
+    default), facing +x.
 
     ## Episode End
 

@@ -157,18 +157,18 @@ def paper_table(fig2: Numbers, fig3: Numbers, fig4: Numbers) -> str:
 
 
 def _wall(name: str, rows: Rows, runs: list[dict[str, Any]]) -> str:
-    """How long the preset took: the wall time evaluate.py recorded, and how many of the
-    page's episodes those runs cover."""
+    """How long the preset took: the episodes on the page, and the wall time and episode runs
+    that evaluate.py recorded for the folder (`runs.jsonl`)."""
     episodes = len({(r["method"], r["map"], r["n_nodes"], r["seed"]) for r in rows})
     timed = sum(r.get("finished", 0) for r in runs)
     seconds = sum(r.get("wall_seconds", 0.0) for r in runs)
-    where = sorted({r.get("backend", "?") for r in runs if r.get("finished")})
+    where = " / ".join(sorted({str(r.get("backend")) for r in runs if r.get("finished")}))
     if not timed:
         return f"{episodes} episodes (no wall time recorded)"
-    text = f"{episodes} episodes, {seconds:.0f} s of wall time on {' / '.join(where)}"
+    text = f"{episodes} episodes; {seconds:.0f} s of wall time on {where} for {timed} episode runs"
     if timed < episodes:
-        text += (f" for the {timed} of them run since evaluate.py records its runs "
-                 f"(`out/{name}/runs.jsonl`)")
+        text += (f" (the others ran before evaluate.py recorded its runs in "
+                 f"`out/{name}/runs.jsonl`)")
     return text
 
 
@@ -191,6 +191,11 @@ def page_values(rows: dict[str, Rows], runs: dict[str, list[dict[str, Any]]],
         for v in sorted({r[column] for r in rows[name]}):
             values[f"table_{name}_{key(v)}"] = method_table(
                 [r for r in rows[name] if r[column] == v])
+    cpu_seconds = 0.0
+    for name in ("fig2", "fig3", "fig4"):     # the episode-seconds of 30 seeds, at this rate
+        per = method_stats(rows[name], "seconds").values()
+        cpu_seconds += sum(n * mean for n, mean, _, _ in per) * 30 / seeds[name]
+    values["cpu_hours_30"] = f"{cpu_seconds / 3600:.0f}"
     fig2 = Numbers(rows["fig2"])
     seconds = method_stats(rows["fig2"], "seconds")
     values["fig2_seconds"] = ", ".join(f"{label(m)} {s[1]:.1f}" for m, s in seconds.items())
