@@ -6,7 +6,8 @@ Run: ``python3 scripts/make_results.py [--workers W] [--skip-runs]``
    The sweeps resume: episodes already in ``out/P/episodes.csv`` are not run again, so an
    interrupted regeneration continues where it stopped.
 2. Reads the episodes back (only the seeds of :data:`SEEDS`, so a folder that holds more seeds
-   gives the same page; the figures are drawn from the same rows) and the wall times that ``evaluate.py`` recorded in ``out/P/runs.jsonl``.
+   gives the same page; the figures are drawn from the same rows) and the wall times that
+   ``evaluate.py`` recorded in ``out/P/runs.jsonl``.
 3. Draws the figures to ``docs/figures/results_<preset>.png`` and writes docs/results.md from
    ``scripts/results_template.md``: every ``$name`` there is a table, a figure's path or a
    number computed here (:func:`page_values`), so no number on the page is typed by hand.
@@ -87,10 +88,10 @@ class Numbers:
         return f"{_fmt(100 * mean, '.1f')}{ci_text} %"
 
 
-def _relative(a: float, b: float) -> str:
-    """'x % less' / 'x % more' of a against b."""
+def _relative(a: float, b: float, less: str = "less", more: str = "more") -> str:
+    """'x % less' / 'x % more' of a against b (or the words given)."""
     change = 100.0 * (a / b - 1.0)
-    return f"{abs(change):.0f} % {'less' if change < 0 else 'more'}"
+    return f"{abs(change):.0f} % {less if change < 0 else more}"
 
 
 def _met(ok: bool) -> str:
@@ -133,7 +134,7 @@ def paper_table(fig2: Numbers, fig3: Numbers, fig4: Numbers) -> str:
             f"target (lower E_total) {_met(energy < other)}")
     path, other = fig2.mean(a, "path_length"), fig2.mean("m-anchoro", "path_length")
     row("AOASS path against M-ANCHORO", "14 % shorter",
-        f"{path:.0f} m against {other:.0f} m: {_relative(path, other).replace('less', 'shorter').replace('more', 'longer')}",
+        f"{path:.0f} m against {other:.0f} m: {_relative(path, other, 'shorter', 'longer')}",
         f"target (shorter) {_met(path < other)}")
     for size in sorted({r["field_size"] for r in fig3.rows}):
         part = fig3.where(field_size=size)
@@ -209,6 +210,18 @@ def page_values(rows: dict[str, Rows], runs: dict[str, list[dict[str, Any]]],
             values[f"fig2_{key}_{metric}"] = _fmt(fig2.mean(method, metric), spec)
         values[f"fig2_{key}_dvhop"] = _fmt(method_stats(rows["fig2"], "rmse", "dvhop").get(
             method, (0, math.nan))[1], ".1f")
+    sizes = sorted({r["field_size"] for r in rows["fig3"]})
+    worst = max(((stat[1], method, size) for size in sizes for method, stat in method_stats(
+        [r for r in rows["fig3"] if r["field_size"] == size], "rmse").items()),
+        default=(math.nan, "–", math.nan))
+    values["fig3_worst_rmse"] = (f"{label(worst[1])}, {_fmt(worst[0], '.2f')} m on the "
+                                 f"{worst[2]:g} m field")
+    fig4 = Numbers(rows["fig4"])
+    for method in ("aoass", "aoass-scripted", "spiral"):
+        key = method.replace("-", "_")
+        values[f"fig4_{key}_complete"] = _fmt(100 * fig4.mean(method, "path_complete"), ".0f")
+        values[f"fig4_{key}_coverage"] = _fmt(100 * fig4.mean(method, "coverage"), ".1f")
+        values[f"fig4_{key}_contacts"] = _fmt(fig4.mean(method, "collisions"), ".1f")
     return values
 
 
