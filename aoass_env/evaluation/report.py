@@ -111,14 +111,6 @@ def _localizers(rows: list[dict[str, Any]]) -> list[str]:
     return sorted(present, key=lambda n: n != PRIMARY_LOCALIZER)
 
 
-def seconds_per_episode(rows: list[dict[str, Any]]) -> dict[str, float]:
-    """Mean wall seconds per episode (simulation + every localizer) of each method."""
-    per: dict[str, list[float]] = defaultdict(list)
-    for ep in _episodes(rows).values():
-        per[ep["method"]].append(ep["seconds"])
-    return {m: ci_stats(per[m])[1] for m in _method_order(per)}
-
-
 def method_stats(rows: list[dict[str, Any]], metric: str,
                  localizer: str = PRIMARY_LOCALIZER) -> dict[str, tuple[int, float, float, float]]:
     """:func:`ci_stats` of ``metric`` per method over the episodes in ``rows``: an episode
@@ -129,6 +121,11 @@ def method_stats(rows: list[dict[str, Any]], metric: str,
     for ep in _episodes(rows).values():
         per[ep["method"]].append(ep.get(key, math.nan))
     return {m: ci_stats(per[m]) for m in _method_order(per)}
+
+
+def seconds_per_episode(rows: list[dict[str, Any]]) -> dict[str, float]:
+    """Mean wall seconds per episode (simulation + every localizer) of each method."""
+    return {m: stat[1] for m, stat in method_stats(rows, "seconds").items()}
 
 
 def _cell(values: list[float], fmt: Callable[[float], str]) -> str:

@@ -61,8 +61,7 @@ class DetourPlanner:
         sizes = np.bincount(labels.ravel(), minlength=count + 1)[1:]
         self._main = (labels == 1 + int(np.argmax(sizes))).ravel() if count else self.free.ravel()
         self._obstacles = obstacle_map.union if obstacle_map.polygons else shapely.Polygon()
-        self._blocker = shapely.buffer(self._obstacles, radius) if obstacle_map.polygons \
-            else shapely.Polygon()
+        self._blocker = shapely.buffer(self._obstacles, radius)
         shapely.prepare(self._blocker)
         self._tree: tuple[int, float, np.ndarray, np.ndarray] | None = None
 
