@@ -1,8 +1,9 @@
 """Training the AOASS agent: environments, callbacks and the run record of ``python train.py``.
 
 The agent trains inside the full safety stack (AOASS-v0 -> Kalman tracker -> fuzzy + ORCA
-filter) on the shipped training maps, one map drawn per episode; an ``EvalCallback`` on the
-shipped test maps (taken in turn) keeps the best model. A run writes into its folder:
+filter) on the shipped training maps less a validation split, one map drawn per episode; an
+``EvalCallback`` on the held-out validation maps (taken in turn) keeps the best model. The
+shipped test maps are never used in training or selection. A run writes into its folder:
 
 =========================  ===============================================================
 ``best.zip``               the model with the best mean evaluation return so far
@@ -42,22 +43,31 @@ from agents.callbacks import (
 )
 from agents.hyperparams import ALGORITHMS, EXTRA_KEYS, action_noise, load_hyperparams
 from aoass_env.atomic import write_text_atomic
-from aoass_env.maps import list_maps
+from aoass_env.maps import list_maps, validation_split
 from aoass_env.wrappers import MapSampler, make_safe_env
 
 __all__ = ["TrainRun", "make_training_env", "train_agent"]
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "aoass.yml"
+#: Where training environments take their maps from: the maps to fit on, or the held-out ones.
+TRAINING_SPLITS = ("train", "validation")
 
 
 def make_training_env(*, split: str = "train", field_size: float = 100.0,
                       densities: tuple[float, float] = (0.1, 0.4), cycle: bool = False,
                       safety: dict[str, Any] | None = None, tracker: dict[str, Any] | None = None,
                       **config: Any) -> gym.Env:
-    """The full safety stack on the shipped maps of ``split`` with ``field_size`` (m) and
-    density in ``densities``, one map per episode (drawn, or in turn with ``cycle``);
-    ``config``: further AOASS-v0 keywords (e.g. ``n_nodes``)."""
-    maps = list_maps(split, field_size=field_size, densities=tuple(densities))
+    """The full safety stack on shipped training maps with ``field_size`` (m) and density in
+    ``densities``, one map per episode (drawn, or in turn with ``cycle``): ``split="train"``
+    takes the maps to fit on, ``"validation"`` the ones held out for model selection
+    (:func:`aoass_env.maps.validation_split`); maps/test is never used. ``config``: further
+    AOASS-v0 keywords (e.g. ``n_nodes``)."""
+    if split not in TRAINING_SPLITS:
+        raise ValueError(f"split={split!r} must be one of {TRAINING_SPLITS} (maps/test is for "
+                         f"reported results only)")
+    fit, held_out = validation_split(list_maps("train", field_size=field_size,
+                                               densities=tuple(densities)))
+    maps = fit if split == "train" else held_out
     if not maps:
         raise ValueError(f"no shipped {split} maps with field_size={field_size} and densities "
                          f"in {list(densities)}")
@@ -117,7 +127,8 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     env_kwargs = dict(hp.get("env", {}))
     evaluation = dict(hp.get("eval", {}))
     env = _vec_env(run.n_envs, run.seed, env_kwargs)
-    eval_env = _vec_env(1, run.seed + 1_000_000, {**env_kwargs, "split": "test", "cycle": True})
+    eval_env = _vec_env(1, run.seed + 1_000_000,
+                        {**env_kwargs, "split": "validation", "cycle": True})
     noise = action_noise(hp.get("action_noise"), env.action_space.shape[0])
     tb = str(run.log_dir) if run.log_dir is not None else None
     out = Path(run.out)

@@ -132,6 +132,18 @@ class AOASSConfig:
         0.0, "opt-in shaping, not in Eq. 14: penalty per new anchor contact with an obstacle",
         low=0.0, high=1e6)
 
+    # --- path follower: progress watchdog and recovery ------------------------------------
+    watchdog_time: float = _p(
+        8.0, "the follower is stuck when its distance to go has not shrunk by watchdog_progress "
+        "for this long; it then backs out and re-plans around the spot, and gives the target "
+        "up after two tries", unit="s", low=0.0, high=1e4, low_open=True)
+    watchdog_progress: float = _p(
+        1.0, "progress along the follower's plan that resets the watchdog", unit="m", low=0.0,
+        high=100.0, low_open=True)
+    backout_distance: float = _p(
+        3.0, "how far back along its own track a stuck follower retreats before re-planning",
+        unit="m", low=0.0, high=100.0)
+
     # --- environment: observation, action, episode ---------------------------------------
     obs_waypoints: int = _p(8, "K: upcoming spiral waypoints in the observation", low=1,
                             high=100, kind="int")

@@ -109,8 +109,10 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
       ``gymnasium.make`` reports the same limit in ``env.spec.max_episode_steps``.
 
     Every step's ``info`` holds coverage, collisions, path length, beacons sent, energy, the
-    online RMSE and the reward terms; the last step's ``info["episode_metrics"]`` adds the
-    Eq. 16-19 metrics. ``env.unwrapped.beacon_log`` is the episode's :class:`BeaconLog`.
+    online RMSE, the reward terms, and the follower's ``recoveries`` (back-outs after its
+    progress watchdog found it stuck) and ``skipped_waypoints`` (free spiral waypoints it gave
+    up as unreachable: ``env.unwrapped.follower.skipped`` says which, when and why); the last
+    step's ``info["episode_metrics"]`` adds the Eq. 16-19 metrics. ``env.unwrapped.beacon_log`` is the episode's :class:`BeaconLog`.
 
     ## Arguments
 
@@ -229,7 +231,9 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                 "path_length": net.distance_travelled, "beacons": net.beacons_sent,
                 "energy_anchor": net.anchor_energy, "energy_nodes": net.node_energy_total,
                 "energy_total": net.energy_total, "rmse_online": self._rmse,
-                "progress": self._follower.progress(), "time": sim.world.time}
+                "progress": self._follower.progress(), "time": sim.world.time,
+                "recoveries": self._follower.recoveries,
+                "skipped_waypoints": len(self._follower.skipped)}
 
     def _episode_metrics(self) -> dict[str, float]:
         """Eq. 16-19 and the online RMSE at the end of the episode."""
@@ -243,7 +247,9 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                 "rmse_online": self._rmse, "path_length": net.distance_travelled,
                 "travel_time": sim.world.time, "l_ideal": sim.spiral.length,
                 "t_ideal": t_ideal, "collisions": sim.collisions,
-                "steps": self._steps, "path_complete": self._follower.done}
+                "steps": self._steps, "path_complete": self._follower.done,
+                "recoveries": self._follower.recoveries,
+                "skipped_waypoints": len(self._follower.skipped)}
 
     @property
     def nominal_command(self) -> tuple[float, float]:
@@ -253,6 +259,13 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.sim is None:
             raise RuntimeError("call reset() before reading nominal_command")
         return self._command
+
+    @property
+    def follower(self) -> WaypointFollower:
+        """The episode's nominal path follower (its ``skipped`` waypoints and ``recoveries``)."""
+        if self.sim is None:
+            raise RuntimeError("call reset() before reading follower")
+        return self._follower
 
     @property
     def beacon_log(self) -> BeaconLog | None:

@@ -690,6 +690,20 @@ def list_maps(split: str, *, field_size: float | None = None,
     return names
 
 
+def validation_split(names: list[str]) -> tuple[list[str], list[str]]:
+    """(fit, validation): shipped map names split for model selection. The map with the
+    highest seed of every (density, field size) group is held out for validation (1 in 5 of
+    the shipped training maps), the others are for fitting; ``names`` as from
+    :func:`list_maps`."""
+    groups: dict[tuple[str, str], list[str]] = {}
+    for name in names:
+        parts = dict((f[0], f[1:]) for f in name.rsplit("/", 1)[-1].split("_") if f)
+        groups.setdefault((parts.get("d", ""), parts.get("f", "")), []).append(name)
+    held = {max(group, key=lambda n: int(n.rsplit("_s", 1)[-1])) for group in groups.values()
+            if len(group) > 1}
+    return [n for n in names if n not in held], [n for n in names if n in held]
+
+
 def load_map(name_or_path: str | os.PathLike,
              field_size: float | tuple[float, float] | None = None) -> ObstacleMap:
     """A map from a file path, or a shipped map by name ("test/d0.30_f100_s500" or its stem)."""

@@ -11,11 +11,12 @@ pulling (keep only the points needed for straight, obstacle-free legs).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import shapely
 from scipy import ndimage
-from scipy.sparse import coo_matrix, csr_matrix
+from scipy.sparse import coo_matrix, csr_matrix, diags
 from scipy.sparse.csgraph import dijkstra
 
 from aoass_env.maps import ObstacleMap
@@ -25,6 +26,8 @@ from aoass_env.maps import ObstacleMap
 #: searches the whole grid only when the goal lies beyond.
 SEARCH_FACTOR = 4.0
 SEARCH_SLACK = 40.0
+#: Cost factor of grid moves inside a keep-out (:meth:`DetourPlanner.path`).
+KEEPOUT_COST = 25.0
 
 
 class DetourPlanner:
@@ -115,13 +118,18 @@ class DetourPlanner:
             return not shapely.intersects_xy(self._blocker, a[0], a[1])
         return not shapely.intersects(self._blocker, shapely.LineString([a, b]))
 
-    def path(self, start: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
+    def path(self, start: np.ndarray, goal: np.ndarray, keepout: np.ndarray | None = None,
+             keepout_radius: float = 0.0) -> np.ndarray | None:
         """Shortened collision-free path (K, 2) from ``start`` to ``goal`` (both included), or
         None when no path exists (the goal lies in a pocket the disc cannot enter).
 
-        The shortest-path tree of the last start cell is kept, so trying several goals from
-        one place (a follower skipping unreachable waypoints) costs one search.
+        ``keepout`` (P, 2): places (m) the path keeps more than ``keepout_radius`` (m) away
+        from unless going round them is much longer (where a follower got stuck). The
+        shortest-path tree of the last start cell is kept for searches without
+        keep-outs, so trying several goals from one place costs one search.
         """
+        if keepout is not None and len(keepout):
+            return self._path_avoiding(start, goal, np.asarray(keepout, float), keepout_radius)
         s, g = self._cell(start), self._cell(goal)
         straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
         dist, pred = self._tree_from(s, SEARCH_FACTOR * straight + SEARCH_SLACK)
@@ -129,11 +137,36 @@ class DetourPlanner:
             dist, pred = self._tree_from(s, math.inf)
         if not np.isfinite(dist[g]):
             return None
+        return self._pull(self._trace(start, goal, s, g, pred))
+
+    def _trace(self, start: np.ndarray, goal: np.ndarray, s: int, g: int,
+               pred: np.ndarray) -> np.ndarray:
+        """The grid path from cell ``s`` to cell ``g`` of a shortest-path tree, with the exact
+        start and goal at its ends."""
         cells = [g]
         while cells[-1] != s:
             cells.append(int(pred[cells[-1]]))
-        pts = np.vstack([start, self.centres[cells[::-1]], goal])
-        return self._pull(pts)
+        return np.vstack([start, self.centres[cells[::-1]], goal])
+
+    def _path_avoiding(self, start: np.ndarray, goal: np.ndarray, keepout: np.ndarray,
+                       radius: float) -> np.ndarray | None:
+        """:meth:`path` on the grid whose cells within ``radius`` (m) of ``keepout`` cost
+        :data:`KEEPOUT_COST` times more (a path crosses a keep-out only when going round it is
+        much longer); legs of the shortened path keep clear of the keep-outs where the grid
+        path does."""
+        near = np.zeros(len(self.centres), dtype=bool)
+        for p in keepout:
+            near |= np.hypot(*(self.centres - p).T) <= radius
+        factor = diags(np.where(near, math.sqrt(KEEPOUT_COST), 1.0))
+        graph = (factor @ self._graph @ factor).tocsr()
+        s, g = self._cell(start), self._cell(goal)
+        dist, pred = dijkstra(graph, indices=s, return_predecessors=True)
+        if not np.isfinite(dist[g]):
+            return None
+        pts = self._trace(start, goal, s, g, pred)
+        zones = shapely.buffer(shapely.multipoints(keepout), radius)
+        return self._pull(pts, lambda a, b: self.visible(a, b) and not shapely.intersects(
+            zones, shapely.LineString([a, b])))
 
     def _tree_from(self, s: int, limit: float) -> tuple[np.ndarray, np.ndarray]:
         """Shortest-path distances and predecessors from cell ``s``, searched up to path cost
@@ -145,12 +178,15 @@ class DetourPlanner:
             self._tree = (s, limit, dist, pred)
         return self._tree[2], self._tree[3]
 
-    def _pull(self, pts: np.ndarray) -> np.ndarray:
-        """String pulling: from each kept point, jump to the last point still visible."""
+    def _pull(self, pts: np.ndarray,
+              clear: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> np.ndarray:
+        """String pulling: from each kept point, jump to the last point still ``clear``
+        (default: :meth:`visible`)."""
+        clear = clear or self.visible
         out, i = [pts[0]], 0
         while i < len(pts) - 1:
             j = i + 1
-            while j + 1 < len(pts) and self.visible(pts[i], pts[j + 1]):
+            while j + 1 < len(pts) and clear(pts[i], pts[j + 1]):
                 j += 1
             out.append(pts[j])
             i = j

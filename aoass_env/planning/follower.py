@@ -5,17 +5,47 @@ toward the next waypoint that is not blocked, skipping waypoints inside obstacle
 path after them (Section 3.3 of the paper). When an obstacle stands between the anchor and its
 target, an optional :class:`~aoass_env.planning.detour.DetourPlanner` supplies intermediate points
 around it; without a planner the follower steers straight (and relies on a safety layer).
+
+A progress watchdog gets the follower out of traps (a wedge, a pocket, a passage a moving
+obstacle blocks, or a safety layer that will not let it through): when its distance to go along
+its plan has not shrunk by ``watchdog_progress`` metres for ``watchdog_time`` seconds, it marks
+the spot as a keep-out, backs out along its own track, and re-plans around the keep-outs through
+the known static map. A target that still cannot be reached after :data:`MAX_RECOVERIES` tries,
+or one a stuck follower is already beside, is given up and recorded in ``skipped``, as is a
+target with no path and one past its stall timer.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from aoass_env.config import AOASSConfig
 from aoass_env.planning.detour import DetourPlanner
+
+#: Radius (m) around a spot where the follower got stuck that its re-plans avoid, and how long
+#: (s) the keep-out lasts (a moving obstacle parked in a passage may leave).
+KEEPOUT_RADIUS = 1.5
+KEEPOUT_TIME = 60.0
+#: Back-outs tried for one target before the follower gives it up.
+MAX_RECOVERIES = 2
+#: The follower remembers its track as points this far apart (m), up to TRAIL_POINTS of them.
+TRAIL_SPACING = 0.5
+TRAIL_POINTS = 200
+
+
+@dataclass(frozen=True)
+class Skip:
+    """A waypoint the follower gave up: its index, the time (s, follower clock) and why:
+    ``"no path"`` (the planner finds none), ``"stall timer"`` (not reached in its time) or
+    ``"stuck"`` (the watchdog fired ``MAX_RECOVERIES`` + 1 times, or beside the target)."""
+
+    index: int
+    time: float
+    reason: str
 
 
 @dataclass
@@ -31,6 +61,14 @@ class WaypointFollower:
         stall_time: a target (spiral or detour point) not reached within this time (s) is
             skipped, so a follower pushed against an obstacle does not wait forever.
         planner: detour planner used when the straight line to the target is obstructed.
+        watchdog_time: seconds without ``watchdog_progress`` metres of progress along the plan
+            after which the follower is stuck (inf: no watchdog).
+        watchdog_progress: progress (m) that resets the watchdog.
+        backout_distance: how far back along its track a stuck follower retreats (m).
+
+    Attributes:
+        recoveries: back-outs so far.
+        skipped: the free waypoints given up so far (:class:`Skip`).
     """
 
     waypoints: np.ndarray
@@ -40,12 +78,23 @@ class WaypointFollower:
     max_accel: float = math.inf
     stall_time: float = 30.0
     planner: DetourPlanner | None = None
+    watchdog_time: float = math.inf
+    watchdog_progress: float = 1.0
+    backout_distance: float = 3.0
     index: int = 0
+    recoveries: int = 0
+    skipped: list[Skip] = field(default_factory=list)
     _clock: float = 0.0
     _budget: float = 0.0
     _planned: bool = False
     _detour: list[np.ndarray] = field(default_factory=list)
     _way_on: tuple[tuple[bytes, bytes] | None, bool] = (None, True)
+    _trail: deque[np.ndarray] = field(default_factory=lambda: deque(maxlen=TRAIL_POINTS))
+    _keepout: list[tuple[np.ndarray, float]] = field(default_factory=list)
+    _backout: list[np.ndarray] = field(default_factory=list)
+    _best: float = math.inf
+    _best_time: float = 0.0
+    _tries: int = 0
 
     def __post_init__(self) -> None:
         self.index = self._next_free(self.index)
@@ -55,15 +104,18 @@ class WaypointFollower:
     def nominal(cls, config: AOASSConfig, waypoints: np.ndarray, blocked: np.ndarray | None = None,
                 planner: DetourPlanner | None = None, start: int = 0) -> WaypointFollower:
         """The nominal follower of ``config``: cruise at ``anchor_nominal_speed``, brake within
-        ``anchor_max_accel``, and capture a waypoint within the anchor radius or half a control
-        period's travel, whichever is larger; ``blocked`` None: no waypoint is skipped; the
-        waypoints before ``start`` are skipped."""
+        ``anchor_max_accel``, capture a waypoint within the anchor radius or half a control
+        period's travel, whichever is larger, and recover from traps with the config's
+        watchdog; ``blocked`` None: no waypoint is skipped; the waypoints before ``start`` are
+        skipped."""
         wps = np.asarray(waypoints, dtype=np.float64)
         return cls(wps, np.zeros(len(wps), dtype=bool) if blocked is None else blocked,
                    capture_radius=max(config.anchor_radius,
                                       0.5 * config.anchor_nominal_speed * config.dt),
                    cruise_speed=config.anchor_nominal_speed, max_accel=config.anchor_max_accel,
-                   planner=planner, index=start)
+                   planner=planner, watchdog_time=config.watchdog_time,
+                   watchdog_progress=config.watchdog_progress,
+                   backout_distance=config.backout_distance, index=start)
 
     @property
     def done(self) -> bool:
@@ -89,39 +141,64 @@ class WaypointFollower:
         self._budget = self._clock + self.stall_time
         self._planned = False
         self._detour.clear()
+        self._tries = 0
+        self._reset_watchdog()
+
+    def _give_up(self, reason: str) -> None:
+        self.skipped.append(Skip(self.index, self._clock, reason))
+        self._advance()
 
     def command(self, position: np.ndarray, heading: float, dt: float) -> tuple[float, float]:
         """(speed [m/s], heading [rad]) toward the current target after advancing past reached
         waypoints. ``heading`` (rad) is the anchor's current heading: the speed is scaled by the
         cosine of the heading error (zero beyond 90 deg, so sharp turns happen in place);
-        ``dt`` (s) is the time since the last call, for stall detection.
+        ``dt`` (s) is the time since the last call, for stall detection and the watchdog.
 
         With a planner, an obstructed target gets one detour (intermediate points, then the
         target); the time allowed for the target grows by twice the detour's travel time.
+        A stuck follower backs out along its track first (module docstring).
         """
         self._clock += dt
+        if not self._trail or np.hypot(*(self._trail[-1] - position)) >= TRAIL_SPACING:
+            self._trail.append(np.array(position, dtype=np.float64))
+        if self._backout:
+            if self._backing_out(position):
+                return self._steer(position, heading, self._backout[0], None)
         while not self.done:
             target = self.waypoints[self.index]
-            if (np.hypot(*(target - position)) <= self.capture_radius
-                    or self._clock > self._budget):
+            if np.hypot(*(target - position)) <= self.capture_radius:
                 self._advance()
+                continue
+            if self._clock > self._budget:
+                self._give_up("stall timer")
                 continue
             while self._detour and np.hypot(*(self._detour[0] - position)) <= self.capture_radius:
                 self._detour.pop(0)
-            if self.planner is None or self._planned or self.planner.visible(position, target):
+            if self.planner is None or self._planned or self._clear(position, target):
                 break
-            path = self.planner.path(position, target)
+            keepout = self._active_keepouts(position)
+            path = self.planner.path(position, target, keepout, KEEPOUT_RADIUS)
             if path is None:
-                self._advance()      # unreachable from here: skip it, as if inside an obstacle
+                self._give_up("no path")    # unreachable from here, as if inside an obstacle
                 continue
             self._planned = True
             self._detour = list(path[1:-1])
             length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
             self._budget = self._clock + self.stall_time + 2.0 * length / self.cruise_speed
+            self._reset_watchdog()
             break
         if self.done:
             return 0.0, 0.0
+        if self._stalled(self._to_go(position)):
+            self._stuck(position)
+            return self.command(position, heading, 0.0)
         aim, after = self._aim_points()
+        return self._steer(position, heading, aim, after)
+
+    def _steer(self, position: np.ndarray, heading: float, aim: np.ndarray,
+               after: np.ndarray | None) -> tuple[float, float]:
+        """Cruise toward ``aim``, slowed by the heading error and braked so that the speed at
+        ``aim`` suits the turn toward ``after`` (a stop when that leg is obstructed)."""
         dx, dy = aim - position
         bearing = math.atan2(dy, dx)
         speed = self.cruise_speed * max(0.0, math.cos(bearing - heading))
@@ -135,6 +212,87 @@ class WaypointFollower:
             room = max(0.0, math.hypot(dx, dy) - self.capture_radius)
             speed = min(speed, math.sqrt(corner_speed**2 + 2.0 * self.max_accel * room))
         return speed, bearing
+
+    # --- watchdog and recovery -----------------------------------------------------------
+    def _reset_watchdog(self) -> None:
+        self._best, self._best_time = math.inf, self._clock
+
+    def _stalled(self, to_go: float) -> bool:
+        """Feed the watchdog the distance to go (m); True when it has not shrunk by
+        ``watchdog_progress`` for ``watchdog_time`` seconds."""
+        if to_go < self._best - self.watchdog_progress or self._best == math.inf:
+            self._best, self._best_time = to_go, self._clock
+            return False
+        return self._clock - self._best_time > self.watchdog_time
+
+    def _to_go(self, position: np.ndarray) -> float:
+        """Distance (m) from ``position`` along the plan (detour points, then the target)."""
+        queue = np.array([position, *self._detour, self.waypoints[self.index]])
+        return float(np.linalg.norm(np.diff(queue, axis=0), axis=1).sum())
+
+    def _stuck(self, position: np.ndarray) -> None:
+        """The watchdog fired at ``position``: keep re-plans away from it; give the target up
+        when the follower is beside it or has tried ``MAX_RECOVERIES`` times, and back out
+        along the track (unless beside the target)."""
+        self._keepout.append((np.array(position, dtype=np.float64),
+                              self._clock + KEEPOUT_TIME))
+        self._tries += 1
+        beside = np.hypot(*(self.waypoints[self.index] - position)) <= KEEPOUT_RADIUS
+        if beside or self._tries > MAX_RECOVERIES:
+            self._give_up("stuck")
+        else:
+            self._planned = False
+            self._detour.clear()
+        if not beside:
+            self._backout = self._retreat(position)
+            self.recoveries += 1
+        self._reset_watchdog()
+
+    def _retreat(self, position: np.ndarray) -> list[np.ndarray]:
+        """The remembered track back from ``position`` (newest first) up to the first point
+        ``backout_distance`` (m) away, or the whole track when it is shorter."""
+        back: list[np.ndarray] = []
+        for point in reversed(self._trail):
+            back.append(point)
+            if np.hypot(*(point - position)) >= self.backout_distance:
+                break
+        return back
+
+    def _backing_out(self, position: np.ndarray) -> bool:
+        """Advance along the back-out; False (and the back-out ends, the target is planned
+        afresh) once it is done or the watchdog fires on it."""
+        while self._backout and np.hypot(*(self._backout[0] - position)) <= self.capture_radius:
+            self._backout.pop(0)
+        if self._backout:
+            to_go = np.array([position, *self._backout])
+            if not self._stalled(float(np.linalg.norm(np.diff(to_go, axis=0), axis=1).sum())):
+                return True
+        self._backout.clear()
+        self._planned = False
+        self._detour.clear()
+        self._budget = max(self._budget, self._clock + self.stall_time)
+        self._reset_watchdog()
+        return False
+
+    def _active_keepouts(self, position: np.ndarray) -> np.ndarray:
+        """(P, 2) keep-outs still in force, less those ``position`` lies in (a follower cannot
+        avoid the spot it stands on)."""
+        self._keepout = [(p, until) for p, until in self._keepout if until >= self._clock]
+        pts = [p for p, _ in self._keepout if np.hypot(*(p - position)) > KEEPOUT_RADIUS]
+        return np.array(pts).reshape(-1, 2)
+
+    def _clear(self, a: np.ndarray, b: np.ndarray) -> bool:
+        """Whether the straight move a -> b is free of obstacles (the planner's disc) and of
+        the keep-outs in force."""
+        if not self.planner.visible(a, b):
+            return False
+        keepout = self._active_keepouts(a)
+        if not len(keepout):
+            return True
+        ab = b - a
+        t = np.clip((keepout - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+        gaps = np.hypot(*(a + t[:, None] * ab - keepout).T)
+        return bool(np.all(gaps > KEEPOUT_RADIUS))
 
     def _way_on_open(self, aim: np.ndarray, after: np.ndarray) -> bool:
         """Whether the leg aim -> after is free; one planner query per leg, not per step."""

@@ -70,3 +70,99 @@ def test_detours_around_an_obstacle_between_waypoints():
     _, heading = f.command(np.array([10.0, 20.0]), 0.0, 0.5)
     assert f._detour, "an obstructed target gets a detour"
     assert abs(math.sin(heading)) > 0.5          # heads for an end of the wall, not through it
+
+
+# --- progress watchdog and recovery -----------------------------------------------------------
+def _watched(planner=None, **kw):
+    wps = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 10.0]])
+    return WaypointFollower(wps, np.zeros(3, dtype=bool), capture_radius=0.5, cruise_speed=1.0,
+                            stall_time=1000.0, planner=planner, watchdog_time=8.0,
+                            watchdog_progress=1.0, backout_distance=3.0, **kw)
+
+
+def _drive_to(f, x, dt=0.5):
+    """Feed the follower positions along y = 0 from its last x to ``x``, 0.5 m per call."""
+    for px in np.arange(0.0, x + 1e-9, 0.5):
+        f.command(np.array([px, 0.0]), 0.0, dt)
+
+
+def _wait(f, position, heading=0.0, calls=40, until=lambda f: False):
+    """Feed the follower the same position (it makes no progress); the calls made."""
+    for k in range(1, calls + 1):
+        f.command(np.asarray(position, dtype=float), heading, 0.5)
+        if until(f):
+            return k
+    return calls
+
+
+def test_watchdog_backs_out_along_the_track_when_progress_stops():
+    f = _watched()
+    _drive_to(f, 10.0)
+    calls = _wait(f, [10.0, 0.0], until=lambda f: f.recoveries > 0)
+    # fires watchdog_time (8 s) after the last metre of progress (at x = 9.5 m, 0.5 s before)
+    assert 7.5 <= 0.5 * calls <= 8.5
+    assert f.recoveries == 1 and f.index == 1 and not f.skipped
+    _, heading = f.command(np.array([10.0, 0.0]), 0.0, 0.5)
+    assert math.isclose(abs(heading), math.pi)          # back the way it came
+    # the back-out ends 3 m back; then the target is steered to again
+    f.command(np.array([7.0, 0.0]), math.pi, 0.5)
+    _, heading = f.command(np.array([7.0, 0.0]), math.pi, 0.5)
+    assert heading == 0.0 and f.index == 1
+
+
+def test_slow_but_steady_progress_does_not_fire_the_watchdog():
+    f = _watched()
+    for px in np.arange(0.0, 19.0, 0.1):     # 0.2 m/s: 1 m every 5 s
+        f.command(np.array([px, 0.0]), 0.0, 0.5)
+    assert f.recoveries == 0 and f.index == 1
+
+
+def test_a_target_that_stays_out_of_reach_is_given_up_after_the_tries():
+    f = _watched()
+    _drive_to(f, 10.0)
+    for _ in range(2):                       # two back-outs, each followed by a new try
+        _wait(f, [10.0, 0.0], until=lambda f: f.recoveries > _)
+        assert f.index == 1 and not f.skipped
+        _drive_to(f, 10.0)
+    _wait(f, [10.0, 0.0], until=lambda f: f.index == 2)
+    assert f.index == 2 and f.recoveries == 3
+    assert [(s.index, s.reason) for s in f.skipped] == [(1, "stuck")]
+
+
+def test_stuck_beside_the_target_gives_it_up_without_backing_out():
+    f = _watched()
+    _drive_to(f, 19.0)
+    _wait(f, [19.0, 0.0], until=lambda f: f.index == 2)
+    assert [(s.index, s.reason) for s in f.skipped] == [(1, "stuck")]
+    assert f.recoveries == 0 and f.index == 2
+
+
+def test_no_watchdog_by_default():
+    wps = np.array([[0.0, 0.0], [20.0, 0.0]])
+    f = WaypointFollower(wps, np.zeros(2, dtype=bool), capture_radius=0.5, cruise_speed=1.0,
+                         stall_time=1000.0)
+    _wait(f, [5.0, 0.0], calls=200)
+    assert f.recoveries == 0 and not f.skipped and f.index == 0
+
+
+def test_replan_after_backing_out_goes_round_the_stuck_spot():
+    # a wall across the field at x = 10 with two gaps: y 9-11 (straight ahead), y 19-21
+    wall = (np.array([[9.5, 0.0], [10.5, 0.0], [10.5, 9.0], [9.5, 9.0]]),
+            np.array([[9.5, 11.0], [10.5, 11.0], [10.5, 19.0], [9.5, 19.0]]),
+            np.array([[9.5, 21.0], [10.5, 21.0], [10.5, 40.0], [9.5, 40.0]]))
+    planner = DetourPlanner(ObstacleMap(40.0, 40.0, wall), 0.6)
+    wps = np.array([[2.0, 10.0], [18.0, 10.0]])
+    f = WaypointFollower(wps, np.zeros(2, dtype=bool), capture_radius=0.5, cruise_speed=1.0,
+                         stall_time=1000.0, planner=planner, watchdog_time=8.0)
+    for px in np.arange(2.0, 9.01, 0.5):     # straight at the near gap; held at its mouth
+        f.command(np.array([px, 10.0]), 0.0, 0.5)
+    assert not f._detour
+    _wait(f, [9.0, 10.0], until=lambda f: f.recoveries > 0)
+    for px in np.arange(9.0, 5.99, -0.5):                # backs out 3 m along its track
+        f.command(np.array([px, 10.0]), math.pi, 0.5)
+    assert f._detour, "the re-plan detours round the keep-out"
+    assert max(p[1] for p in f._detour) > 18.0           # through the far gap
+    assert all(np.hypot(*(p - [9.0, 10.0])) > 1.5 for p in f._detour)
+    # a passage reached only through a keep-out is still planned (keep-outs are soft)
+    assert planner.path(np.array([6.0, 10.0]), np.array([18.0, 10.0]),
+                        np.array([[10.0, 20.0], [10.0, 10.0]]), 1.5) is not None
