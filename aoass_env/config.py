@@ -134,9 +134,9 @@ class AOASSConfig:
 
     # --- path follower: progress watchdog and recovery ------------------------------------
     watchdog_time: float = _p(
-        8.0, "the follower is stuck when its distance to go has not shrunk by watchdog_progress "
-        "for this long; it then backs out and re-plans around the spot, and gives the target "
-        "up after two tries", unit="s", low=0.0, high=1e4, low_open=True)
+        8.0, "the environment's follower is stuck when its distance to go has not shrunk by "
+        "watchdog_progress for this long; it then backs out and re-plans around the spot, and "
+        "gives the target up after two tries", unit="s", low=0.0, high=1e4, low_open=True)
     watchdog_progress: float = _p(
         1.0, "progress along the follower's plan that resets the watchdog", unit="m", low=0.0,
         high=100.0, low_open=True)

@@ -165,7 +165,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                              obstacle_map=episode_map if episode_map is not None else self._map,
                              seed=seed, method="aoass-env")
         noise_rng = self.np_random.spawn(1)[0]
-        self._follower: WaypointFollower = self.sim.follower()
+        self._follower: WaypointFollower = self.sim.follower(recovery=True)
         self._observe = Observer(self.config, self.sim.spiral, noise_rng)
         self._steps = 0
         self._log = None

@@ -168,11 +168,13 @@ class Simulator:
         """Detour planner for the anchor on this episode's map (built on first use)."""
         return DetourPlanner(self.map, self.config.anchor_radius + DETOUR_MARGIN)
 
-    def follower(self) -> WaypointFollower:
-        """A nominal follower of this episode's path from the start waypoint on (for the
-        spiral: the zero action of the environment)."""
+    def follower(self, recovery: bool = False) -> WaypointFollower:
+        """A nominal follower of this episode's path from the start waypoint on; ``recovery``
+        adds the progress watchdog that backs out of traps and re-plans (the environment's
+        follower, whose zero action sweeps the spiral); without it, the plain follower of the
+        spiral and the baselines, which has only its stall timer."""
         return WaypointFollower.nominal(self.config, self.path.waypoints, self.path.blocked,
-                                        self.planner, start=self.start_index)
+                                        self.planner, start=self.start_index, recovery=recovery)
 
     def nominal_steps(self) -> int:
         """Control periods the ideal path takes at nominal speed."""

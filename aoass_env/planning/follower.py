@@ -102,18 +102,21 @@ class WaypointFollower:
 
     @classmethod
     def nominal(cls, config: AOASSConfig, waypoints: np.ndarray, blocked: np.ndarray | None = None,
-                planner: DetourPlanner | None = None, start: int = 0) -> WaypointFollower:
+                planner: DetourPlanner | None = None, start: int = 0,
+                recovery: bool = False) -> WaypointFollower:
         """The nominal follower of ``config``: cruise at ``anchor_nominal_speed``, brake within
-        ``anchor_max_accel``, capture a waypoint within the anchor radius or half a control
-        period's travel, whichever is larger, and recover from traps with the config's
-        watchdog; ``blocked`` None: no waypoint is skipped; the waypoints before ``start`` are
-        skipped."""
+        ``anchor_max_accel``, and capture a waypoint within the anchor radius or half a control
+        period's travel, whichever is larger; ``blocked`` None: no waypoint is skipped; the
+        waypoints before ``start`` are skipped; ``recovery``: get out of traps with the config's
+        progress watchdog (``watchdog_time``, ``watchdog_progress``, ``backout_distance``),
+        else rely on the stall timer alone."""
         wps = np.asarray(waypoints, dtype=np.float64)
         return cls(wps, np.zeros(len(wps), dtype=bool) if blocked is None else blocked,
                    capture_radius=max(config.anchor_radius,
                                       0.5 * config.anchor_nominal_speed * config.dt),
                    cruise_speed=config.anchor_nominal_speed, max_accel=config.anchor_max_accel,
-                   planner=planner, watchdog_time=config.watchdog_time,
+                   planner=planner,
+                   watchdog_time=config.watchdog_time if recovery else math.inf,
                    watchdog_progress=config.watchdog_progress,
                    backout_distance=config.backout_distance, index=start)
 
