@@ -1,13 +1,14 @@
 """Regenerate docs/results.md: run the benchmark presets and fill the page's template.
 
-Run: ``python3 scripts/make_results.py [--workers W] [--skip-runs]``
+Run: ``python3 scripts/make_results.py [--workers W] [--skip-runs | --presets P ...]``
 
-1. Runs ``evaluate.py --preset P --seeds S`` for each preset of :data:`SEEDS` into ``out/P``.
-   The sweeps resume: episodes already in ``out/P/episodes.csv`` are not run again, so an
-   interrupted regeneration continues where it stopped.
+1. Runs ``evaluate.py --preset P --seeds S`` for each preset of :data:`SEEDS` (or only those of
+   ``--presets``) into ``out/P``. The sweeps resume: episodes already in ``out/P/episodes.csv``
+   are not run again, so an interrupted regeneration continues where it stopped.
 2. Reads the episodes back (only the seeds of :data:`SEEDS`, so a folder that holds more seeds
    gives the same page; the figures are drawn from the same rows) and the wall times that
-   ``evaluate.py`` recorded in ``out/P/runs.jsonl``.
+   ``evaluate.py`` recorded in ``out/P/runs.jsonl``. The ``robustness`` preset is optional: a
+   page built without its folder says that it was not run.
 3. Draws the figures to ``docs/figures/results_<preset>.png`` and writes docs/results.md from
    ``scripts/results_template.md``: every ``$name`` there is a table, a figure's path or a
    number computed here (:func:`page_values`), so no number on the page is typed by hand.
@@ -26,20 +27,31 @@ from pathlib import Path
 from typing import Any
 
 from aoass_env.atomic import write_text_atomic
+from aoass_env.config import AOASSConfig
 from aoass_env.evaluation import cli
-from aoass_env.evaluation.report import draw_figures, label, method_stats, method_table
+from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
+from aoass_env.evaluation.report import (
+    draw_figures,
+    label,
+    method_stats,
+    method_table,
+    robustness_markdown,
+)
 from aoass_env.evaluation.store import read_episodes, read_runs
-from aoass_env.evaluation.sweep import PRESETS
+from aoass_env.evaluation.sweep import PRESETS, ROBUSTNESS_EPISODE_SEED_BASE, episode_jobs
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATE = Path(__file__).with_name("results_template.md")
 PAGE = ROOT / "docs" / "results.md"
 FIGURES = ROOT / "docs" / "figures"
 
-#: Seeds per grid point of each preset on the page (the presets' default is 30; see the page).
-SEEDS = {"quick": 1, "fig2": 15, "fig3": 10, "fig4": 30}
-#: The figure of each preset that the page shows.
+#: Seeds per grid point of each preset on the page (the presets' default is 30 for the figures'
+#: grids, 50 maps per density for robustness; see the page).
+SEEDS = {"quick": 1, "fig2": 15, "fig3": 10, "fig4": 30, "robustness": 50}
+#: The figure of each preset that the page shows (robustness has tables only).
 FIGURE = {"quick": "fig2.png", "fig2": "fig2.png", "fig3": "fig3.png", "fig4": "fig4.png"}
+#: Presets whose section says "not run" when their episodes are missing (the others are needed).
+OPTIONAL = ("robustness",)
 
 Rows = list[dict[str, Any]]
 
@@ -173,12 +185,48 @@ def _wall(name: str, rows: Rows, runs: list[dict[str, Any]]) -> str:
     return text
 
 
-def page_values(rows: dict[str, Rows], runs: dict[str, list[dict[str, Any]]],
+def robustness_values(rows: Rows | None, runs: list[dict[str, Any]], seeds: int
+                      ) -> dict[str, str]:
+    """``$robustness_text`` (how the maps and seeds were made, the preset's wall time) and
+    ``$robustness_tables`` of the page; ``rows`` None or empty: the preset was not run."""
+    name, command = "robustness", "python3 scripts/make_results.py --presets robustness"
+    if not rows:
+        return {"robustness_text": f"**Not run for this page**: `out/{name}/episodes.csv` was "
+                                   f"missing when it was built. `{command}` runs the preset "
+                                   f"({seeds} maps per density) and rebuilds the page.",
+                "robustness_tables": ""}
+    maps = {(r["obstacle_density"], r["map"]) for r in rows}
+    densities = sorted({d for d, _ in maps})
+    per_density = sorted({sum(1 for d, _ in maps if d == density) for density in densities})
+    count = (f"{per_density[0]}" if len(per_density) == 1
+             else f"{per_density[0]}–{per_density[-1]}")
+    methods = len({r["method"] for r in rows})
+    sizes = " / ".join(f"{f:g}" for f in sorted({r["field_size"] for r in rows}))
+    nodes = " / ".join(str(n) for n in sorted({r["n_nodes"] for r in rows}))
+    text = (f"`python3 evaluate.py --preset {name} --seeds {seeds}` (`{command}` reruns it "
+            f"alone and rebuilds this page): {_wall(name, rows, runs)}. {methods} methods, "
+            f"each on {count} freshly generated maps per density "
+            f"({', '.join(f'{d:.1f}' for d in densities)}; {len(maps)} maps in all), "
+            f"{sizes} m field, N = {nodes}, not localized. Map s of density d is "
+            f"`generate_map({sizes}, d, default_rng([{ROBUSTNESS_MAP_SEED}, round(100 d), s]), "
+            f"clearance={AOASSConfig().map_clearance:g})` and the episode's random generator is "
+            f"seeded with {ROBUSTNESS_EPISODE_SEED_BASE} + 1000 · round(100 d) + s, "
+            f"s = 0 … {seeds - 1}: seeds used nowhere else in the project (not by the shipped "
+            f"maps, the other presets or training). All methods play the same map with the "
+            f"same nodes for the same (d, s), so the gap to the plain spiral is a paired "
+            f"difference.")
+    return {"robustness_text": text, "robustness_tables": robustness_markdown(rows, level=3)}
+
+
+def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any]]],
                 seeds: dict[str, int], figures: dict[str, str]) -> dict[str, str]:
-    """Every ``$name`` of the template from the presets' rows and recorded runs."""
+    """Every ``$name`` of the template from the presets' rows and recorded runs (the rows of
+    an :data:`OPTIONAL` preset may be None: not run)."""
     values: dict[str, str] = {"paper_table": paper_table(
         Numbers(rows["fig2"]), Numbers(rows["fig3"]), Numbers(rows["fig4"]))}
-    for name in SEEDS:
+    values.update(robustness_values(rows.get("robustness"), runs.get("robustness", []),
+                                    seeds.get("robustness", SEEDS["robustness"])))
+    for name in FIGURE:
         values[f"seeds_{name}"] = str(seeds[name])
         values[f"wall_{name}"] = _wall(name, rows[name], runs[name])
         values[f"table_{name}"] = method_table(rows[name])
@@ -231,17 +279,29 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "out", help="the presets' folders")
     parser.add_argument("--skip-runs", action="store_true",
                         help="only rebuild the page from the episodes already in --out")
+    parser.add_argument("--presets", nargs="+", choices=list(SEEDS), metavar="P",
+                        help=f"run only these presets ({', '.join(SEEDS)}; default: all), then "
+                             f"rebuild the page from every preset's folder")
     args = parser.parse_args(argv)
+    if args.skip_runs and args.presets:
+        parser.error("--skip-runs runs no preset; --presets does not go with it")
     if not args.skip_runs:
-        run_presets(args.out, SEEDS, args.workers)
-    rows, runs, figures = {}, {}, {}
+        run_presets(args.out, {p: SEEDS[p] for p in args.presets or SEEDS}, args.workers)
+    rows: dict[str, Rows | None] = {}
+    runs, figures = {}, {}
     for name, n in SEEDS.items():
         folder = args.out / name
+        runs[name] = [r for r in read_runs(folder) if r.get("preset") == name]
         if not (folder / "episodes.csv").is_file():
+            if name in OPTIONAL:
+                rows[name] = None
+                continue
             sys.exit(f"{folder / 'episodes.csv'} is missing: run this script without "
                      f"--skip-runs")
-        rows[name] = [r for r in read_episodes(folder / "episodes.csv") if r["seed"] < n]
-        runs[name] = [r for r in read_runs(folder) if r.get("preset") == name]
+        wanted = {job.key.seed for job in episode_jobs(PRESETS[name], ["spiral"], (), n)}
+        rows[name] = [r for r in read_episodes(folder / "episodes.csv") if r["seed"] in wanted]
+        if name not in FIGURE:
+            continue
         with tempfile.TemporaryDirectory() as tmp:
             drawn = {p.name: p for p in draw_figures(rows[name], Path(tmp))}
             target = FIGURES / f"results_{name}.png"
@@ -253,6 +313,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.exit(f"preset(s) {', '.join(missing)} lack a field size of their grid in {args.out}")
     values = page_values(rows, runs, SEEDS, figures)
     page = string.Template(TEMPLATE.read_text(encoding="utf-8")).substitute(values)
+    page = page.rstrip("\n") + "\n"         # an empty last table leaves no blank tail
     write_text_atomic(PAGE, page)
     print(f"wrote {PAGE}")
     return 0

@@ -1,5 +1,7 @@
 """``python3 evaluate.py``: run a preset's episodes for the chosen methods, localize every beacon
-log, write episodes.csv, summary.csv, summary.md and the figures (docs/evaluation.md).
+log, write episodes.csv, summary.csv, summary.md and the figures (docs/evaluation.md). The
+``robustness`` preset (generated maps) is not localized unless ``--localizers`` asks for it, and
+its summary.md opens with the per-density robustness tables.
 
 Exit status: 0 done, 1 some episodes failed (the others are written), 2 bad input (nothing run),
 130 interrupted (Ctrl-C; the finished episodes are written).
@@ -16,21 +18,31 @@ import torch
 from aoass_env.atomic import write_text_atomic
 from aoass_env.backends import BackendError, add_backend_arguments, make_backend
 from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, RunOptions, select_methods
+from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
 from aoass_env.evaluation.report import (
     draw_figures,
     label,
+    robustness_markdown,
     seconds_per_episode,
     summary_markdown,
     write_summary_csv,
 )
 from aoass_env.evaluation.store import (
+    NO_LOCALIZER,
     EpisodeStore,
     EvaluationError,
     check_inputs,
     file_digest,
     record_run,
 )
-from aoass_env.evaluation.sweep import PRESETS, episode_jobs, log_jobs, run_jobs
+from aoass_env.evaluation.sweep import (
+    PRESETS,
+    ROBUSTNESS_EPISODE_SEED_BASE,
+    Preset,
+    episode_jobs,
+    log_jobs,
+    run_jobs,
+)
 from aoass_env.localization import METHODS as LOCALIZERS
 from aoass_env.localization.olstm import DEFAULT_CHECKPOINT
 
@@ -46,19 +58,23 @@ def _names(values: list[str] | None) -> list[str] | None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    presets = "\n".join(f"  {p.name:6s} {p.description}; {p.seeds} seed(s)"
+    presets = "\n".join(f"  {p.name:10s} {p.description}; {p.seeds} seed(s)"
                         for p in PRESETS.values())
     parser = argparse.ArgumentParser(
         prog="evaluate.py", formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Benchmark the sweep methods on the shipped test maps (Eq. 15-19).",
+        description="Benchmark the sweep methods on the shipped test maps or freshly generated "
+                    "ones (Eq. 15-19).",
         epilog=f"presets:\n{presets}\n\nmethods: {', '.join(METHODS)}\n"
-               f"localizers: {', '.join(LOCALIZERS)}\n\nSee docs/evaluation.md.")
+               f"localizers: {', '.join(LOCALIZERS)}, or {NO_LOCALIZER} (no localization)"
+               f"\n\nSee docs/evaluation.md.")
     parser.add_argument("--preset", choices=list(PRESETS), default="quick",
                         help="episode grid (default: quick)")
     parser.add_argument("--methods", nargs="+", metavar="M",
                         help="methods to run (default: all)")
     parser.add_argument("--localizers", nargs="+", metavar="L",
-                        help=f"localizers (default: {' '.join(DEFAULT_LOCALIZERS)})")
+                        help=f"localizers, or {NO_LOCALIZER} (default: "
+                             f"{' '.join(DEFAULT_LOCALIZERS)}; for a preset on generated "
+                             f"maps: {NO_LOCALIZER})")
     parser.add_argument("--seeds", type=int, metavar="S",
                         help="seeds 0..S-1 per grid point (default: the preset's)")
     parser.add_argument("--workers", type=int, metavar="W",
@@ -78,16 +94,32 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _check_localizers(names: list[str] | None) -> tuple[str, ...]:
-    chosen = tuple(dict.fromkeys(names or DEFAULT_LOCALIZERS))
+def _check_localizers(names: list[str] | None,
+                      default: tuple[str, ...] = DEFAULT_LOCALIZERS) -> tuple[str, ...]:
+    chosen = tuple(dict.fromkeys(names or default))
+    if NO_LOCALIZER in chosen:
+        if len(chosen) > 1:
+            raise EvaluationError(f"--localizers {NO_LOCALIZER} turns localization off; it "
+                                  f"does not go with other localizers")
+        return chosen
     unknown = [n for n in chosen if n not in LOCALIZERS]
     if unknown:
         raise EvaluationError(f"unknown localizer(s) {', '.join(map(repr, unknown))}; valid: "
-                              f"{', '.join(LOCALIZERS)}")
+                              f"{', '.join(LOCALIZERS)}, or {NO_LOCALIZER}")
     if "olstm-dvhop" in chosen and not DEFAULT_CHECKPOINT.is_file():
         raise EvaluationError(f"localizer olstm-dvhop needs its checkpoint {DEFAULT_CHECKPOINT}, "
                               f"which is missing; produce it with `{LOCALIZER_COMMAND}`")
     return chosen
+
+
+def _maps_note(preset: Preset | None) -> str:
+    """Where the episodes' maps and seeds come from, for summary.md."""
+    if preset is not None and preset.maps == "generated":
+        return (f"Maps generated afresh: map s of density d is generate_map(F, d, "
+                f"default_rng([{ROBUSTNESS_MAP_SEED}, round(100 d), s])), the episode's random "
+                f"generator seeded with {ROBUSTNESS_EPISODE_SEED_BASE} + 1000 round(100 d) + s.")
+    return ("Maps from maps/test, the k maps of each field size and density taken in turn by "
+            "seed (seed s: map s mod k), the episode's random generator seeded with s.")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -98,8 +130,10 @@ def main(argv: list[str] | None = None) -> int:
             raise EvaluationError(f"--seeds must be at least 1, got {args.seeds}")
         if args.workers is not None and args.workers < 1:
             raise EvaluationError(f"--workers must be at least 1, got {args.workers}")
-        localizers = _check_localizers(_names(args.localizers))
         preset = PRESETS[args.preset]
+        localizers = _check_localizers(
+            _names(args.localizers),
+            DEFAULT_LOCALIZERS if preset.localize or args.logs else (NO_LOCALIZER,))
         if args.logs is not None:
             if args.methods or args.seeds or args.save_logs:
                 raise EvaluationError("--logs localizes every log in its folder; --methods, "
@@ -146,11 +180,12 @@ def main(argv: list[str] | None = None) -> int:
     notes = ("" if args.logs else f"{preset.description}. ") + (
         f"This run: {report.finished} episode(s) finished, {report.skipped} already in "
         f"episodes.csv, {len(report.failed)} failed; wall time {report.wall_seconds:.0f} s on "
-        f"{backend.description}. Maps from maps/test, the k maps of each field size and "
-        f"density taken in turn by seed (seed s: map s mod k), the episode's random generator "
-        f"seeded with s. Mean wall seconds per episode (simulation + localizers): "
+        f"{backend.description}. {_maps_note(None if args.logs else preset)} "
+        f"Mean wall seconds per episode (simulation + localizers): "
         + ", ".join(f"{label(m)} {s:.1f}" for m, s in timing.items()) + ".")
-    markdown = summary_markdown(rows, title, notes)
+    generated = args.logs is None and preset.maps == "generated"
+    markdown = summary_markdown(rows, title, notes,
+                                lead=robustness_markdown(rows) if generated else "")
     write_text_atomic(out / "summary.md", markdown)
     write_summary_csv(rows, out / "summary.csv")
     figures = draw_figures(rows, out)

@@ -4,13 +4,19 @@
 localizer; :func:`localize_log` does the localization part for a saved beacon log. The episode
 metrics are the same for every method: they are read from the finished simulator, with the
 method's own obstacle-free planned path as the ideal of Eq. 19.
+
+An episode's map is a shipped map name or a map file, or the name of a map generated for the
+``robustness`` preset (``generated/d0.30_f100_r7``), which :func:`robustness_map` builds from
+the name alone, so that a resumed sweep plays the same map.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
+import re
 import time
 import zipfile
 from dataclasses import asdict
@@ -22,9 +28,15 @@ import numpy as np
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation.methods import METHODS, MethodRun, RunOptions
-from aoass_env.evaluation.store import EPISODE_FIELDS, KEY_FIELDS, EpisodeKey, EvaluationError
+from aoass_env.evaluation.store import (
+    EPISODE_FIELDS,
+    KEY_FIELDS,
+    NO_LOCALIZER,
+    EpisodeKey,
+    EvaluationError,
+)
 from aoass_env.localization import localize
-from aoass_env.maps import load_map
+from aoass_env.maps import ObstacleMap, generate_map, load_map
 from aoass_env.metrics import (
     energy_efficiency_ratio,
     energy_per_beacon,
@@ -32,10 +44,63 @@ from aoass_env.metrics import (
     trajectory_efficiency,
 )
 
-__all__ = ["episode_metrics", "localization_row", "localize_log", "log_key", "run_episode"]
+__all__ = ["GENERATED_PREFIX", "ROBUSTNESS_MAP_SEED", "episode_map", "episode_metrics",
+           "localization_row", "localize_log", "log_key", "robustness_map",
+           "robustness_map_name", "run_episode"]
 
 #: Name of the beacon-log extra (a JSON string) that holds the episode's key and metrics.
 EPISODE_EXTRA = "evaluation_episode"
+
+#: First entry of the seed sequence of every generated map (used nowhere else in the project):
+#: map ``s`` of density ``d`` is drawn by ``np.random.default_rng([ROBUSTNESS_MAP_SEED,
+#: round(100 d), s])``.
+ROBUSTNESS_MAP_SEED = 20261117
+#: Prefix of the names of generated maps in the episode key (never a shipped map or a file).
+GENERATED_PREFIX = "generated/"
+_GENERATED = re.compile(r"generated/d(?P<d>\d+\.\d{2})_f(?P<f>\d+(?:\.\d+)?)_r(?P<s>\d+)")
+
+
+def robustness_map_name(field_size: float, density: float, index: int) -> str:
+    """The episode-key name of generated map ``index`` of ``density`` on a ``field_size`` m
+    field, e.g. ``generated/d0.30_f100_r7``."""
+    return f"{GENERATED_PREFIX}d{density:.2f}_f{field_size:g}_r{index}"
+
+
+@functools.lru_cache(maxsize=8)
+def robustness_map(name: str, clearance: float = 2.5) -> ObstacleMap:
+    """The map of a :func:`robustness_map_name`: ``generate_map(F, d,
+    default_rng([ROBUSTNESS_MAP_SEED, round(100 d), s]), clearance=clearance)``; the same map
+    for the same name, in any process (cached: the methods of one episode share it).
+
+    Raises:
+        EvaluationError: ``name`` is not such a name.
+    """
+    match = _GENERATED.fullmatch(name)
+    if match is None:
+        raise EvaluationError(f"{name!r} is not a generated map name (e.g. "
+                              f"{robustness_map_name(100.0, 0.3, 7)!r})")
+    density, index = float(match["d"]), int(match["s"])
+    rng = np.random.default_rng([ROBUSTNESS_MAP_SEED, round(100 * density), index])
+    return generate_map(float(match["f"]), density, rng, clearance=clearance,
+                        name=name.removeprefix(GENERATED_PREFIX))
+
+
+def episode_map(key: EpisodeKey, clearance: float = 2.5) -> ObstacleMap:
+    """The obstacle map of ``key``: a generated map (:func:`robustness_map`, whose density
+    must be the key's), a shipped map or a map file; its width must be the key's field size.
+
+    Raises:
+        EvaluationError: the map disagrees with the key (MapError: it cannot be loaded).
+    """
+    generated = key.map.startswith(GENERATED_PREFIX)
+    obstacle_map = robustness_map(key.map, clearance) if generated else load_map(key.map)
+    if not math.isclose(obstacle_map.width, key.field_size):
+        raise EvaluationError(f"map {key.map} is {obstacle_map.width:g} m wide, the episode "
+                              f"key says {key.field_size:g} m")
+    if generated and not math.isclose(round(obstacle_map.density, 2), key.obstacle_density):
+        raise EvaluationError(f"map {key.map} has density {obstacle_map.density:.3f}, the "
+                              f"episode key says {key.obstacle_density:g}")
+    return obstacle_map
 
 
 def episode_metrics(run: MethodRun) -> dict[str, Any]:
@@ -62,7 +127,9 @@ def episode_metrics(run: MethodRun) -> dict[str, Any]:
 
 def localization_row(log: BeaconLog, localizer: str) -> dict[str, Any]:
     """Eq. 15 RMSE (m) over the localized nodes, the localized fraction, and the wall time (s)
-    of ``localizer`` on ``log``."""
+    of ``localizer`` on ``log``; all empty (and 0 s) for :data:`NO_LOCALIZER`."""
+    if localizer == NO_LOCALIZER:
+        return {"localizer": localizer, "rmse": None, "localized": None, "localize_seconds": 0.0}
     t0 = time.perf_counter()
     rmse, localized = localization_rmse(log.nodes, localize(log, localizer))
     return {"localizer": localizer, "rmse": rmse, "localized": localized,
@@ -77,17 +144,17 @@ def run_episode(key: EpisodeKey, localizers: tuple[str, ...], options: RunOption
                 log_dir: Path | None = None) -> list[dict[str, Any]]:
     """Play the episode of ``key`` and return one ``episodes.csv`` row per localizer.
 
-    The map is ``key.map`` (a shipped name or a map file), the random generator is seeded with
-    ``key.seed`` only, and the config is the default one with the map's field size and
-    ``key.n_nodes`` nodes. With ``log_dir``, the beacon log is saved to
+    The map is ``key.map`` (:func:`episode_map`: a shipped name, a map file or a generated
+    map's name), the random generator is seeded with ``key.seed`` only, and the config is the
+    default one with the map's field size and ``key.n_nodes`` nodes (and, but for a generated
+    map, ``map=key.map``). With ``log_dir``, the beacon log is saved to
     ``log_dir/<method>/<map>_n<N>_s<seed>.npz`` with the key and metrics as an extra.
     """
     t0 = time.perf_counter()
-    obstacle_map = load_map(key.map)
-    if not math.isclose(obstacle_map.width, key.field_size):
-        raise EvaluationError(f"map {key.map} is {obstacle_map.width:g} m wide, the episode "
-                              f"key says {key.field_size:g} m")
-    config = AOASSConfig(field_size=key.field_size, n_nodes=key.n_nodes, map=key.map)
+    config = AOASSConfig(field_size=key.field_size, n_nodes=key.n_nodes)
+    obstacle_map = episode_map(key, config.map_clearance)
+    if not key.map.startswith(GENERATED_PREFIX):   # a generated map has no name to load by
+        config = config.replace(map=key.map)
     run = METHODS[key.method].runner(config, obstacle_map, key.seed, options)
     episode = {**asdict(key), **episode_metrics(run), "wall_seconds": time.perf_counter() - t0}
     if log_dir is not None:

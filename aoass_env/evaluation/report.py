@@ -6,6 +6,9 @@
   together, then per value of each grid dimension that varies.
 * :func:`draw_figures`: the paper's Figures 2-4 as PNG, each drawn only when episodes of its
   preset's grid are in the rows.
+* :func:`robustness_stats` / :func:`robustness_markdown`: per obstacle density and method, the
+  share of sweeps that ended by themselves, coverage and its paired gap to the plain spiral on
+  the same episode, the worst coverage, static and moving contacts (the ``robustness`` preset).
 
 Statistics use the finite values only: an episode in which no node was localized has no RMSE
 (its localized fraction, 0, is still counted).
@@ -14,6 +17,7 @@ Statistics use the finite values only: an episode in which no node was localized
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import math
 from collections import defaultdict
@@ -26,16 +30,25 @@ from scipy import stats as st
 
 from aoass_env.atomic import write_text_atomic
 from aoass_env.evaluation.methods import METHODS
-from aoass_env.evaluation.store import EPISODE_FIELDS, KEY_FIELDS, EpisodeKey, row_key
+from aoass_env.evaluation.store import (
+    EPISODE_FIELDS,
+    KEY_FIELDS,
+    NO_LOCALIZER,
+    EpisodeKey,
+    row_key,
+)
 from aoass_env.evaluation.sweep import PRESETS
 
-__all__ = ["SUMMARY_METRICS", "ci_stats", "draw_figures", "method_stats", "method_table",
-           "seconds_per_episode", "summary_markdown", "summarize", "write_summary_csv"]
+__all__ = ["REFERENCE_METHOD", "SUMMARY_METRICS", "ci_stats", "draw_figures", "method_stats",
+           "method_table", "robustness_markdown", "robustness_stats", "seconds_per_episode",
+           "summary_markdown", "summarize", "write_summary_csv"]
 
 #: Metrics of summary.csv: the localization columns, then the episode columns.
 SUMMARY_METRICS = ("rmse", "localized", "localize_seconds") + EPISODE_FIELDS
 GROUP_FIELDS = ("method", "localizer", "field_size", "n_nodes", "obstacle_density")
 PRIMARY_LOCALIZER = "olstm-dvhop"
+#: The method every other one is compared with on the same episode in the robustness tables.
+REFERENCE_METHOD = "spiral"
 
 
 def ci_stats(values: Iterable[float], level: float = 0.95) -> tuple[int, float, float, float]:
@@ -107,7 +120,8 @@ def _episodes(rows: list[dict[str, Any]]) -> dict[EpisodeKey, dict[str, Any]]:
 
 
 def _localizers(rows: list[dict[str, Any]]) -> list[str]:
-    present = list(dict.fromkeys(r["localizer"] for r in rows))
+    """The localizers in ``rows`` (not :data:`NO_LOCALIZER`), the primary one first."""
+    present = [n for n in dict.fromkeys(r["localizer"] for r in rows) if n != NO_LOCALIZER]
     return sorted(present, key=lambda n: n != PRIMARY_LOCALIZER)
 
 
@@ -128,11 +142,18 @@ def seconds_per_episode(rows: list[dict[str, Any]]) -> dict[str, float]:
     return {m: stat[1] for m, stat in method_stats(rows, "seconds").items()}
 
 
-def _cell(values: list[float], fmt: Callable[[float], str]) -> str:
-    n, mean, _, ci = ci_stats(values)
+def _interval(stat: tuple[int, float, float, float], fmt: Callable[[float], str],
+              ci_fmt: Callable[[float], str] | None = None) -> str:
+    """'mean ± CI' of a :func:`ci_stats` tuple ('–' without values, no CI for one); the CI in
+    ``ci_fmt`` (default ``fmt``)."""
+    n, mean, _, ci = stat
     if n == 0:
         return "–"
-    return fmt(mean) if math.isnan(ci) else f"{fmt(mean)} ± {fmt(ci)}"
+    return fmt(mean) if math.isnan(ci) else f"{fmt(mean)} ± {(ci_fmt or fmt)(ci)}"
+
+
+def _cell(values: list[float], fmt: Callable[[float], str]) -> str:
+    return _interval(ci_stats(values), fmt)
 
 
 def _table(episodes: list[dict[str, Any]], localizers: list[str]) -> str:
@@ -171,14 +192,16 @@ def method_table(rows: list[dict[str, Any]]) -> str:
     return _table(list(_episodes(rows).values()), _localizers(rows))
 
 
-def summary_markdown(rows: list[dict[str, Any]], title: str, notes: str = "") -> str:
-    """summary.md: a table of all episodes, then one per value of each grid dimension that
-    varies (field size, node count, obstacle density)."""
+def summary_markdown(rows: list[dict[str, Any]], title: str, notes: str = "",
+                     lead: str = "") -> str:
+    """summary.md: ``lead`` (Markdown put before the tables, e.g. :func:`robustness_markdown`),
+    a table of all episodes, then one per value of each grid dimension that varies (field size,
+    node count, obstacle density)."""
     episodes = list(_episodes(rows).values())
     localizers = _localizers(rows)
     parts = [f"# {title}", notes, "Mean ± 95 % confidence half-width (Student t) over "
              "episodes; RMSE (Eq. 15) over the localized nodes, their share in brackets.",
-             "## All episodes", _table(episodes, localizers)]
+             lead, "## All episodes", _table(episodes, localizers)]
     for dim, name, fmt in (("field_size", "field", "{:g} m"), ("n_nodes", "N", "{:d}"),
                            ("obstacle_density", "obstacle density", "{:.2f}")):
         values = sorted({e[dim] for e in episodes})
@@ -189,6 +212,88 @@ def summary_markdown(rows: list[dict[str, Any]], title: str, notes: str = "") ->
             parts += [f"### {name} {fmt.format(v)}",
                       _table([e for e in episodes if e[dim] == v], localizers)]
     return "\n\n".join(p for p in parts if p) + "\n"
+
+
+# --- robustness --------------------------------------------------------------------------------
+def _paired(key: EpisodeKey) -> EpisodeKey:
+    """The episode of ``key`` without its method: the same map, nodes and seed."""
+    return dataclasses.replace(key, method="")
+
+
+def robustness_stats(rows: list[dict[str, Any]], reference: str = REFERENCE_METHOD
+                     ) -> list[dict[str, Any]]:
+    """Per obstacle density (over every field size and N in ``rows``) and method, in method
+    order: ``n`` episodes; ``complete``, the share that ended by themselves (path_complete);
+    ``coverage`` as :func:`ci_stats` (n, mean, std, CI); ``gap``, the same of the paired
+    difference method − ``reference`` in coverage points (100 × fraction) over the episodes that
+    ``reference`` played too (same map, N and seed); ``worst`` coverage; ``static`` and
+    ``moving`` contacts per sweep (:func:`ci_stats`)."""
+    episodes = _episodes(rows)
+    baseline = {_paired(k): ep["coverage"] for k, ep in episodes.items()
+                if k.method == reference}
+    groups: dict[tuple[float, str], list[tuple[EpisodeKey, dict[str, Any]]]] = defaultdict(list)
+    for key, ep in episodes.items():
+        groups[key.obstacle_density, key.method].append((key, ep))
+    out = []
+    for density in sorted({d for d, _ in groups}):
+        for method in _method_order(m for d, m in groups if d == density):
+            members = groups[density, method]
+            coverage = [ep["coverage"] for _, ep in members]
+            finite = [c for c in coverage if math.isfinite(c)]
+            out.append({
+                "obstacle_density": density, "method": method, "label": label(method),
+                "n": len(members),
+                "complete": ci_stats(ep["path_complete"] for _, ep in members)[1],
+                "coverage": ci_stats(coverage),
+                "gap": ci_stats(100.0 * (ep["coverage"] - baseline[_paired(k)])
+                                for k, ep in members if _paired(k) in baseline),
+                "worst": min(finite, default=math.nan),
+                "static": ci_stats(ep["collisions_static"] for _, ep in members),
+                "moving": ci_stats(ep["collisions_moving"] for _, ep in members)})
+    return out
+
+
+def robustness_markdown(rows: list[dict[str, Any]], reference: str = REFERENCE_METHOD,
+                        level: int = 2) -> str:
+    """The robustness tables of :func:`robustness_stats`: an overview (per method and density,
+    the mean coverage gap to ``reference`` and the share of sweeps that ended by themselves),
+    then one table per density; headings at Markdown ``level``. Empty without rows."""
+    stats = robustness_stats(rows, reference)
+    if not stats:
+        return ""
+    h = "#" * level
+    pct, points, one = "{:.1%}".format, "{:+.1f}".format, "{:.1f}".format
+    ref = label(reference).lower()
+
+    def gap(s: dict[str, Any], mark: str) -> str:
+        return mark if s["method"] == reference else _interval(s["gap"], points, one)
+
+    densities = sorted({s["obstacle_density"] for s in stats})
+    by_key = {(s["obstacle_density"], s["method"]): s for s in stats}
+    overview = ["| method | " + " | ".join(f"d = {d:.1f}" for d in densities) + " |",
+                "|---|" + "---|" * len(densities)]
+    for m in _method_order(s["method"] for s in stats):
+        cells = [f"{gap(by_key[d, m], 'ref.')} ({by_key[d, m]['complete']:.0%})"
+                 if (d, m) in by_key else "–" for d in densities]
+        overview.append(f"| {label(m)} | " + " | ".join(cells) + " |")
+    parts = [f"{h} Robustness by obstacle density",
+             f"Coverage gap to the {ref} on the same episode (same map, nodes and seed): mean "
+             f"of the paired differences method − {ref}, in percentage points, ± 95 % CI; in "
+             f"brackets the share of sweeps that ended by themselves.", "\n".join(overview)]
+    for density in densities:
+        lines = [f"| method | ended by itself | coverage | gap to {ref} [points] | "
+                 "worst coverage | static contacts | moving contacts | n |",
+                 "|---|---|---|---|---|---|---|---|"]
+        for s in stats:
+            if s["obstacle_density"] != density:
+                continue
+            worst = pct(s["worst"]) if math.isfinite(s["worst"]) else "–"
+            lines.append(f"| {s['label']} | {s['complete']:.0%} | "
+                         f"{_interval(s['coverage'], pct)} | {gap(s, 'reference')} | {worst} | "
+                         f"{_interval(s['static'], one)} | {_interval(s['moving'], one)} | "
+                         f"{s['n']} |")
+        parts += [f"{h}# Obstacle density {density:.1f}", "\n".join(lines)]
+    return "\n\n".join(parts)
 
 
 # --- figures -----------------------------------------------------------------------------------
@@ -275,7 +380,7 @@ def draw_figures(rows: list[dict[str, Any]], out: Path) -> list[Path]:
     matplotlib.use("Agg")
     episodes = list(_episodes(rows).values())
     localizers = _localizers(rows)
-    if not episodes:
+    if not episodes or not localizers:     # the figures plot RMSE: not without a localizer
         return []
     written = []
     fig2 = [e for e in episodes if _in_grid("fig2", e)]

@@ -24,9 +24,9 @@ from typing import Any
 from aoass_env.atomic import write_text_atomic
 
 __all__ = ["COLUMNS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS", "LOCALIZATION_FIELDS",
-           "TIMING_FIELDS", "EpisodeKey", "EpisodeStore", "EvaluationError", "check_inputs",
-           "RUNS_FILE", "comparable_lines", "file_digest", "read_episodes", "read_runs",
-           "record_run", "row_key"]
+           "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey", "EpisodeStore", "EvaluationError",
+           "check_inputs", "RUNS_FILE", "comparable_lines", "file_digest", "read_episodes",
+           "read_runs", "record_run", "row_key"]
 
 
 class EvaluationError(ValueError):
@@ -55,6 +55,9 @@ KEY_FIELDS = tuple(f.name for f in fields(EpisodeKey))
 #: Columns of one localizer's result: Eq. 15 RMSE (m) over the localized nodes, the localized
 #: fraction, and the localizer's wall time (s).
 LOCALIZATION_FIELDS = ("localizer", "rmse", "localized", "localize_seconds")
+#: The ``localizer`` of an episode's single row when it is not localized (``--localizers
+#: none``): its localization cells are empty, its episode columns filled as usual.
+NO_LOCALIZER = "none"
 #: Columns of the episode, the same on each of its localizer rows (units in docs/evaluation.md).
 EPISODE_FIELDS = ("coverage", "beacons", "path_length", "ideal_length", "travel_time",
                   "ideal_time", "eta_traj", "collisions", "collisions_static",

@@ -7,6 +7,12 @@ density taken in turn) with the random generator seeded by ``s`` alone, so every
 same map and nodes for the same seed, and the result depends on the key only -- not on the
 worker count or the order of the episodes.
 
+The ``robustness`` preset runs on freshly generated maps instead: episode (density d, seed
+index s) plays :func:`~aoass_env.evaluation.episode.robustness_map` of the name
+``generated/d<d>_f<F>_r<s>`` (map seed sequence ``[ROBUSTNESS_MAP_SEED, round(100 d), s]``) with
+the episode seed :func:`robustness_seed` ``= ROBUSTNESS_EPISODE_SEED_BASE + 1000 round(100 d) +
+s``; neither seed is used anywhere else in the project.
+
 :func:`run_jobs` skips the (episode, localizer) pairs already in ``episodes.csv``, runs the
 others on a backend (:mod:`aoass_env.backends`: local worker processes, or Ray tasks) and appends
 each finished episode's rows as soon as it arrives, so an interrupted sweep resumes where it
@@ -28,18 +34,33 @@ from tqdm import tqdm
 
 from aoass_env.backends import Backend, LocalBackend, set_threads
 from aoass_env.beacon_log import BeaconLogError
-from aoass_env.evaluation.episode import localize_log, log_key, run_episode
+from aoass_env.evaluation.episode import (
+    localize_log,
+    log_key,
+    robustness_map_name,
+    run_episode,
+)
 from aoass_env.evaluation.methods import RunOptions
 from aoass_env.evaluation.store import EpisodeKey, EpisodeStore, EvaluationError
 from aoass_env.maps import list_maps
 
-__all__ = ["PRESETS", "Job", "Preset", "SweepReport", "episode_jobs", "job_rows", "log_jobs",
-           "run_jobs"]
+__all__ = ["PRESETS", "ROBUSTNESS_EPISODE_SEED_BASE", "Job", "Preset", "SweepReport",
+           "episode_jobs", "job_rows", "log_jobs", "robustness_seed", "run_jobs"]
+
+#: Episode seeds of the ``robustness`` preset start here (the other presets use 0..seeds-1).
+ROBUSTNESS_EPISODE_SEED_BASE = 710_000
+#: Seed indices per density of a generated-map preset (they must not reach the next density's).
+MAX_GENERATED_SEEDS = 1000
 
 
 @dataclass(frozen=True)
 class Preset:
-    """A grid of episodes: field sides (m), node counts, obstacle densities, seeds 0..seeds-1."""
+    """A grid of episodes: field sides (m), node counts, obstacle densities, seeds 0..seeds-1.
+
+    ``maps``: ``"test"``, the shipped test maps taken in turn by seed, or ``"generated"``, a
+    freshly generated map per (density, seed) with the seeds of :func:`robustness_seed`.
+    ``localize``: whether the episodes are localized unless ``--localizers`` says otherwise
+    (False: one row per episode with localizer ``none``)."""
 
     name: str
     field_sizes: tuple[float, ...]
@@ -47,6 +68,8 @@ class Preset:
     densities: tuple[float, ...]
     seeds: int
     description: str
+    maps: str = "test"
+    localize: bool = True
 
 
 PRESETS: dict[str, Preset] = {p.name: p for p in (
@@ -60,7 +83,16 @@ PRESETS: dict[str, Preset] = {p.name: p for p in (
            "Figure 4: densities 0.5 and 0.6, 100 m, N = 100"),
     Preset("smoke", (100.0,), (60,), (0.1,), 1,
            "one episode per method, 100 m, density 0.1, N = 60 (the test suite's)"),
+    Preset("robustness", (100.0,), (100,), (0.1, 0.2, 0.3, 0.4, 0.5, 0.6), 50,
+           "50 freshly generated maps per density 0.1-0.6, 100 m, N = 100, no localization",
+           maps="generated", localize=False),
 )}
+
+
+def robustness_seed(density: float, index: int) -> int:
+    """The episode seed of seed index ``index`` (0..999) at ``density`` in a generated-map
+    preset: ``ROBUSTNESS_EPISODE_SEED_BASE + 1000 round(100 density) + index``."""
+    return ROBUSTNESS_EPISODE_SEED_BASE + MAX_GENERATED_SEEDS * round(100 * density) + index
 
 
 @dataclass(frozen=True)
@@ -90,9 +122,13 @@ def episode_jobs(preset: Preset, methods: Iterable[str], localizers: tuple[str, 
     point by grid point, every method at each point.
 
     Raises:
-        EvaluationError: no shipped test map of a field size and density of the grid.
+        EvaluationError: no shipped test map of a field size and density of the grid; more
+            than 1000 seeds for a generated-map preset.
     """
     methods = list(methods)
+    if preset.maps == "generated":
+        return _generated_jobs(preset, methods, localizers,
+                               preset.seeds if seeds is None else seeds)
     jobs = []
     for size in preset.field_sizes:
         for density in preset.densities:
@@ -105,6 +141,19 @@ def episode_jobs(preset: Preset, methods: Iterable[str], localizers: tuple[str, 
                     jobs += [Job(EpisodeKey(m, maps[seed % len(maps)], size, n, density, seed),
                                  localizers) for m in methods]
     return jobs
+
+
+def _generated_jobs(preset: Preset, methods: list[str], localizers: tuple[str, ...],
+                    seeds: int) -> list[Job]:
+    """:func:`episode_jobs` of a generated-map preset: map ``s`` of each density and field
+    size, episode seed :func:`robustness_seed`."""
+    if seeds > MAX_GENERATED_SEEDS:
+        raise EvaluationError(f"preset {preset.name!r} takes at most {MAX_GENERATED_SEEDS} "
+                              f"seeds, got {seeds}")
+    return [Job(EpisodeKey(m, robustness_map_name(size, density, s), size, n, density,
+                           robustness_seed(density, s)), localizers)
+            for size in preset.field_sizes for density in preset.densities
+            for n in preset.n_nodes for s in range(seeds) for m in methods]
 
 
 def log_jobs(folder: Path, localizers: tuple[str, ...]) -> list[Job]:

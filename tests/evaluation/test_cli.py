@@ -4,13 +4,14 @@ import csv
 import math
 import shutil
 import sys
+from dataclasses import replace
 
 import pytest
 
 from aoass_env.evaluation import cli
 from aoass_env.evaluation.methods import METHODS, POLICY_COMMAND
-from aoass_env.evaluation.store import COLUMNS, read_episodes, read_runs
-from aoass_env.evaluation.sweep import PRESETS
+from aoass_env.evaluation.store import COLUMNS, NO_LOCALIZER, read_episodes, read_runs
+from aoass_env.evaluation.sweep import PRESETS, robustness_seed
 from aoass_env.localization import METHODS as LOCALIZERS
 
 
@@ -133,3 +134,25 @@ def test_backend_ray_without_ray_says_how_to_install(capsys, tmp_path, monkeypat
                                 "--out", str(tmp_path / "out")])
     assert "--backend ray needs Ray: pip install -e '.[ray]'" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_robustness_preset_runs_unlocalized_on_generated_maps(monkeypatch, capsys, tmp_path):
+    """A one-density, 30-node version of the preset: one row per episode (localizer none), the
+    robustness tables in summary.md, and a rerun that skips the finished episode."""
+    small = replace(PRESETS["robustness"], densities=(0.1,), n_nodes=(30,))
+    monkeypatch.setitem(PRESETS, "robustness", small)
+    argv = ["--preset", "robustness", "--seeds", "1", "--methods", "spiral", "--workers", "1",
+            "--out", str(tmp_path), "--no-progress"]
+    assert cli.main(argv) == 0
+    [row] = read_episodes(tmp_path / "episodes.csv")
+    assert (row["method"], row["map"], row["seed"], row["localizer"]) == (
+        "spiral", "generated/d0.10_f100_r0", robustness_seed(0.1, 0), NO_LOCALIZER)
+    assert math.isnan(row["rmse"]) and 0.0 < row["coverage"] <= 1.0
+    summary = (tmp_path / "summary.md").read_text()
+    assert "## Robustness by obstacle density" in summary and "20261117" in summary
+    assert f"| Square spiral | {row['path_complete']:.0%} | {row['coverage']:.1%} |" in summary
+    assert cli.main(argv) == 0
+    assert read_runs(tmp_path)[-1]["skipped"] == 1
+    capsys.readouterr()
+    err = _usage_error(capsys, [*argv, "--localizers", "none", "dvhop"])
+    assert "does not go with other localizers" in err

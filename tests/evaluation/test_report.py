@@ -2,6 +2,7 @@
 
 import csv
 import math
+from pathlib import Path
 
 import pytest
 from scipy import stats
@@ -11,6 +12,8 @@ from aoass_env.evaluation.report import (
     draw_figures,
     method_stats,
     method_table,
+    robustness_markdown,
+    robustness_stats,
     seconds_per_episode,
     summarize,
     summary_markdown,
@@ -111,3 +114,43 @@ def test_method_table_is_the_all_episodes_table():
     assert table.splitlines()[0].startswith("| method | RMSE olstm-dvhop [m] (localized)")
     assert len(table.splitlines()) == 4
     assert table in summary_markdown(rows, "t").split("## All episodes")[1]
+
+
+def test_robustness_gap_is_paired_with_the_spiral_of_the_same_episode():
+    """Two seeds per density; the spiral covers 0.9 and 0.5 (seed 0, 1), scan 0.8 and 0.6: the
+    per-method means differ by 0 points, the paired gaps are -10 and +10."""
+    rows = []
+    for method, coverage in (("spiral", (0.9, 0.5)), ("scan", (0.8, 0.6))):
+        for d in (0.1, 0.6):
+            for s in range(2):
+                row = dict.fromkeys(COLUMNS, 1.0)
+                row.update(method=method, map=f"generated/d{d:.2f}_f100_r{s}", field_size=100.0,
+                           n_nodes=100, obstacle_density=d, seed=700 + s, localizer="none",
+                           rmse=math.nan, localized=math.nan, localize_seconds=0.0,
+                           coverage=coverage[s] if d == 0.1 else coverage[s] - 0.1,
+                           path_complete=int(method == "spiral" or s == 0),
+                           collisions_static=3 * s, collisions_moving=1)
+                rows.append(row)
+    rows.append({**rows[-1], "method": "ohm", "seed": 999})      # no spiral on its episode
+    stats = robustness_stats(rows)
+    assert [(s["obstacle_density"], s["method"]) for s in stats] == [
+        (0.1, "spiral"), (0.1, "scan"), (0.6, "spiral"), (0.6, "scan"), (0.6, "ohm")]
+    scan = stats[1]
+    assert scan["n"] == 2 and scan["complete"] == 0.5
+    n, mean, std, ci = scan["gap"]
+    assert (n, mean) == (2, pytest.approx(0.0)) and std == pytest.approx(math.sqrt(200))
+    assert ci == pytest.approx(stats_t975(1) * math.sqrt(200) / math.sqrt(2))
+    assert scan["coverage"][1] == pytest.approx(0.7) and scan["worst"] == pytest.approx(0.6)
+    assert scan["static"][1] == 1.5 and scan["moving"][1] == 1.0
+    assert stats[0]["gap"][1] == 0.0 and stats[4]["gap"][0] == 0        # ohm: no pair
+    text = robustness_markdown(rows)
+    assert "| SCAN | +0.0 ± 127.1 (50%) | +0.0 ± 127.1 (50%) |" in text
+    assert "| Square spiral | 100% | 70.0% ± 254.1% | reference | 50.0% |" in text
+    assert "| OHM (reconstructed) | 0% | 50.0% | – | 50.0% | 3.0 | 1.0 | 1 |" in text
+    assert "### Obstacle density 0.6" in text and robustness_markdown([]) == ""
+    # no localizer in the rows: no RMSE column, no figure
+    assert "RMSE" not in method_table(rows) and draw_figures(rows, Path("/nonexistent")) == []
+
+
+def stats_t975(dof: int) -> float:
+    return stats.t.ppf(0.975, dof)

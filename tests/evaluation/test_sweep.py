@@ -3,13 +3,35 @@
 import math
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
-from aoass_env.evaluation.episode import run_episode
+from aoass_env.evaluation.episode import (
+    GENERATED_PREFIX,
+    ROBUSTNESS_MAP_SEED,
+    episode_map,
+    robustness_map,
+    robustness_map_name,
+    run_episode,
+)
 from aoass_env.evaluation.methods import RunOptions
-from aoass_env.evaluation.store import EpisodeStore, EvaluationError, read_episodes
-from aoass_env.evaluation.sweep import PRESETS, Job, episode_jobs, log_jobs, run_jobs
-from aoass_env.maps import list_maps
+from aoass_env.evaluation.store import (
+    NO_LOCALIZER,
+    EpisodeKey,
+    EpisodeStore,
+    EvaluationError,
+    read_episodes,
+)
+from aoass_env.evaluation.sweep import (
+    PRESETS,
+    ROBUSTNESS_EPISODE_SEED_BASE,
+    Job,
+    episode_jobs,
+    log_jobs,
+    robustness_seed,
+    run_jobs,
+)
+from aoass_env.maps import DENSITY_TOL, generate_map, list_maps
 
 OPTIONS = RunOptions(max_steps=80)
 
@@ -87,3 +109,58 @@ def test_log_jobs_read_the_key_of_each_saved_log(small_key, tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(EvaluationError, match="no beacon log"):
         log_jobs(tmp_path / "empty", ("dvhop",))
+
+
+def test_robustness_maps_are_regenerated_from_their_name():
+    name = robustness_map_name(100.0, 0.3, 7)
+    assert name == "generated/d0.30_f100_r7"
+    robustness_map.cache_clear()
+    first = robustness_map(name)
+    robustness_map.cache_clear()
+    again = robustness_map(name)
+    assert first is not again and len(first.polygons) == len(again.polygons)
+    assert all(np.array_equal(a, b) for a, b in zip(first.polygons, again.polygons, strict=True))
+    assert abs(first.density - 0.3) <= DENSITY_TOL and first.width == 100.0
+    expected = generate_map(100.0, 0.3, np.random.default_rng([ROBUSTNESS_MAP_SEED, 30, 7]),
+                            clearance=2.5)
+    assert all(np.array_equal(a, b) for a, b in zip(first.polygons, expected.polygons,
+                                                    strict=True))
+    other = robustness_map(robustness_map_name(100.0, 0.3, 8))
+    assert not all(np.array_equal(a, b) for a, b in zip(first.polygons, other.polygons,
+                                                        strict=False))
+    with pytest.raises(EvaluationError, match="not a generated map name"):
+        robustness_map("generated/d0.3_r7")
+
+
+def test_a_generated_map_must_match_its_key():
+    key = EpisodeKey("spiral", robustness_map_name(100.0, 0.1, 0), 100.0, 20, 0.1, 1)
+    assert episode_map(key).width == 100.0
+    with pytest.raises(EvaluationError, match="density"):
+        episode_map(replace(key, obstacle_density=0.2))
+    with pytest.raises(EvaluationError, match="wide"):
+        episode_map(replace(key, field_size=200.0))
+
+
+def test_robustness_grid_uses_its_own_seeds():
+    preset = PRESETS["robustness"]
+    assert preset.densities == (0.1, 0.2, 0.3, 0.4, 0.5, 0.6) and preset.seeds >= 50
+    assert (preset.field_sizes, preset.n_nodes, preset.localize) == ((100.0,), (100,), False)
+    jobs = episode_jobs(preset, ["spiral", "scan"], (NO_LOCALIZER,))
+    assert len(jobs) == 2 * 6 * preset.seeds
+    spiral = [j.key for j in jobs if j.key.method == "spiral"]
+    assert len({k.seed for k in spiral}) == len({k.map for k in spiral}) == len(spiral)
+    assert {(k.map, k.seed) for k in spiral} == {(j.key.map, j.key.seed) for j in jobs
+                                                 if j.key.method == "scan"}
+    assert all(k.map.startswith(GENERATED_PREFIX) for k in spiral)
+    assert spiral[0].seed == robustness_seed(0.1, 0) == ROBUSTNESS_EPISODE_SEED_BASE + 10_000
+    others = {j.key.seed for name, p in PRESETS.items() if p.maps != "generated"
+              for j in episode_jobs(p, ["spiral"], ("dvhop",))}
+    assert not others & {k.seed for k in spiral}
+    with pytest.raises(EvaluationError, match="at most 1000 seeds"):
+        episode_jobs(preset, ["spiral"], (NO_LOCALIZER,), seeds=1001)
+
+
+def test_an_unlocalized_episode_has_one_row_with_empty_localization(small_key):
+    (row,) = run_episode(small_key("spiral"), (NO_LOCALIZER,), OPTIONS)
+    assert row["localizer"] == NO_LOCALIZER and row["rmse"] is None
+    assert row["localize_seconds"] == 0.0 and 0.0 <= row["coverage"] <= 1.0

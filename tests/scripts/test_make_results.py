@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from aoass_env.evaluation.store import COLUMNS
-from aoass_env.evaluation.sweep import PRESETS
+from aoass_env.evaluation.store import COLUMNS, NO_LOCALIZER
+from aoass_env.evaluation.sweep import PRESETS, episode_jobs
 
 SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "make_results.py"
 spec = importlib.util.spec_from_file_location("make_results", SCRIPT)
@@ -47,14 +47,34 @@ RMSE = {"aoass": 0.9, "aoass-scripted": 0.9, "spiral": 1.0, "fdpp": 1.2, "ohm": 
         "m-anchoro": 1.0, "otpp": 1.0}
 
 
+def robustness_rows(seeds: int) -> list[dict]:
+    """The robustness preset's episodes, unlocalized: the spiral covers 90 %, OHM 80 % + 1 % per
+    seed index, AOASS 95 %; every sweep ends by itself but OHM's first."""
+    out = []
+    for job in episode_jobs(PRESETS["robustness"], ("spiral", "ohm", "aoass"), (NO_LOCALIZER,),
+                            seeds):
+        k = job.key
+        index = k.seed % 1000
+        row = dict.fromkeys(COLUMNS, 1.0)
+        row.update(method=k.method, map=k.map, field_size=k.field_size, n_nodes=k.n_nodes,
+                   obstacle_density=k.obstacle_density, seed=k.seed, localizer=NO_LOCALIZER,
+                   rmse=math.nan, localized=math.nan, localize_seconds=0.0,
+                   coverage={"spiral": 0.9, "ohm": 0.8 + 0.01 * index, "aoass": 0.95}[k.method],
+                   path_complete=int(k.method != "ohm" or index > 0), collisions_static=2,
+                   collisions_moving=1)
+        out.append(row)
+    return out
+
+
 @pytest.fixture(scope="module")
 def values():
     rows = {name: preset_rows("fig2" if name == "quick" else name, ENERGY, RMSE)
-            for name in make_results.SEEDS}
+            for name in make_results.FIGURE}
+    rows["robustness"] = robustness_rows(2)
     runs = {name: [{"finished": 10, "wall_seconds": 30.0, "backend": "2 local processes"}]
             for name in make_results.SEEDS}
-    figures = {name: f"figures/results_{name}.png" for name in make_results.SEEDS}
-    seeds = {"quick": 1, "fig2": 2, "fig3": 2, "fig4": 2}
+    figures = {name: f"figures/results_{name}.png" for name in make_results.FIGURE}
+    seeds = {"quick": 1, "fig2": 2, "fig3": 2, "fig4": 2, "robustness": 2}
     return make_results.page_values(rows, runs, seeds, figures)
 
 
@@ -62,6 +82,44 @@ def test_the_template_gets_every_value(values):
     page = string.Template(make_results.TEMPLATE.read_text()).substitute(values)
     assert "$" not in page.replace("$$", "")
     assert values["table_fig3_200"] in page and values["table_fig4_60"] in page
+    assert "## Robustness on freshly generated maps" in page
+    assert values["robustness_tables"] in page
+
+
+def test_robustness_section_is_computed_from_its_episodes(values):
+    text = values["robustness_text"]
+    assert "3 methods, each on 2 freshly generated maps per density" in text
+    assert "(0.1, 0.2, 0.3, 0.4, 0.5, 0.6; 12 maps in all), 100 m field, N = 100" in text
+    assert "20261117" in text and "710000" in text and "s = 0 … 1" in text
+    tables = values["robustness_tables"]
+    ohm = [line for line in tables.splitlines() if line.startswith("| OHM")]
+    assert len(ohm) == 1 + 6                         # the overview and one row per density
+    # OHM: 80 % and 81 % against the spiral's 90 %: gaps -10 and -9 points; 1 of 2 ended
+    assert "| 50% | 80.5% ± 6.4% | -9.5 ± 6.4 | 80.0% | 2.0 ± 0.0 | 1.0 ± 0.0 | 2 |" in ohm[1]
+    assert ohm[0].count("-9.5 ± 6.4 (50%)") == 6
+
+
+def test_robustness_not_run_says_so(values):
+    rows = {name: preset_rows("fig2" if name == "quick" else name, ENERGY, RMSE)
+            for name in make_results.FIGURE}
+    rows["robustness"] = None
+    figures = {name: f"figures/results_{name}.png" for name in make_results.FIGURE}
+    page_values = make_results.page_values(rows, {name: [] for name in make_results.SEEDS},
+                                           make_results.SEEDS, figures)
+    assert "Not run for this page" in page_values["robustness_text"]
+    assert "--presets robustness" in page_values["robustness_text"]
+    assert page_values["robustness_tables"] == ""
+    page = string.Template(make_results.TEMPLATE.read_text()).substitute(page_values)
+    assert "Not run for this page" in page
+
+
+def test_only_the_chosen_presets_run(monkeypatch, tmp_path):
+    ran = []
+    monkeypatch.setattr(make_results, "run_presets",
+                        lambda out, seeds, workers: ran.append(dict(seeds)))
+    with pytest.raises(SystemExit, match="quick"):       # the other folders are missing
+        make_results.main(["--presets", "robustness", "--out", str(tmp_path)])
+    assert ran == [{"robustness": make_results.SEEDS["robustness"]}]
 
 
 def test_paper_table_verdicts_follow_the_numbers(values):
