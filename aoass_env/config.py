@@ -163,7 +163,8 @@ class AOASSConfig:
         math.pi / 2, "heading change commanded by action[1] = +-1 on top of the follower's "
         "heading", unit="rad", low=0.0, high=math.pi)
     time_limit_factor: float = _p(
-        4.0, "episode time limit as a multiple of the ideal spiral's duration at nominal speed",
+        5.0, "episode time limit as a multiple of the ideal path's duration at nominal speed "
+        "(the environment's: of the ideal spiral's; every evaluated method gets the same)",
         low=1.0, high=100.0)
 
     def __post_init__(self) -> None:

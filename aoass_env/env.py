@@ -44,7 +44,7 @@ def checked_action(action: Any) -> tuple[float, float]:
 
 def max_episode_steps(config: AOASSConfig) -> int:
     """Step limit of an episode: ``time_limit_factor`` x the ideal spiral's duration at nominal
-    speed, in control periods (1552 x 4 = 6208 steps for the default config)."""
+    speed, in control periods (1552 x 5 = 7760 steps for the default config)."""
     spiral = episode_spiral(config, ObstacleMap(config.field_size, config.field_size))
     nominal = spiral.nominal_time(config.anchor_nominal_speed) / config.dt
     return math.ceil(config.time_limit_factor * nominal)
@@ -104,8 +104,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
     ## Episode End
 
     * Termination: the follower has reached or skipped every spiral waypoint (path complete).
-    * Truncation: ``max_episode_steps`` control periods, ``time_limit_factor`` (4) times the
-      ideal spiral's duration at nominal speed (6208 steps for the default config);
+    * Truncation: ``max_episode_steps`` control periods, ``time_limit_factor`` (5) times the
+      ideal spiral's duration at nominal speed (7760 steps for the default config);
       ``gymnasium.make`` reports the same limit in ``env.spec.max_episode_steps``.
 
     Every step's ``info`` holds coverage, collisions, path length, beacons sent, energy, the

@@ -38,10 +38,6 @@ from aoass_env.world import World
 #: room for the turn-rate-limited anchor to round the corners of a detour.
 DETOUR_MARGIN = 0.3
 
-#: Default step limit of :meth:`Simulator.run` in units of the ideal spiral's duration; detours
-#: at density 0.5-0.6 take up to about 3 times as long as the ideal spiral.
-RUN_LIMIT = 5
-
 
 @dataclass(frozen=True)
 class StepRecord:
@@ -181,13 +177,19 @@ class Simulator:
         return math.ceil(self.path.nominal_time(self.config.anchor_nominal_speed)
                          / self.config.dt)
 
+    def step_limit(self) -> int:
+        """Control periods a method may take: ``time_limit_factor`` times the path's nominal
+        duration (detours at density 0.5-0.6 take up to about 3-4 times as long)."""
+        return math.ceil(self.config.time_limit_factor * self.nominal_steps())
+
     def run(self, max_steps: int | None = None, controller: Controller | None = None
             ) -> BeaconLog:
         """Drive ``controller`` (default: the nominal follower of the path) until it is done
-        (or ``max_steps``, default ``RUN_LIMIT`` times the path's nominal duration); return the
+        (or ``max_steps``, default ``time_limit_factor`` times the path's nominal duration, as
+        the environment's limit); return the
         finished beacon log."""
         follower = controller if controller is not None else self.follower()
-        limit = max_steps if max_steps is not None else RUN_LIMIT * self.nominal_steps()
+        limit = max_steps if max_steps is not None else self.step_limit()
         for _ in range(limit):
             speed, heading = follower.command(self.world.position, self.world.heading,
                                               self.config.dt)

@@ -25,7 +25,7 @@ def test_make_without_prior_import_registers_the_env():
             "print(type(env.unwrapped).__name__, env.spec.max_episode_steps)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.split()
-    assert out == ["AOASSEnv", "6208"]
+    assert out == ["AOASSEnv", "7760"]
 
 
 def test_import_registers_once():

@@ -34,7 +34,7 @@ from aoass_env.maps import ObstacleMap
 from aoass_env.planning import PlannedMethod
 from aoass_env.planning.baselines import BASELINE_METHODS
 from aoass_env.planning.classical import CLASSICAL_METHODS
-from aoass_env.simulator import RUN_LIMIT, Controller, Simulator
+from aoass_env.simulator import Controller, Simulator
 from aoass_env.wrappers import make_safe_env
 
 __all__ = ["DEFAULT_POLICY", "METHODS", "MethodRun", "MethodSpec", "RunOptions",
@@ -155,10 +155,10 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
 def _run_simulator(sim: Simulator, options: RunOptions,
                    controller: Controller | None = None) -> MethodRun:
     """Drive ``sim`` with ``controller`` (None: the nominal follower of its path) until it is
-    done or the step limit (``options.max_steps``, else ``RUN_LIMIT`` times the path's nominal
-    duration)."""
+    done or the step limit (``options.max_steps``, else ``time_limit_factor`` times the path's
+    nominal duration)."""
     limit = (options.max_steps if options.max_steps is not None
-             else RUN_LIMIT * sim.nominal_steps())
+             else sim.step_limit())
     log = sim.run(max_steps=limit, controller=controller)
     return MethodRun(sim, log, complete=len(log.anchor_path) - 1 < limit)
 
