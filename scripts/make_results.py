@@ -52,6 +52,10 @@ SEEDS = {"quick": 1, "fig2": 15, "fig3": 10, "fig4": 30, "robustness": 50}
 FIGURE = {"quick": "fig2.png", "fig2": "fig2.png", "fig3": "fig3.png", "fig4": "fig4.png"}
 #: Presets whose section says "not run" when their episodes are missing (the others are needed).
 OPTIONAL = ("robustness",)
+#: The markers around the robustness section in the template and on the page: with only
+#: ``--presets robustness`` and the other presets' episodes missing, only that section of the
+#: page is rebuilt.
+SECTION = ("<!-- robustness: begin -->", "<!-- robustness: end -->")
 
 Rows = list[dict[str, Any]]
 
@@ -273,6 +277,22 @@ def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any
     return values
 
 
+def replace_section(page: str, template: str, values: dict[str, str]) -> str:
+    """``page`` with the text between the :data:`SECTION` markers rebuilt from that part of
+    ``template`` and ``values``.
+
+    Raises:
+        ValueError: the page or the template lacks the markers."""
+    parts = []
+    for name, text in (("page", page), ("template", template)):
+        begin, end = text.find(SECTION[0]), text.find(SECTION[1])
+        if begin < 0 or end < begin:
+            raise ValueError(f"the {name} has no {SECTION[0]} ... {SECTION[1]} section")
+        parts.append((begin + len(SECTION[0]), end))
+    (p0, p1), (t0, t1) = parts
+    return page[:p0] + string.Template(template[t0:t1]).substitute(values) + page[p1:]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--workers", type=int, help="evaluate.py --workers (default: all cores)")
@@ -289,6 +309,7 @@ def main(argv: list[str] | None = None) -> int:
         run_presets(args.out, {p: SEEDS[p] for p in args.presets or SEEDS}, args.workers)
     rows: dict[str, Rows | None] = {}
     runs, figures = {}, {}
+    only_optional = bool(args.presets) and set(args.presets) <= set(OPTIONAL)
     for name, n in SEEDS.items():
         folder = args.out / name
         runs[name] = [r for r in read_runs(folder) if r.get("preset") == name]
@@ -296,6 +317,8 @@ def main(argv: list[str] | None = None) -> int:
             if name in OPTIONAL:
                 rows[name] = None
                 continue
+            if only_optional:       # rebuild the robustness section of the page alone
+                return _rebuild_section(args.out)
             sys.exit(f"{folder / 'episodes.csv'} is missing: run this script without "
                      f"--skip-runs")
         wanted = {job.key.seed for job in episode_jobs(PRESETS[name], ["spiral"], (), n)}
@@ -316,6 +339,26 @@ def main(argv: list[str] | None = None) -> int:
     page = page.rstrip("\n") + "\n"         # an empty last table leaves no blank tail
     write_text_atomic(PAGE, page)
     print(f"wrote {PAGE}")
+    return 0
+
+
+def _rebuild_section(out: Path) -> int:
+    """Rebuild only the robustness section of docs/results.md from ``out/robustness``."""
+    name, n = "robustness", SEEDS["robustness"]
+    folder = out / name
+    wanted = {job.key.seed for job in episode_jobs(PRESETS[name], ["spiral"], (), n)}
+    rows = ([r for r in read_episodes(folder / "episodes.csv") if r["seed"] in wanted]
+            if (folder / "episodes.csv").is_file() else None)
+    runs = [r for r in read_runs(folder) if r.get("preset") == name]
+    try:
+        page = replace_section(PAGE.read_text(encoding="utf-8"),
+                               TEMPLATE.read_text(encoding="utf-8"),
+                               robustness_values(rows, runs, n))
+    except ValueError as exc:
+        sys.exit(f"{PAGE}: {exc}; rebuild the whole page (run this script without --presets)")
+    write_text_atomic(PAGE, page)
+    print(f"rebuilt the robustness section of {PAGE} (the other presets' episodes are not in "
+          f"{out}; the rest of the page is kept)")
     return 0
 
 

@@ -118,8 +118,32 @@ def test_only_the_chosen_presets_run(monkeypatch, tmp_path):
     monkeypatch.setattr(make_results, "run_presets",
                         lambda out, seeds, workers: ran.append(dict(seeds)))
     with pytest.raises(SystemExit, match="quick"):       # the other folders are missing
-        make_results.main(["--presets", "robustness", "--out", str(tmp_path)])
-    assert ran == [{"robustness": make_results.SEEDS["robustness"]}]
+        make_results.main(["--presets", "fig4", "robustness", "--out", str(tmp_path)])
+    assert ran == [{"fig4": 30, "robustness": make_results.SEEDS["robustness"]}]
+
+
+def test_robustness_alone_rebuilds_only_its_section(monkeypatch, tmp_path):
+    """With only --presets robustness and the other presets' episodes missing, the page keeps
+    everything but the robustness section."""
+    monkeypatch.setattr(make_results, "run_presets", lambda out, seeds, workers: None)
+    page = tmp_path / "results.md"
+    begin, end = make_results.SECTION
+    page.write_text(f"# Results\nfig2 numbers\n{begin}\nold section\n{end}\ntail\n")
+    monkeypatch.setattr(make_results, "PAGE", page)
+    assert make_results.main(["--presets", "robustness", "--out", str(tmp_path / "out")]) == 0
+    text = page.read_text()
+    assert text.startswith("# Results\nfig2 numbers\n") and text.endswith(f"{end}\ntail\n")
+    assert "old section" not in text and "Not run for this page" in text
+
+
+def test_replace_section_fills_the_template_part(values):
+    begin, end = make_results.SECTION
+    page = make_results.replace_section(f"head {begin} old {end} tail",
+                                        make_results.TEMPLATE.read_text(), values)
+    assert page.startswith(f"head {begin}") and page.endswith(f"{end} tail")
+    assert values["robustness_tables"] in page and " old " not in page
+    with pytest.raises(ValueError, match="page has no"):
+        make_results.replace_section("no markers", make_results.TEMPLATE.read_text(), values)
 
 
 def test_paper_table_verdicts_follow_the_numbers(values):
