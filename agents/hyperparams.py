@@ -9,7 +9,7 @@ constructor keywords (SB3's names: ``learning_rate``, ``buffer_size``, ``batch_s
   string to evaluate);
 * ``env``: keywords of :func:`agents.training.make_training_env` (``maps``, ``field_size``,
   ``n_nodes``, densities, ...);
-* ``eval``: ``{freq: env steps, episodes: int}`` of the evaluation on maps/test;
+* ``eval``: ``{freq: env steps, episodes: int}`` of the evaluation on the validation maps;
 * ``checkpoint_freq``: env steps between checkpoints.
 
 Unknown keys and values of the wrong type or range raise :class:`HyperparameterError` naming the
