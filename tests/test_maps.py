@@ -497,3 +497,21 @@ def test_reader_fuzz_gives_a_map_or_a_map_format_error(tmp_path_factory, lines):
         return
     assert m.width > 0 and m.height > 0
     assert 0.0 <= m.density <= 1.0
+
+
+def test_validation_split_holds_out_the_highest_seed_of_each_group():
+    from aoass_env.maps import validation_split
+    train = list_maps("train")
+    fit, held = validation_split(train)
+    assert sorted(fit + held) == sorted(train) and not set(fit) & set(held)
+    groups = {NAME.fullmatch(n).group(2, 3) for n in train}
+    assert len(held) == len(groups) == 12
+    for name in held:
+        _, d, f, seed = NAME.fullmatch(name).groups()
+        same = [int(NAME.fullmatch(n).group(4)) for n in train
+                if NAME.fullmatch(n).group(2, 3) == (d, f)]
+        assert int(seed) == max(same)
+    # a group of one map stays for fitting; the split does not depend on the order
+    lone = ["train/d0.10_f100_s000", "train/d0.20_f100_s007", "train/d0.20_f100_s005"]
+    assert validation_split(lone) == (["train/d0.10_f100_s000", "train/d0.20_f100_s005"],
+                                      ["train/d0.20_f100_s007"])

@@ -209,3 +209,33 @@ def test_backend_ray_without_ray_says_how_to_install(tiny: Path, tmp_path: Path,
                            "--out", str(tmp_path / "out"), "--no-progress"])
     assert exit_.value.code == 2
     assert "--backend ray needs Ray: pip install -e '.[ray]'" in capsys.readouterr().err
+
+
+def test_training_and_selection_never_see_the_test_maps(tiny: Path, monkeypatch):
+    """The agent fits on maps/train less the validation split and best.zip is chosen on the
+    validation split; maps/test is refused."""
+    import agents.training as training
+    fit = make_training_env(field_size=100, densities=(0.1, 0.4), n_nodes=20)
+    held = make_training_env(split="validation", field_size=100, densities=(0.1, 0.4),
+                             n_nodes=20, cycle=True)
+    fit_names = {m.name for m in fit.maps}
+    held_names = {m.name for m in held.maps}
+    assert len(fit_names) == 16 and len(held_names) == 4 and not fit_names & held_names
+    assert all(n.startswith("d0.") for n in fit_names | held_names)
+    test_stems = {n.split("/")[1] for n in training.list_maps("test")}
+    assert not (fit_names | held_names) & test_stems
+    with pytest.raises(ValueError, match="split='test'.*reported results only"):
+        make_training_env(split="test")
+
+    seen = []
+
+    def record(n_envs, seed, env_kwargs):
+        seen.append(env_kwargs)
+        if len(seen) == 2:      # the evaluation env: stop before any training
+            raise KeyboardInterrupt
+    monkeypatch.setattr(training, "_vec_env", record)
+    with pytest.raises(KeyboardInterrupt):
+        training.train_agent(training.TrainRun(config=tiny, out=tiny.parent / "run",
+                                               log_dir=None, progress_bar=False))
+    assert seen[0].get("split", "train") == "train"
+    assert seen[1]["split"] == "validation" and seen[1]["cycle"] is True
