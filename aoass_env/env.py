@@ -112,7 +112,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
     online RMSE, the reward terms, and the follower's ``recoveries`` (back-outs after its
     progress watchdog found it stuck) and ``skipped_waypoints`` (free spiral waypoints it gave
     up as unreachable: ``env.unwrapped.follower.skipped`` says which, when and why); the last
-    step's ``info["episode_metrics"]`` adds the Eq. 16-19 metrics. ``env.unwrapped.beacon_log`` is the episode's :class:`BeaconLog`.
+    step's ``info["episode_metrics"]`` adds the Eq. 16-19 metrics. ``env.unwrapped.beacon_log``
+    is the episode's :class:`BeaconLog`.
 
     ## Arguments
 

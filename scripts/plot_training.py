@@ -1,5 +1,6 @@
-"""Training curve of a ``python train.py`` run: evaluation return on maps/test and the training
-episodes' Eq. 14 return, coverage and safety intervention (from the run's TensorBoard logs).
+"""Training curve of a ``python train.py`` run: evaluation return on the validation maps and the
+training episodes' Eq. 14 return, coverage and safety intervention (from the run's TensorBoard
+logs).
 
 Run: ``python3 scripts/plot_training.py [RUN_DIR] [--tensorboard out/tensorboard/td3-lstm_seed0_1]
 [--out docs/figures/training_curve.png]``.
@@ -51,7 +52,7 @@ def main() -> None:
     ax.plot(ev["timesteps"], returns.mean(axis=1), marker="o", label="mean")
     ax.fill_between(ev["timesteps"], returns.min(axis=1), returns.max(axis=1), alpha=0.25,
                     label="min-max")
-    ax.set(xlabel="environment steps", ylabel="return", title="evaluation on maps/test")
+    ax.set(xlabel="environment steps", ylabel="return", title="evaluation on the validation maps")
     ax.legend(fontsize=8)
     k = 1
     for tag, title in SCALARS:
