@@ -187,8 +187,10 @@ def test_truncation_at_the_step_limit_with_episode_metrics():
 
 def test_max_episode_steps_follows_the_spiral_and_the_margin():
     cfg = AOASSConfig()
-    assert max_episode_steps(cfg) == math.ceil(4.0 * 776.0 / 0.5)
-    assert max_episode_steps(cfg.replace(field_size=200.0)) == math.ceil(4.0 * 2364.0 / 0.5)
+    assert cfg.time_limit_factor == 5.0
+    assert max_episode_steps(cfg) == math.ceil(5.0 * 776.0 / 0.5)
+    assert max_episode_steps(cfg.replace(field_size=200.0)) == math.ceil(5.0 * 2364.0 / 0.5)
+    assert max_episode_steps(cfg.replace(time_limit_factor=2.0)) == math.ceil(2.0 * 776.0 / 0.5)
 
 
 def test_termination_carries_the_eq16_to_19_metrics():
