@@ -17,13 +17,25 @@ import dataclasses
 import difflib
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from numbers import Integral, Real
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 
 class ConfigError(ValueError):
     """A configuration value is missing, of the wrong type or out of its valid range."""
+
+
+def unknown_key_message(key: Any, valid: Iterable[str], what: str = "config keyword") -> str:
+    """The error text for an unknown ``key``: a did-you-mean suggestion and the valid names."""
+    names = list(valid)
+    close = difflib.get_close_matches(str(key), names, n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return f"unknown {what} {key!r}{hint} (valid: {', '.join(names)})"
 
 
 def _p(default: Any, doc: str, *, unit: str = "", low: float | None = None,
@@ -190,23 +202,46 @@ class AOASSConfig:
         if 2 * self.edge_margin >= self.field_size:
             raise ConfigError(f"edge_margin={self.edge_margin} must be less than half of "
                               f"field_size={self.field_size}")
+        if self.waypoint_step is not None:
+            from aoass_env.planning.square_spiral import default_spacing
+            spacing = self.spiral_spacing or default_spacing(
+                self.field_size, self.field_size, self.radio_range, self.beacon_interval,
+                self.edge_margin, self.spiral_origin)
+            if self.waypoint_step > spacing:
+                raise ConfigError(
+                    f"waypoint_step={self.waypoint_step} m must not exceed the spiral's pass "
+                    f"spacing {spacing:.3g} m (spiral_spacing, else derived from radio_range): "
+                    f"longer steps cut the legs short and skip whole stretches of the field")
 
     # ---------------------------------------------------------------------------------
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> AOASSConfig:
-        """Build a config from keywords; unknown keywords get a did-you-mean error."""
+        """Build a config from keywords; unknown keywords get a did-you-mean error.
+
+        A ``map`` given without ``field_size`` sets ``field_size`` to the map's own side: a map
+        is never rescaled (where it is loaded, a ``field_size`` that differs from the map's is a
+        :class:`ConfigError` naming both).
+        """
         names = [f.name for f in dataclasses.fields(cls)]
         for key in kwargs:
             if key not in names:
-                close = difflib.get_close_matches(key, names, n=1)
-                hint = f"; did you mean {close[0]!r}?" if close else ""
-                raise ConfigError(f"unknown config keyword {key!r}{hint} "
-                                  f"(valid: {', '.join(names)})")
+                raise ConfigError(unknown_key_message(key, names))
+        if kwargs.get("map") is not None and "field_size" not in kwargs:
+            from aoass_env.maps import MapError, load_map  # read only when a map is named
+            try:
+                obstacle_map = load_map(_validate(_FIELDS["map"], kwargs["map"]))
+            except MapError as exc:
+                raise ConfigError(f"map={kwargs['map']!r}: {exc}") from None
+            kwargs["field_size"] = map_side(obstacle_map, kwargs["map"])
         return cls(**kwargs)
 
     def replace(self, **kwargs: Any) -> AOASSConfig:
-        """A copy with some fields changed (validated like :meth:`from_kwargs`)."""
-        return self.from_kwargs(**{**self.to_dict(), **kwargs})
+        """A copy with some fields changed (validated like :meth:`from_kwargs`; a new ``map``
+        brings its own ``field_size`` unless one is given)."""
+        base = self.to_dict()
+        if kwargs.get("map") is not None:
+            base.pop("field_size")
+        return self.from_kwargs(**{**base, **kwargs})
 
     def to_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
@@ -246,6 +281,30 @@ class AOASSConfig:
         return self.waypoint_step or self.beacon_interval
 
 
+_FIELDS = {f.name: f for f in dataclasses.fields(AOASSConfig)}
+
+
+def map_side(obstacle_map: Any, name: Any = "map") -> float:
+    """The side (m) of a square map (an :class:`~aoass_env.maps.ObstacleMap` read at its own
+    size); :class:`ConfigError` naming ``map`` for a map that is not square."""
+    width, height = float(obstacle_map.width), float(obstacle_map.height)
+    if not math.isclose(width, height, rel_tol=1e-9):
+        raise ConfigError(f"map={name!r} is {width:g} x {height:g} m; the field must be square "
+                          f"(field_size is one side)")
+    return width
+
+
+def check_map_size(config: AOASSConfig, obstacle_map: Any, name: Any = None) -> None:
+    """:class:`ConfigError` naming ``map`` and ``field_size`` when ``obstacle_map`` (read at its
+    own size) is not a ``config.field_size`` square: a map is never rescaled."""
+    name = config.map if name is None else name
+    side = map_side(obstacle_map, name)
+    if not math.isclose(side, config.field_size, rel_tol=1e-9):
+        raise ConfigError(f"map={name!r} is a {side:g} m field but field_size="
+                          f"{config.field_size:g}: a map keeps its own size; give "
+                          f"field_size={side:g} or leave field_size out")
+
+
 def _range_text(meta: dict[str, Any]) -> str:
     lo, hi = meta["low"], meta["high"]
     left = "(" if meta["low_open"] else "["
@@ -255,8 +314,8 @@ def _range_text(meta: dict[str, Any]) -> str:
 
 def _check_number(name: str, value: Any, meta: dict[str, Any], integer: bool) -> float | int:
     unit = f" {meta['unit']}" if meta["unit"] else ""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or (
-            integer and not float(value).is_integer()):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, Real) or (
+            integer and not (isinstance(value, Integral) or float(value).is_integer())):
         want = "an integer" if integer else "a number"
         raise ConfigError(f"{name}={value!r} must be {want} in {_range_text(meta)}{unit}")
     v = int(value) if integer else float(value)
@@ -279,14 +338,16 @@ def _validate(f: dataclasses.Field, value: Any) -> Any:
             return None
         raise ConfigError(f"{name} must not be None ({meta['doc']})")
     if kind == "bool":
-        if not isinstance(value, bool):
+        if not isinstance(value, (bool, np.bool_)):
             raise ConfigError(f"{name}={value!r} must be True or False")
-        return value
+        return bool(value)
     if kind == "str":
         if not isinstance(value, (str, Path)):
             raise ConfigError(f"{name}={value!r} must be a path or a map name")
         return str(value)
     if kind in ("range", "point"):
+        if isinstance(value, np.ndarray):
+            value = value.tolist()
         if not isinstance(value, (list, tuple)) or len(value) != 2:
             raise ConfigError(f"{name}={value!r} must be a pair of numbers")
         if kind == "point":

@@ -8,6 +8,7 @@ The maths lives elsewhere: the simulation core in :mod:`aoass_env.simulator`, th
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import gymnasium as gym
@@ -15,8 +16,8 @@ import numpy as np
 from gymnasium import spaces
 
 from aoass_env.beacon_log import BeaconLog
-from aoass_env.config import AOASSConfig, ConfigError
-from aoass_env.maps import ObstacleMap, load_map
+from aoass_env.config import AOASSConfig, ConfigError, check_map_size, map_side
+from aoass_env.maps import MapError, ObstacleMap, load_map
 from aoass_env.metrics import energy_efficiency_ratio, energy_per_beacon, trajectory_efficiency
 from aoass_env.observation import Observer, observation_layout, observation_space
 from aoass_env.planning import WaypointFollower
@@ -29,8 +30,10 @@ __all__ = ["AOASSEnv", "checked_action", "max_episode_steps"]
 
 def checked_action(action: Any) -> tuple[float, float]:
     """(dv, dtheta) of an action [dv, dtheta] clipped to [-1, 1]; ValueError for a wrong shape,
-    non-numbers, NaN or infinite values."""
+    non-numbers (strings, complex numbers, ...), NaN or infinite values."""
     try:
+        if np.iscomplexobj(action) or np.asarray(action).dtype.kind in "SUMmV":
+            raise TypeError("not real numbers")
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"action must be 2 numbers [dv, dtheta], got {action!r}") from exc
@@ -42,12 +45,29 @@ def checked_action(action: Any) -> tuple[float, float]:
     return dv, dtheta
 
 
-def max_episode_steps(config: AOASSConfig) -> int:
+def max_episode_steps(config: AOASSConfig, obstacle_map: ObstacleMap | None = None) -> int:
     """Step limit of an episode: ``time_limit_factor`` x the ideal spiral's duration at nominal
-    speed, in control periods (1552 x 5 = 7760 steps for the default config)."""
-    spiral = episode_spiral(config, ObstacleMap(config.field_size, config.field_size))
+    speed, in control periods (1552 x 5 = 7760 steps for the default config), over the field of
+    ``obstacle_map`` (default: an empty ``config.field_size`` square)."""
+    field = (ObstacleMap(config.field_size, config.field_size) if obstacle_map is None
+             else ObstacleMap(obstacle_map.width, obstacle_map.height))
+    spiral = episode_spiral(config, field)
     nominal = spiral.nominal_time(config.anchor_nominal_speed) / config.dt
     return math.ceil(config.time_limit_factor * nominal)
+
+
+def _option_map(value: Any) -> ObstacleMap:
+    """The map of ``reset(options={"map": value})`` (an ObstacleMap, a shipped name or a file
+    path) at its own size; ValueError naming the option otherwise."""
+    if isinstance(value, ObstacleMap):
+        return value
+    if not isinstance(value, (str, os.PathLike)):
+        raise ValueError(f"reset option 'map' must be an ObstacleMap, a shipped map name or a "
+                         f"map file path, got {type(value).__name__} {value!r}")
+    try:
+        return load_map(value)
+    except MapError as exc:
+        raise MapError(f"reset option 'map': {exc}") from None
 
 
 class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -142,8 +162,9 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ValueError(f"render_mode={render_mode!r} is not one of "
                              f"{self.metadata['render_modes']} or None")
         self.render_mode = render_mode
-        self._map = (load_map(self.config.map, field_size=self.config.field_size)
-                     if self.config.map is not None else None)
+        self._map = load_map(self.config.map) if self.config.map is not None else None
+        if self._map is not None:       # a map keeps its own size (from_kwargs took it)
+            check_map_size(self.config, self._map)
         self.max_episode_steps = max_episode_steps(self.config)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.observation_space = observation_space(self.config)
@@ -160,14 +181,20 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         episode_map = options.pop("map", None)
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: ['map']")
-        if episode_map is not None and not isinstance(episode_map, ObstacleMap):
-            episode_map = load_map(episode_map, field_size=self.config.field_size)
-        self.sim = Simulator(self.config, self.np_random,
+        config = self.config
+        if episode_map is not None:
+            episode_map = _option_map(episode_map)
+            side = map_side(episode_map, "reset option 'map'")
+            if not math.isclose(side, config.field_size, rel_tol=1e-9):   # its own size
+                config = config.replace(field_size=side, map=None)
+        self.episode_config = config
+        self.max_episode_steps = max_episode_steps(config)
+        self.sim = Simulator(config, self.np_random,
                              obstacle_map=episode_map if episode_map is not None else self._map,
                              seed=seed, method="aoass-env")
         noise_rng = self.np_random.spawn(1)[0]
         self._follower: WaypointFollower = self.sim.follower(recovery=True)
-        self._observe = Observer(self.config, self.sim.spiral, noise_rng)
+        self._observe = Observer(config, self.sim.spiral, noise_rng)
         self._steps = 0
         self._log = None
         self._contacts = 0

@@ -23,10 +23,20 @@ ENV_ID = "AOASS-v0"
 SAFE_ENV_ID = "AOASS-Safe-v0"
 
 
+class EpisodeTimeLimit(TimeLimit):
+    """A ``TimeLimit`` that takes each episode's own limit at ``reset``: a map given with
+    ``reset(options={"map": ...})`` brings its own field size and so its own limit."""
+
+    def reset(self, **kwargs: Any) -> Any:
+        out = super().reset(**kwargs)
+        self._max_episode_steps = self.env.unwrapped.max_episode_steps
+        return out
+
+
 def make_env(**kwargs: Any) -> gym.Env:
     """An :class:`AOASSEnv` built from ``kwargs`` in a ``TimeLimit`` of its own step limit."""
     env = AOASSEnv(**kwargs)
-    return TimeLimit(env, env.max_episode_steps)
+    return EpisodeTimeLimit(env, env.max_episode_steps)
 
 
 make_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render modes

@@ -19,7 +19,7 @@ from typing import Protocol
 import numpy as np
 
 from aoass_env.beacon_log import BeaconLog, BeaconLogRecorder, episode_config_json
-from aoass_env.config import AOASSConfig
+from aoass_env.config import AOASSConfig, check_map_size
 from aoass_env.maps import MapError, ObstacleMap, generate_map, load_map
 from aoass_env.network import Network
 from aoass_env.planning import (
@@ -71,7 +71,9 @@ def episode_map(config: AOASSConfig, rng: np.random.Generator) -> ObstacleMap:
     if config.map is None:
         return generate_map(config.field_size, config.obstacle_density, rng,
                             clearance=config.map_clearance)
-    return load_map(config.map, field_size=config.field_size)
+    obstacle_map = load_map(config.map)          # at its own size: a map is never rescaled
+    check_map_size(config, obstacle_map)
+    return obstacle_map
 
 
 def episode_spiral(config: AOASSConfig, obstacle_map: ObstacleMap) -> SquareSpiral:

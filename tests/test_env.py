@@ -11,7 +11,6 @@ import pytest
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env import AOASSConfig, AOASSEnv, ConfigError, Simulator
 from aoass_env.env import max_episode_steps
-from aoass_env.maps import MapError
 from aoass_env.reward import REWARD_TERMS
 
 SMALL = dict(field_size=40.0, n_nodes=30, obstacle_density=0.1, n_moving_obstacles=2)
@@ -269,7 +268,7 @@ def test_bad_keywords_name_the_parameter(kwargs, match):
 def test_bad_render_mode_map_and_reset_option():
     with pytest.raises(ValueError, match="render_mode"):
         AOASSEnv(render_mode="ascii")
-    with pytest.raises(MapError):
+    with pytest.raises(ConfigError, match="map='no/such_map'"):
         AOASSEnv(map="no/such_map")
     env = AOASSEnv(**SMALL)
     with pytest.raises(ValueError, match="reset option"):
