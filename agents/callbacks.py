@@ -4,13 +4,14 @@
   localization RMSE, the anchor's contacts, η_traj (Eq. 19) and the mean safety intervention
   (|v* - v_des|, m/s) under ``aoass/`` (means over the episodes of each log interval).
 * :func:`save_atomic` writes a model (and :class:`AtomicCheckpointCallback` periodically a model
-  and its replay buffer) to a temporary file that is renamed over the target: a crash
-  mid-training leaves the previous checkpoint intact and loadable.
+  and its replay buffer, an ``.npz``, as a pair) to temporary files that are renamed over the
+  targets: a crash mid-training leaves the previous checkpoint intact and loadable.
 * :class:`SaveBestAtomically` is the ``callback_on_new_best`` of an ``EvalCallback``.
 """
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import numpy as np
@@ -25,21 +26,23 @@ __all__ = ["AOASSMetricsCallback", "AtomicCheckpointCallback", "SaveBestAtomical
 
 def save_atomic(model: BaseAlgorithm, path: str | Path, *, replay_buffer: bool = False) -> None:
     """Save ``model`` to ``path`` (a .zip) atomically; with ``replay_buffer``, also its replay
-    buffer to ``<path stem>_replay_buffer.pkl`` (written first, so a model never points at a
-    missing buffer)."""
+    buffer to ``<path stem>_replay_buffer.npz`` as a pair: both are written to temporary files
+    first, then renamed one right after the other, and the buffer carries the model's step count
+    so that a buffer left from another save is refused at resume."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if replay_buffer and getattr(model, "replay_buffer", None) is not None:
-        with atomic_open(replay_buffer_path(path), "wb") as f:
-            model.save_replay_buffer(f)
-    with atomic_open(path, "wb") as f:
-        model.save(f)
+    with contextlib.ExitStack() as stack:
+        if replay_buffer and getattr(model, "replay_buffer", None) is not None:
+            model.save_replay_buffer(stack.enter_context(
+                atomic_open(replay_buffer_path(path), "wb")))
+        with atomic_open(path, "wb") as f:
+            model.save(f)
 
 
 def replay_buffer_path(model_path: str | Path) -> Path:
     """Where :func:`save_atomic` puts the replay buffer of the model saved at ``model_path``."""
     model_path = Path(model_path)
-    return model_path.with_name(f"{model_path.stem}_replay_buffer.pkl")
+    return model_path.with_name(f"{model_path.stem}_replay_buffer.npz")
 
 
 class AOASSMetricsCallback(BaseCallback):

@@ -12,13 +12,16 @@ constructor keywords (SB3's names: ``learning_rate``, ``buffer_size``, ``batch_s
 * ``eval``: ``{freq: env steps, episodes: int}`` of the evaluation on the validation maps;
 * ``checkpoint_freq``: env steps between checkpoints.
 
-Unknown keys and values of the wrong type or range raise :class:`HyperparameterError` naming the
-file, the section and the key. Files are read with ``yaml.safe_load``: no Python objects, no
-``eval`` of strings.
+Every key is checked, ``eval``, ``env`` (with ``safety`` and ``tracker``) and
+``policy_kwargs`` included: unknown keys (with a did-you-mean suggestion), keys given twice and
+values of the wrong type or range raise :class:`HyperparameterError` naming the file, the
+section and the key. Files are read with a safe loader: no Python objects, no ``eval`` of
+strings.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import math
 from collections.abc import Mapping
@@ -27,16 +30,18 @@ from typing import Any
 
 import numpy as np
 import yaml
-from stable_baselines3 import TD3
 from stable_baselines3.common.noise import (
     ActionNoise,
     NormalActionNoise,
     OrnsteinUhlenbeckActionNoise,
 )
 
+from agents.checkpoints import TD3
 from agents.recurrent_td3 import RecurrentTD3
+from aoass_env.config import unknown_key_message
 
-__all__ = ["ALGORITHMS", "HyperparameterError", "action_noise", "load_hyperparams"]
+__all__ = ["ALGORITHMS", "HyperparameterError", "action_noise", "check_section",
+           "load_hyperparams", "model_kwargs", "policy_name", "read_yaml"]
 
 #: Algorithm name on the command line -> SB3 class.
 ALGORITHMS: dict[str, type] = {"td3-lstm": RecurrentTD3, "td3": TD3}
@@ -65,8 +70,14 @@ class HyperparameterError(ValueError):
     """A hyperparameter file that cannot be used; the message names the file and the key."""
 
 
-def _check_number(where: str, key: str, value: Any) -> None:
-    kind, low, high, low_incl = _NUMERIC[key]
+#: The keys of ``eval``: env steps between evaluations, episodes per evaluation.
+_EVAL: dict[str, tuple[type, float, float, bool]] = {
+    "freq": (int, 1, math.inf, True), "episodes": (int, 1, math.inf, True)}
+
+
+def _check_number(where: str, key: str, value: Any,
+                  spec: tuple[type, float, float, bool] | None = None) -> None:
+    kind, low, high, low_incl = spec or _NUMERIC[key]
     ok_type = isinstance(value, (int, float)) and not isinstance(value, bool)
     if kind is int:
         ok_type = ok_type and float(value).is_integer()
@@ -77,8 +88,37 @@ def _check_number(where: str, key: str, value: Any) -> None:
         raise HyperparameterError(f"{where}.{key}: must be {what} in {bound}, got {value!r}")
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses a mapping with a key given twice."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} is given twice", key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+def read_yaml(path: str | Path, what: str = "hyperparameter file") -> Any:
+    """The YAML document at ``path``, read safely (no Python objects; a key given twice is an
+    error); :class:`HyperparameterError` naming the file for a missing, unreadable or invalid
+    one."""
+    path = Path(path)
+    try:
+        return yaml.load(path.read_text(encoding="utf-8"), Loader=_UniqueKeyLoader)
+    except FileNotFoundError:
+        raise HyperparameterError(f"{path}: no such {what}") from None
+    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as exc:
+        raise HyperparameterError(f"{path}: not a readable {what} ({exc})") from None
+    except yaml.YAMLError as exc:
+        raise HyperparameterError(f"{path}: not valid YAML ({exc})") from None
+
+
 def load_hyperparams(path: str | Path, algo: str) -> dict[str, Any]:
-    """The section ``algo`` of the YAML file ``path``, validated.
+    """The section ``algo`` of the YAML file ``path``, validated (:func:`check_section`).
 
     Raises:
         HyperparameterError: a missing file or section, unknown keys, bad values.
@@ -86,24 +126,50 @@ def load_hyperparams(path: str | Path, algo: str) -> dict[str, Any]:
     path = Path(path)
     if algo not in ALGORITHMS:
         raise HyperparameterError(f"algo {algo!r} is not one of {sorted(ALGORITHMS)}")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise HyperparameterError(f"{path}: no such hyperparameter file") from None
-    except yaml.YAMLError as exc:
-        raise HyperparameterError(f"{path}: not valid YAML ({exc})") from None
+    data = read_yaml(path)
     if not isinstance(data, Mapping) or algo not in data:
-        found = sorted(data) if isinstance(data, Mapping) else type(data).__name__
+        found = sorted(map(str, data)) if isinstance(data, Mapping) else type(data).__name__
         raise HyperparameterError(f"{path}: no section {algo!r} (found {found})")
-    section = data[algo]
-    where = f"{path}: {algo}"
+    return check_section(data[algo], algo, f"{path}: {algo}")
+
+
+def _check_keys(where: str, section: Mapping[str, Any], valid: list[str]) -> None:
+    for key in section:
+        if key not in valid:
+            raise HyperparameterError(f"{where}.{key}: {unknown_key_message(key, valid, 'key')}")
+
+
+def _keywords(func: Any, *reserved: str) -> list[str]:
+    """Keyword names of ``func`` less ``self`` and ``reserved``."""
+    return [n for n, p in inspect.signature(func).parameters.items()
+            if n not in ("self", *reserved) and p.kind is not p.VAR_KEYWORD]
+
+
+def policy_name(hp: Mapping[str, Any], algo: str) -> str:
+    """The SB3 policy name of a validated section (default: the algorithm's MLP policy)."""
+    return hp.get("policy", "MlpLstmPolicy" if algo == "td3-lstm" else "MlpPolicy")
+
+
+def model_kwargs(hp: Mapping[str, Any]) -> dict[str, Any]:
+    """The constructor keywords of a validated section (``train_freq`` lists as tuples)."""
+    kwargs = {k: v for k, v in hp.items() if k not in EXTRA_KEYS}
+    if isinstance(kwargs.get("train_freq"), list):
+        kwargs["train_freq"] = tuple(kwargs["train_freq"])
+    return kwargs
+
+
+def check_section(section: Any, algo: str, where: str) -> dict[str, Any]:
+    """A validated copy of one algorithm's hyperparameters (a section of a hyperparameter
+    file, or of a run.yml), every key checked: constructor keywords, ``policy_kwargs`` against
+    the policy's keywords, ``env`` (with its ``safety`` and ``tracker``) against the training
+    environment's keywords, ``eval`` and ``action_noise``; the environment and the policy are
+    built once, so that a bad value fails here. Errors name ``where`` and the key."""
     if not isinstance(section, Mapping):
         raise HyperparameterError(f"{where}: must be a mapping of keys to values")
-    params = inspect.signature(ALGORITHMS[algo].__init__).parameters
-    valid = sorted((set(params) - set(RESERVED)) | set(EXTRA_KEYS))
+    cls = ALGORITHMS[algo]
+    valid = sorted(set(_keywords(cls.__init__, *RESERVED)) | set(EXTRA_KEYS))
+    _check_keys(where, section, valid)
     for key, value in section.items():
-        if key not in valid:
-            raise HyperparameterError(f"{where}.{key}: unknown key; valid keys: {valid}")
         if key in _NUMERIC:
             _check_number(where, key, value)
     for key in ("env", "eval", "policy_kwargs"):
@@ -120,9 +186,53 @@ def load_hyperparams(path: str | Path, algo: str) -> dict[str, Any]:
         if not ok:
             raise HyperparameterError(f"{where}.train_freq: must be a positive integer or "
                                       f"[n, step|episode], got {tf!r}")
-    # integers written as 32.0 reach SB3 as ints
-    return {k: int(v) if k in _NUMERIC and _NUMERIC[k][0] is int else v
-            for k, v in section.items()}
+    policy = section.get("policy", policy_name({}, algo))
+    if policy not in cls.policy_aliases:
+        raise HyperparameterError(f"{where}.policy: {policy!r} is not one of "
+                                  f"{sorted(cls.policy_aliases)}")
+    evaluation = section.get("eval", {})
+    _check_keys(f"{where}.eval", evaluation, list(_EVAL))
+    for key, value in evaluation.items():
+        _check_number(f"{where}.eval", key, value, _EVAL[key])
+    hp = {k: int(v) if k in _NUMERIC and _NUMERIC[k][0] is int else v
+          for k, v in section.items()}       # integers written as 32.0 reach SB3 as ints
+    if "eval" in hp:
+        hp["eval"] = {k: int(v) for k, v in evaluation.items()}
+    _check_stack(where, cls, policy, hp)
+    return hp
+
+
+def _check_stack(where: str, cls: type, policy: str, hp: Mapping[str, Any]) -> None:
+    """Check ``env`` and ``policy_kwargs`` key by key, then build the environment and the
+    policy once so that a bad value fails with ``where`` and its section."""
+    from agents.training import make_training_env
+    from aoass_env.config import AOASSConfig
+    from aoass_env.wrappers import FuzzyORCASafety, KalmanObstacleTracker, make_safe_env
+    env_kwargs = hp.get("env", {})
+    _check_keys(f"{where}.env", env_kwargs, sorted(
+        {*_keywords(make_training_env, "config"), *_keywords(make_safe_env, "config", "kwargs",
+                                                             "tracker", "safety"),
+         *(f.name for f in dataclasses.fields(AOASSConfig))} - {"render_mode"}))
+    for key, wrapper in (("safety", FuzzyORCASafety), ("tracker", KalmanObstacleTracker)):
+        sub = env_kwargs.get(key, {})
+        if not isinstance(sub, Mapping):
+            raise HyperparameterError(f"{where}.env.{key}: must be a mapping, got "
+                                      f"{type(sub).__name__}")
+        _check_keys(f"{where}.env.{key}", sub, _keywords(wrapper.__init__, "env"))
+    policy_class = cls.policy_aliases[policy]
+    policy_kwargs = hp.get("policy_kwargs", {})
+    _check_keys(f"{where}.policy_kwargs", policy_kwargs, _keywords(
+        policy_class.__init__, "observation_space", "action_space", "lr_schedule"))
+    try:
+        env = make_training_env(split="validation", **env_kwargs)
+    except (ValueError, TypeError) as exc:
+        raise HyperparameterError(f"{where}.env: {exc}") from None
+    try:
+        policy_class(env.observation_space, env.action_space, lambda _: 1e-3, **policy_kwargs)
+    except (ValueError, TypeError, RuntimeError) as exc:
+        raise HyperparameterError(f"{where}.policy_kwargs: {exc}") from None
+    finally:
+        env.close()
 
 
 def _check_noise(where: str, spec: Any) -> None:

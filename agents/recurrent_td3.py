@@ -25,13 +25,14 @@ from stable_baselines3.common.utils import polyak_update
 from torch.nn import functional as F
 
 from agents.buffers import SequenceReplayBuffer, SequenceReplayBufferSamples, check_sequence_lengths
+from agents.checkpoints import SafeLoading
 from agents.policies import RecurrentActor, RecurrentCritic, RecurrentTD3Policy
 
 SelfRecurrentTD3 = TypeVar("SelfRecurrentTD3", bound="RecurrentTD3")
 RolloutState = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
-class RecurrentTD3(TD3):
+class RecurrentTD3(SafeLoading, TD3):
     """TD3 with recurrent (LSTM) actor and twin critics for partially observable tasks.
 
     Windows of ``burn_in + train_length`` steps are replayed; each network runs one LSTM pass per
@@ -54,6 +55,8 @@ class RecurrentTD3(TD3):
         targets) before the actor's first update, so the actor starts from a critic that has
         seen the replayed data; 0 trains both from the first step (TD3)
 
+    ``load`` reads a saved model without unpickling anything (rebuilt from the run.yml beside
+    it, :mod:`agents.checkpoints`); replay buffers are saved as ``.npz``.
     ``optimize_memory_usage`` is not supported. LSTM sizes go in
     ``policy_kwargs`` (``lstm_hidden_size``, ``n_lstm_layers``, ``net_arch``,
     ``current_features``; see ``RecurrentTD3Policy``).

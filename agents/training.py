@@ -7,14 +7,16 @@ shipped test maps are never used in training or selection. A run writes into its
 
 =========================  ===============================================================
 ``best.zip``               the model with the best mean evaluation return so far
-``last.zip``               the latest periodic checkpoint (+ ``last_replay_buffer.pkl``)
+``last.zip``               the latest periodic checkpoint (+ ``last_replay_buffer.npz``)
 ``final.zip``              the model at the end of the budget
 ``evaluations.npz``        SB3's evaluation record (timesteps, returns, episode lengths)
 ``run.yml``                the command, the hyperparameters, the seed and package versions
+                           (a resume appends its own record under ``resumes``)
 =========================  ===============================================================
 
 and TensorBoard logs (SB3's metrics plus ``aoass/``) under the log folder. Every file is
-written atomically.
+written atomically (temporary files an interrupted run left behind are removed at the start);
+models are read back without unpickling anything (:mod:`agents.checkpoints`).
 """
 
 from __future__ import annotations
@@ -41,8 +43,15 @@ from agents.callbacks import (
     replay_buffer_path,
     save_atomic,
 )
-from agents.hyperparams import ALGORITHMS, EXTRA_KEYS, action_noise, load_hyperparams
-from aoass_env.atomic import write_text_atomic
+from agents.checkpoints import read_run_record, record_path
+from agents.hyperparams import (
+    ALGORITHMS,
+    action_noise,
+    load_hyperparams,
+    model_kwargs,
+    policy_name,
+)
+from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
 from aoass_env.maps import list_maps, validation_split
 from aoass_env.wrappers import MapSampler, make_safe_env
 
@@ -133,9 +142,15 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     tb = str(run.log_dir) if run.log_dir is not None else None
     out = Path(run.out)
     out.mkdir(parents=True, exist_ok=True)
+    for stale in remove_stale_temporaries(out):
+        report(f"removed {stale}, left by an interrupted write")
 
     if run.resume is not None:
-        model = cls.load(run.resume, env=env, tensorboard_log=tb, device="cpu")
+        # rebuilt from its run.yml (else this run's hyperparameters), nothing unpickled
+        record = record_path(run.resume)
+        model = cls.load(run.resume, env=env, tensorboard_log=tb, device="cpu",
+                         record=record if record.is_file() else
+                         {"algo": run.algo, "hyperparameters": hp})
         model.action_noise = noise
         buffer = replay_buffer_path(run.resume)
         if buffer.is_file():
@@ -143,12 +158,8 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
         report(f"resumed {run.resume} at {model.num_timesteps} steps"
                f"{' with its replay buffer' if buffer.is_file() else ''}")
     else:
-        kwargs = {k: v for k, v in hp.items() if k not in EXTRA_KEYS}
-        if isinstance(kwargs.get("train_freq"), list):
-            kwargs["train_freq"] = tuple(kwargs["train_freq"])
-        policy = hp.get("policy", "MlpLstmPolicy" if run.algo == "td3-lstm" else "MlpPolicy")
-        model = cls(policy, env, action_noise=noise, tensorboard_log=tb, seed=run.seed,
-                    device="cpu", verbose=0, **kwargs)
+        model = cls(policy_name(hp, run.algo), env, action_noise=noise, tensorboard_log=tb,
+                    seed=run.seed, device="cpu", verbose=0, **model_kwargs(hp))
 
     n = run.n_envs
     checkpoint_every = max(int(hp.get("checkpoint_freq", 10_000)) // n, 1)
@@ -178,6 +189,8 @@ def _relative(path: Path) -> str:
 
 
 def _write_record(path: Path, run: TrainRun, hp: dict[str, Any], timesteps: int) -> None:
+    """Write the run record; a resume appends its own record to the ``resumes`` list of the
+    run.yml already in the folder (the first run's record stays as it was)."""
     record = {
         "command": run.command or " ".join(shlex.quote(a) for a in sys.argv),
         "algo": run.algo, "timesteps": timesteps, "seed": run.seed, "n_envs": run.n_envs,
@@ -188,4 +201,7 @@ def _write_record(path: Path, run: TrainRun, hp: dict[str, Any], timesteps: int)
                      "stable_baselines3": stable_baselines3.__version__,
                      "gymnasium": gym.__version__},
     }
+    if run.resume is not None and path.is_file():
+        first = read_run_record(path)
+        record = {**first, "resumes": [*first.get("resumes", []), record]}
     write_text_atomic(path, yaml.safe_dump(record, sort_keys=False))

@@ -13,6 +13,19 @@ from pathlib import Path
 from typing import IO
 
 
+#: Suffix of the temporary files of :func:`atomic_open` (``.<name>.<uuid>.tmp``).
+TMP_SUFFIX = ".tmp"
+
+
+def remove_stale_temporaries(folder: str | os.PathLike[str]) -> list[Path]:
+    """Remove the temporary files that an interrupted :func:`atomic_open` left in ``folder``
+    (a killed process cannot clean up); returns those removed."""
+    stale = sorted(Path(folder).glob(f".*.*{TMP_SUFFIX}"))
+    for path in stale:
+        path.unlink(missing_ok=True)
+    return stale
+
+
 @contextlib.contextmanager
 def atomic_open(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO]:
     """Open a temporary file next to ``path`` for writing (``mode`` "w" text or "wb" binary);
@@ -20,7 +33,7 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO]:
     if mode not in ("w", "wb"):
         raise ValueError(f"mode={mode!r} must be 'w' or 'wb'")
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}{TMP_SUFFIX}")
     try:
         with open(tmp, mode.replace("w", "x"), **({} if "b" in mode else
                                                   {"encoding": "utf-8", "newline": ""})) as f:

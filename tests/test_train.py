@@ -54,7 +54,7 @@ def test_cli_trains_checkpoints_and_resumes(tiny: Path, tmp_path: Path):
     out = tmp_path / "run"
     train_script.main(["--config", str(tiny), "--timesteps", "120", "--out", str(out),
                        "--log-dir", str(tmp_path / "tb"), "--no-progress"])
-    for name in ("final.zip", "last.zip", "last_replay_buffer.pkl", "best.zip",
+    for name in ("final.zip", "last.zip", "last_replay_buffer.npz", "best.zip",
                  "evaluations.npz", "run.yml"):
         assert (out / name).is_file(), name
     assert not list(out.glob(".*.tmp"))                       # atomic writes leave nothing

@@ -22,6 +22,12 @@ TINY = dict(batch_size=8, burn_in=2, train_length=4, buffer_size=2_000, device="
             policy_kwargs=dict(lstm_hidden_size=16, net_arch=[16]))
 
 
+def _record(**hp):
+    """A run record of a model built by :func:`_model` (load rebuilds the model from one)."""
+    tiny = {k: v for k, v in TINY.items() if k != "device"}
+    return {"algo": "td3-lstm", "hyperparameters": {**tiny, **hp}}
+
+
 def _env(n_envs: int = 1, seed: int = 0):
     return make_vec_env("Pendulum-v1", n_envs=n_envs, seed=seed,
                         env_kwargs=dict(max_episode_steps=EP_LEN))
@@ -73,7 +79,9 @@ def test_actor_final_init_starts_near_the_zero_action(tmp_path) -> None:
             getattr(small.policy, name).mu[-2].weight.detach().numpy(),
             small.policy.actor.mu[-2].weight.detach().numpy())
     small.save(tmp_path / "m.zip")
-    assert RecurrentTD3.load(tmp_path / "m.zip").policy.actor_final_init == 3e-3
+    record = _record(policy_kwargs=dict(**TINY["policy_kwargs"], actor_final_init=3e-3))
+    assert RecurrentTD3.load(tmp_path / "m.zip", env=_env(1),
+                             record=record).policy.actor_final_init == 3e-3
 
 
 def test_episode_start_resets_the_state() -> None:
@@ -281,7 +289,8 @@ def test_save_load_round_trip(tmp_path) -> None:
     model = _model(2, learning_starts=50)
     model.learn(100)
     model.save(tmp_path / "model.zip")
-    loaded = RecurrentTD3.load(tmp_path / "model.zip", device="cpu")
+    loaded = RecurrentTD3.load(tmp_path / "model.zip", env=_env(2), device="cpu",
+                               record=_record(learning_starts=50))
     assert loaded._rollout_state is None
     assert (loaded.burn_in, loaded.train_length) == (2, 4)
     assert isinstance(loaded.policy, RecurrentTD3Policy)
