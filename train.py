@@ -14,14 +14,57 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
+import os
 import shlex
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import torch
 
 from aoass_env.backends import add_backend_arguments, make_backend
 from aoass_env.localization.training import TrainConfig, train_localizer
+
+
+def _number(kind: type, low: float, low_open: bool = False) -> Callable[[str], Any]:
+    """An argparse type: a finite ``kind`` (int or float) >= ``low`` (> ``low`` if
+    ``low_open``); the message says what is valid."""
+    def parse(text: str) -> Any:
+        try:
+            value = kind(text)
+        except ValueError:
+            value = None
+        if value is None or not math.isfinite(value) or value < low or (low_open and
+                                                                         value == low):
+            what = "an integer" if kind is int else "a finite number"
+            raise argparse.ArgumentTypeError(f"must be {what} {'>' if low_open else '>='} "
+                                             f"{low:g}, got {text!r}")
+        return value
+    parse.__name__ = kind.__name__
+    return parse
+
+
+#: Valid ranges of the localizer's numeric options: (type, low, low open).
+_LOCALIZER_RANGES: dict[str, tuple[type, float, bool]] = {
+    "n_train_logs": (int, 1, False), "n_val_logs": (int, 1, False),
+    "nodes_per_log": (int, 1, False), "max_noise": (float, 0, False), "hidden": (int, 1, False),
+    "epochs": (int, 1, False), "patience": (int, 1, False), "batch_size": (int, 1, False),
+    "learning_rate": (float, 0, True), "seed": (int, 0, False)}
+
+
+def _folder(flag: str, path: Path) -> Path:
+    """``path`` as a folder to write into (created), or a one-line error naming ``flag``."""
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{flag} {path}: is a file, not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"{flag} {path}: cannot create the folder ({exc.strerror})") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise ValueError(f"{flag} {path}: the folder is not writable")
+    return path
 
 
 def _localizer_parser() -> argparse.ArgumentParser:
@@ -32,10 +75,11 @@ def _localizer_parser() -> argparse.ArgumentParser:
         "checkpoint.")
     for field in dataclasses.fields(TrainConfig):
         default = getattr(defaults, field.name)
-        kind = Path if isinstance(default, Path) else type(default)
+        kind = (Path if isinstance(default, Path) else _number(*_LOCALIZER_RANGES[field.name]))
         p.add_argument(f"--{field.name.replace('_', '-')}", type=kind, default=default,
                        help=f"(default: {default})")
-    p.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
+    p.add_argument("--threads", type=_number(int, 1), default=1,
+                   help="torch threads (default: 1)")
     return p
 
 
@@ -56,15 +100,15 @@ def _agent_parser() -> argparse.ArgumentParser:
     p.add_argument("--algo", choices=["td3-lstm", "td3"], default="td3-lstm",
                    help="td3-lstm: recurrent TD3 (agents.RecurrentTD3); td3: SB3's "
                         "feedforward TD3 (ablation) (default: td3-lstm)")
-    p.add_argument("--timesteps", type=int, default=None,
+    p.add_argument("--timesteps", type=_number(int, 1), default=None,
                    help="environment steps (default: the config's n_timesteps)")
     seeds = p.add_mutually_exclusive_group()
-    seeds.add_argument("--seed", type=int, default=0, help="(default: 0)")
+    seeds.add_argument("--seed", type=_number(int, 0), default=0, help="(default: 0)")
     seeds.add_argument("--seeds", metavar="LIST",
                        help="one run per seed: a range 0-4 and/or a list 0,2,5; run S writes "
                             "into <out>/seed<S>/")
     add_backend_arguments(p, "seed", "the runs one after another in this process")
-    p.add_argument("--n-envs", type=int, default=1,
+    p.add_argument("--n-envs", type=_number(int, 1), default=1,
                    help="parallel environments, subprocesses when > 1 (default: 1)")
     p.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
                    help="hyperparameter YAML (default: configs/aoass.yml)")
@@ -77,11 +121,13 @@ def _agent_parser() -> argparse.ArgumentParser:
                    help="TensorBoard folder (default: out/tensorboard)")
     p.add_argument("--no-tensorboard", action="store_true", help="do not write TensorBoard logs")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    p.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
+    p.add_argument("--threads", type=_number(int, 1), default=1,
+                   help="torch threads (default: 1)")
     return p
 
 
 def _run_agent(argv: list[str]) -> None:
+    from agents.checkpoints import PolicyFileError
     from agents.hyperparams import HyperparameterError, load_hyperparams
     from agents.seeds import parse_seeds, report_line, seed_runs, train_seeds
     from agents.training import TrainRun, train_agent
@@ -90,6 +136,11 @@ def _run_agent(argv: list[str]) -> None:
     torch.set_num_threads(args.threads)
     out = args.out or Path(f"checkpoints/aoass_{args.algo.replace('-', '_')}")
     try:
+        if args.config.is_dir():
+            raise ValueError(f"--config {args.config}: is a folder, not a hyperparameter file")
+        _folder("--out", out)
+        if not args.no_tensorboard:
+            _folder("--log-dir", args.log_dir)
         run = TrainRun(algo=args.algo, timesteps=args.timesteps, seed=args.seed,
                        n_envs=args.n_envs, config=args.config, resume=args.resume, out=out,
                        log_dir=None if args.no_tensorboard else args.log_dir,
@@ -107,7 +158,10 @@ def _run_agent(argv: list[str]) -> None:
     except (HyperparameterError, ValueError) as exc:
         parser.exit(2, f"train.py: error: {exc}\n")
     if args.backend == "local" and args.seeds is None:
-        train_agent(run, report=report_line)        # the single run of --seed, as always
+        try:
+            train_agent(run, report=report_line)    # the single run of --seed, as always
+        except PolicyFileError as exc:              # --resume's files, read before any step
+            parser.exit(2, f"train.py: error: --resume: {exc}\n")
         return
     failed = [(r, error) for r, _, error in train_seeds(runs, backend) if error is not None]
     for r, error in failed:

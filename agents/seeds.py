@@ -19,26 +19,37 @@ from pathlib import Path
 from agents.training import TrainRun, train_agent
 from aoass_env.backends import Backend
 
-__all__ = ["parse_seeds", "portable", "report_line", "seed_runs", "train_seeds"]
+__all__ = ["MAX_SEEDS", "parse_seeds", "portable", "report_line", "seed_runs", "train_seeds"]
 
 _SEED_ITEM = re.compile(r"(\d+)(?:-(\d+))?")
 
 
-def parse_seeds(text: str) -> list[int]:
+#: The most seeds one ``--seeds`` may name (one training run each).
+MAX_SEEDS = 1000
+
+
+def parse_seeds(text: str, limit: int = MAX_SEEDS) -> list[int]:
     """The seeds of ``--seeds``: ranges ``A-B`` (A <= B, both included) and single seeds,
-    comma-separated, e.g. ``0-4``, ``0,2,5`` or ``0-2,7``.
+    comma-separated, e.g. ``0-4``, ``0,2,5`` or ``0-2,7``; at most ``limit`` seeds, checked
+    before any list is built (linear time in the text and the seeds).
 
     Raises:
-        ValueError: another form, a negative or descending range, or a seed given twice.
+        ValueError: another form, a negative or descending range, a seed given twice, or more
+            than ``limit`` seeds.
     """
-    seeds: list[int] = []
+    spans = []
     for part in text.split(","):
         match = _SEED_ITEM.fullmatch(part.strip())
         if match is None or (match[2] is not None and int(match[2]) < int(match[1])):
             raise ValueError(f"--seeds {text!r}: expected non-negative integers as a range A-B "
                              f"(A <= B), a list A,B,C or both, e.g. 0-4 or 0,2,5")
-        seeds += range(int(match[1]), int(match[2] or match[1]) + 1)
-    repeated = sorted({s for s in seeds if seeds.count(s) > 1})
+        spans.append((int(match[1]), int(match[2] or match[1])))
+    total = sum(high - low + 1 for low, high in spans)
+    if total > limit:
+        raise ValueError(f"--seeds {text!r}: {total} seeds; at most {limit} (one run each)")
+    seeds = [s for low, high in spans for s in range(low, high + 1)]
+    seen: set[int] = set()
+    repeated = sorted({s for s in seeds if s in seen or seen.add(s)})
     if repeated:
         raise ValueError(f"--seeds {text!r}: seed(s) {', '.join(map(str, repeated))} given "
                          f"twice")

@@ -73,6 +73,11 @@ _KINDS = {"int": ("iu", np.int64, "an integer"), "float": ("fiu", np.float64, "a
           "str": ("U", np.str_, "a string")}
 
 
+#: How far (a fraction of the field's width and height) a recorded position may lie outside
+#: the field before a log is refused as impossible.
+FIELD_TOLERANCE = 0.01
+
+
 class BeaconLogError(ValueError):
     """A beacon log is malformed.
 
@@ -183,6 +188,16 @@ class BeaconLog:
         for key in ("beacons", "anchor_path"):
             _fail_at(np.diff(values[key][:, 0]) < 0, key,
                      "time (column 0) decreases from row {row} to the next")
+            _fail_at(values[key][:, 0] < 0, key, "negative time in row {row}")
+        # positions inside the field (up to FIELD_TOLERANCE of its size): nodes, beacons and
+        # the anchor's path all lie on the field
+        low = -FIELD_TOLERANCE * values["field"]
+        high = (1 + FIELD_TOLERANCE) * values["field"]
+        w, h = values["field"]
+        for key, xy in (("nodes", values["nodes"]), ("beacons", values["beacons"][:, 1:]),
+                        ("anchor_path", values["anchor_path"][:, 1:])):
+            _fail_at(((xy < low) | (xy > high)).any(axis=1), key,
+                     f"row {{row}} lies outside the {w:g} x {h:g} m field")
         rec = values["receptions"]
         _fail_at((rec[:, 0] < 0) | (rec[:, 0] >= b), "receptions",
                  f"beacon index out of [0, B={b}) in row {{row}}")

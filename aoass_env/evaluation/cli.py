@@ -50,11 +50,38 @@ DEFAULT_LOCALIZERS = ("dvhop", "olstm-dvhop")
 LOCALIZER_COMMAND = "python3 train.py localizer"
 
 
-def _names(values: list[str] | None) -> list[str] | None:
-    """Names given as separate words and/or comma-separated."""
+#: The most seeds per grid point of ``--seeds``.
+MAX_SEEDS = 10_000
+
+
+def _names(values: list[str] | None, flag: str) -> list[str] | None:
+    """Names given as separate words and/or comma-separated; an error naming ``flag`` when it
+    was given but names nothing."""
     if values is None:
         return None
-    return [n for v in values for n in v.split(",") if n]
+    names = [n.strip() for v in values for n in v.split(",") if n.strip()]
+    if not names:
+        raise EvaluationError(f"{flag}: no name given ({values!r}); leave {flag} out for the "
+                              f"default")
+    return names
+
+
+def _check_policy(policy: Path, run: Path | None) -> Path:
+    """The run record of ``policy`` (``run``, else the run.yml beside it), after loading the
+    policy once without unpickling anything; an error naming the file otherwise."""
+    from agents.checkpoints import PolicyFileError, record_path
+    from aoass_env.evaluation.methods import load_policy
+    record = run if run is not None else record_path(policy)
+    if not record.is_file():
+        raise EvaluationError(
+            f"--policy {policy}: no run.yml beside it, so the stack it was trained in "
+            f"(action_repeat, tracker, safety) is unknown; copy its run.yml along or give "
+            f"one with --policy-run FILE" if run is None else f"--policy-run {run}: no such file")
+    try:
+        load_policy(str(policy.resolve()), record=str(record.resolve()))
+    except PolicyFileError as exc:
+        raise EvaluationError(f"--policy: {exc}") from None
+    return record
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -90,6 +117,10 @@ def build_parser() -> argparse.ArgumentParser:
                              "episodes")
     parser.add_argument("--policy", type=Path, default=DEFAULT_POLICY, metavar="ZIP",
                         help="checkpoint of the aoass policy (default: the shipped one)")
+    parser.add_argument("--policy-run", type=Path, metavar="YML",
+                        help="run record (run.yml of train.py) of the stack the policy was "
+                             "trained in (default: the run.yml beside --policy; a policy "
+                             "without one is refused)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
 
@@ -126,13 +157,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        if args.seeds is not None and args.seeds < 1:
-            raise EvaluationError(f"--seeds must be at least 1, got {args.seeds}")
+        if args.seeds is not None and not 1 <= args.seeds <= MAX_SEEDS:
+            raise EvaluationError(f"--seeds must be in [1, {MAX_SEEDS}], got {args.seeds}")
         if args.workers is not None and args.workers < 1:
             raise EvaluationError(f"--workers must be at least 1, got {args.workers}")
         preset = PRESETS[args.preset]
         localizers = _check_localizers(
-            _names(args.localizers),
+            _names(args.localizers, "--localizers"),
             DEFAULT_LOCALIZERS if preset.localize or args.logs else (NO_LOCALIZER,))
         if args.logs is not None:
             if args.methods or args.seeds or args.save_logs:
@@ -142,13 +173,15 @@ def main(argv: list[str] | None = None) -> int:
             jobs = log_jobs(args.logs.resolve(), localizers)
             title = f"AOASS evaluation: beacon logs of {args.logs}"
         else:
-            methods = select_methods(_names(args.methods), args.policy)
+            methods = select_methods(_names(args.methods, "--methods"), args.policy)
             out = args.out or Path("out") / preset.name
             jobs = episode_jobs(preset, methods, localizers, args.seeds)
             title = f"AOASS evaluation: preset {preset.name}"
         inputs = {}
+        record = None
         if args.logs is None and any(METHODS[m].uses_policy for m in methods):
-            inputs["policy"] = file_digest(args.policy, args.policy.with_name("run.yml"))
+            record = _check_policy(args.policy, args.policy_run)
+            inputs["policy"] = file_digest(args.policy, record)
         if "olstm-dvhop" in localizers:
             inputs["olstm-dvhop"] = file_digest(DEFAULT_CHECKPOINT)
         backend = make_backend(args.backend, workers=args.workers, address=args.address)
@@ -159,7 +192,8 @@ def main(argv: list[str] | None = None) -> int:
 
     torch.set_num_threads(1)
     # absolute paths: the workers of a Ray cluster may run in another folder
-    options = RunOptions(policy=str(args.policy.resolve()))
+    options = RunOptions(policy=str(args.policy.resolve()),
+                         policy_run=None if record is None else str(record.resolve()))
     log_dir = (out / "logs").resolve() if args.save_logs else None
     with store:
         try:

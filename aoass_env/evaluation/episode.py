@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from aoass_env.beacon_log import BeaconLog
+from aoass_env.beacon_log import BeaconLog, BeaconLogError
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation.methods import METHODS, MethodRun, RunOptions
 from aoass_env.evaluation.store import (
@@ -169,6 +169,25 @@ def _saved_key(saved: dict[str, Any]) -> EpisodeKey:
     return EpisodeKey(**{k: saved[k] for k in KEY_FIELDS})
 
 
+def _saved_episode(text: Any, path: Path) -> dict[str, Any]:
+    """The evaluation extra of a saved log, checked: a JSON object holding every key field
+    with a value of the field's type; :class:`BeaconLogError` naming the file and the extra."""
+    try:
+        saved = json.loads(str(text))
+    except json.JSONDecodeError as exc:
+        raise BeaconLogError(f"not valid JSON ({exc})", EPISODE_EXTRA, path) from None
+    if not isinstance(saved, dict):
+        raise BeaconLogError("must be a JSON object", EPISODE_EXTRA, path)
+    kinds = {f.name: f.type for f in dataclasses.fields(EpisodeKey)}
+    for name in KEY_FIELDS:
+        want = {"str": str, "int": int, "float": (int, float)}[str(kinds[name])]
+        value = saved.get(name)
+        if isinstance(value, bool) or not isinstance(value, want):
+            raise BeaconLogError(f"{name} must be a {kinds[name]}, got {value!r}",
+                                 EPISODE_EXTRA, path)
+    return saved
+
+
 def _config_key(log: BeaconLog, path: Path) -> EpisodeKey:
     """The key of a log without the evaluation extra: method, seed (-1 if unknown), map
     (config, else the file name), field size, node count and the map's density (2 decimals)."""
@@ -191,7 +210,7 @@ def log_key(path: Path) -> EpisodeKey:
     if zipfile.is_zipfile(path):
         with np.load(path, allow_pickle=False) as data:
             if EPISODE_EXTRA in data.files:
-                return _saved_key(json.loads(str(data[EPISODE_EXTRA])))
+                return _saved_key(_saved_episode(data[EPISODE_EXTRA], path))
     return _config_key(BeaconLog.load(path), path)
 
 
@@ -199,7 +218,8 @@ def localize_log(path: Path, localizers: tuple[str, ...]) -> list[dict[str, Any]
     """``episodes.csv`` rows of a saved beacon log: its key, its episode metrics when the log
     holds them (logs of ``--save-logs``; else empty) and one localization per localizer."""
     log = BeaconLog.load(path)
-    saved = json.loads(str(log.extras[EPISODE_EXTRA])) if EPISODE_EXTRA in log.extras else {}
+    saved = (_saved_episode(log.extras[EPISODE_EXTRA], path) if EPISODE_EXTRA in log.extras
+             else {})
     key = _saved_key(saved) if saved else _config_key(log, path)
     episode = {**dict.fromkeys(EPISODE_FIELDS), **saved, **asdict(key)}
     return [{**episode, **localization_row(log, name)} for name in localizers]

@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.config import AOASSConfig
@@ -62,11 +61,14 @@ class RunOptions:
         max_steps: stop an episode after this many control periods (``dt`` = 0.5 s each);
             None: each method's own limit (the environment's time limit for the safety stack,
             ``Simulator.run``'s for the others).
+        policy_run: the run record (run.yml) of the stack ``policy`` was trained in; None: the
+            one beside ``policy``.
     """
 
     policy: str = str(DEFAULT_POLICY)
     algo: str = POLICY_ALGO
     max_steps: int | None = None
+    policy_run: str | None = None
 
 
 @dataclass(frozen=True)
@@ -100,21 +102,30 @@ class MethodSpec:
 
 
 @functools.lru_cache(maxsize=2)
-def load_policy(path: str, algo: str = POLICY_ALGO) -> Any:
-    """The policy saved at ``path`` by ``algo``, loaded once per process (on the CPU)."""
+def load_policy(path: str, algo: str = POLICY_ALGO, record: str | None = None) -> Any:
+    """The policy saved at ``path`` by ``algo``, loaded once per process (on the CPU) without
+    unpickling anything, rebuilt from ``record`` (default: the run.yml beside it)."""
     from agents.hyperparams import ALGORITHMS  # the agent's stack: imported only when used
-    return ALGORITHMS[algo].load(path, device="cpu")
+    return ALGORITHMS[algo].load(path, device="cpu", record=record)
 
 
-def policy_stack(path: str) -> dict[str, Any]:
+def policy_stack(path: str, record: str | None = None) -> dict[str, Any]:
     """The :func:`~aoass_env.make_safe_env` keywords of :data:`POLICY_STACK_KEYS` that the policy
-    at ``path`` was trained with, read from the ``run.yml`` that ``train.py`` writes beside it
-    (``hyperparameters.env``); empty when there is no such file."""
-    record = Path(path).with_name("run.yml")
-    if not record.is_file():
+    at ``path`` was trained with, read from its run record (``record``, else the ``run.yml``
+    that ``train.py`` writes beside it; ``hyperparameters.env``, validated); empty when there
+    is no such file."""
+    from agents.checkpoints import record_path
+    run = Path(record) if record is not None else record_path(path)
+    if not run.is_file():
         return {}
-    env = (yaml.safe_load(record.read_text(encoding="utf-8")) or {}).get(
-        "hyperparameters", {}).get("env") or {}
+    return _recorded_stack(str(run), run.stat().st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=4)
+def _recorded_stack(record: str, mtime_ns: int) -> dict[str, Any]:
+    """:func:`policy_stack` of one version (``mtime_ns``) of a run record, read once."""
+    from agents.checkpoints import read_run_record
+    env = read_run_record(record)["hyperparameters"].get("env", {})
     return {k: env[k] for k in POLICY_STACK_KEYS if k in env}
 
 
@@ -123,11 +134,11 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
     """AOASS-v0 inside the Kalman + fuzzy-ORCA stack (set up as the policy was trained), driven
     by the policy (``learned``, one decision every ``action_repeat`` control periods) or the
     zero action, until the episode ends or ``options.max_steps`` control periods."""
-    stack = policy_stack(options.policy)
+    stack = policy_stack(options.policy, options.policy_run)
     repeat = int(stack.get("action_repeat", 1)) if learned else 1
     env = make_safe_env(config=config, tracker=stack.get("tracker"),
                         safety=stack.get("safety"), action_repeat=repeat)
-    policy = load_policy(options.policy, options.algo) if learned else None
+    policy = load_policy(options.policy, options.algo, options.policy_run) if learned else None
     obs, _ = env.reset(seed=seed, options={"map": obstacle_map})
     state, start = None, np.ones(1, dtype=bool)
     interventions: list[float] = []

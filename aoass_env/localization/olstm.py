@@ -118,11 +118,17 @@ def load_checkpoint(path: str | os.PathLike[str] = DEFAULT_CHECKPOINT) -> OLSTM:
         raise CheckpointError(f"{path}: feature set {names} (version "
                               f"{payload.get('feature_version')!r}) does not match this code's "
                               f"{list(FEATURE_NAMES)} (version {FEATURE_VERSION}); retrain")
-    model = OLSTM(len(FEATURE_NAMES), int(payload.get("hidden", 0)))
+    hidden = payload.get("hidden")
+    if isinstance(hidden, bool) or not isinstance(hidden, int) or hidden < 1:
+        raise CheckpointError(f"{path}: hidden must be an integer >= 1, got {hidden!r}")
+    model = OLSTM(len(FEATURE_NAMES), hidden)
     try:
         model.load_state_dict(payload["state_dict"])
-    except (KeyError, RuntimeError) as exc:
+    except (KeyError, RuntimeError, TypeError, AttributeError) as exc:
         raise CheckpointError(f"{path}: weights do not fit the model ({exc})") from None
+    for name, tensor in model.state_dict().items():
+        if not bool(torch.isfinite(tensor).all()):
+            raise CheckpointError(f"{path}: state_dict: {name} holds NaN or infinite weights")
     return model.eval()
 
 

@@ -4,12 +4,13 @@ import csv
 import math
 import shutil
 import sys
+import zipfile
 from dataclasses import replace
 
 import pytest
 
 from aoass_env.evaluation import cli
-from aoass_env.evaluation.methods import METHODS, POLICY_COMMAND
+from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, POLICY_COMMAND
 from aoass_env.evaluation.store import COLUMNS, NO_LOCALIZER, read_episodes, read_runs
 from aoass_env.evaluation.sweep import PRESETS, robustness_seed
 from aoass_env.localization import METHODS as LOCALIZERS
@@ -86,16 +87,34 @@ def test_missing_policy_checkpoint_names_file_and_command(capsys, tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_resuming_with_another_policy_fails_before_any_work(smoke_run, capsys, tmp_path):
+def _policy_copy(folder, *, stored: bool = False):
+    """A copy of the shipped policy with its run.yml in ``folder`` (re-zipped uncompressed when
+    ``stored``: the same model in a file of another digest)."""
+    folder.mkdir()
+    shutil.copy(DEFAULT_POLICY.with_name("run.yml"), folder / "run.yml")
+    with zipfile.ZipFile(DEFAULT_POLICY) as src, zipfile.ZipFile(
+            folder / "policy.zip", "w",
+            zipfile.ZIP_STORED if stored else zipfile.ZIP_DEFLATED) as dst:
+        for name in src.namelist():
+            dst.writestr(name, src.read(name))
+    return folder / "policy.zip"
+
+
+def test_resuming_with_another_policy_fails_before_any_work(smoke_run, capsys, tmp_path,
+                                                              monkeypatch):
     out, _ = smoke_run
     shutil.copy(out / "episodes.csv", tmp_path / "episodes.csv")
-    first, second = tmp_path / "first.zip", tmp_path / "second.zip"
-    first.write_bytes(b"one policy")
-    second.write_bytes(b"another policy")
+    first = _policy_copy(tmp_path / "first")
+    second = _policy_copy(tmp_path / "second", stored=True)
     argv = ["--preset", "smoke", "--methods", "aoass", "--localizers", "dvhop",
             "--out", str(tmp_path), "--no-progress"]
-    # records first.zip's digest; its episode fails (the dummy is no policy) and is reported
-    assert cli.main([*argv, "--policy", str(first)]) == 1
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    # records first.zip's digest before any episode (the run is then cut short)
+    monkeypatch.setattr(cli, "run_jobs", interrupted)
+    assert cli.main([*argv, "--policy", str(first)]) == 130
     capsys.readouterr()
     before = (tmp_path / "episodes.csv").read_text()
     err = _usage_error(capsys, [*argv, "--policy", str(second)])
@@ -111,7 +130,7 @@ def test_unwritable_output_folder_fails_before_any_work(capsys, tmp_path):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--seeds", "0"], "--seeds must be at least 1"),
+    (["--seeds", "0"], "--seeds must be in [1, 10000]"),
     (["--workers", "0"], "--workers must be at least 1"),
     (["--logs", "/nonexistent-folder"], "no such folder"),
     (["--logs", ".", "--seeds", "2"], "do not apply"),

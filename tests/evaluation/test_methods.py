@@ -150,7 +150,7 @@ def test_the_policy_acts_in_the_stack_it_was_trained_in(monkeypatch, tmp_path, s
     assert methods_module.policy_stack(str(policy)) == {"action_repeat": 4,
                                                         "safety": {"margin": 0.3}}
     fake = CountingPolicy()
-    monkeypatch.setattr(methods_module, "load_policy", lambda path, algo: fake)
+    monkeypatch.setattr(methods_module, "load_policy", lambda path, algo, record: fake)
     (row,) = run_episode(small_key("aoass"), ("dvhop",),
                          RunOptions(policy=str(policy), max_steps=40))
     assert fake.calls == 10 and row["travel_time"] == pytest.approx(20.0)  # 40 periods of 0.5 s
