@@ -37,7 +37,7 @@ from aoass_env.registration import make_env
 from aoass_env.safety.fuzzy import FuzzyController
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.orca import StaticObstacles, orca_lines, solve_velocity
-from aoass_env.safety.unicycle import unicycle_command
+from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
 from aoass_env.world import wrap_angle
 
 __all__ = ["ActionRepeat", "FuzzyORCASafety", "KalmanObstacleTracker", "MapSampler",
@@ -204,8 +204,10 @@ class FuzzyORCASafety(gym.ActionWrapper):
        ``margin`` (m), the moving obstacles' by ``moving_margin`` (m).
     3. The anchor is commanded v*'s heading and the largest speed up to |v*| that stays safe on
        every heading it passes through while it turns; it turns only as far as the headings
-       stay safe at the speed it cannot shed within the period
-       (:mod:`aoass_env.safety.unicycle`).
+       stay safe at the speed it cannot shed within the period, and no faster on any heading
+       than lets it stop, after one period, before its disc (radius + ``margin``) reaches a
+       static edge (the braking envelope: ORCA assumes an instant change of velocity, the
+       anchor's lags; :mod:`aoass_env.safety.unicycle`).
 
     ``info["safety"]`` holds ``intervention`` = |v* - v_des| (m/s, the agent's desired
     velocity), ``orca_correction`` = |v* - v_pref| (m/s), the fuzzy outputs, the executed
@@ -282,6 +284,20 @@ class FuzzyORCASafety(gym.ActionWrapper):
             self._static_map = episode_map
         return self._static
 
+    def _braking_envelope(self, position: np.ndarray) -> BrakingEnvelope:
+        """The static edges within the anchor's reach in one period and a full stop from top
+        speed, as speed caps by heading (:class:`~aoass_env.safety.unicycle.BrakingEnvelope`;
+        the anchor's radius is inflated by ``margin``, as for ORCA)."""
+        c = self._base.config
+        radius = c.anchor_radius + self.margin
+        top = c.anchor_max_speed
+        reach = top * c.dt + top * top / (2.0 * c.anchor_max_accel) + radius
+        static = self._static_obstacles()
+        near = static.edges_near(position, reach)
+        return BrakingEnvelope(static.point[near], static.point[static.next[near]],
+                               np.asarray(position, dtype=np.float64), radius,
+                               c.anchor_max_accel, c.dt)
+
     def _moving_obstacles(self) -> np.ndarray:
         """Kalman-tracked moving obstacles (x, y, vx, vy, radius + moving_margin)."""
         tracks = self._tracker.tracked_obstacles
@@ -324,7 +340,7 @@ class FuzzyORCASafety(gym.ActionWrapper):
         v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
         speed_cmd, heading_cmd = unicycle_command(
             v_star, heading, world.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
-            lines.direction, heading_pref)
+            lines.direction, heading_pref, self._braking_envelope(world.position))
         executed = np.clip([(speed_cmd - speed_nom) / c.action_speed_scale,
                             wrap_angle(heading_cmd - heading_nom) / c.action_heading_scale],
                            -1.0, 1.0).astype(np.float32)

@@ -10,6 +10,13 @@ on a standing anchor): the anchor slows down, or turns in place, while it faces 
 It also cannot stop at once (its deceleration is bounded), so it turns toward ``v*`` only as
 far as the headings stay safe at the speed it still has.
 
+ORCA's static half-planes assume the velocity changes at once; the anchor's lags behind, and
+passing an obstacle's corner turns its sideways speed into speed toward the corner faster than
+it can brake. A :class:`BrakingEnvelope` closes that gap: on each heading the speed is also
+capped so that the anchor, moving one control period at it and then braking at its
+deceleration limit, stops before its disc (radius plus a margin) reaches a static edge
+(:func:`free_travel` along the heading, :func:`braking_speed`).
+
 Convention (RVO2's): a velocity ``v`` satisfies the line (point ``p``, unit direction ``d``)
 when ``det(d, p - v) <= 0``, i.e. ``v`` lies to the left of the directed line.
 """
@@ -17,13 +24,17 @@ when ``det(d, p - v) <= 0``, i.e. ``v`` lies to the left of the directed line.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["speed_bounds", "turn_headings", "unicycle_command"]
+__all__ = ["BrakingEnvelope", "braking_speed", "free_travel", "speed_bounds", "turn_headings",
+           "unicycle_command"]
 
 #: Below this speed (m/s) ORCA's velocity has no usable direction.
 _STILL = 1e-9
+#: A heading whose approach rate to a segment's side is below this (m per m) runs parallel.
+_PARALLEL = 1e-12
 
 
 def turn_headings(heading: float, target: float, max_turn: float, n: int = 4) -> np.ndarray:
@@ -59,9 +70,84 @@ def speed_bounds(points: np.ndarray, directions: np.ndarray,
     return np.maximum(bound.min(axis=0), 0.0)
 
 
+def free_travel(starts: np.ndarray, ends: np.ndarray, position: np.ndarray,
+                headings: np.ndarray, radius: float) -> np.ndarray:
+    """(k,) for each heading h (rad) how far (m) a disc of ``radius`` (m) at ``position`` (2,)
+    moves along h before it touches one of the segments ``starts`` -> ``ends`` ((m, 2) each,
+    m); inf when it touches none. A disc that touches a segment already gets 0 on the headings
+    that take it closer, and is free on the others."""
+    headings = np.asarray(headings, dtype=np.float64)
+    if len(starts) == 0:
+        return np.full(len(headings), np.inf)
+    u = np.stack([np.cos(headings), np.sin(headings)], axis=1)            # (k, 2)
+    p = np.asarray(position, dtype=np.float64)
+    r2 = radius * radius
+    best = np.full(len(headings), np.inf)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # the end points: |w + t u| = radius with w = p - vertex, entered while w . u < 0
+        for vertex in (starts, ends):
+            w = p - vertex                                                  # (m, 2)
+            wu = u @ w.T                                                    # (k, m)
+            ww = (w * w).sum(axis=1)
+            disc = wu * wu - (ww - r2)
+            t = np.where(ww > r2, -wu - np.sqrt(disc), 0.0)
+            t = np.where((wu < 0.0) & (disc >= 0.0), t, np.inf)
+            best = np.minimum(best, t.min(axis=1))
+        # the segments' sides: the disc's centre reaches the line offset by radius
+        e = ends - starts
+        length = np.hypot(e[:, 0], e[:, 1])
+        n = np.stack([-e[:, 1], e[:, 0]], axis=1) / length[:, None]        # (m, 2) unit normals
+        side = ((p - starts) * n).sum(axis=1)                              # signed distance
+        rate = u @ n.T                                                      # (k, m)
+        approach = side[None, :] * rate < -_PARALLEL      # moving toward the side
+        t = np.maximum(np.abs(side)[None, :] - radius, 0.0) / np.abs(rate)
+        along = ((p - starts) * e).sum(axis=1)[None, :] + t * (u @ e.T)      # (k, m)
+        inside = (along >= 0.0) & (along <= length * length)
+        t = np.where(approach & inside, t, np.inf)
+        best = np.minimum(best, t.min(axis=1))
+    return best
+
+
+def braking_speed(distance: np.ndarray, max_accel: float, dt: float) -> np.ndarray:
+    """The largest speed s (m/s) from which the anchor, moving ``dt`` (s) at s and then braking
+    at ``max_accel`` (m/s^2), stops within ``distance`` (m): s dt + s^2 / (2 max_accel) =
+    distance (0 for distance <= 0, inf for inf)."""
+    d = np.maximum(np.asarray(distance, dtype=np.float64), 0.0)
+    with np.errstate(invalid="ignore"):
+        s = max_accel * (np.sqrt(dt * dt + 2.0 * d / max_accel) - dt)
+    return np.where(np.isinf(d), np.inf, s)
+
+
+@dataclass(frozen=True)
+class BrakingEnvelope:
+    """Speed caps (m/s) by heading from the static edges near the anchor (see the module
+    docstring).
+
+    Attributes:
+        starts, ends: (m, 2) the edges' end points (m).
+        position: (2,) the anchor's centre (m).
+        radius: the anchor's radius plus a margin (m).
+        max_accel: its deceleration limit (m/s^2).
+        dt: the control period (s).
+    """
+
+    starts: np.ndarray
+    ends: np.ndarray
+    position: np.ndarray
+    radius: float
+    max_accel: float
+    dt: float
+
+    def __call__(self, headings: np.ndarray) -> np.ndarray:
+        """(k,) the speed cap on each heading (rad)."""
+        travel = free_travel(self.starts, self.ends, self.position, headings, self.radius)
+        return braking_speed(travel, self.max_accel, self.dt)
+
+
 def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn: float,
                      max_dv: float, points: np.ndarray, directions: np.ndarray,
-                     fallback_heading: float) -> tuple[float, float]:
+                     fallback_heading: float, envelope: BrakingEnvelope | None = None
+                     ) -> tuple[float, float]:
     """(speed [m/s], heading [rad]) that execute ORCA's ``v_star`` on a unicycle.
 
     The anchor turns toward ``v_star`` only as far as every heading on the way stays safe at
@@ -78,12 +164,15 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
         max_dv: the most its speed changes in one control period (m/s).
         points, directions: (n, 2) the ORCA lines ``v_star`` was solved against.
         fallback_heading: heading (rad) to turn toward when ``v_star`` is (almost) zero.
+        envelope: further speed caps by heading (the static edges' braking envelope).
     """
     vx, vy = float(v_star[0]), float(v_star[1])
     wanted = math.hypot(vx, vy)
     target = math.atan2(vy, vx) if wanted > _STILL else fallback_heading
     arc = turn_headings(heading, target, max_turn, n=8)
     bounds = speed_bounds(points, directions, arc)
+    if envelope is not None:
+        bounds = np.minimum(bounds, envelope(arc))
     floor = max(speed - max_dv, 0.0)
     reach = np.minimum.accumulate(bounds)          # safe speed over the arc up to each heading
     if reach[0] + 1e-9 < floor:

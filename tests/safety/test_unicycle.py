@@ -10,7 +10,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.safety.orca import orca_lines
-from aoass_env.safety.unicycle import speed_bounds, turn_headings, unicycle_command
+from aoass_env.safety.unicycle import (
+    BrakingEnvelope,
+    braking_speed,
+    free_travel,
+    speed_bounds,
+    turn_headings,
+    unicycle_command,
+)
 
 
 def det(d, v):
@@ -95,3 +102,69 @@ def test_a_fast_anchor_does_not_turn_into_a_wall_it_cannot_stop_for():
     # at 1.0 m/s a heading h is safe while cos(h) <= 0.25: the turn stops there
     assert math.cos(heading) * 1.0 <= 0.25 + 1e-9
     assert heading < math.pi / 2 and speed <= math.hypot(*v_star) + 1e-12
+
+
+# --- the braking envelope ------------------------------------------------------------------
+def _touch_distance(start, end, position, heading, radius, step=1e-3, limit=20.0):
+    """Reference for free_travel: march along the heading until the disc touches the segment
+    (shapely distance), or ``limit``."""
+    from shapely.geometry import LineString, Point
+    segment = LineString([start, end])
+    u = np.array([math.cos(heading), math.sin(heading)])
+    for t in np.arange(0.0, limit, step):
+        if segment.distance(Point(*(position + t * u))) <= radius:
+            return t
+    return math.inf
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-4.0, 4.0), min_size=4, max_size=4),
+       st.floats(-math.pi, math.pi), st.floats(0.1, 1.0))
+def test_free_travel_matches_a_marching_disc(coords, heading, radius):
+    start, end = np.array(coords[:2]), np.array(coords[2:])
+    if np.hypot(*(end - start)) < 0.1:
+        return
+    position = np.zeros(2)
+    from shapely.geometry import LineString, Point
+    if LineString([start, end]).distance(Point(0, 0)) <= radius + 1e-3:
+        return                                   # touching at the start: tested below
+    got = free_travel(start[None], end[None], position, np.array([heading]), radius)[0]
+    want = _touch_distance(start, end, position, heading, radius)
+    if math.isinf(want):
+        assert math.isinf(got) or got >= 20.0 - 1e-3
+    else:
+        assert got == pytest.approx(want, abs=2e-3)
+
+
+def test_free_travel_of_a_touching_disc_blocks_only_the_headings_that_go_closer():
+    # a wall along x = 1 (segment from (1, -5) to (1, 5)); disc of radius 1 touches it
+    got = free_travel(np.array([[1.0, -5.0]]), np.array([[1.0, 5.0]]), np.zeros(2),
+                      np.array([0.0, math.pi / 4, math.pi / 2, math.pi]), 1.0)
+    assert got[0] == 0.0 and got[1] == 0.0
+    assert got[2] == pytest.approx(5.0) and math.isinf(got[3])    # slides along to the end
+    assert free_travel(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(2), np.zeros(3), 1.0).tolist() \
+        == [math.inf] * 3
+
+
+def test_braking_speed_stops_within_the_distance():
+    d = np.array([-1.0, 0.0, 0.5, 2.0, math.inf])
+    s = braking_speed(d, 1.0, 0.5)
+    assert s[0] == 0.0 and s[1] == 0.0 and math.isinf(s[4])
+    # s dt + s^2 / (2 a) equals the distance
+    assert s[2:4] * 0.5 + s[2:4] ** 2 / 2.0 == pytest.approx(d[2:4])
+
+
+def test_the_envelope_slows_a_fast_anchor_before_an_obstacle_corner():
+    # a corner 1.5 m ahead and 0.45 m to the side: ORCA with no lines would let the anchor
+    # run on at 2 m/s, brushing the corner; the envelope caps the speed so that it can stop
+    corner = np.array([[1.5, 0.45], [1.5, 3.0]])
+    envelope = BrakingEnvelope(corner[:1], corner[1:], np.zeros(2), 0.7, 1.0, 0.5)
+    speed, heading = unicycle_command(np.array([2.0, 0.0]), 0.0, 2.0, math.pi / 4, 0.5,
+                                      np.zeros((0, 2)), np.zeros((0, 2)), 0.0, envelope)
+    travel = free_travel(corner[:1], corner[1:], np.zeros(2), np.array([0.0]), 0.7)[0]
+    assert speed * 0.5 + speed ** 2 / 2.0 <= travel + 1e-9
+    assert speed < 2.0 and heading == 0.0
+    # without an edge nearby nothing changes
+    free = BrakingEnvelope(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(2), 0.7, 1.0, 0.5)
+    assert unicycle_command(np.array([2.0, 0.0]), 0.0, 2.0, math.pi / 4, 0.5, np.zeros((0, 2)),
+                            np.zeros((0, 2)), 0.0, free) == (2.0, 0.0)
