@@ -154,7 +154,8 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
     the speed it cannot shed within the period (``speed - max_dv``), and is commanded the
     largest safe speed up to ``|v_star|`` on the headings it passes through. When even its
     current heading is unsafe at that speed, it brakes fully and turns toward the safest
-    heading within reach.
+    heading within reach; with an ``envelope``, only toward headings on which it can still stop
+    before a static edge (the freest one when there is none).
 
     Args:
         v_star: (2,) ORCA's velocity (m/s).
@@ -171,12 +172,20 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
     target = math.atan2(vy, vx) if wanted > _STILL else fallback_heading
     arc = turn_headings(heading, target, max_turn, n=8)
     bounds = speed_bounds(points, directions, arc)
-    if envelope is not None:
-        bounds = np.minimum(bounds, envelope(arc))
     floor = max(speed - max_dv, 0.0)
+    if envelope is not None:
+        caps = envelope(arc)
+        bounds = np.minimum(bounds, caps)
     reach = np.minimum.accumulate(bounds)          # safe speed over the arc up to each heading
     if reach[0] + 1e-9 < floor:
-        return 0.0, float(arc[int(np.argmax(bounds))])
+        if envelope is None:
+            return 0.0, float(arc[int(np.argmax(bounds))])
+        # braking: never turn, at the speed still to shed, toward a static edge it cannot stop
+        # for (static contact is hard, ORCA's moving lines may give); else the freest heading
+        stoppable = np.minimum.accumulate(caps) + 1e-9 >= floor
+        if not stoppable.any():
+            return 0.0, float(arc[int(np.argmax(np.minimum.accumulate(caps)))])
+        return 0.0, float(arc[int(np.argmax(np.where(stoppable, bounds, -np.inf)))])
     k = int(np.flatnonzero(reach + 1e-9 >= floor)[-1])
     command = target if k == len(arc) - 1 else float(arc[k])
     return float(min(wanted, reach[k])), command

@@ -168,3 +168,30 @@ def test_the_envelope_slows_a_fast_anchor_before_an_obstacle_corner():
     free = BrakingEnvelope(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(2), 0.7, 1.0, 0.5)
     assert unicycle_command(np.array([2.0, 0.0]), 0.0, 2.0, math.pi / 4, 0.5, np.zeros((0, 2)),
                             np.zeros((0, 2)), 0.0, free) == (2.0, 0.0)
+
+
+def test_a_braking_anchor_does_not_turn_toward_a_wall_it_cannot_stop_for():
+    # an obstacle closes in (two violated lines): only headings within 0.37 rad of -2.52
+    # (toward the wall at x = 0) keep from deepening them. The anchor, 0.9 m from the wall,
+    # runs south-east of south at 1.6 m/s and sheds only 0.5 m/s in the period.
+    lines = []
+    for offset in (1.2, -1.2):
+        n = np.array([math.cos(-2.52 + offset), math.sin(-2.52 + offset)])
+        # permitted: v . n >= 0.5 (zero velocity violates it); RVO2 line: point 0.5 n,
+        # direction n rotated by -90 deg (permitted side on its left)
+        lines.append((0.5 * n, np.array([n[1], -n[0]])))
+    points = np.array([p for p, _ in lines])
+    dirs = np.array([d for _, d in lines])
+    wall = (np.array([[0.0, -10.0]]), np.array([[0.0, 10.0]]))
+    position, heading, speed, max_dv = np.array([0.9, 0.0]), -math.pi / 2 + 0.2, 1.6, 0.5
+    args = (np.array([-1.0, 0.0]), heading, speed, 1.0, max_dv, points, dirs, heading)
+    envelope = BrakingEnvelope(*wall, position, 0.7, 1.0, 0.5)
+
+    def stop_speed(h):
+        return braking_speed(free_travel(*wall, position, np.array([h]), 0.7), 1.0, 0.5)[0]
+
+    floor = speed - max_dv
+    old_speed, old_heading = unicycle_command(*args)
+    assert old_speed == 0.0 and stop_speed(old_heading) < floor     # turns into the wall
+    new_speed, new_heading = unicycle_command(*args, envelope)
+    assert new_speed == 0.0 and stop_speed(new_heading) >= floor    # can still stop
