@@ -1,0 +1,78 @@
+"""The shipped maps: the ``train`` and ``test`` splits under the repository's ``maps/`` folder.
+
+:func:`list_maps` names them, :func:`validation_split` holds some out for model selection and
+:func:`load_map` reads a map by name (or from any path).
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+from pathlib import Path
+
+from aoass_env.maps.obstacle_map import MapError, ObstacleMap
+from aoass_env.maps.text_format import read_map
+
+#: Folder of the shipped maps (``train/`` and ``test/``), at the top of the repository.
+MAPS_DIR = Path(__file__).resolve().parents[2] / "maps"
+#: Splits of the shipped maps.
+SPLITS = ("train", "test")
+
+
+def list_maps(split: str, *, field_size: float | None = None,
+              densities: tuple[float, float] | None = None) -> list[str]:
+    """Names (``"<split>/<stem>"``) of the shipped maps of ``split`` ("train" or "test").
+
+    Shipped stems read ``d<density>_f<field size>_s<seed>``; ``field_size`` (m) keeps the maps
+    of that field size, ``densities`` = (low, high) those whose density lies in [low, high]."""
+    if split not in SPLITS:
+        raise MapError(f"split={split!r} must be one of {SPLITS}")
+    folder = MAPS_DIR / split
+    if not folder.is_dir():
+        raise MapError(f"shipped map folder {folder} is missing (it comes with the repository)")
+    names = []
+    for p in sorted(folder.glob("*.txt")):
+        if field_size is not None or densities is not None:
+            parts = dict((f[0], f[1:]) for f in p.stem.split("_") if f)
+            if field_size is not None and float(parts.get("f", "nan")) != field_size:
+                continue
+            if densities is not None and not (
+                    densities[0] - 1e-9 <= float(parts.get("d", "nan")) <= densities[1] + 1e-9):
+                continue
+        names.append(f"{split}/{p.stem}")
+    return names
+
+
+def validation_split(names: list[str]) -> tuple[list[str], list[str]]:
+    """(fit, validation): shipped map names split for model selection. The map with the
+    highest seed of every (density, field size) group is held out for validation (1 in 5 of
+    the shipped training maps), the others are for fitting; ``names`` as from
+    :func:`list_maps`."""
+    groups: dict[tuple[str, str], list[str]] = {}
+    for name in names:
+        parts = dict((f[0], f[1:]) for f in name.rsplit("/", 1)[-1].split("_") if f)
+        groups.setdefault((parts.get("d", ""), parts.get("f", "")), []).append(name)
+    held = {max(group, key=lambda n: int(n.rsplit("_s", 1)[-1])) for group in groups.values()
+            if len(group) > 1}
+    return [n for n in names if n not in held], [n for n in names if n in held]
+
+
+def load_map(name_or_path: str | os.PathLike,
+             field_size: float | tuple[float, float] | None = None) -> ObstacleMap:
+    """A map from a file path, or a shipped map by name ("test/d0.30_f100_s500" or its stem)."""
+    path = Path(name_or_path)
+    if path.is_file():
+        return read_map(path, field_size)
+    key = str(name_or_path).removesuffix(".txt")
+    names = [n for split in SPLITS if (MAPS_DIR / split).is_dir() for n in list_maps(split)]
+    matches = [n for n in names if key in (n, n.split("/", 1)[1])]
+    if len(matches) == 1:
+        return read_map(MAPS_DIR / f"{matches[0]}.txt", field_size)
+    if matches:
+        raise MapError(f"map name {key!r} is ambiguous: {', '.join(matches)}")
+    by_stem = {n.split("/", 1)[1]: n for n in names}
+    close = difflib.get_close_matches(key.rsplit("/", 1)[-1], list(by_stem), n=3, cutoff=0.5)
+    examples = [by_stem[stem] for stem in close] or names[:3]
+    raise MapError(f"unknown map {str(name_or_path)!r}: no such file and no shipped map of that "
+                   f"name in {MAPS_DIR}; e.g. {', '.join(examples) or '(none shipped)'} "
+                   f"(see list_maps('train'), list_maps('test'))")

@@ -1,0 +1,159 @@
+"""The IMR-CIIRC planning-map text format: ``[SCALE]``, ``[BORDER]`` and ``[OBSTACLE]`` sections.
+
+:func:`read_map` parses a file into an :class:`~aoass_env.maps.ObstacleMap` (malformed files
+raise :class:`MapFormatError` naming the file and line); :func:`write_map` writes one back
+exactly.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import shapely
+
+from aoass_env.atomic import write_text_atomic
+from aoass_env.maps.obstacle_map import MapError, ObstacleMap, _field_dims
+
+
+class MapFormatError(MapError):
+    """A map file is malformed; ``path`` and the 1-based ``line`` say where."""
+
+    def __init__(self, path: Path, line: int, message: str) -> None:
+        super().__init__(f"{path}:{line}: {message}")
+        self.path = path
+        self.line = line
+        self.message = message
+
+    def __reduce__(self) -> tuple:  # picklable across processes despite the custom __init__
+        return type(self), (self.path, self.line, self.message)
+
+
+_SECTIONS = ("[SCALE]", "[BORDER]", "[OBSTACLE]")
+
+
+_Rows = list[tuple[int, list[float]]]  # (line number, values) of one section
+
+
+def _parse_sections(path: Path, lines: list[str]) -> list[tuple[str, int, _Rows]]:
+    """[(section, header line number, rows), ...] of a map file, in file order."""
+    sections: list[tuple[str, int, _Rows]] = []
+    for number, raw in enumerate(lines, start=1):
+        text = raw.strip()
+        if not text:
+            continue
+        if text.startswith("["):
+            if text not in _SECTIONS:
+                raise MapFormatError(path, number, f"unknown section {text!r}; valid sections "
+                                                   f"are {', '.join(_SECTIONS)}")
+            if text != "[OBSTACLE]" and any(s[0] == text for s in sections):
+                raise MapFormatError(path, number, f"second {text} section")
+            sections.append((text, number, []))
+            continue
+        if not sections:
+            raise MapFormatError(path, number, f"{text!r} before the first section "
+                                               f"(the file must start with [SCALE])")
+        kind, _, rows = sections[-1]
+        values = []
+        for token in text.split():
+            try:
+                value = float(token)
+            except ValueError:
+                raise MapFormatError(path, number, f"{token!r} is not a number") from None
+            if not math.isfinite(value):
+                raise MapFormatError(path, number, f"{token!r} is not a finite number")
+            values.append(value)
+        want = 1 if kind == "[SCALE]" else 2
+        if len(values) != want:
+            what = "one number" if want == 1 else "two numbers 'x y'"
+            raise MapFormatError(path, number, f"expected {what} in {kind}, got {len(values)}")
+        if kind == "[SCALE]" and rows:
+            raise MapFormatError(path, number, "[SCALE] holds a single number")
+        rows.append((number, values))
+    return sections
+
+
+def _polygon(path: Path, kind: str, line: int, rows: _Rows, scale: float) -> np.ndarray:
+    """Validated (k, 2) vertices (m) of a [BORDER] or [OBSTACLE] section."""
+    if len(rows) < 3:
+        raise MapFormatError(path, line, f"{kind} has {len(rows)} vertices; a polygon needs >= 3")
+    v = np.array([values for _, values in rows]) * scale
+    poly = shapely.Polygon(v)
+    if not poly.is_valid:
+        raise MapFormatError(path, line, f"{kind} is not a simple polygon "
+                                         f"({shapely.is_valid_reason(poly)})")
+    if poly.area <= 0:
+        raise MapFormatError(path, line, f"{kind} has zero area")
+    return v
+
+
+def read_map(path: str | os.PathLike, field_size: float | tuple[float, float] | None = None
+             ) -> ObstacleMap:
+    """Read an IMR-CIIRC map file (``[SCALE]``, ``[BORDER]``, ``[OBSTACLE]`` sections).
+
+    Coordinates are scaled to metres (value x scale) and the border's bounding box is moved to
+    the origin; it becomes the field. With ``field_size`` (m, side or (width, height)) the map
+    is stretched per axis to that size. Parts of the bounding box outside a non-rectangular
+    border become obstacles; obstacles are clipped to the field. Malformed files raise
+    :class:`MapFormatError` naming the file and line.
+    """
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError as err:
+        raise MapError(f"{path}: not a UTF-8 text map file ({err.reason})") from None
+    sections = _parse_sections(path, lines)
+    end = max(len(lines), 1)
+    found = {kind: (line, rows) for kind, line, rows in sections if kind != "[OBSTACLE]"}
+    for kind in ("[SCALE]", "[BORDER]"):
+        if kind not in found:
+            raise MapFormatError(path, end, f"missing {kind} section")
+    header_line, scale_rows = found["[SCALE]"]
+    if not scale_rows:
+        raise MapFormatError(path, header_line, "[SCALE] has no value")
+    value_line, (scale,) = scale_rows[0]
+    if scale <= 0:
+        raise MapFormatError(path, value_line, f"scale {scale!r} must be positive")
+    border = _polygon(path, "[BORDER]", *found["[BORDER]"], scale)
+    obstacles = [_polygon(path, kind, line, rows, scale)
+                 for kind, line, rows in sections if kind == "[OBSTACLE]"]
+
+    low = border.min(axis=0)
+    span = border.max(axis=0) - low
+    if field_size is None:
+        size = span
+        border, obstacles = border - low, [v - low for v in obstacles]
+    else:  # (v - low) / span is exactly 0 and 1 on the border's bounding box
+        size = np.array(_field_dims(field_size))
+        border = (border - low) / span * size
+        obstacles = [(v - low) / span * size for v in obstacles]
+
+    width, height = float(size[0]), float(size[1])
+    field_box = shapely.box(0.0, 0.0, width, height)
+    polygons = []
+    for v in obstacles:
+        if np.all(v >= 0) and np.all(v <= size):
+            polygons.append(v)
+            continue
+        clipped = shapely.intersection(shapely.Polygon(v), field_box)
+        polygons += [shapely.get_coordinates(p.exterior)[:-1]
+                     for p in shapely.get_parts(clipped) if p.area > 0]
+    outside = shapely.difference(field_box, shapely.Polygon(border))
+    polygons += [shapely.get_coordinates(p.exterior)[:-1]
+                 for p in shapely.get_parts(outside) if p.area > 0]
+    return ObstacleMap(width, height, tuple(polygons), path.stem)
+
+
+def write_map(obstacle_map: ObstacleMap, path: str | os.PathLike) -> None:
+    """Write ``obstacle_map`` as an IMR-CIIRC text file (SCALE 1, metres), atomically.
+
+    Floats are written exactly (``repr``), so ``read_map`` gives back the same polygons.
+    """
+    w, h = obstacle_map.width, obstacle_map.height
+    out = ["[SCALE]", "1", "", "[BORDER]", "0 0", f"{w!r} 0", f"{w!r} {h!r}", f"0 {h!r}"]
+    for p in obstacle_map.polygons:
+        out += ["", "[OBSTACLE]"]
+        out += [f"{float(x)!r} {float(y)!r}" for x, y in p]
+    write_text_atomic(Path(path), "\n".join(out) + "\n")

@@ -1,0 +1,88 @@
+"""Tests of aoass_env.maps.registry: the shipped maps, their names and the validation split."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from aoass_env.maps import (
+    DENSITY_TOL,
+    MAPS_DIR,
+    MapError,
+    generate_map,
+    list_maps,
+    load_map,
+    read_map,
+    validation_split,
+)
+from tests.maps.conftest import CLEARANCE, IMR_SAMPLE, assert_same_polygons, rng, write
+
+NAME = re.compile(r"(train|test)/d(\d\.\d\d)_f(\d+)_s(\d{3})")
+
+
+def test_shipped_map_lists():
+    train, test = list_maps("train"), list_maps("test")
+    assert len(train) == 60 and len(test) == 36
+    seeds = {split: {int(NAME.fullmatch(n).group(4)) for n in names}
+             for split, names in (("train", train), ("test", test))}
+    assert not seeds["train"] & seeds["test"]
+    groups = {NAME.fullmatch(n).group(2, 3) for n in train + test}
+    assert groups == {(f"{d:.2f}", s) for d in (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
+                      for s in ("100", "200")}
+    with pytest.raises(MapError, match="split='validation'"):
+        list_maps("validation")
+
+
+def test_every_shipped_map_matches_its_name_and_is_traversable():
+    for name in list_maps("train") + list_maps("test"):
+        _, density, size, _ = NAME.fullmatch(name).groups()
+        m = load_map(name)
+        assert (m.width, m.height) == (float(size), float(size)), name
+        assert abs(m.density - float(density)) <= DENSITY_TOL, name
+        m.check_traversable(CLEARANCE)
+
+
+def test_a_shipped_map_is_reproduced_from_its_name():
+    name = list_maps("test")[0]
+    _, density, size, seed = NAME.fullmatch(name).groups()
+    stem = name.split("/")[1]
+    fresh = generate_map(int(size), float(density), rng(int(seed)), name=stem)
+    assert_same_polygons(load_map(name), fresh)
+
+
+def test_load_map_accepts_names_stems_and_paths(tmp_path):
+    name = list_maps("train")[3]
+    stem = name.split("/")[1]
+    reference = load_map(name)
+    for alias in (stem, f"{stem}.txt", f"{name}.txt", MAPS_DIR / f"{name}.txt"):
+        assert_same_polygons(load_map(alias), reference)
+    scaled = load_map(stem, field_size=50)
+    assert scaled.width == 50.0 and scaled.density == pytest.approx(reference.density)
+    path = write(tmp_path, IMR_SAMPLE)
+    assert_same_polygons(load_map(str(path)), read_map(path))
+
+
+def test_unknown_map_name_lists_valid_names():
+    shipped = r"(train|test)/d\d\.\d\d_f\d+_s\d{3}"
+    with pytest.raises(MapError, match=rf"unknown map 'd0.30_f100_s999'.*e\.g\. {shipped}, "):
+        load_map("d0.30_f100_s999")
+    with pytest.raises(MapError, match=rf"unknown map 'nothing-like-it'.*e\.g\. {shipped}, "):
+        load_map("nothing-like-it")
+
+
+def test_validation_split_holds_out_the_highest_seed_of_each_group():
+    train = list_maps("train")
+    fit, held = validation_split(train)
+    assert sorted(fit + held) == sorted(train) and not set(fit) & set(held)
+    groups = {NAME.fullmatch(n).group(2, 3) for n in train}
+    assert len(held) == len(groups) == 12
+    for name in held:
+        _, d, f, seed = NAME.fullmatch(name).groups()
+        same = [int(NAME.fullmatch(n).group(4)) for n in train
+                if NAME.fullmatch(n).group(2, 3) == (d, f)]
+        assert int(seed) == max(same)
+    # a group of one map stays for fitting; the split does not depend on the order
+    lone = ["train/d0.10_f100_s000", "train/d0.20_f100_s007", "train/d0.20_f100_s005"]
+    assert validation_split(lone) == (["train/d0.10_f100_s000", "train/d0.20_f100_s005"],
+                                      ["train/d0.20_f100_s007"])

@@ -1,0 +1,169 @@
+"""Tests of aoass_env.maps.text_format: reading, writing and malformed IMR-CIIRC map files."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import re
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aoass_env.maps import MapError, MapFormatError, ObstacleMap, read_map, write_map
+from tests.maps.conftest import IMR_SAMPLE, assert_same_polygons, box, write
+
+
+def test_read_applies_scale_and_moves_the_border_to_the_origin(tmp_path):
+    m = read_map(write(tmp_path, IMR_SAMPLE, "sample.txt"))
+    assert (m.width, m.height, m.name) == (20.0, 10.0, "sample")
+    square, triangle = m.polygons
+    np.testing.assert_allclose(square, [[8, 2], [8, 5], [5, 5], [5, 2]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(triangle, [[10, 1], [14, 1], [12, 4]], rtol=0, atol=1e-12)
+    assert m.density == pytest.approx((9 + 6) / 200)
+
+
+def test_read_rescales_each_axis(tmp_path):
+    path = write(tmp_path, IMR_SAMPLE)
+    m = read_map(path, field_size=100)
+    assert (m.width, m.height) == (100.0, 100.0)
+    np.testing.assert_allclose(m.polygons[0], [[40, 20], [40, 50], [25, 50], [25, 20]], rtol=0,
+                               atol=1e-12)
+    m = read_map(path, field_size=(40, 30))
+    assert (m.width, m.height) == (40.0, 30.0)
+    np.testing.assert_allclose(m.polygons[1], [[20, 3], [28, 3], [24, 12]], rtol=0, atol=1e-12)
+    assert m.density == pytest.approx((9 + 6) / 200)
+    with pytest.raises(MapError, match="field_size=-1"):
+        read_map(path, field_size=-1)
+
+
+def test_read_clips_obstacles_and_blocks_outside_a_non_rectangular_border(tmp_path):
+    text = """[SCALE]\n1\n[BORDER]\n0 0\n10 0\n10 5\n5 5\n5 10\n0 10
+[OBSTACLE]\n-2 -2\n2 -2\n2 2\n-2 2
+[OBSTACLE]\n20 20\n21 20\n21 21
+"""
+    m = read_map(write(tmp_path, text))
+    assert (m.width, m.height) == (10.0, 10.0)
+    assert len(m.polygons) == 2  # the clipped corner square and the outside quarter
+    assert m.density == pytest.approx((4 + 25) / 100)
+    assert np.concatenate(m.polygons).min() >= 0 and np.concatenate(m.polygons).max() <= 10
+
+
+def test_write_read_round_trip_is_exact(tmp_path, dense_map):
+    path = tmp_path / "dense.txt"
+    write_map(dense_map, path)
+    back = read_map(path)
+    assert_same_polygons(back, dense_map)
+    assert back.name == "dense"
+    assert os.listdir(tmp_path) == ["dense.txt"]
+
+
+coord = st.floats(0.0, 1.0, allow_nan=False, exclude_min=True, exclude_max=True)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(1e-3, 1e4), st.floats(1e-3, 1e4),
+       st.lists(st.tuples(coord, coord, coord, coord, coord, coord), max_size=6))
+def test_round_trip_is_exact_for_arbitrary_floats(tmp_path_factory, width, height, triangles):
+    polygons = []
+    for t in triangles:
+        v = np.array(t).reshape(3, 2) * (width, height)
+        if shapely.Polygon(v).is_valid and shapely.Polygon(v).area > 1e-6 * width * height:
+            polygons.append(v)
+    m = ObstacleMap(width, height, polygons)
+    path = tmp_path_factory.mktemp("rt") / "m.txt"
+    write_map(m, path)
+    assert_same_polygons(read_map(path), m)
+
+
+def test_write_is_atomic(tmp_path, monkeypatch):
+    path = tmp_path / "m.txt"
+    write_map(ObstacleMap(5, 5, [box(1, 1, 2, 2)]), path)
+    before = path.read_text()
+
+    def fail(*args):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", fail)
+    with pytest.raises(OSError, match="disk full"):
+        write_map(ObstacleMap(5, 5), path)
+    assert path.read_text() == before
+    assert os.listdir(tmp_path) == ["m.txt"]
+
+
+def test_write_creates_a_missing_folder(tmp_path):
+    write_map(ObstacleMap(5, 5), tmp_path / "new" / "m.txt")
+    assert read_map(tmp_path / "new" / "m.txt").width == 5.0
+
+
+GOOD_HEAD = "[SCALE]\n1\n[BORDER]\n0 0\n10 0\n10 10\n0 10\n"
+MALFORMED = [
+    ("[SCALE]\n1\n[BORDERS]\n", 3, r"unknown section '\[BORDERS\]'"),
+    (GOOD_HEAD + "[OBSTACLE]\n1 1\n2 x\n", 10, "'x' is not a number"),
+    (GOOD_HEAD + "[OBSTACLE]\n1 1 1\n", 9, r"expected two numbers 'x y' in \[OBSTACLE\], got 3"),
+    (GOOD_HEAD + "[OBSTACLE]\n1\n", 9, "got 1"),
+    (GOOD_HEAD + "[OBSTACLE]\n1 nan\n", 9, "'nan' is not a finite number"),
+    ("[SCALE]\n1 2\n", 2, r"expected one number in \[SCALE\], got 2"),
+    ("[SCALE]\n1\n2\n", 3, "single number"),
+    ("[SCALE]\n[BORDER]\n0 0\n1 0\n1 1\n", 1, r"\[SCALE\] has no value"),
+    ("[SCALE]\n0\n[BORDER]\n0 0\n1 0\n1 1\n", 2, "scale 0.0 must be positive"),
+    ("[SCALE]\n-2\n[BORDER]\n0 0\n1 0\n1 1\n", 2, "scale -2.0 must be positive"),
+    ("[BORDER]\n0 0\n1 0\n1 1\n", 4, r"missing \[SCALE\] section"),
+    ("[SCALE]\n1\n\n", 3, r"missing \[BORDER\] section"),
+    ("", 1, r"missing \[SCALE\] section"),
+    ("0 0\n[SCALE]\n1\n", 1, "before the first section"),
+    (GOOD_HEAD + "[BORDER]\n0 0\n", 8, r"second \[BORDER\] section"),
+    (GOOD_HEAD + "\n[OBSTACLE]\n1 1\n2 2\n", 9, r"\[OBSTACLE\] has 2 vertices"),
+    (GOOD_HEAD + "[OBSTACLE]\n1 1\n3 3\n3 1\n1 3\n", 8, "not a simple polygon .*Self-inters"),
+    (GOOD_HEAD + "[OBSTACLE]\n1 1\n2 2\n3 3\n", 8, "not a simple polygon|zero area"),
+    ("[SCALE]\n1\n[BORDER]\n0 0\n1 0\n", 3, r"\[BORDER\] has 2 vertices"),
+]
+
+
+@pytest.mark.parametrize(("text", "line", "message"), MALFORMED)
+def test_malformed_files_name_file_and_line(tmp_path, text, line, message):
+    path = write(tmp_path, text, "bad.txt")
+    with pytest.raises(MapFormatError) as info:
+        read_map(path)
+    assert info.value.line == line and info.value.path == path
+    assert str(info.value).startswith(f"{path}:{line}: ")
+    assert re.search(message, str(info.value))
+
+
+def test_format_error_survives_pickling(tmp_path):
+    path = write(tmp_path, "[SCALE]\nx\n")
+    with pytest.raises(MapFormatError) as info:
+        read_map(path)
+    copy = pickle.loads(pickle.dumps(info.value))
+    assert (str(copy), copy.path, copy.line) == (str(info.value), path, 2)
+
+
+def test_binary_file_is_a_clear_error(tmp_path):
+    path = tmp_path / "m.txt"
+    path.write_bytes(b"\xff\xfe\x00[SCALE]")
+    with pytest.raises(MapError, match="not a UTF-8 text map file"):
+        read_map(path)
+
+
+_LINE = st.one_of(
+    st.sampled_from(["[SCALE]", "[BORDER]", "[OBSTACLE]", "[OBSTACLES]", "", "1", "0.5",
+                     "-1", "0 0", "10 0", "10 10", "0 10", "3 3", "nan 1", "1 2 3", "x y"]),
+    st.tuples(st.integers(-5, 15), st.integers(-5, 15)).map(lambda p: f"{p[0]} {p[1]}"),
+    st.text(alphabet="[]ABCELORST 0123456789.-e\t", max_size=12))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(_LINE, max_size=30))
+def test_reader_fuzz_gives_a_map_or_a_map_format_error(tmp_path_factory, lines):
+    """Whatever the text, read_map returns a valid map or raises MapFormatError with a line."""
+    path = tmp_path_factory.mktemp("fuzz") / "m.txt"
+    path.write_text("\n".join(lines) + "\n")
+    try:
+        m = read_map(path)
+    except MapFormatError as err:
+        assert str(path) in str(err)
+        return
+    assert m.width > 0 and m.height > 0
+    assert 0.0 <= m.density <= 1.0
