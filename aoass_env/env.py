@@ -21,8 +21,9 @@ from aoass_env.maps import MapError, ObstacleMap, load_map
 from aoass_env.metrics import energy_efficiency_ratio, energy_per_beacon, trajectory_efficiency
 from aoass_env.observation import Observer, observation_layout, observation_space
 from aoass_env.planning import WaypointFollower
+from aoass_env.planning.square_spiral import episode_spiral
 from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
-from aoass_env.simulator import Simulator, episode_spiral
+from aoass_env.simulator import Simulator
 from aoass_env.world import wrap_angle
 
 __all__ = ["AOASSEnv", "checked_action", "max_episode_steps"]

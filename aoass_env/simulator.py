@@ -14,7 +14,6 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 
@@ -22,21 +21,13 @@ from aoass_env.beacon_log import BeaconLog, BeaconLogRecorder, episode_config_js
 from aoass_env.config import AOASSConfig, check_map_size
 from aoass_env.maps import MapError, ObstacleMap, generate_map, load_map
 from aoass_env.network import Network
-from aoass_env.planning import (
-    SquareSpiral,
-    WaypointFollower,
-    WaypointPath,
-    square_spiral,
-)
-from aoass_env.planning.detour import DetourPlanner
-from aoass_env.planning.square_spiral import config_spacing
+from aoass_env.planning import SquareSpiral, WaypointFollower, WaypointPath
+from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
+from aoass_env.planning.square_spiral import episode_spiral
+from aoass_env.planning.sweep import Controller
 from aoass_env.radio import Radio
 from aoass_env.trajectory import beacons_along
 from aoass_env.world import World
-
-#: Extra clearance (m) the nominal follower's detours keep from obstacles beyond the anchor radius,
-#: room for the turn-rate-limited anchor to round the corners of a detour.
-DETOUR_MARGIN = 0.3
 
 
 @dataclass(frozen=True)
@@ -54,18 +45,6 @@ class StepRecord:
     distance: float
 
 
-class Controller(Protocol):
-    """What drives the anchor in :meth:`Simulator.run`: the nominal follower, or a baseline's
-    controller. ``done`` turns True when the method has finished its sweep."""
-
-    @property
-    def done(self) -> bool: ...
-
-    def command(self, position: np.ndarray, heading: float, dt: float) -> tuple[float, float]:
-        """(speed [m/s], heading [rad]) for the next control period of ``dt`` seconds."""
-        ...
-
-
 def episode_map(config: AOASSConfig, rng: np.random.Generator) -> ObstacleMap:
     """The episode's obstacle map: ``config.map`` if set, else a fresh generated one."""
     if config.map is None:
@@ -74,16 +53,6 @@ def episode_map(config: AOASSConfig, rng: np.random.Generator) -> ObstacleMap:
     obstacle_map = load_map(config.map)          # at its own size: a map is never rescaled
     check_map_size(config, obstacle_map)
     return obstacle_map
-
-
-def episode_spiral(config: AOASSConfig, obstacle_map: ObstacleMap) -> SquareSpiral:
-    """The square spiral of the config over the map, blocked waypoints marked."""
-    w, h = obstacle_map.width, obstacle_map.height
-    spacing = config_spacing(config, w, h)
-    step = config.path_step
-    spiral = square_spiral(w, h, spacing, step, origin=config.spiral_origin,
-                           margin=config.edge_margin)
-    return spiral.with_obstacles(obstacle_map, config.anchor_radius)
 
 
 class Simulator:

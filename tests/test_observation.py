@@ -8,7 +8,8 @@ import pytest
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.observation import Observer, observation_layout, observation_space
-from aoass_env.simulator import Simulator, episode_spiral
+from aoass_env.planning.square_spiral import episode_spiral
+from aoass_env.simulator import Simulator
 
 
 def test_layout_sizes_follow_the_config():

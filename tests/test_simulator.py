@@ -6,8 +6,9 @@ from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap, load_map
 from aoass_env.network import Network
 from aoass_env.planning.classical import CLASSICAL_METHODS
+from aoass_env.planning.square_spiral import episode_spiral
 from aoass_env.radio import Radio
-from aoass_env.simulator import Simulator, episode_spiral
+from aoass_env.simulator import Simulator
 from aoass_env.trajectory import beacons_along
 
 

@@ -33,7 +33,8 @@ from aoass_env.maps import ObstacleMap
 from aoass_env.planning import PlannedMethod
 from aoass_env.planning.baselines import BASELINE_METHODS
 from aoass_env.planning.classical import CLASSICAL_METHODS
-from aoass_env.simulator import Controller, Simulator
+from aoass_env.planning.sweep import Controller
+from aoass_env.simulator import Simulator
 from aoass_env.wrappers import make_safe_env
 
 __all__ = ["DEFAULT_POLICY", "METHODS", "MethodRun", "MethodSpec", "RunOptions",

@@ -1,6 +1,7 @@
-"""Classical DV-Hop with a mobile anchor: HopSize (Eq. 11), hop distances, Eq. 13.
+"""Classical DV-Hop with a mobile anchor: hop distances and Eq. 13.
 
-Every beacon position is a virtual anchor. Its HopSize (Eq. 11) is the summed distance to every
+Every beacon position is a virtual anchor. Its HopSize (Eq. 11,
+:func:`~aoass_env.localization.hops.hop_size`) is the summed distance to every
 other beacon within the flooding limit divided by the summed hop counts to them. A node's
 distance to a beacon is ``hops x HopSize`` of that beacon, and its position is the Eq. 13
 least-squares fit to all beacons within the flooding limit (unit weights), started from the
@@ -19,31 +20,7 @@ from aoass_env.localization.ragged import pad_rows
 if TYPE_CHECKING:
     from aoass_env.localization.episode import Episode
 
-__all__ = ["dvhop", "hop_size"]
-
-
-def hop_size(beacon_xy: np.ndarray, beacon_hops: np.ndarray) -> np.ndarray:
-    """Eq. 11: HopSize_i = sum_j |b_i - b_j| / sum_j h_ij over beacons j != i within reach.
-
-    Args:
-        beacon_xy: (B, 2) beacon positions [m].
-        beacon_hops: (B, B) hop counts between beacons (``inf``: beyond the flooding limit).
-
-    Returns:
-        (B,) HopSize [m/hop]. A beacon that reaches no other beacon gets the network-wide
-        ratio (all reachable pairs pooled); NaN if no pair is reachable at all.
-    """
-    xy = np.asarray(beacon_xy, dtype=np.float64)
-    h = np.asarray(beacon_hops, dtype=np.float64)
-    if xy.ndim != 2 or xy.shape[1] != 2 or h.shape != (len(xy), len(xy)):
-        raise ValueError(f"beacon_xy must be (B, 2) and beacon_hops (B, B); got {xy.shape}, "
-                         f"{h.shape}")
-    i, j = np.nonzero(np.isfinite(h) & (h > 0))
-    num = np.bincount(i, weights=np.hypot(*(xy[i] - xy[j]).T), minlength=len(xy))
-    den = np.bincount(i, weights=h[i, j], minlength=len(xy))
-    pooled = num.sum() / den.sum() if len(i) else np.nan
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(den > 0, num / den, pooled)
+__all__ = ["dvhop"]
 
 
 def dvhop(episode: Episode) -> np.ndarray:

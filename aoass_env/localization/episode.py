@@ -16,8 +16,7 @@ import numpy as np
 
 from aoass_env.beacon_log import BeaconLog, BeaconLogError
 from aoass_env.config import AOASSConfig, ConfigError
-from aoass_env.localization.dvhop import hop_size
-from aoass_env.localization.hops import DEFAULT_FLOOD_LIMIT, HopCounts, hop_counts
+from aoass_env.localization.hops import DEFAULT_FLOOD_LIMIT, HopCounts, hop_counts, hop_size
 from aoass_env.network import Network
 from aoass_env.radio import LineOfSight
 

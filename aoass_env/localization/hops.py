@@ -8,7 +8,8 @@ dijkstra` on unit weights, stopped at a flooding limit: a beacon's hop-count flo
 most ``flood_limit`` hops, farther vertices count as unreachable (``inf``).
 
 Beacon-to-beacon hop counts (Eq. 11) come out of the same search: two beacons heard by one node
-are two hops apart (beacon -> node -> beacon).
+are two hops apart (beacon -> node -> beacon); :func:`hop_size` turns them into each beacon's
+HopSize (Eq. 11).
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ from scipy.sparse import csgraph
 
 from aoass_env.beacon_log import BeaconLog, BeaconLogError
 
-__all__ = ["DEFAULT_FLOOD_LIMIT", "HopCounts", "hop_counts", "radio_graph", "require_beacons"]
+__all__ = ["DEFAULT_FLOOD_LIMIT", "HopCounts", "hop_counts", "hop_size", "radio_graph",
+           "require_beacons"]
 
 #: Default flooding limit in hops. The paper is silent; 3 hops reach about 3R = 75 m, most of a
 #: 100 m field, and keep the all-beacon search fast (docs/localization.md).
@@ -84,3 +86,27 @@ def hop_counts(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> HopCou
     beacon_node.flags.writeable = False
     beacon_beacon.flags.writeable = False
     return HopCounts(beacon_node, beacon_beacon, int(flood_limit))
+
+
+def hop_size(beacon_xy: np.ndarray, beacon_hops: np.ndarray) -> np.ndarray:
+    """Eq. 11: HopSize_i = sum_j |b_i - b_j| / sum_j h_ij over beacons j != i within reach.
+
+    Args:
+        beacon_xy: (B, 2) beacon positions [m].
+        beacon_hops: (B, B) hop counts between beacons (``inf``: beyond the flooding limit).
+
+    Returns:
+        (B,) HopSize [m/hop]. A beacon that reaches no other beacon gets the network-wide
+        ratio (all reachable pairs pooled); NaN if no pair is reachable at all.
+    """
+    xy = np.asarray(beacon_xy, dtype=np.float64)
+    h = np.asarray(beacon_hops, dtype=np.float64)
+    if xy.ndim != 2 or xy.shape[1] != 2 or h.shape != (len(xy), len(xy)):
+        raise ValueError(f"beacon_xy must be (B, 2) and beacon_hops (B, B); got {xy.shape}, "
+                         f"{h.shape}")
+    i, j = np.nonzero(np.isfinite(h) & (h > 0))
+    num = np.bincount(i, weights=np.hypot(*(xy[i] - xy[j]).T), minlength=len(xy))
+    den = np.bincount(i, weights=h[i, j], minlength=len(xy))
+    pooled = num.sum() / den.sum() if len(i) else np.nan
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / den, pooled)

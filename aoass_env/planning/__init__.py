@@ -1,14 +1,17 @@
-"""Path planning: the square spiral (Eq. 1-5), generic waypoint paths and the nominal path
-follower."""
+"""Path planning: the square spiral (Eq. 1-5), generic waypoint paths, the nominal path
+follower, and the sweep methods with what they need of a running sweep (:mod:`.sweep`:
+``PlannedMethod`` and the ``Controller`` and ``SweepState`` protocols; planning knows nothing
+of the simulator)."""
 
 from aoass_env.planning.follower import WaypointFollower
-from aoass_env.planning.path import PlannedMethod, WaypointPath, polyline_path
+from aoass_env.planning.path import WaypointPath, polyline_path
 from aoass_env.planning.square_spiral import (
     SquareSpiral,
     default_spacing,
     max_spacing,
     square_spiral,
 )
+from aoass_env.planning.sweep import Controller, PlannedMethod, SweepState
 
-__all__ = ["PlannedMethod", "SquareSpiral", "WaypointFollower", "WaypointPath", "default_spacing",
-           "max_spacing", "polyline_path", "square_spiral"]
+__all__ = ["Controller", "PlannedMethod", "SquareSpiral", "SweepState", "WaypointFollower",
+           "WaypointPath", "default_spacing", "max_spacing", "polyline_path", "square_spiral"]

@@ -35,8 +35,9 @@ import numpy as np
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.planning.path import PlannedMethod, WaypointPath, polyline_path
+from aoass_env.planning.path import WaypointPath, polyline_path
 from aoass_env.planning.square_spiral import config_spacing
+from aoass_env.planning.sweep import PlannedMethod
 
 __all__ = ["CLASSICAL_METHODS", "circles_vertices", "double_scan_vertices", "hilbert_cells",
            "hilbert_order", "hilbert_vertices", "lmat_vertices", "morton_cells",

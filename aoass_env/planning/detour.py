@@ -28,6 +28,9 @@ SEARCH_FACTOR = 4.0
 SEARCH_SLACK = 40.0
 #: Cost factor of grid moves inside a keep-out (:meth:`DetourPlanner.path`).
 KEEPOUT_COST = 25.0
+#: Extra clearance (m) the nominal follower's detours keep from obstacles beyond the anchor
+#: radius, room for the turn-rate-limited anchor to round the corners of a detour.
+DETOUR_MARGIN = 0.3
 
 
 class DetourPlanner:

@@ -9,19 +9,13 @@ planner's polyline into waypoints a fixed step apart, the form the follower trac
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 
-if TYPE_CHECKING:
-    from aoass_env.simulator import Controller, Simulator
-
-__all__ = ["ArcLengthTiming", "PlannedMethod", "WaypointPath", "polyline_path"]
+__all__ = ["ArcLengthTiming", "WaypointPath", "polyline_path"]
 
 
 class ArcLengthTiming:
@@ -83,29 +77,3 @@ def polyline_path(vertices: np.ndarray, step: float) -> WaypointPath:
     wps = np.concatenate(points)
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(wps, axis=0), axis=1))]
     return WaypointPath(wps, arc, np.zeros(len(wps), dtype=bool))
-
-
-@dataclass(frozen=True)
-class PlannedMethod:
-    """A sweep method that runs in the AOASS simulator without the Gymnasium environment: a
-    classical path or a reconstructed baseline.
-
-    Attributes:
-        name: the method's command-line name (``"scan"``, ``"m-anchoro"``, ...).
-        label: its name in tables and figures; reconstructions say so ("OHM (reconstructed)").
-        source: the publication it follows (authors, venue, year, doi where known).
-        plan: ``(obstacle_map, config) -> WaypointPath``, the path the simulator is built with
-            (the anchor starts on its first free waypoint).
-        controller: ``simulator -> Controller`` for methods that decide online; None: the nominal
-            follower tracks the planned path, detouring around static obstacles (the common
-            obstacle rule).
-        reconstructed: True when no code was published and the method was rebuilt from its
-            paper (docs/baselines.md says which parts).
-    """
-
-    name: str
-    label: str
-    source: str
-    plan: Callable[[ObstacleMap, AOASSConfig], WaypointPath]
-    controller: Callable[[Simulator], Controller] | None = None
-    reconstructed: bool = False

@@ -163,3 +163,12 @@ def square_spiral(width: float, height: float, spacing: float, step: float, *,
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(wps, axis=0), axis=1))]
     return SquareSpiral(wps, np.array(legs, dtype=np.int64), arc,
                         np.zeros(len(wps), dtype=bool), float(spacing), float(step))
+
+
+def episode_spiral(config: AOASSConfig, obstacle_map: ObstacleMap) -> SquareSpiral:
+    """The square spiral of ``config`` over ``obstacle_map`` (at the map's own size), blocked
+    waypoints marked: the environment's reference path."""
+    w, h = obstacle_map.width, obstacle_map.height
+    spiral = square_spiral(w, h, config_spacing(config, w, h), config.path_step,
+                           origin=config.spiral_origin, margin=config.edge_margin)
+    return spiral.with_obstacles(obstacle_map, config.anchor_radius)

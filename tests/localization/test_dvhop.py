@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from aoass_env.localization import localize
-from aoass_env.localization.dvhop import hop_size
+from aoass_env.localization.hops import hop_size
 
 
 def test_hop_size_hand_computed() -> None:

@@ -13,8 +13,9 @@ from hypothesis import strategies as st
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap, load_map
 from aoass_env.planning.baselines import BASELINE_METHODS, m_anchoro, otpp
+from aoass_env.planning.detour import DETOUR_MARGIN
 from aoass_env.radio import LineOfSight
-from aoass_env.simulator import DETOUR_MARGIN, Simulator, episode_map
+from aoass_env.simulator import Simulator, episode_map
 
 EMPTY_CONFIG = AOASSConfig(field_size=60, n_nodes=10, obstacle_density=0.0,
                            n_moving_obstacles=0)

@@ -47,9 +47,10 @@ from aoass_env.maps import ObstacleMap
 from aoass_env.planning.baselines.common import check_positive, point_follower
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import WaypointFollower
-from aoass_env.planning.path import PlannedMethod, WaypointPath
+from aoass_env.planning.path import WaypointPath
+from aoass_env.planning.square_spiral import episode_spiral
+from aoass_env.planning.sweep import PlannedMethod, SweepState
 from aoass_env.safety.fuzzy import FuzzyController, FuzzyVariable
-from aoass_env.simulator import Simulator, episode_spiral
 
 #: Candidate headings (rad): six, 60 deg apart.
 HEADINGS = np.deg2rad(np.arange(0.0, 360.0, 60.0))
@@ -271,7 +272,7 @@ class FDPPController:
         explored: stops at which the anchor explored (no fuzzy move).
     """
 
-    def __init__(self, sim: Simulator, budget: float | None = None,
+    def __init__(self, sim: SweepState, budget: float | None = None,
                  cell_side: float | None = None, min_cell_side: float | None = None) -> None:
         c = sim.config
         self.sim = sim

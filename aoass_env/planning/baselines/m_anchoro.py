@@ -40,10 +40,10 @@ from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network
 from aoass_env.planning.baselines.common import check_positive, free_region
-from aoass_env.planning.detour import DetourPlanner
-from aoass_env.planning.path import PlannedMethod, WaypointPath, polyline_path
+from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
+from aoass_env.planning.path import WaypointPath, polyline_path
+from aoass_env.planning.sweep import PlannedMethod
 from aoass_env.radio import Radio
-from aoass_env.simulator import DETOUR_MARGIN
 
 #: Spacing (m) of the free sample points coverage is checked on.
 SAMPLE_SPACING = 2.0

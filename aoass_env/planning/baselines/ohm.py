@@ -34,9 +34,9 @@ from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.planning.baselines.common import check_positive, free_region, point_follower
 from aoass_env.planning.follower import WaypointFollower
-from aoass_env.planning.path import PlannedMethod, WaypointPath, polyline_path
+from aoass_env.planning.path import WaypointPath, polyline_path
 from aoass_env.planning.square_spiral import default_spacing
-from aoass_env.simulator import Simulator
+from aoass_env.planning.sweep import PlannedMethod, SweepState
 
 #: Gap (m) kept between the anchor's body and an obstacle while following its boundary: half
 #: the room a map guarantees beyond the anchor diameter (map_clearance 2.5 m, radius 0.5 m), so
@@ -167,7 +167,7 @@ class OHMController:
         walks: boundary walks made; skips: base segments given up.
     """
 
-    def __init__(self, sim: Simulator, gap: float = DEFAULT_GAP,
+    def __init__(self, sim: SweepState, gap: float = DEFAULT_GAP,
                  max_follow: float = DEFAULT_MAX_FOLLOW) -> None:
         c = sim.config
         check_positive("gap", gap, high=10.0)

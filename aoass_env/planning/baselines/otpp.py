@@ -76,10 +76,10 @@ from aoass_env.planning.baselines.m_anchoro import (
     lattice_side,
 )
 from aoass_env.planning.classical import morton_cells
-from aoass_env.planning.detour import DetourPlanner
-from aoass_env.planning.path import PlannedMethod, WaypointPath, polyline_path
+from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
+from aoass_env.planning.path import WaypointPath, polyline_path
+from aoass_env.planning.sweep import PlannedMethod
 from aoass_env.radio import LineOfSight
-from aoass_env.simulator import DETOUR_MARGIN
 
 #: Spacing (m) of the grid of candidate positions a beacon point may move to.
 CANDIDATE_SPACING = 1.5
