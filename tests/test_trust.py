@@ -1,0 +1,361 @@
+"""Issue 21, the audit as a test suite: no code runs from a data file, and every bad input of
+the issue ends in a clear error naming it (one parametrized line per input)."""
+
+from __future__ import annotations
+
+import base64
+import importlib.util
+import json
+import pathlib
+import pickle
+import shutil
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import aoass_env  # noqa: F401  (registers AOASS-v0)
+from agents.checkpoints import PolicyFileError, load_replay_buffer
+from agents.hyperparams import HyperparameterError, load_hyperparams
+from agents.recurrent_td3 import RecurrentTD3
+from agents.seeds import parse_seeds
+from aoass_env.beacon_log import BeaconLog, BeaconLogError
+from aoass_env.config import AOASSConfig, ConfigError
+from aoass_env.env import AOASSEnv, checked_action
+from aoass_env.evaluation import cli
+from aoass_env.evaluation.methods import DEFAULT_POLICY, load_policy
+from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, CheckpointError, load_checkpoint
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIG = ROOT / "configs" / "aoass.yml"
+
+
+class _Payload:
+    """Unpickling this touches ``path``: the code a crafted policy file would run."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def __reduce__(self):
+        return (pathlib.Path.touch, (pathlib.Path(str(self.path)),))
+
+
+def _crafted_policy(folder: Path, marker: Path) -> Path:
+    """The shipped policy with its run.yml, its lr_schedule replaced by a pickled payload."""
+    folder.mkdir(parents=True, exist_ok=True)
+    shutil.copy(DEFAULT_POLICY.with_name("run.yml"), folder / "run.yml")
+    path = folder / "crafted.zip"
+    with zipfile.ZipFile(DEFAULT_POLICY) as src, zipfile.ZipFile(path, "w") as dst:
+        for name in src.namelist():
+            content = src.read(name)
+            if name == "data":
+                data = json.loads(content)
+                data["lr_schedule"][":serialized:"] = base64.b64encode(
+                    pickle.dumps(_Payload(marker))).decode()
+                content = json.dumps(data).encode()
+            dst.writestr(name, content)
+    return path
+
+
+def test_the_crafted_policy_would_run_code_through_sb3s_own_load(tmp_path):
+    """The payload is live: SB3's unpickling load creates the marker."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+    marker = tmp_path / "pwned"
+    load_from_zip_file(_crafted_policy(tmp_path / "p", marker), device="cpu")
+    assert marker.exists()
+
+
+def test_evaluate_policy_runs_no_code_from_a_crafted_zip(tmp_path, monkeypatch):
+    marker = tmp_path / "pwned"
+    policy = _crafted_policy(tmp_path / "p", marker)
+    loaded = []
+
+    def worker(jobs, store, *, options, **kwargs):   # what a worker does first: load it
+        loaded.append(load_policy(options.policy, options.algo, options.policy_run))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "run_jobs", worker)
+    status = cli.main(["--preset", "smoke", "--methods", "aoass", "--localizers", "dvhop",
+                       "--policy", str(policy), "--out", str(tmp_path / "out"),
+                       "--no-progress"])
+    assert status == 130 and isinstance(loaded[0], RecurrentTD3)
+    assert loaded[0].num_timesteps == 27500 and not marker.exists()
+
+
+def _load_train():
+    spec = importlib.util.spec_from_file_location("aoass_train_trust", ROOT / "train.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_train_resume_runs_no_code_from_a_crafted_zip(tmp_path, capsys):
+    marker = tmp_path / "pwned"
+    policy = _crafted_policy(tmp_path / "p", marker)
+    config = tmp_path / "tiny.yml"
+    hp = load_hyperparams(CONFIG, "td3-lstm")
+    config.write_text(yaml.safe_dump({"td3-lstm": {
+        **hp, "learning_starts": 0, "buffer_size": 100, "checkpoint_freq": 10_000,
+        "eval": {"freq": 10_000, "episodes": 1},
+        "env": {**hp["env"], "n_nodes": 20, "time_limit_factor": 1.0}}}))
+    _load_train().main(["--resume", str(policy), "--timesteps", "2", "--config", str(config),
+                        "--out", str(tmp_path / "out"), "--no-tensorboard", "--no-progress"])
+    assert "resumed" in capsys.readouterr().out and not marker.exists()
+    record = yaml.safe_load((tmp_path / "out" / "run.yml").read_text())
+    assert record["resume"].endswith("crafted.zip")
+
+
+def test_a_resume_appends_to_run_yml(tmp_path):
+    from agents.training import TrainRun, _write_record
+    hp = load_hyperparams(CONFIG, "td3-lstm")
+    path = tmp_path / "run.yml"
+    _write_record(path, TrainRun(config=CONFIG, command="first"), hp, 10)
+    model = tmp_path / "last.zip"
+    model.write_bytes(b"")
+    for n in (1, 2):
+        _write_record(path, TrainRun(config=CONFIG, resume=model, command=f"resume {n}"), hp,
+                      10)
+    record = yaml.safe_load(path.read_text())
+    assert record["command"] == "first"
+    assert [r["command"] for r in record["resumes"]] == ["resume 1", "resume 2"]
+
+
+def test_a_pickled_or_unpaired_replay_buffer_is_refused(tmp_path):
+    model = RecurrentTD3.load(DEFAULT_POLICY)
+    path = tmp_path / "buffer.npz"
+    np.savez(path, observations=np.array([object()], dtype=object))
+    with pytest.raises(PolicyFileError, match="buffer.npz"):
+        load_replay_buffer(model, path)
+    model.save_replay_buffer(path)
+    model.num_timesteps += 1          # a buffer from another save than the model's
+    with pytest.raises(PolicyFileError, match="not saved together"):
+        load_replay_buffer(model, path)
+    model.num_timesteps -= 1
+    load_replay_buffer(model, path)
+
+
+def test_stale_temporary_files_are_removed(tmp_path):
+    from aoass_env.atomic import remove_stale_temporaries
+    stale = tmp_path / ".last.zip.0123abcd.tmp"
+    stale.write_bytes(b"half")
+    (tmp_path / "last.zip").write_bytes(b"whole")
+    assert remove_stale_temporaries(tmp_path) == [stale]
+    assert not stale.exists() and (tmp_path / "last.zip").exists()
+
+
+# ---------------------------------------------------------------- the audit, one line per input
+def _yaml(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "bad.yml"
+    path.write_text(text)
+    return path
+
+
+def _section(**changes) -> str:
+    hp = {**load_hyperparams(CONFIG, "td3-lstm"), **changes}
+    return yaml.safe_dump({"td3-lstm": hp})
+
+
+def _env_section(**changes) -> str:
+    hp = load_hyperparams(CONFIG, "td3-lstm")
+    return _section(env={**hp["env"], **changes})
+
+
+def _policy_without_record(tmp_path: Path) -> Path:
+    shutil.copy(DEFAULT_POLICY, tmp_path / "lonely.zip")
+    return tmp_path / "lonely.zip"
+
+
+def _foreign_zip(tmp_path: Path) -> Path:
+    shutil.copy(DEFAULT_POLICY.with_name("run.yml"), tmp_path / "run.yml")
+    with zipfile.ZipFile(tmp_path / "foreign.zip", "w") as z:
+        z.writestr("data", "{}")
+    return tmp_path / "foreign.zip"
+
+
+def _corrupt_zip(tmp_path: Path) -> Path:
+    shutil.copy(DEFAULT_POLICY.with_name("run.yml"), tmp_path / "run.yml")
+    (tmp_path / "corrupt.zip").write_bytes(DEFAULT_POLICY.read_bytes()[:5000])
+    return tmp_path / "corrupt.zip"
+
+
+def _log(tmp_path: Path, **changes) -> Path:
+    env = AOASSEnv(n_nodes=10, field_size=40.0, obstacle_density=0.1)
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(np.zeros(2))
+    arrays = {**env.unwrapped.beacon_log.arrays(), **changes}
+    path = tmp_path / "log.npz"
+    np.savez(path, **arrays)
+    return path
+
+
+def _nan_checkpoint(tmp_path: Path) -> Path:
+    payload = torch.load(DEFAULT_CHECKPOINT, weights_only=True)
+    name = next(iter(payload["state_dict"]))
+    payload["state_dict"][name] = torch.full_like(payload["state_dict"][name], float("nan"))
+    torch.save(payload, tmp_path / "nan.pt")
+    return tmp_path / "nan.pt"
+
+
+def _evaluate(*argv: str):
+    return lambda: cli.main([*argv, "--out", "/nonexistent-unused", "--no-progress"])
+
+
+def _train(*argv: str):
+    return lambda: _load_train().main(list(argv))
+
+
+AUDIT = [
+    # (input, what to do with tmp_path -> call, error type, text the message names)
+    ("policy zip without run.yml", lambda t: _evaluate(
+        "--methods", "aoass", "--policy", str(_policy_without_record(t))), SystemExit,
+     "run.yml"),
+    ("foreign policy zip", lambda t: lambda: RecurrentTD3.load(_foreign_zip(t)),
+     PolicyFileError, "foreign.zip"),
+    ("corrupt policy zip", lambda t: lambda: RecurrentTD3.load(_corrupt_zip(t)),
+     PolicyFileError, "corrupt.zip"),
+    ("200 m map with field_size=100", lambda t: lambda: AOASSEnv(
+        map="test/d0.10_f200_s518", field_size=100), ConfigError, "field_size"),
+    ("waypoint_step=1000", lambda t: lambda: AOASSConfig(waypoint_step=1000),
+     ConfigError, "waypoint_step"),
+    ("node at (1e6, -1e6)", lambda t: lambda: BeaconLog.load(
+        _log(t, nodes=np.tile([[1e6, -1e6]], (10, 1)))), BeaconLogError, "nodes"),
+    ("beacons at 1e9", lambda t: lambda: BeaconLog.load(_log(
+        t, beacons=np.array([[0.0, 1e9, 1e9]]), receptions=np.zeros((0, 2), np.int64))),
+     BeaconLogError, "beacons"),
+    ("evaluate.py --methods ''", lambda t: _evaluate("--methods", ""), SystemExit, "--methods"),
+    ("train.py --threads 0", lambda t: _train("--threads", "0"), SystemExit, "--threads"),
+    ("train.py --out a file", lambda t: _train("--out", str(_yaml(t, ""))), SystemExit,
+     "--out"),
+    ("train.py --log-dir a file", lambda t: _train("--log-dir", str(_yaml(t, ""))),
+     SystemExit, "--log-dir"),
+    ("train.py --config a folder", lambda t: _train("--config", str(t)), SystemExit,
+     "--config"),
+    ("--seeds 0-999999999", lambda t: lambda: parse_seeds("0-999999999"), ValueError,
+     "--seeds"),
+    ("evaluate.py --seeds 999999999", lambda t: _evaluate("--seeds", "999999999"), SystemExit,
+     "--seeds"),
+    ("eval: {frequency: ...}", lambda t: lambda: load_hyperparams(
+        _yaml(t, _section(eval={"frequency": 10})), "td3-lstm"), HyperparameterError,
+     "eval.frequency"),
+    ("eval: {freq: -5, episodes: 0}", lambda t: lambda: load_hyperparams(
+        _yaml(t, _section(eval={"freq": -5, "episodes": 0})), "td3-lstm"),
+     HyperparameterError, "td3-lstm.eval."),
+    ("policy_kwargs typo", lambda t: lambda: load_hyperparams(
+        _yaml(t, _section(policy_kwargs={"lstm_hiden_size": 64})), "td3-lstm"),
+     HyperparameterError, "policy_kwargs.lstm_hiden_size"),
+    ("duplicate YAML key", lambda t: lambda: load_hyperparams(
+        _yaml(t, "td3-lstm:\n  batch_size: 8\n  batch_size: 16\n"), "td3-lstm"),
+     HyperparameterError, "batch_size"),
+    ("env section typo", lambda t: lambda: load_hyperparams(
+        _yaml(t, _env_section(n_node=10)), "td3-lstm"), HyperparameterError,
+     "bad.yml: td3-lstm.env.n_node"),
+    ("safety section typo", lambda t: lambda: load_hyperparams(
+        _yaml(t, _env_section(safety={"heading_scael": 0.2})), "td3-lstm"),
+     HyperparameterError, "bad.yml: td3-lstm.env.safety.heading_scael"),
+    ("localizer --epochs -1", lambda t: _train("localizer", "--epochs", "-1"), SystemExit,
+     "--epochs"),
+    ("localizer --batch-size 0", lambda t: _train("localizer", "--batch-size", "0"),
+     SystemExit, "--batch-size"),
+    ("localizer --hidden 0", lambda t: _train("localizer", "--hidden", "0"), SystemExit,
+     "--hidden"),
+    ("localizer --n-train-logs 0", lambda t: _train("localizer", "--n-train-logs", "0"),
+     SystemExit, "--n-train-logs"),
+    ("localizer --learning-rate nan", lambda t: _train("localizer", "--learning-rate", "nan"),
+     SystemExit, "--learning-rate"),
+    ("malformed evaluation record", lambda t: lambda: __import__(
+        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
+        _log(t, evaluation_episode=np.array("{not json"))), BeaconLogError,
+     "evaluation_episode"),
+    ("NaN localizer checkpoint", lambda t: lambda: load_checkpoint(_nan_checkpoint(t)),
+     CheckpointError, "nan.pt"),
+    ("reset(options={'map': 42})", lambda t: lambda: AOASSEnv(n_nodes=5).reset(
+        options={"map": 42}), ValueError, "'map'"),
+    ("complex action", lambda t: lambda: checked_action([1 + 2j, 0]), ValueError, "action"),
+]
+
+
+@pytest.mark.parametrize("make, error, named", [a[1:] for a in AUDIT],
+                         ids=[a[0] for a in AUDIT])
+def test_every_bad_input_of_the_audit_gets_a_clear_error(tmp_path, capsys, make, error, named):
+    call = make(tmp_path)
+    with pytest.raises(error) as err:
+        call()
+    message = capsys.readouterr().err if error is SystemExit else str(err.value)
+    if error is SystemExit:
+        assert err.value.code == 2
+    assert named in message and "Traceback" not in message
+    assert len(message.strip().splitlines()[-1]) > 0
+
+
+def test_the_map_takes_its_own_size_and_time_limit():
+    env = AOASSEnv(map="test/d0.10_f200_s518")
+    assert env.config.field_size == 200.0
+    small = AOASSEnv(n_nodes=5)
+    limit = small.max_episode_steps
+    small.reset(seed=0, options={"map": "test/d0.10_f200_s518"})
+    assert small.sim.map.width == 200.0 and small.max_episode_steps == env.max_episode_steps
+    assert small.max_episode_steps > 3 * limit
+
+
+def test_numpy_scalars_in_configs_are_numbers():
+    cfg = AOASSConfig(n_nodes=np.int64(7), dt=np.float32(0.5), line_of_sight=np.bool_(False))
+    assert (cfg.n_nodes, cfg.dt, cfg.line_of_sight) == (7, 0.5, False)
+
+
+# ---------------------------------------------------------------------------------- fuzzing
+@settings(max_examples=60, deadline=None)
+@given(st.dictionaries(st.sampled_from(["eval", "policy_kwargs", "batch_size", "freq",
+                                        "learning_rate", "lstm_hidden_size"]),
+                       st.one_of(st.integers(-5, 5), st.floats(allow_nan=True),
+                                 st.text(max_size=3), st.none(),
+                                 st.dictionaries(st.text(max_size=4), st.integers(-2, 2),
+                                                 max_size=2)),
+                       max_size=3))
+def test_fuzzed_hyperparameter_sections_load_or_name_the_key(tmp_path_factory, section):
+    path = tmp_path_factory.mktemp("hp") / "fuzz.yml"
+    path.write_text(yaml.safe_dump({"td3-lstm": section}))
+    try:
+        load_hyperparams(path, "td3-lstm")
+    except HyperparameterError as exc:
+        assert "fuzz.yml: td3-lstm" in str(exc)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.one_of(st.floats(), st.complex_numbers(), st.integers(), st.text(max_size=2),
+                          st.booleans()), max_size=3))
+def test_fuzzed_actions_are_clipped_or_refused(action):
+    try:
+        dv, dtheta = checked_action(action)
+    except ValueError:
+        return
+    assert -1.0 <= dv <= 1.0 and -1.0 <= dtheta <= 1.0
+
+
+@settings(max_examples=40, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(key=st.sampled_from(["nodes", "beacons", "anchor_path", "node_energy", "field"]),
+       value=st.floats(allow_nan=True, allow_infinity=True, width=64))
+def test_fuzzed_log_values_load_or_name_the_key(tmp_path, key, value):
+    path = _log(tmp_path)
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays[key] = np.full_like(arrays[key], value)
+    np.savez(path, **arrays)
+    try:
+        log = BeaconLog.load(path)
+    except BeaconLogError as exc:
+        # a changed field may instead leave the recorded positions outside it
+        named = {key} | ({"nodes", "beacons", "anchor_path", "obstacle_vertices"}
+                         if key == "field" else set())
+        assert exc.key in named and str(path) in str(exc)
+    else:
+        width, height = log.field
+        assert np.all(np.isfinite(log.nodes)) and np.all(log.nodes <= 1.01 * max(width, height))
