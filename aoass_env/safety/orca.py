@@ -68,7 +68,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -152,6 +152,83 @@ def _moving(value: Any) -> list[list[float]]:
 # --------------------------------------------------------------------------------------------
 
 @dataclass(frozen=True, eq=False)
+class _EdgeCache:
+    """What the per-call geometry of :class:`StaticObstacles` reads, built once per obstacle set.
+
+    Vertex i starts edge i, which ends at vertex ``next[i]``; coordinates in m.
+
+    Attributes:
+        ax, ay: (V,) float64 start of every edge (the vectorised edge filter).
+        bx, by: (V,) float64 end of every edge.
+        ex, ey: (V,) float64 edge vector, end - start.
+        inv_len2: (V,) float64 1 / |edge|^2 (1/m^2).
+        bbox: (x0, y0, x1, y1) bounding box of the vertices ((0, 0, 0, 0) when empty).
+        x, y: vertex coordinates as Python floats (the per-line geometry).
+        dx, dy: unit edge directions as Python floats.
+        next, prev: neighbouring vertex indices as Python ints.
+        convex: RVO2's ``isConvex_`` as Python bools.
+    """
+
+    ax: np.ndarray
+    ay: np.ndarray
+    bx: np.ndarray
+    by: np.ndarray
+    ex: np.ndarray
+    ey: np.ndarray
+    inv_len2: np.ndarray
+    bbox: tuple[float, float, float, float]
+    x: list[float]
+    y: list[float]
+    dx: list[float]
+    dy: list[float]
+    next: list[int]
+    prev: list[int]
+    convex: list[bool]
+
+    @classmethod
+    def build(cls, point: np.ndarray, direction: np.ndarray, nxt: np.ndarray, prv: np.ndarray,
+              convex: np.ndarray) -> _EdgeCache:
+        """From checked (V, 2) points (m), unit directions, (V,) next/prev indices and convexity;
+        a ValueError when an edge has zero length."""
+        ax, ay = point[:, 0].copy(), point[:, 1].copy()
+        ex, ey = point[nxt, 0] - ax, point[nxt, 1] - ay
+        len2 = ex * ex + ey * ey
+        if (len2 <= 0.0).any():
+            raise ValueError("StaticObstacles has a zero-length edge (a vertex repeated)")
+        lo, hi = ((point.min(axis=0), point.max(axis=0)) if len(point)
+                  else (np.zeros(2), np.zeros(2)))
+        return cls(ax, ay, point[nxt, 0], point[nxt, 1], ex, ey, 1.0 / len2,
+                   (*lo.tolist(), *hi.tolist()), ax.tolist(), ay.tolist(),
+                   direction[:, 0].tolist(), direction[:, 1].tolist(), nxt.tolist(),
+                   prv.tolist(), convex.tolist())
+
+    def near(self, px: float, py: float, reach: float) -> list[int]:
+        """:meth:`StaticObstacles.edges_near` on checked floats (m), as a list."""
+        x0, y0, x1, y1 = self.bbox
+        if (len(self.x) == 0 or px < x0 - reach or px > x1 + reach or py < y0 - reach
+                or py > y1 + reach):
+            return []
+        rx = px - self.ax
+        ry = py - self.ay
+        ex, ey = self.ex, self.ey
+        s = (rx * ex + ry * ey) * self.inv_len2
+        np.clip(s, 0.0, 1.0, out=s)
+        rx -= s * ex
+        ry -= s * ey
+        dist2 = rx * rx + ry * ry
+        hits = np.flatnonzero(dist2 < reach * reach)
+        if len(hits) > 1:
+            # nearest at the end vertex: measure from that vertex itself, so that two edges
+            # nearest at their shared vertex tie exactly and keep index order
+            ends = hits[s[hits] >= 1.0]
+            if len(ends):
+                qx, qy = px - self.bx[ends], py - self.by[ends]
+                dist2[ends] = qx * qx + qy * qy
+            hits = hits[np.argsort(dist2[hits], kind="stable")]
+        return hits.tolist()
+
+
+@dataclass(frozen=True, eq=False)
 class StaticObstacles:
     """RVO2-style obstacle vertices. Each loop is a closed polygon chain; free space lies to the
     RIGHT of each directed edge: a solid obstacle is listed counter-clockwise (as in RVO2), an
@@ -166,6 +243,9 @@ class StaticObstacles:
         prev: (V,) int64 index of the previous vertex of the loop.
         convex: (V,) bool, RVO2's ``isConvex_``: ``leftOf(prev, cur, next) >= 0`` (vertices of
             two-vertex loops are convex).
+
+    The arrays are copied and stored read-only; what each call reads is derived from them once,
+    in ``_cache`` (:class:`_EdgeCache`).
     """
 
     point: np.ndarray
@@ -173,6 +253,7 @@ class StaticObstacles:
     next: np.ndarray
     prev: np.ndarray
     convex: np.ndarray
+    _cache: _EdgeCache = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         point = np.array(self.point, dtype=np.float64)        # copies: stored read-only
@@ -204,25 +285,8 @@ class StaticObstacles:
             array.setflags(write=False)
             object.__setattr__(self, name, array)
 
-        # vectorised edge filter: start (ax, ay), edge vector (ex, ey), 1 / |e|^2
-        nxt = links["next"]
-        ax, ay = point[:, 0].copy(), point[:, 1].copy()
-        ex, ey = point[nxt, 0] - ax, point[nxt, 1] - ay
-        len2 = ex * ex + ey * ey
-        if (len2 <= 0.0).any():
-            raise ValueError("StaticObstacles has a zero-length edge (a vertex repeated)")
-        lo, hi = (point.min(axis=0), point.max(axis=0)) if v else (np.zeros(2), np.zeros(2))
-        cache = {
-            "_ax": ax, "_ay": ay, "_bx": point[nxt, 0], "_by": point[nxt, 1],
-            "_ex": ex, "_ey": ey, "_inv_len2": 1.0 / len2,
-            "_bbox": (*lo.tolist(), *hi.tolist()),
-            # per-vertex Python lists for the per-line geometry
-            "_x": ax.tolist(), "_y": ay.tolist(),
-            "_dx": direction[:, 0].tolist(), "_dy": direction[:, 1].tolist(),
-            "_next": nxt.tolist(), "_prev": links["prev"].tolist(), "_convex": convex.tolist(),
-        }
-        for name, value in cache.items():
-            object.__setattr__(self, name, value)
+        object.__setattr__(self, "_cache", _EdgeCache.build(
+            point, direction, links["next"], links["prev"], convex))
 
     def __len__(self) -> int:
         """Number of vertices (= number of edges)."""
@@ -306,32 +370,7 @@ class StaticObstacles:
             raise ValueError(f"reach must be a finite number >= 0 (m), got {reach!r}") from None
         if not (0.0 <= reach < math.inf):
             raise ValueError(f"reach must be a finite number >= 0 (m), got {reach!r}")
-        return np.asarray(self._near(px, py, reach), dtype=np.int64)
-
-    def _near(self, px: float, py: float, reach: float) -> list[int]:
-        """:meth:`edges_near` on checked floats, as a list."""
-        x0, y0, x1, y1 = self._bbox
-        if (len(self.point) == 0 or px < x0 - reach or px > x1 + reach or py < y0 - reach
-                or py > y1 + reach):
-            return []
-        rx = px - self._ax
-        ry = py - self._ay
-        ex, ey = self._ex, self._ey
-        s = (rx * ex + ry * ey) * self._inv_len2
-        np.clip(s, 0.0, 1.0, out=s)
-        rx -= s * ex
-        ry -= s * ey
-        dist2 = rx * rx + ry * ry
-        hits = np.flatnonzero(dist2 < reach * reach)
-        if len(hits) > 1:
-            # nearest at the end vertex: measure from that vertex itself, so that two edges
-            # nearest at their shared vertex tie exactly and keep index order
-            ends = hits[s[hits] >= 1.0]
-            if len(ends):
-                qx, qy = px - self._bx[ends], py - self._by[ends]
-                dist2[ends] = qx * qx + qy * qy
-            hits = hits[np.argsort(dist2[hits], kind="stable")]
-        return hits.tolist()
+        return np.asarray(self._cache.near(px, py, reach), dtype=np.int64)
 
 
 def _static(value: Any) -> StaticObstacles | None:
@@ -371,20 +410,24 @@ class OrcaLines:
         return len(self.point)
 
 
-def _static_lines(obstacles: StaticObstacles, px: float, py: float, vx: float, vy: float,
+def _static_lines(edges: _EdgeCache, px: float, py: float, vx: float, vy: float,
                   radius: float, max_speed: float, tau: float, lines: list[_Line]) -> None:
-    """Append RVO2's obstacle lines for the edges near (px, py) to ``lines``."""
-    edges = obstacles._near(px, py, tau * max_speed + radius)
-    if not edges:
+    """Append RVO2's obstacle lines for the edges near (px, py) (m) to ``lines``.
+
+    RVO2's ``Agent::computeNewVelocity``, obstacle part: the edges within
+    ``tau * max_speed + radius`` (m), nearest first, seen from their free side, go through
+    the cases below in RVO2's order. The tests of each case stay here, inline, and only the
+    case that applies is called: the loop is the hot path of the safety stack.
+    """
+    near = edges.near(px, py, tau * max_speed + radius)
+    if not near:
         return
-    xs, ys, dxs, dys = obstacles._x, obstacles._y, obstacles._dx, obstacles._dy
-    nxt, prv, convex = obstacles._next, obstacles._prev, obstacles._convex
+    xs, ys, nxt = edges.x, edges.y, edges.next
     inv_tau = 1.0 / tau
     rad2 = radius * radius
     rad_tau = radius * inv_tau  # cut-off radius (m/s)
-    sqrt = math.sqrt
 
-    for first in edges:
+    for first in near:
         second = nxt[first]
         # positions of the edge's end vertices relative to the anchor (m)
         x1, y1 = xs[first] - px, ys[first] - py
@@ -393,16 +436,8 @@ def _static_lines(obstacles: StaticObstacles, px: float, py: float, vx: float, v
         # back-face culling (RVO2's kd-tree query): the anchor must lie right of the edge
         if x1 * ey - y1 * ex >= 0.0:
             continue
-
-        # skip the edge when earlier lines already forbid both cut-off discs entirely
-        c1x, c1y, c2x, c2y = x1 * inv_tau, y1 * inv_tau, x2 * inv_tau, y2 * inv_tau
-        covered = False
-        for lx, ly, ldx, ldy in lines:
-            if ((c1x - lx) * ldy - (c1y - ly) * ldx - rad_tau >= -_EPS
-                    and (c2x - lx) * ldy - (c2y - ly) * ldx - rad_tau >= -_EPS):
-                covered = True
-                break
-        if covered:
+        if lines and _already_covered(lines, x1 * inv_tau, y1 * inv_tau, x2 * inv_tau,
+                                      y2 * inv_tau, rad_tau):
             continue
 
         dist2_1 = x1 * x1 + y1 * y1
@@ -412,113 +447,188 @@ def _static_lines(obstacles: StaticObstacles, px: float, py: float, vx: float, v
         fx, fy = -x1 - s * ex, -y1 - s * ey
         dist2_line = fx * fx + fy * fy
 
-        # --- the anchor already overlaps the edge: forbid moving deeper -------------------
+        # the anchor already overlaps the edge: forbid moving deeper
         if s < 0.0 and dist2_1 <= rad2:
-            if convex[first]:
-                norm = sqrt(dist2_1)
-                lines.append((0.0, 0.0, -y1 / norm, x1 / norm))
+            _left_vertex_collision(edges, first, x1, y1, dist2_1, lines)
             continue
         if s >= 1.0 and dist2_2 <= rad2:
-            # a non-convex vertex, or one the next edge handles, adds nothing
-            if convex[second] and x2 * dys[second] - y2 * dxs[second] >= 0.0:
-                norm = sqrt(dist2_2)
-                lines.append((0.0, 0.0, -y2 / norm, x2 / norm))
+            _right_vertex_collision(edges, second, x2, y2, dist2_2, lines)
             continue
         if 0.0 <= s < 1.0 and dist2_line <= rad2:
-            lines.append((0.0, 0.0, -dxs[first], -dys[first]))
+            _segment_collision(edges, first, lines)
             continue
 
-        # --- no collision: legs of the velocity obstacle -----------------------------------
-        # (left vertex, right vertex) of the velocity obstacle; the same vertex when the
-        # edge is seen obliquely
-        left, right = first, second
-        if s < 0.0 and dist2_line <= rad2:
-            # seen obliquely: the first vertex alone defines the velocity obstacle
-            if not convex[first]:
-                continue
-            right = first
-            leg = sqrt(max(dist2_1 - rad2, 0.0))
-            llx, lly = (x1 * leg - y1 * radius) / dist2_1, (x1 * radius + y1 * leg) / dist2_1
-            rlx, rly = (x1 * leg + y1 * radius) / dist2_1, (y1 * leg - x1 * radius) / dist2_1
-        elif s > 1.0 and dist2_line <= rad2:
-            # seen obliquely: the second vertex alone defines the velocity obstacle
-            if not convex[second]:
-                continue
-            left = second
-            leg = sqrt(max(dist2_2 - rad2, 0.0))
-            llx, lly = (x2 * leg - y2 * radius) / dist2_2, (x2 * radius + y2 * leg) / dist2_2
-            rlx, rly = (x2 * leg + y2 * radius) / dist2_2, (y2 * leg - x2 * radius) / dist2_2
-        else:
-            if convex[first]:
-                leg = sqrt(max(dist2_1 - rad2, 0.0))
-                llx, lly = (x1 * leg - y1 * radius) / dist2_1, (x1 * radius + y1 * leg) / dist2_1
-            else:
-                # non-convex first vertex: the left leg continues the cut-off line
-                llx, lly = -dxs[first], -dys[first]
-            if convex[second]:
-                leg = sqrt(max(dist2_2 - rad2, 0.0))
-                rlx, rly = (x2 * leg + y2 * radius) / dist2_2, (y2 * leg - x2 * radius) / dist2_2
-            else:
-                # non-convex second vertex: the right leg continues the cut-off line
-                rlx, rly = dxs[first], dys[first]
+        # no collision: the velocity obstacle's legs, then the projection on it
+        legs = _legs(edges, first, second, x1, y1, x2, y2, s, dist2_1, dist2_2, dist2_line,
+                     radius, rad2)
+        if legs is not None:
+            _cutoff_projection(edges, *_foreign_legs(edges, *legs), px, py, vx, vy, inv_tau,
+                               rad_tau, lines)
 
-        # a leg at a convex vertex may not point into the neighbouring edge: take that edge's
-        # direction instead ("foreign" leg; projecting on it adds no line)
-        left_foreign = right_foreign = False
-        before = prv[left]
-        if convex[left] and llx * -dys[before] - lly * -dxs[before] >= 0.0:
-            llx, lly = -dxs[before], -dys[before]
-            left_foreign = True
-        if convex[right] and rlx * dys[right] - rly * dxs[right] <= 0.0:
-            rlx, rly = dxs[right], dys[right]
-            right_foreign = True
 
-        # cut-off centres (m/s) and the cut-off segment between them
-        lcx, lcy = (xs[left] - px) * inv_tau, (ys[left] - py) * inv_tau
-        rcx, rcy = (xs[right] - px) * inv_tau, (ys[right] - py) * inv_tau
-        cx, cy = rcx - lcx, rcy - lcy
-        single = left == right
-        wlx, wly = vx - lcx, vy - lcy
-        t = 0.5 if single else (wlx * cx + wly * cy) / (cx * cx + cy * cy)
-        t_left = wlx * llx + wly * lly
-        wrx, wry = vx - rcx, vy - rcy
-        t_right = wrx * rlx + wry * rly
+def _already_covered(lines: list[_Line], c1x: float, c1y: float, c2x: float, c2y: float,
+                     rad_tau: float) -> bool:
+    """RVO2's "already covered" test: do earlier lines forbid both cut-off discs (centres
+    (c1x, c1y), (c2x, c2y), radius ``rad_tau``, m/s) of the edge entirely?"""
+    for lx, ly, ldx, ldy in lines:
+        if ((c1x - lx) * ldy - (c1y - ly) * ldx - rad_tau >= -_EPS
+                and (c2x - lx) * ldy - (c2y - ly) * ldx - rad_tau >= -_EPS):
+            return True
+    return False
 
-        # project the current velocity on the velocity obstacle's boundary
-        if (t < 0.0 and t_left < 0.0) or (single and t_left < 0.0 and t_right < 0.0):
-            lines.append(_on_circle(wlx, wly, lcx, lcy, rad_tau))
-            continue
-        if t > 1.0 and t_right < 0.0:
-            lines.append(_on_circle(wrx, wry, rcx, rcy, rad_tau))
-            continue
 
-        inf = math.inf
-        if t < 0.0 or t > 1.0 or single:
-            d2_cut = inf
-        else:
-            qx, qy = wlx - t * cx, wly - t * cy
-            d2_cut = qx * qx + qy * qy
-        if t_left < 0.0:
-            d2_left = inf
-        else:
-            qx, qy = wlx - t_left * llx, wly - t_left * lly
-            d2_left = qx * qx + qy * qy
-        if t_right < 0.0:
-            d2_right = inf
-        else:
-            qx, qy = wrx - t_right * rlx, wry - t_right * rly
-            d2_right = qx * qx + qy * qy
+def _left_vertex_collision(edges: _EdgeCache, first: int, x1: float, y1: float,
+                           dist2_1: float, lines: list[_Line]) -> None:
+    """RVO2's "collision with left vertex": the anchor overlaps the edge's first vertex (at
+    (x1, y1) m from it, squared distance ``dist2_1``); a line through the origin forbids moving
+    toward the vertex, unless it is non-convex (then it adds nothing)."""
+    if edges.convex[first]:
+        norm = math.sqrt(dist2_1)
+        lines.append((0.0, 0.0, -y1 / norm, x1 / norm))
 
-        if d2_cut <= d2_left and d2_cut <= d2_right:
-            # the cut-off line, shifted by the cut-off radius toward the anchor
-            dx, dy = -dxs[left], -dys[left]
-            lines.append((lcx - rad_tau * dy, lcy + rad_tau * dx, dx, dy))
-        elif d2_left <= d2_right:
-            if not left_foreign:
-                lines.append((lcx - rad_tau * lly, lcy + rad_tau * llx, llx, lly))
-        elif not right_foreign:
-            dx, dy = -rlx, -rly
-            lines.append((rcx - rad_tau * dy, rcy + rad_tau * dx, dx, dy))
+
+def _right_vertex_collision(edges: _EdgeCache, second: int, x2: float, y2: float,
+                            dist2_2: float, lines: list[_Line]) -> None:
+    """RVO2's "collision with right vertex": the anchor overlaps the edge's second vertex (at
+    (x2, y2) m); as the left-vertex case, but a non-convex vertex, or one the next edge handles,
+    adds nothing."""
+    if edges.convex[second] and x2 * edges.dy[second] - y2 * edges.dx[second] >= 0.0:
+        norm = math.sqrt(dist2_2)
+        lines.append((0.0, 0.0, -y2 / norm, x2 / norm))
+
+
+def _segment_collision(edges: _EdgeCache, first: int, lines: list[_Line]) -> None:
+    """RVO2's "collision with obstacle segment": the anchor overlaps the edge's interior; a line
+    through the origin along the reversed edge forbids moving toward it."""
+    lines.append((0.0, 0.0, -edges.dx[first], -edges.dy[first]))
+
+
+def _left_leg(x: float, y: float, dist2: float, radius: float,
+              rad2: float) -> tuple[float, float]:
+    """Unit direction of the left leg: from the anchor, tangent on the left to the disc of
+    ``radius`` (m) around the vertex at (x, y) m (squared distance ``dist2``)."""
+    leg = math.sqrt(max(dist2 - rad2, 0.0))
+    return (x * leg - y * radius) / dist2, (x * radius + y * leg) / dist2
+
+
+def _right_leg(x: float, y: float, dist2: float, radius: float,
+               rad2: float) -> tuple[float, float]:
+    """Unit direction of the right leg, tangent on the right (as :func:`_left_leg`)."""
+    leg = math.sqrt(max(dist2 - rad2, 0.0))
+    return (x * leg + y * radius) / dist2, (y * leg - x * radius) / dist2
+
+
+def _legs(edges: _EdgeCache, first: int, second: int, x1: float, y1: float, x2: float,
+          y2: float, s: float, dist2_1: float, dist2_2: float, dist2_line: float, radius: float,
+          rad2: float) -> tuple[int, int, float, float, float, float] | None:
+    """RVO2's legs computation: (left vertex, right vertex, left leg, right leg) of the
+    velocity obstacle, or None when the edge adds no line.
+
+    "Obstacle viewed obliquely": when the anchor is within ``radius`` of the edge's line but
+    projects beyond one end, that vertex alone defines the velocity obstacle (both legs are its
+    tangents; a non-convex one gives None). "Usual situation": the left leg comes from the first
+    vertex, the right leg from the second; at a non-convex vertex the leg continues the cut-off
+    line (the edge's direction).
+    """
+    convex = edges.convex
+    if s < 0.0 and dist2_line <= rad2:
+        if not convex[first]:
+            return None
+        return (first, first, *_left_leg(x1, y1, dist2_1, radius, rad2),
+                *_right_leg(x1, y1, dist2_1, radius, rad2))
+    if s > 1.0 and dist2_line <= rad2:
+        if not convex[second]:
+            return None
+        return (second, second, *_left_leg(x2, y2, dist2_2, radius, rad2),
+                *_right_leg(x2, y2, dist2_2, radius, rad2))
+    if convex[first]:
+        llx, lly = _left_leg(x1, y1, dist2_1, radius, rad2)
+    else:
+        llx, lly = -edges.dx[first], -edges.dy[first]
+    if convex[second]:
+        rlx, rly = _right_leg(x2, y2, dist2_2, radius, rad2)
+    else:
+        rlx, rly = edges.dx[first], edges.dy[first]
+    return first, second, llx, lly, rlx, rly
+
+
+def _foreign_legs(edges: _EdgeCache, left: int, right: int, llx: float, lly: float, rlx: float,
+                  rly: float) -> tuple[int, int, float, float, float, float, bool, bool]:
+    """RVO2's foreign-leg checks: a leg at a convex vertex may not point into the neighbouring
+    edge; that edge's direction replaces it ("foreign" leg; projecting on it adds no line).
+
+    Returns (left, right, left leg, right leg, left_foreign, right_foreign).
+    """
+    convex, dxs, dys = edges.convex, edges.dx, edges.dy
+    left_foreign = right_foreign = False
+    before = edges.prev[left]
+    if convex[left] and llx * -dys[before] - lly * -dxs[before] >= 0.0:
+        llx, lly = -dxs[before], -dys[before]
+        left_foreign = True
+    if convex[right] and rlx * dys[right] - rly * dxs[right] <= 0.0:
+        rlx, rly = dxs[right], dys[right]
+        right_foreign = True
+    return left, right, llx, lly, rlx, rly, left_foreign, right_foreign
+
+
+def _cutoff_projection(edges: _EdgeCache, left: int, right: int, llx: float, lly: float,
+                       rlx: float, rly: float, left_foreign: bool, right_foreign: bool,
+                       px: float, py: float, vx: float, vy: float, inv_tau: float,
+                       rad_tau: float, lines: list[_Line]) -> None:
+    """RVO2's projection of the current velocity (vx, vy) (m/s) on the velocity obstacle.
+
+    The cut-off centres are the left and right vertices over ``tau`` (m/s), with radius
+    ``rad_tau``. The velocity projects on a cut-off circle when it lies behind the cut-off
+    segment and behind the legs. Otherwise it projects on the nearest of the cut-off line, the
+    left leg and the right leg; a foreign leg adds no line.
+    """
+    xs, ys = edges.x, edges.y
+    # cut-off centres (m/s) and the cut-off segment between them
+    lcx, lcy = (xs[left] - px) * inv_tau, (ys[left] - py) * inv_tau
+    rcx, rcy = (xs[right] - px) * inv_tau, (ys[right] - py) * inv_tau
+    cx, cy = rcx - lcx, rcy - lcy
+    single = left == right
+    wlx, wly = vx - lcx, vy - lcy
+    t = 0.5 if single else (wlx * cx + wly * cy) / (cx * cx + cy * cy)
+    t_left = wlx * llx + wly * lly
+    wrx, wry = vx - rcx, vy - rcy
+    t_right = wrx * rlx + wry * rly
+
+    # project the current velocity on the velocity obstacle's boundary
+    if (t < 0.0 and t_left < 0.0) or (single and t_left < 0.0 and t_right < 0.0):
+        lines.append(_on_circle(wlx, wly, lcx, lcy, rad_tau))
+        return
+    if t > 1.0 and t_right < 0.0:
+        lines.append(_on_circle(wrx, wry, rcx, rcy, rad_tau))
+        return
+
+    inf = math.inf
+    if t < 0.0 or t > 1.0 or single:
+        d2_cut = inf
+    else:
+        qx, qy = wlx - t * cx, wly - t * cy
+        d2_cut = qx * qx + qy * qy
+    if t_left < 0.0:
+        d2_left = inf
+    else:
+        qx, qy = wlx - t_left * llx, wly - t_left * lly
+        d2_left = qx * qx + qy * qy
+    if t_right < 0.0:
+        d2_right = inf
+    else:
+        qx, qy = wrx - t_right * rlx, wry - t_right * rly
+        d2_right = qx * qx + qy * qy
+
+    if d2_cut <= d2_left and d2_cut <= d2_right:
+        # the cut-off line, shifted by the cut-off radius toward the anchor
+        dx, dy = -edges.dx[left], -edges.dy[left]
+        lines.append((lcx - rad_tau * dy, lcy + rad_tau * dx, dx, dy))
+    elif d2_left <= d2_right:
+        if not left_foreign:
+            lines.append((lcx - rad_tau * lly, lcy + rad_tau * llx, llx, lly))
+    elif not right_foreign:
+        dx, dy = -rlx, -rly
+        lines.append((rcx - rad_tau * dy, rcy + rad_tau * dx, dx, dy))
 
 
 def _on_circle(wx: float, wy: float, cx: float, cy: float, rad: float) -> _Line:
@@ -602,7 +712,7 @@ def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obs
     rows = _moving(moving_obstacles)
     lines: list[_Line] = []
     if static is not None:
-        _static_lines(static, px, py, vx, vy, radius, max_speed, tau_obst, lines)
+        _static_lines(static._cache, px, py, vx, vy, radius, max_speed, tau_obst, lines)
     n_static = len(lines)
     if rows:
         _moving_lines(rows, px, py, vx, vy, radius, tau, step, share, lines)
