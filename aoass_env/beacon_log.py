@@ -1,4 +1,4 @@
-"""The record of one episode: nodes, obstacles, beacons and who heard them (DESIGN.md section 4).
+"""The record of one episode: nodes, obstacles, beacons and who heard them (docs/design.md).
 
 :class:`BeaconLogRecorder` collects the record while an episode runs; :meth:`~BeaconLogRecorder.
 finish` returns the immutable :class:`BeaconLog`, which saves to and loads from an ``.npz`` file

@@ -1,6 +1,6 @@
 """Nominal path follower: (speed, heading) commands that track a waypoint list.
 
-The follower is the zero-action behaviour of the environment (DESIGN.md section 3): it steers
+The follower is the zero-action behaviour of the environment (docs/interpretations.md): it steers
 toward the next waypoint that is not blocked, skipping waypoints inside obstacles and resuming the
 path after them (Section 3.3 of the paper). When an obstacle stands between the anchor and its
 target, an optional :class:`~aoass_env.planning.detour.DetourPlanner` supplies intermediate points
