@@ -25,6 +25,7 @@ from typing import Any
 import torch
 
 from aoass_env.backends import add_backend_arguments, make_backend
+from aoass_env.interrupts import deliver_interrupts
 from aoass_env.localization.training import TrainConfig, train_localizer
 
 
@@ -54,17 +55,16 @@ _LOCALIZER_RANGES: dict[str, tuple[type, float, bool]] = {
     "learning_rate": (float, 0, True), "seed": (int, 0, False)}
 
 
-def _folder(flag: str, path: Path) -> Path:
-    """``path`` as a folder to write into (created), or a one-line error naming ``flag``."""
+def _folder(flag: str, path: Path) -> None:
+    """A one-line error naming ``flag`` unless ``path`` is a folder this process can write, or
+    can create (nothing is created here)."""
     if path.exists() and not path.is_dir():
         raise ValueError(f"{flag} {path}: is a file, not a folder")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"{flag} {path}: cannot create the folder ({exc.strerror})") from None
-    if not os.access(path, os.W_OK | os.X_OK):
-        raise ValueError(f"{flag} {path}: the folder is not writable")
-    return path
+    existing = next(p for p in (path, *path.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        raise ValueError(f"{flag} {path}: {existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"{flag} {path}: {existing} is not writable")
 
 
 def _localizer_parser() -> argparse.ArgumentParser:
@@ -155,15 +155,26 @@ def _run_agent(argv: list[str]) -> None:
         backend = make_backend(args.backend, workers=1 if args.backend == "local" else None,
                                address=args.address, threads=args.threads, retries=0,
                                task_cpus=max(args.threads, args.n_envs))
+        for flag, folder in (("--out", out), ("--log-dir", run.log_dir)):
+            try:                        # every option is valid: the folders may be created
+                if folder is not None:
+                    folder.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise ValueError(f"{flag} {folder}: cannot create the folder "
+                                 f"({exc.strerror})") from None
     except (HyperparameterError, ValueError) as exc:
         parser.exit(2, f"train.py: error: {exc}\n")
-    if args.backend == "local" and args.seeds is None:
-        try:
-            train_agent(run, report=report_line)    # the single run of --seed, as always
-        except PolicyFileError as exc:              # --resume's files, read before any step
-            parser.exit(2, f"train.py: error: --resume: {exc}\n")
-        return
-    failed = [(r, error) for r, _, error in train_seeds(runs, backend) if error is not None]
+    try:
+        with deliver_interrupts():     # the first Ctrl-C stops, even inside a physics callback
+            if args.backend == "local" and args.seeds is None:
+                train_agent(run, report=report_line)    # the single run of --seed, as always
+                return
+            outcomes = train_seeds(runs, backend)
+    except PolicyFileError as exc:                       # --resume's files, read before any step
+        parser.exit(2, f"train.py: error: --resume: {exc}\n")
+    except KeyboardInterrupt:
+        parser.exit(130, f"\ntrain.py: interrupted; the last checkpoints are in {out}\n")
+    failed = [(r, error) for r, _, error in outcomes if error is not None]
     for r, error in failed:
         print(f"seed {r.seed} failed:\n{error}", file=sys.stderr)
     if failed:

@@ -359,3 +359,46 @@ def test_fuzzed_log_values_load_or_name_the_key(tmp_path, key, value):
     else:
         width, height = log.field
         assert np.all(np.isfinite(log.nodes)) and np.all(log.nodes <= 1.01 * max(width, height))
+
+
+# ------------------------------------------------------------------------------ interrupts
+def _space_interrupting_itself(steps: list[int]):
+    """A pymunk space whose velocity callback sends this process a Ctrl-C at its 3rd call."""
+    import os
+    import signal
+
+    import pymunk
+    space = pymunk.Space()
+    body = pymunk.Body(1, 1)
+    space.add(body, pymunk.Circle(body, 1))
+
+    def velocity(b, gravity, damping, dt):
+        steps.append(1)
+        if len(steps) == 3:
+            os.kill(os.getpid(), signal.SIGINT)
+        pymunk.Body.update_velocity(b, gravity, damping, dt)
+    body.velocity_func = velocity
+    return space
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_a_ctrl_c_inside_a_pymunk_callback_is_swallowed_without_the_guard():
+    """Why the guard exists: cffi reports the KeyboardInterrupt as unraisable and goes on."""
+    steps: list[int] = []
+    space = _space_interrupting_itself(steps)
+    for _ in range(10):
+        space.step(0.1)
+    assert len(steps) == 10
+
+
+def test_the_first_ctrl_c_stops_even_inside_a_pymunk_callback():
+    import time
+
+    from aoass_env.interrupts import deliver_interrupts
+    steps: list[int] = []
+    space = _space_interrupting_itself(steps)
+    with pytest.raises(KeyboardInterrupt), deliver_interrupts():
+        for _ in range(10_000):
+            space.step(0.1)
+            time.sleep(0.001)
+    assert len(steps) < 10_000

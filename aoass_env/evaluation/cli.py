@@ -43,6 +43,7 @@ from aoass_env.evaluation.sweep import (
     log_jobs,
     run_jobs,
 )
+from aoass_env.interrupts import deliver_interrupts
 from aoass_env.localization import METHODS as LOCALIZERS
 from aoass_env.localization.olstm import DEFAULT_CHECKPOINT
 
@@ -197,9 +198,10 @@ def main(argv: list[str] | None = None) -> int:
     log_dir = (out / "logs").resolve() if args.save_logs else None
     with store:
         try:
-            report = run_jobs(jobs, store, backend=backend, options=options, log_dir=log_dir,
-                              progress=not args.no_progress,
-                              desc=args.logs.name if args.logs else preset.name)
+            with deliver_interrupts():  # also when an episode runs in this process (1 worker)
+                report = run_jobs(jobs, store, backend=backend, options=options,
+                                  log_dir=log_dir, progress=not args.no_progress,
+                                  desc=args.logs.name if args.logs else preset.name)
         except KeyboardInterrupt:
             print(f"\ninterrupted: the finished episodes are in {store.path}; run the same "
                   f"command again to continue", file=sys.stderr)
