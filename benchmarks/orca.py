@@ -14,17 +14,28 @@ For each it prints the microseconds per ``orca_velocity`` call and per ``orca_li
 ``solve_velocity`` (the wrapper's path), best of three passes, and the average number of lines.
 No comparison with RVO2's Python bindings: no ``rvo2`` package is installable from the package
 index here. Run: ``python3 benchmarks/orca.py [--calls N]``.
+
+``--reference FILE`` times another version of ``aoass_env/safety/orca.py`` (e.g. one saved with
+``git show REV:aoass_env/safety/orca.py > /tmp/orca_ref.py``) in the same process on the same
+calls, alternating the two on chunks of 50 calls over ``--repeats`` passes (noise of a shared
+machine hits both alike), and prints the microseconds per ``orca_velocity`` call of each (the
+fastest pass of every chunk) and their ratio, current / reference.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import sys
 import time
+from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import shapely
 
 from aoass_env.maps import generate_map
+from aoass_env.safety import orca
 from aoass_env.safety.orca import StaticObstacles, orca_lines, orca_velocity, solve_velocity
 
 RADIUS, MAX_SPEED, TAU, TAU_OBST, STEP = 0.7, 2.0, 4.0, 2.5, 0.1
@@ -59,19 +70,17 @@ def timed(calls: list[dict], split: bool) -> float:
     """Best of three passes, microseconds per call."""
     best = np.inf
     for _ in range(3):
+        if not split:
+            best = min(best, velocity_pass(orca, calls))
+            continue
         start = time.perf_counter()
         for kw in calls:
-            if split:
-                lines = orca_lines(kw["position"], kw["velocity"], RADIUS, MAX_SPEED,
-                                   static_obstacles=kw["static"], moving_obstacles=kw["moving"],
-                                   time_horizon=TAU, time_horizon_obst=TAU_OBST, time_step=STEP)
-                solve_velocity(lines, kw["preferred"], MAX_SPEED)
-            else:
-                orca_velocity(kw["position"], kw["velocity"], kw["preferred"], RADIUS, MAX_SPEED,
-                              static_obstacles=kw["static"], moving_obstacles=kw["moving"],
-                              time_horizon=TAU, time_horizon_obst=TAU_OBST, time_step=STEP)
-        best = min(best, time.perf_counter() - start)
-    return best / len(calls) * 1e6
+            lines = orca_lines(kw["position"], kw["velocity"], RADIUS, MAX_SPEED,
+                               static_obstacles=kw["static"], moving_obstacles=kw["moving"],
+                               time_horizon=TAU, time_horizon_obst=TAU_OBST, time_step=STEP)
+            solve_velocity(lines, kw["preferred"], MAX_SPEED)
+        best = min(best, (time.perf_counter() - start) / len(calls) * 1e6)
+    return best
 
 
 def scene_calls(name: str, rng: np.random.Generator, calls: int) -> list[dict]:
@@ -108,15 +117,84 @@ def scene_calls(name: str, rng: np.random.Generator, calls: int) -> list[dict]:
     return out
 
 
+def load_reference(path: Path) -> ModuleType:
+    """The ORCA module in ``path``, imported under its own name beside the current one."""
+    spec = importlib.util.spec_from_file_location("orca_reference", path)
+    if spec is None or spec.loader is None:
+        raise SystemExit(f"--reference {path}: not a Python file")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up while building
+    spec.loader.exec_module(module)
+    return module
+
+
+def velocity_pass(module: ModuleType, calls: list[dict]) -> float:
+    """One pass of ``module.orca_velocity`` over ``calls``, microseconds per call."""
+    start = time.perf_counter()
+    for kw in calls:
+        module.orca_velocity(kw["position"], kw["velocity"], kw["preferred"], RADIUS, MAX_SPEED,
+                             static_obstacles=kw["static"], moving_obstacles=kw["moving"],
+                             time_horizon=TAU, time_horizon_obst=TAU_OBST, time_step=STEP)
+    return (time.perf_counter() - start) / len(calls) * 1e6
+
+
+def against_reference(name: str, calls: list[dict], reference: ModuleType,
+                      repeats: int) -> None:
+    """Print the current and the reference ``orca_velocity`` (us per call: the fastest of
+    ``repeats`` alternating passes, chunk by chunk) and their ratio, after checking that both
+    give the same velocities."""
+    converted: dict[int, object] = {}
+    ref_calls = []
+    for kw in calls:
+        static = kw["static"]
+        if static is not None and id(static) not in converted:
+            converted[id(static)] = reference.StaticObstacles(
+                static.point, static.direction, static.next, static.prev, static.convex)
+        ref_calls.append({**kw, "static": None if static is None else converted[id(static)]})
+    for kw, ref in zip(calls, ref_calls, strict=True):
+        opts = {"moving_obstacles": kw["moving"], "time_horizon": TAU,
+                "time_horizon_obst": TAU_OBST, "time_step": STEP}
+        ours = orca_velocity(kw["position"], kw["velocity"], kw["preferred"], RADIUS, MAX_SPEED,
+                             static_obstacles=kw["static"], **opts)
+        theirs = reference.orca_velocity(kw["position"], kw["velocity"], kw["preferred"], RADIUS,
+                                         MAX_SPEED, static_obstacles=ref["static"], **opts)
+        if not np.array_equal(ours, theirs):
+            print(f"{name}: velocities differ from the reference, e.g. {ours} != {theirs}")
+            break
+    # alternate the two on chunks of 50 calls and keep each chunk's fastest pass: a burst of
+    # load on the shared machine spoils a few chunks of one pass, not a whole scene
+    chunks = range(0, len(calls), 50)
+    best = {"current": np.full(len(chunks), np.inf), "reference": np.full(len(chunks), np.inf)}
+    for r in range(repeats):
+        for c, lo in enumerate(chunks):
+            runs = [("current", orca, calls[lo:lo + 50]),
+                    ("reference", reference, ref_calls[lo:lo + 50])]
+            for label, module, batch in runs if (r + c) % 2 == 0 else runs[::-1]:
+                best[label][c] = min(best[label][c], velocity_pass(module, batch) * len(batch))
+    ours, theirs = (best[label].sum() / len(calls) for label in ("current", "reference"))
+    print(f"{name:<12}{theirs:>12.1f} us{ours:>11.1f} us{ours / theirs:>8.3f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--calls", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--reference", type=Path, default=None,
+                        help="another orca.py to time against, in the same process")
+    parser.add_argument("--repeats", type=int, default=9,
+                        help="alternating passes per scene with --reference")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
-    print(f"{'scene':<12}{'orca_velocity':>16}{'lines+solve':>14}{'lines':>8}")
+    reference = None if args.reference is None else load_reference(args.reference)
+    if reference is None:
+        print(f"{'scene':<12}{'orca_velocity':>16}{'lines+solve':>14}{'lines':>8}")
+    else:
+        print(f"{'scene':<12}{'reference':>15}{'current':>14}{'ratio':>8}")
     for name in ("empty", "discs", "box", "polygons", "map"):
         calls = scene_calls(name, rng, args.calls)
+        if reference is not None:
+            against_reference(name, calls, reference, args.repeats)
+            continue
         n_lines = np.mean([len(orca_lines(kw["position"], kw["velocity"], RADIUS, MAX_SPEED,
                                           static_obstacles=kw["static"],
                                           moving_obstacles=kw["moving"], time_horizon=TAU,

@@ -6,6 +6,7 @@ permitted by a line when det(direction, point - v) <= 0 (RVO2's convention).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -295,6 +296,19 @@ def test_from_loops_links_vertices_and_marks_convexity():
     assert StaticObstacles.from_loops([]).point.shape == (0, 2)
     assert len(StaticObstacles.empty()) == 0
 
+
+
+def test_static_obstacles_declare_their_caches_and_rebuild_them():
+    """Every attribute is a declared field (the per-call cache too, out of repr and init), and
+    a copy with moved points answers from its own cache."""
+    so = StaticObstacles.from_loops([ELL, BORDER])
+    assert set(vars(so)) == {f.name for f in dataclasses.fields(so)}
+    assert "_cache" not in repr(so)
+    moved = dataclasses.replace(so, point=so.point + 100.0)
+    for p in ([0.5, 2.0], [3.0, 0.5], [-4.0, 4.0]):
+        assert moved.edges_near(np.add(p, 100.0), 1.5).tolist() == \
+            so.edges_near(p, 1.5).tolist() != []
+        assert moved.edges_near(p, 1.5).tolist() == []
 
 def test_edges_near_sorted_by_distance():
     so = StaticObstacles.from_loops([BOX])
