@@ -12,7 +12,6 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-
 #: Suffix of the temporary files of :func:`atomic_open` (``.<name>.<uuid>.tmp``).
 TMP_SUFFIX = ".tmp"
 

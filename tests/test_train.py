@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
@@ -32,15 +31,8 @@ TINY = {
 }
 
 
-def _load_train():
-    spec = importlib.util.spec_from_file_location("aoass_train_script", ROOT / "train.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
-train_script = _load_train()
 
 
 @pytest.fixture
@@ -50,7 +42,7 @@ def tiny(tmp_path: Path) -> Path:
     return path
 
 
-def test_cli_trains_checkpoints_and_resumes(tiny: Path, tmp_path: Path):
+def test_cli_trains_checkpoints_and_resumes(tiny: Path, tmp_path: Path, train_script):
     out = tmp_path / "run"
     train_script.main(["--config", str(tiny), "--timesteps", "120", "--out", str(out),
                        "--log-dir", str(tmp_path / "tb"), "--no-progress"])
@@ -74,7 +66,7 @@ def test_cli_trains_checkpoints_and_resumes(tiny: Path, tmp_path: Path):
     assert resumed.num_timesteps == at + 60
 
 
-def test_feedforward_ablation_trains(tiny: Path, tmp_path: Path):
+def test_feedforward_ablation_trains(tiny: Path, tmp_path: Path, train_script):
     from stable_baselines3 import TD3
     out = tmp_path / "ff"
     train_script.main(["--algo", "td3", "--config", str(tiny), "--timesteps", "80", "--out",
@@ -120,7 +112,8 @@ def test_bad_hyperparameters_name_the_file_and_key(tmp_path: Path, section, mess
     assert str(path) in str(err.value)
 
 
-def test_cli_reports_bad_files_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture):
+def test_cli_reports_bad_files_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                           train_script):
     path = tmp_path / "bad.yml"
     path.write_text("td3-lstm: {gamma: 2.0}\n")
     with pytest.raises(SystemExit) as exit_:
@@ -156,7 +149,7 @@ def test_integer_keys_reach_the_algorithm_as_integers(tmp_path: Path):
 
 
 def test_seeds_train_one_run_each_in_its_own_folders(tiny: Path, tmp_path: Path,
-                                                     capsys: pytest.CaptureFixture):
+                                                     capsys: pytest.CaptureFixture, train_script):
     out, tb = tmp_path / "runs", tmp_path / "tb"
     train_script.main(["--config", str(tiny), "--timesteps", "20", "--seeds", "3,5",
                        "--out", str(out), "--log-dir", str(tb), "--no-progress"])
@@ -189,7 +182,8 @@ def test_parse_seeds(text: str, seeds: list[int]):
 ])
 def test_bad_seed_and_backend_options_are_usage_errors(tiny: Path, tmp_path: Path, argv,
                                                        message, capsys: pytest.CaptureFixture,
-                                                       monkeypatch: pytest.MonkeyPatch):
+                                                       monkeypatch: pytest.MonkeyPatch,
+                                                       train_script):
     (tmp_path / "x.zip").write_bytes(b"")                  # a model file for --resume
     monkeypatch.chdir(tmp_path)
     with pytest.raises(SystemExit) as exit_:
@@ -202,7 +196,7 @@ def test_bad_seed_and_backend_options_are_usage_errors(tiny: Path, tmp_path: Pat
 
 def test_backend_ray_without_ray_says_how_to_install(tiny: Path, tmp_path: Path,
                                                      monkeypatch: pytest.MonkeyPatch,
-                                                     capsys: pytest.CaptureFixture):
+                                                     capsys: pytest.CaptureFixture, train_script):
     monkeypatch.setitem(sys.modules, "ray", None)           # `import ray` fails
     with pytest.raises(SystemExit) as exit_:
         train_script.main(["--config", str(tiny), "--seeds", "0-1", "--backend", "ray",

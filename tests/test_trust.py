@@ -4,12 +4,10 @@ the issue ends in a clear error naming it (one parametrized line per input)."""
 from __future__ import annotations
 
 import base64
-import importlib.util
 import json
 import pathlib
 import pickle
 import shutil
-import sys
 import zipfile
 from pathlib import Path
 
@@ -88,15 +86,9 @@ def test_evaluate_policy_runs_no_code_from_a_crafted_zip(tmp_path, monkeypatch):
     assert loaded[0].num_timesteps == 27500 and not marker.exists()
 
 
-def _load_train():
-    spec = importlib.util.spec_from_file_location("aoass_train_trust", ROOT / "train.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
-def test_train_resume_runs_no_code_from_a_crafted_zip(tmp_path, capsys):
+def test_train_resume_runs_no_code_from_a_crafted_zip(tmp_path, capsys, train_script):
     marker = tmp_path / "pwned"
     policy = _crafted_policy(tmp_path / "p", marker)
     config = tmp_path / "tiny.yml"
@@ -105,7 +97,7 @@ def test_train_resume_runs_no_code_from_a_crafted_zip(tmp_path, capsys):
         **hp, "learning_starts": 0, "buffer_size": 100, "checkpoint_freq": 10_000,
         "eval": {"freq": 10_000, "episodes": 1},
         "env": {**hp["env"], "n_nodes": 20, "time_limit_factor": 1.0}}}))
-    _load_train().main(["--resume", str(policy), "--timesteps", "2", "--config", str(config),
+    train_script.main(["--resume", str(policy), "--timesteps", "2", "--config", str(config),
                         "--out", str(tmp_path / "out"), "--no-tensorboard", "--no-progress"])
     assert "resumed" in capsys.readouterr().out and not marker.exists()
     record = yaml.safe_load((tmp_path / "out" / "run.yml").read_text())
@@ -208,84 +200,85 @@ def _evaluate(*argv: str):
     return lambda: cli.main([*argv, "--out", "/nonexistent-unused", "--no-progress"])
 
 
-def _train(*argv: str):
-    return lambda: _load_train().main(list(argv))
+def _train(script, *argv: str):
+    return lambda: script.main(list(argv))
 
 
 AUDIT = [
-    # (input, what to do with tmp_path -> call, error type, text the message names)
-    ("policy zip without run.yml", lambda t: _evaluate(
+    # (input, (tmp_path, train.py module) -> call, error type, text the message names)
+    ("policy zip without run.yml", lambda t, s: _evaluate(
         "--methods", "aoass", "--policy", str(_policy_without_record(t))), SystemExit,
      "run.yml"),
-    ("foreign policy zip", lambda t: lambda: RecurrentTD3.load(_foreign_zip(t)),
+    ("foreign policy zip", lambda t, s: lambda: RecurrentTD3.load(_foreign_zip(t)),
      PolicyFileError, "foreign.zip"),
-    ("corrupt policy zip", lambda t: lambda: RecurrentTD3.load(_corrupt_zip(t)),
+    ("corrupt policy zip", lambda t, s: lambda: RecurrentTD3.load(_corrupt_zip(t)),
      PolicyFileError, "corrupt.zip"),
-    ("200 m map with field_size=100", lambda t: lambda: AOASSEnv(
+    ("200 m map with field_size=100", lambda t, s: lambda: AOASSEnv(
         map="test/d0.10_f200_s518", field_size=100), ConfigError, "field_size"),
-    ("waypoint_step=1000", lambda t: lambda: AOASSConfig(waypoint_step=1000),
+    ("waypoint_step=1000", lambda t, s: lambda: AOASSConfig(waypoint_step=1000),
      ConfigError, "waypoint_step"),
-    ("node at (1e6, -1e6)", lambda t: lambda: BeaconLog.load(
+    ("node at (1e6, -1e6)", lambda t, s: lambda: BeaconLog.load(
         _log(t, nodes=np.tile([[1e6, -1e6]], (10, 1)))), BeaconLogError, "nodes"),
-    ("beacons at 1e9", lambda t: lambda: BeaconLog.load(_log(
+    ("beacons at 1e9", lambda t, s: lambda: BeaconLog.load(_log(
         t, beacons=np.array([[0.0, 1e9, 1e9]]), receptions=np.zeros((0, 2), np.int64))),
      BeaconLogError, "beacons"),
-    ("evaluate.py --methods ''", lambda t: _evaluate("--methods", ""), SystemExit, "--methods"),
-    ("train.py --threads 0", lambda t: _train("--threads", "0"), SystemExit, "--threads"),
-    ("train.py --out a file", lambda t: _train("--out", str(_yaml(t, ""))), SystemExit,
+    ("evaluate.py --methods ''", lambda t, s: _evaluate("--methods", ""), SystemExit, "--methods"),
+    ("train.py --threads 0", lambda t, s: _train(s, "--threads", "0"), SystemExit, "--threads"),
+    ("train.py --out a file", lambda t, s: _train(s, "--out", str(_yaml(t, ""))), SystemExit,
      "--out"),
-    ("train.py --log-dir a file", lambda t: _train("--log-dir", str(_yaml(t, ""))),
+    ("train.py --log-dir a file", lambda t, s: _train(s, "--log-dir", str(_yaml(t, ""))),
      SystemExit, "--log-dir"),
-    ("train.py --config a folder", lambda t: _train("--config", str(t)), SystemExit,
+    ("train.py --config a folder", lambda t, s: _train(s, "--config", str(t)), SystemExit,
      "--config"),
-    ("--seeds 0-999999999", lambda t: lambda: parse_seeds("0-999999999"), ValueError,
+    ("--seeds 0-999999999", lambda t, s: lambda: parse_seeds("0-999999999"), ValueError,
      "--seeds"),
-    ("evaluate.py --seeds 999999999", lambda t: _evaluate("--seeds", "999999999"), SystemExit,
+    ("evaluate.py --seeds 999999999", lambda t, s: _evaluate("--seeds", "999999999"), SystemExit,
      "--seeds"),
-    ("eval: {frequency: ...}", lambda t: lambda: load_hyperparams(
+    ("eval: {frequency: ...}", lambda t, s: lambda: load_hyperparams(
         _yaml(t, _section(eval={"frequency": 10})), "td3-lstm"), HyperparameterError,
      "eval.frequency"),
-    ("eval: {freq: -5, episodes: 0}", lambda t: lambda: load_hyperparams(
+    ("eval: {freq: -5, episodes: 0}", lambda t, s: lambda: load_hyperparams(
         _yaml(t, _section(eval={"freq": -5, "episodes": 0})), "td3-lstm"),
      HyperparameterError, "td3-lstm.eval."),
-    ("policy_kwargs typo", lambda t: lambda: load_hyperparams(
+    ("policy_kwargs typo", lambda t, s: lambda: load_hyperparams(
         _yaml(t, _section(policy_kwargs={"lstm_hiden_size": 64})), "td3-lstm"),
      HyperparameterError, "policy_kwargs.lstm_hiden_size"),
-    ("duplicate YAML key", lambda t: lambda: load_hyperparams(
+    ("duplicate YAML key", lambda t, s: lambda: load_hyperparams(
         _yaml(t, "td3-lstm:\n  batch_size: 8\n  batch_size: 16\n"), "td3-lstm"),
      HyperparameterError, "batch_size"),
-    ("env section typo", lambda t: lambda: load_hyperparams(
+    ("env section typo", lambda t, s: lambda: load_hyperparams(
         _yaml(t, _env_section(n_node=10)), "td3-lstm"), HyperparameterError,
      "bad.yml: td3-lstm.env.n_node"),
-    ("safety section typo", lambda t: lambda: load_hyperparams(
+    ("safety section typo", lambda t, s: lambda: load_hyperparams(
         _yaml(t, _env_section(safety={"heading_scael": 0.2})), "td3-lstm"),
      HyperparameterError, "bad.yml: td3-lstm.env.safety.heading_scael"),
-    ("localizer --epochs -1", lambda t: _train("localizer", "--epochs", "-1"), SystemExit,
+    ("localizer --epochs -1", lambda t, s: _train(s, "localizer", "--epochs", "-1"), SystemExit,
      "--epochs"),
-    ("localizer --batch-size 0", lambda t: _train("localizer", "--batch-size", "0"),
+    ("localizer --batch-size 0", lambda t, s: _train(s, "localizer", "--batch-size", "0"),
      SystemExit, "--batch-size"),
-    ("localizer --hidden 0", lambda t: _train("localizer", "--hidden", "0"), SystemExit,
+    ("localizer --hidden 0", lambda t, s: _train(s, "localizer", "--hidden", "0"), SystemExit,
      "--hidden"),
-    ("localizer --n-train-logs 0", lambda t: _train("localizer", "--n-train-logs", "0"),
+    ("localizer --n-train-logs 0", lambda t, s: _train(s, "localizer", "--n-train-logs", "0"),
      SystemExit, "--n-train-logs"),
-    ("localizer --learning-rate nan", lambda t: _train("localizer", "--learning-rate", "nan"),
+    ("localizer --learning-rate nan", lambda t, s: _train(s, "localizer", "--learning-rate", "nan"),
      SystemExit, "--learning-rate"),
-    ("malformed evaluation record", lambda t: lambda: __import__(
+    ("malformed evaluation record", lambda t, s: lambda: __import__(
         "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
         _log(t, evaluation_episode=np.array("{not json"))), BeaconLogError,
      "evaluation_episode"),
-    ("NaN localizer checkpoint", lambda t: lambda: load_checkpoint(_nan_checkpoint(t)),
+    ("NaN localizer checkpoint", lambda t, s: lambda: load_checkpoint(_nan_checkpoint(t)),
      CheckpointError, "nan.pt"),
-    ("reset(options={'map': 42})", lambda t: lambda: AOASSEnv(n_nodes=5).reset(
+    ("reset(options={'map': 42})", lambda t, s: lambda: AOASSEnv(n_nodes=5).reset(
         options={"map": 42}), ValueError, "'map'"),
-    ("complex action", lambda t: lambda: checked_action([1 + 2j, 0]), ValueError, "action"),
+    ("complex action", lambda t, s: lambda: checked_action([1 + 2j, 0]), ValueError, "action"),
 ]
 
 
 @pytest.mark.parametrize("make, error, named", [a[1:] for a in AUDIT],
                          ids=[a[0] for a in AUDIT])
-def test_every_bad_input_of_the_audit_gets_a_clear_error(tmp_path, capsys, make, error, named):
-    call = make(tmp_path)
+def test_every_bad_input_of_the_audit_gets_a_clear_error(tmp_path, capsys, train_script, make,
+                                                         error, named):
+    call = make(tmp_path, train_script)
     with pytest.raises(error) as err:
         call()
     message = capsys.readouterr().err if error is SystemExit else str(err.value)

@@ -17,8 +17,8 @@ import torch
 
 from aoass_env.atomic import write_text_atomic
 from aoass_env.backends import BackendError, add_backend_arguments, make_backend
-from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, RunOptions, select_methods
 from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
+from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, RunOptions, select_methods
 from aoass_env.evaluation.report import (
     draw_figures,
     label,
