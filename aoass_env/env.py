@@ -14,6 +14,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.wrappers import TimeLimit
 
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.config import AOASSConfig, ConfigError, check_map_size, map_side
@@ -26,7 +27,7 @@ from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
 from aoass_env.simulator import Simulator
 from aoass_env.world import wrap_angle
 
-__all__ = ["AOASSEnv", "checked_action", "max_episode_steps"]
+__all__ = ["AOASSEnv", "EpisodeTimeLimit", "checked_action", "make_env", "max_episode_steps"]
 
 
 def checked_action(action: Any) -> tuple[float, float]:
@@ -321,3 +322,22 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+class EpisodeTimeLimit(TimeLimit):
+    """A ``TimeLimit`` that takes each episode's own limit at ``reset``: a map given with
+    ``reset(options={"map": ...})`` brings its own field size and so its own limit."""
+
+    def reset(self, **kwargs: Any) -> Any:
+        out = super().reset(**kwargs)
+        self._max_episode_steps = self.env.unwrapped.max_episode_steps
+        return out
+
+
+def make_env(**kwargs: Any) -> gym.Env:
+    """An :class:`AOASSEnv` built from ``kwargs`` in a ``TimeLimit`` of its own step limit."""
+    env = AOASSEnv(**kwargs)
+    return EpisodeTimeLimit(env, env.max_episode_steps)
+
+
+make_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render modes

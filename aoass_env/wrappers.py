@@ -30,10 +30,9 @@ import numpy as np
 from gymnasium import spaces
 
 from aoass_env.config import AOASSConfig, ConfigError
-from aoass_env.env import AOASSEnv, checked_action
+from aoass_env.env import AOASSEnv, checked_action, make_env
 from aoass_env.maps import ObstacleMap, load_map
 from aoass_env.observation import MOVING_FIELDS, velocity_scale
-from aoass_env.registration import make_env
 from aoass_env.safety.fuzzy import FuzzyController
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.orca import StaticObstacles, orca_lines, solve_velocity

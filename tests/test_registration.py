@@ -30,7 +30,8 @@ def test_make_without_prior_import_registers_the_env():
 
 def test_import_registers_once():
     aoass_env.register()
-    assert gym.spec("AOASS-v0").entry_point is aoass_env.registration.make_env
+    assert gym.spec("AOASS-v0").entry_point == "aoass_env.env:make_env"
+    assert gym.spec("AOASS-Safe-v0").entry_point == "aoass_env.wrappers:make_safe_env"
 
 
 def test_gymnasium_env_checker_passes_without_warnings():
@@ -79,3 +80,27 @@ def test_sb3_subproc_vec_env():
         assert obs.shape[0] == 2 and reward.shape == (2,) and len(infos) == 2
     finally:
         venv.close()
+
+
+def test_import_registers_without_loading_the_heavy_parts():
+    """``import aoass_env`` registers both ids and loads neither the simulator (pymunk,
+    shapely), the safety stack (filterpy) nor the localizer (torch); names load on first use."""
+    import subprocess
+    import sys
+    probe = ("import sys, gymnasium, aoass_env; "
+             "print(sorted(m for m in ('torch', 'filterpy', 'pymunk', 'shapely') "
+             "if m in sys.modules)); "
+             "print('AOASS-v0' in gymnasium.registry and 'AOASS-Safe-v0' in gymnasium.registry); "
+             "aoass_env.AOASSConfig; print('aoass_env.config' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True,
+                         text=True).stdout.split("\n")
+    assert out[:3] == ["[]", "True", "True"]
+
+
+def test_specs_serialise_and_unknown_names_fail():
+    import aoass_env
+    for env_id in ("AOASS-v0", "AOASS-Safe-v0"):
+        assert gym.spec(env_id).to_json()
+    with pytest.raises(AttributeError, match="no attribute 'Nope'"):
+        aoass_env.Nope  # noqa: B018
+    assert "make_safe_env" in dir(aoass_env)

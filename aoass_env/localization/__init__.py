@@ -13,21 +13,16 @@ from __future__ import annotations
 
 import os
 from functools import lru_cache
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from aoass_env.beacon_log import BeaconLog
-from aoass_env.localization.consensus import consensus
-from aoass_env.localization.dvhop import dvhop
 from aoass_env.localization.episode import Episode, prepare
 from aoass_env.localization.hops import DEFAULT_FLOOD_LIMIT
-from aoass_env.localization.olstm import (
-    DEFAULT_CHECKPOINT,
-    OLSTM,
-    CheckpointError,
-    load_checkpoint,
-    olstm_dvhop,
-)
+
+if TYPE_CHECKING:
+    from aoass_env.localization.olstm import OLSTM, CheckpointError
 
 __all__ = ["METHODS", "CheckpointError", "Episode", "localize", "prepare"]
 
@@ -35,13 +30,22 @@ __all__ = ["METHODS", "CheckpointError", "Episode", "localize", "prepare"]
 METHODS = ("dvhop", "consensus", "olstm-dvhop")
 
 
+def __getattr__(name: str) -> Any:
+    """``CheckpointError`` from :mod:`.olstm`, imported (with torch) on first use."""
+    if name == "CheckpointError":
+        from aoass_env.localization.olstm import CheckpointError
+        return CheckpointError
+    raise AttributeError(f"module 'aoass_env.localization' has no attribute {name!r}")
+
+
 @lru_cache(maxsize=4)
 def _cached_model(path: str, mtime: float) -> OLSTM:
+    from aoass_env.localization.olstm import load_checkpoint
     return load_checkpoint(path)
 
 
 def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
-             checkpoint: str | os.PathLike[str] | OLSTM = DEFAULT_CHECKPOINT,
+             checkpoint: str | os.PathLike[str] | OLSTM | None = None,
              flood_limit: int = DEFAULT_FLOOD_LIMIT) -> np.ndarray:
     """Estimate every node's position from one episode's beacon log.
 
@@ -50,7 +54,9 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
         method: ``"dvhop"`` (classical DV-Hop, the baseline), ``"consensus"`` (the map-aware
             visibility consensus alone) or ``"olstm-dvhop"`` (the consensus refined by the
             OLSTM and Eq. 13); docs/localization.md.
-        checkpoint: OLSTM checkpoint path, or a loaded model (``"olstm-dvhop"`` only).
+        checkpoint: OLSTM checkpoint path (default: the shipped one,
+            :data:`~aoass_env.localization.olstm.DEFAULT_CHECKPOINT`), or a loaded model
+            (``"olstm-dvhop"`` only).
         flood_limit: hop-count flooding limit [hops] (ignored for a prepared episode).
 
     Returns:
@@ -65,12 +71,15 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
         raise ValueError(f"method={method!r} must be one of {METHODS}")
     episode = log if isinstance(log, Episode) else prepare(log, flood_limit)
     if method == "dvhop":
+        from aoass_env.localization.dvhop import dvhop
         return dvhop(episode)
+    from aoass_env.localization.consensus import consensus
     if method == "consensus":
         return consensus(episode)
+    from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, OLSTM, olstm_dvhop
     if isinstance(checkpoint, OLSTM):
         model = checkpoint
     else:
-        path = os.fspath(checkpoint)
+        path = os.fspath(DEFAULT_CHECKPOINT if checkpoint is None else checkpoint)
         model = _cached_model(path, os.path.getmtime(path) if os.path.isfile(path) else -1.0)
     return olstm_dvhop(episode, model)
