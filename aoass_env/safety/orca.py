@@ -61,7 +61,8 @@ on 12,000 random scenes and the same velocities except where its round-off gave 
 Speed: the per-line geometry and the linear programs run on Python floats (numpy scalar
 arithmetic costs about a microsecond per operation); numpy only filters the static edges.
 Build :class:`StaticObstacles` once per map and pass it in; a sequence of loops is converted
-on every call. ``python3 benchmarks/orca.py`` prints microseconds per call.
+on every call. ``python3 benchmarks/orca.py`` prints microseconds per call (``--reference FILE``:
+against another version of this module, in the same run).
 """
 
 from __future__ import annotations
