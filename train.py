@@ -24,8 +24,7 @@ from typing import Any
 
 import torch
 
-from aoass_env.backends import add_backend_arguments, make_backend
-from aoass_env.interrupts import deliver_interrupts
+from aoass_env.backends import add_backend_arguments, deliver_interrupts, make_backend
 from aoass_env.localization.training import TrainConfig, train_localizer
 
 

@@ -5,7 +5,7 @@ and its replay buffers are plain pickles: a crafted file runs any code when load
 
 * a model ``.zip`` is read by hand: of ``data`` only plain JSON numbers are taken
   (:data:`STATE_FIELDS`, checked), the model is rebuilt from its validated hyperparameters (the
-  ``run.yml`` that ``train.py`` writes beside it, :func:`read_run_record`) and its weights are
+  ``run.yml`` that ``train.py`` writes beside it, :func:`validate_record`) and its weights are
   read with ``torch.load(weights_only=True)`` and checked finite;
 * a replay buffer is an ``.npz`` of arrays, read with ``allow_pickle=False`` and checked against
   the model's buffer, and tagged with the model's step count so that a model and a buffer that
@@ -29,8 +29,11 @@ import numpy as np
 import torch as th
 from stable_baselines3 import TD3 as _SB3TD3
 
+from agents.envs import make_training_env
+from agents.sections import HyperparameterError, check_section, model_kwargs, policy_name, read_yaml
+
 __all__ = ["RECORD_NAME", "STATE_FIELDS", "PolicyFileError", "SafeLoading", "TD3",
-           "load_model", "read_run_record", "record_path"]
+           "load_model", "record_path", "validate_record"]
 
 #: The run record that ``train.py`` writes beside its models.
 RECORD_NAME = "run.yml"
@@ -53,29 +56,26 @@ def record_path(model_path: str | os.PathLike[str]) -> Path:
     return Path(model_path).with_name(RECORD_NAME)
 
 
-def read_run_record(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """The ``run.yml`` at ``path``, validated: ``algo`` and its ``hyperparameters`` (every key
-    checked as in a hyperparameter file; ``resumes`` lists the records of later resumes).
+def validate_record(record: Any, cls: type, path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The run record ``record`` (read from ``path``) of a model of class ``cls``, validated:
+    ``algo`` and its ``hyperparameters`` (every key checked as in a hyperparameter file,
+    :func:`agents.sections.check_section`; ``resumes`` lists the records of later resumes).
 
     Raises:
-        PolicyFileError: a missing or malformed record, naming the file and the key.
+        PolicyFileError: a malformed record, naming the file and the key.
     """
-    from agents.hyperparams import ALGORITHMS, HyperparameterError, check_section, read_yaml
-    path = Path(path)
+    if not isinstance(record, Mapping):
+        raise PolicyFileError(f"{path}: must be a mapping (a run.yml of train.py)")
+    if record.get("algo") != cls.algo_name:
+        raise PolicyFileError(f"{path}: algo: {record.get('algo')!r}, but this is a "
+                              f"{cls.algo_name!r} model")
     try:
-        record = read_yaml(path, "run record")
-        if not isinstance(record, Mapping):
-            raise PolicyFileError(f"{path}: must be a mapping (a run.yml of train.py)")
-        algo = record.get("algo")
-        if algo not in ALGORITHMS:
-            raise PolicyFileError(f"{path}: algo: {algo!r} is not one of {sorted(ALGORITHMS)}")
-        hp = check_section(record.get("hyperparameters"), algo, f"{path}: hyperparameters")
+        hp = check_section(record.get("hyperparameters"), cls, f"{path}: hyperparameters")
     except HyperparameterError as exc:
         raise PolicyFileError(str(exc)) from None
-    resumes = record.get("resumes", [])
-    if not isinstance(resumes, list):
+    if not isinstance(record.get("resumes", []), list):
         raise PolicyFileError(f"{path}: resumes: must be a list of run records")
-    return {**record, "algo": algo, "hyperparameters": hp}
+    return {**record, "hyperparameters": hp}
 
 
 def _read_weights(path: Path, archive: zipfile.ZipFile, name: str, device: str) -> Any:
@@ -116,7 +116,6 @@ def _spaces(env: Any, hp: Mapping[str, Any]) -> tuple[Any, Any]:
     """Observation and action spaces: the env's, else those of the recorded training env."""
     if env is not None:
         return env.observation_space, env.action_space
-    from agents.training import make_training_env
     probe = make_training_env(split="validation", **hp.get("env", {}))
     spaces = probe.observation_space, probe.action_space
     probe.close()
@@ -142,7 +141,6 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
         PolicyFileError: no record, a file that is not a model, weights that do not fit the
             record's architecture or are not finite; each names the file.
     """
-    from agents.hyperparams import ALGORITHMS, model_kwargs, policy_name
     path = Path(path)
     if record is None:
         record = record_path(path)
@@ -151,11 +149,13 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
                                   f"from the run record that train.py writes next to it; give "
                                   f"one explicitly")
     if not isinstance(record, Mapping):
-        record = read_run_record(record)
-    algo = next((a for a, c in ALGORITHMS.items() if issubclass(cls, c)), None)
-    if record["algo"] != algo:
-        raise PolicyFileError(f"{path}: its run record says algo {record['algo']!r}, not "
-                              f"{algo!r}")
+        try:
+            record = validate_record(read_yaml(record, "run record"), cls, record)
+        except HyperparameterError as exc:
+            raise PolicyFileError(str(exc)) from None
+    if record.get("algo") != cls.algo_name:
+        raise PolicyFileError(f"{path}: its run record says algo {record.get('algo')!r}, not "
+                              f"{cls.algo_name!r}")
     hp = record["hyperparameters"]
     if not zipfile.is_zipfile(path):
         raise PolicyFileError(f"{path}: not a model .zip (no such file, or no zip structure)")
@@ -173,7 +173,7 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
         raise PolicyFileError(f"{path}: not a readable model .zip ({exc})") from None
     _check_finite(path, "policy", weights["policy"])
     overrides = {} if env is not None else {"buffer_size": 1}
-    model = cls(policy_name(hp, algo), None if env is None else env, device=device,
+    model = cls(policy_name(hp, cls), None if env is None else env, device=device,
                 _init_setup_model=False, **{**model_kwargs(hp), **overrides})
     if env is None:
         model.observation_space, model.action_space = _spaces(None, hp)
@@ -238,7 +238,11 @@ def load_replay_buffer(model: Any, path: str | os.PathLike[str]) -> None:
 
 class SafeLoading:
     """Mixin for SB3 algorithms: ``load`` is :func:`load_model`, replay buffers are ``.npz``
-    (:func:`save_replay_buffer`, :func:`load_replay_buffer`). Nothing is ever unpickled."""
+    (:func:`save_replay_buffer`, :func:`load_replay_buffer`). Nothing is ever unpickled.
+    A class names its ``algo_name`` (``train.py --algo``) and ``default_policy``."""
+
+    algo_name: str
+    default_policy: str
 
     @classmethod
     def load(cls: type[SelfSafe], path: str | os.PathLike[str], env: Any = None,
@@ -260,3 +264,6 @@ class SafeLoading:
 
 class TD3(SafeLoading, _SB3TD3):
     """SB3's feedforward TD3 (the ``--algo td3`` ablation) with :class:`SafeLoading`."""
+
+    algo_name = "td3"
+    default_policy = "MlpPolicy"

@@ -12,109 +12,41 @@ constructor keywords (SB3's names: ``learning_rate``, ``buffer_size``, ``batch_s
 * ``eval``: ``{freq: env steps, episodes: int}`` of the evaluation on the validation maps;
 * ``checkpoint_freq``: env steps between checkpoints.
 
-Every key is checked, ``eval``, ``env`` (with ``safety`` and ``tracker``) and
-``policy_kwargs`` included: unknown keys (with a did-you-mean suggestion), keys given twice and
-values of the wrong type or range raise :class:`HyperparameterError` naming the file, the
-section and the key. Files are read with a safe loader: no Python objects, no ``eval`` of
-strings.
+Every key is checked (:mod:`agents.sections`): unknown keys (with a did-you-mean suggestion),
+keys given twice and values of the wrong type or range raise :class:`HyperparameterError`
+naming the file, the section and the key. Files are read with a safe loader: no Python objects,
+no ``eval`` of strings.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import inspect
-import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from stable_baselines3.common.noise import (
     ActionNoise,
     NormalActionNoise,
     OrnsteinUhlenbeckActionNoise,
 )
 
-from agents.checkpoints import TD3
+from agents.checkpoints import TD3, PolicyFileError, validate_record
 from agents.recurrent_td3 import RecurrentTD3
-from aoass_env.config import unknown_key_message
+from agents.sections import (
+    EXTRA_KEYS,
+    HyperparameterError,
+    check_section,
+    model_kwargs,
+    policy_name,
+    read_yaml,
+)
 
-__all__ = ["ALGORITHMS", "HyperparameterError", "action_noise", "check_section",
-           "load_hyperparams", "model_kwargs", "policy_name", "read_yaml"]
+__all__ = ["ALGORITHMS", "EXTRA_KEYS", "HyperparameterError", "action_noise", "check_section",
+           "load_hyperparams", "model_kwargs", "policy_name", "read_run_record", "read_yaml"]
 
 #: Algorithm name on the command line -> SB3 class.
-ALGORITHMS: dict[str, type] = {"td3-lstm": RecurrentTD3, "td3": TD3}
-
-#: Keys of a section that are not constructor keywords.
-EXTRA_KEYS = ("n_timesteps", "policy", "action_noise", "env", "eval", "checkpoint_freq")
-#: Constructor keywords the training script sets itself.
-RESERVED = ("self", "env", "policy", "tensorboard_log", "verbose", "seed", "device",
-            "_init_setup_model", "action_noise", "replay_buffer_class")
-
-# (type, low, high, low inclusive) of the common numeric keywords
-_NUMERIC: dict[str, tuple[type, float, float, bool]] = {
-    "learning_rate": (float, 0.0, 1.0, False), "buffer_size": (int, 1, math.inf, True),
-    "learning_starts": (int, 0, math.inf, True), "batch_size": (int, 1, math.inf, True),
-    "tau": (float, 0.0, 1.0, False), "gamma": (float, 0.0, 1.0, False),
-    "gradient_steps": (int, -1, math.inf, True), "policy_delay": (int, 1, math.inf, True),
-    "target_policy_noise": (float, 0.0, math.inf, True),
-    "target_noise_clip": (float, 0.0, math.inf, True), "n_timesteps": (int, 1, math.inf, True),
-    "checkpoint_freq": (int, 1, math.inf, True), "burn_in": (int, 0, math.inf, True),
-    "train_length": (int, 1, math.inf, True), "n_steps": (int, 1, math.inf, True),
-    "critic_warmup": (int, 0, math.inf, True),
-}
-
-
-class HyperparameterError(ValueError):
-    """A hyperparameter file that cannot be used; the message names the file and the key."""
-
-
-#: The keys of ``eval``: env steps between evaluations, episodes per evaluation.
-_EVAL: dict[str, tuple[type, float, float, bool]] = {
-    "freq": (int, 1, math.inf, True), "episodes": (int, 1, math.inf, True)}
-
-
-def _check_number(where: str, key: str, value: Any,
-                  spec: tuple[type, float, float, bool] | None = None) -> None:
-    kind, low, high, low_incl = spec or _NUMERIC[key]
-    ok_type = isinstance(value, (int, float)) and not isinstance(value, bool)
-    if kind is int:
-        ok_type = ok_type and float(value).is_integer()
-    if not ok_type or not math.isfinite(value) or value > high \
-            or (value < low if low_incl else value <= low):
-        bound = f"{'[' if low_incl else '('}{low}, {high}]"
-        what = "an integer" if kind is int else "a number"
-        raise HyperparameterError(f"{where}.{key}: must be {what} in {bound}, got {value!r}")
-
-
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` that refuses a mapping with a key given twice."""
-
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
-        seen = set()
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=deep)
-            if key in seen:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"key {key!r} is given twice", key_node.start_mark)
-            seen.add(key)
-        return super().construct_mapping(node, deep=deep)
-
-
-def read_yaml(path: str | Path, what: str = "hyperparameter file") -> Any:
-    """The YAML document at ``path``, read safely (no Python objects; a key given twice is an
-    error); :class:`HyperparameterError` naming the file for a missing, unreadable or invalid
-    one."""
-    path = Path(path)
-    try:
-        return yaml.load(path.read_text(encoding="utf-8"), Loader=_UniqueKeyLoader)
-    except FileNotFoundError:
-        raise HyperparameterError(f"{path}: no such {what}") from None
-    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as exc:
-        raise HyperparameterError(f"{path}: not a readable {what} ({exc})") from None
-    except yaml.YAMLError as exc:
-        raise HyperparameterError(f"{path}: not valid YAML ({exc})") from None
+ALGORITHMS: dict[str, type] = {cls.algo_name: cls for cls in (RecurrentTD3, TD3)}
 
 
 def load_hyperparams(path: str | Path, algo: str) -> dict[str, Any]:
@@ -130,121 +62,24 @@ def load_hyperparams(path: str | Path, algo: str) -> dict[str, Any]:
     if not isinstance(data, Mapping) or algo not in data:
         found = sorted(map(str, data)) if isinstance(data, Mapping) else type(data).__name__
         raise HyperparameterError(f"{path}: no section {algo!r} (found {found})")
-    return check_section(data[algo], algo, f"{path}: {algo}")
+    return check_section(data[algo], ALGORITHMS[algo], f"{path}: {algo}")
 
 
-def _check_keys(where: str, section: Mapping[str, Any], valid: list[str]) -> None:
-    for key in section:
-        if key not in valid:
-            raise HyperparameterError(f"{where}.{key}: {unknown_key_message(key, valid, 'key')}")
+def read_run_record(path: str | Path) -> dict[str, Any]:
+    """The ``run.yml`` at ``path`` of any algorithm, validated
+    (:func:`agents.checkpoints.validate_record`).
 
-
-def _keywords(func: Any, *reserved: str) -> list[str]:
-    """Keyword names of ``func`` less ``self`` and ``reserved``."""
-    return [n for n, p in inspect.signature(func).parameters.items()
-            if n not in ("self", *reserved) and p.kind is not p.VAR_KEYWORD]
-
-
-def policy_name(hp: Mapping[str, Any], algo: str) -> str:
-    """The SB3 policy name of a validated section (default: the algorithm's MLP policy)."""
-    return hp.get("policy", "MlpLstmPolicy" if algo == "td3-lstm" else "MlpPolicy")
-
-
-def model_kwargs(hp: Mapping[str, Any]) -> dict[str, Any]:
-    """The constructor keywords of a validated section (``train_freq`` lists as tuples)."""
-    kwargs = {k: v for k, v in hp.items() if k not in EXTRA_KEYS}
-    if isinstance(kwargs.get("train_freq"), list):
-        kwargs["train_freq"] = tuple(kwargs["train_freq"])
-    return kwargs
-
-
-def check_section(section: Any, algo: str, where: str) -> dict[str, Any]:
-    """A validated copy of one algorithm's hyperparameters (a section of a hyperparameter
-    file, or of a run.yml), every key checked: constructor keywords, ``policy_kwargs`` against
-    the policy's keywords, ``env`` (with its ``safety`` and ``tracker``) against the training
-    environment's keywords, ``eval`` and ``action_noise``; the environment and the policy are
-    built once, so that a bad value fails here. Errors name ``where`` and the key."""
-    if not isinstance(section, Mapping):
-        raise HyperparameterError(f"{where}: must be a mapping of keys to values")
-    cls = ALGORITHMS[algo]
-    valid = sorted(set(_keywords(cls.__init__, *RESERVED)) | set(EXTRA_KEYS))
-    _check_keys(where, section, valid)
-    for key, value in section.items():
-        if key in _NUMERIC:
-            _check_number(where, key, value)
-    for key in ("env", "eval", "policy_kwargs"):
-        if key in section and not isinstance(section[key], Mapping):
-            raise HyperparameterError(f"{where}.{key}: must be a mapping, got "
-                                      f"{type(section[key]).__name__}")
-    if "action_noise" in section:
-        _check_noise(where, section["action_noise"])
-    if "train_freq" in section:
-        tf = section["train_freq"]
-        ok = (isinstance(tf, int) and not isinstance(tf, bool) and tf > 0) or (
-            isinstance(tf, list) and len(tf) == 2 and isinstance(tf[0], int) and tf[0] > 0
-            and tf[1] in ("step", "episode"))
-        if not ok:
-            raise HyperparameterError(f"{where}.train_freq: must be a positive integer or "
-                                      f"[n, step|episode], got {tf!r}")
-    policy = section.get("policy", policy_name({}, algo))
-    if policy not in cls.policy_aliases:
-        raise HyperparameterError(f"{where}.policy: {policy!r} is not one of "
-                                  f"{sorted(cls.policy_aliases)}")
-    evaluation = section.get("eval", {})
-    _check_keys(f"{where}.eval", evaluation, list(_EVAL))
-    for key, value in evaluation.items():
-        _check_number(f"{where}.eval", key, value, _EVAL[key])
-    hp = {k: int(v) if k in _NUMERIC and _NUMERIC[k][0] is int else v
-          for k, v in section.items()}       # integers written as 32.0 reach SB3 as ints
-    if "eval" in hp:
-        hp["eval"] = {k: int(v) for k, v in evaluation.items()}
-    _check_stack(where, cls, policy, hp)
-    return hp
-
-
-def _check_stack(where: str, cls: type, policy: str, hp: Mapping[str, Any]) -> None:
-    """Check ``env`` and ``policy_kwargs`` key by key, then build the environment and the
-    policy once so that a bad value fails with ``where`` and its section."""
-    from agents.training import make_training_env
-    from aoass_env.config import AOASSConfig
-    from aoass_env.wrappers import FuzzyORCASafety, KalmanObstacleTracker, make_safe_env
-    env_kwargs = hp.get("env", {})
-    _check_keys(f"{where}.env", env_kwargs, sorted(
-        {*_keywords(make_training_env, "config"), *_keywords(make_safe_env, "config", "kwargs",
-                                                             "tracker", "safety"),
-         *(f.name for f in dataclasses.fields(AOASSConfig))} - {"render_mode"}))
-    for key, wrapper in (("safety", FuzzyORCASafety), ("tracker", KalmanObstacleTracker)):
-        sub = env_kwargs.get(key, {})
-        if not isinstance(sub, Mapping):
-            raise HyperparameterError(f"{where}.env.{key}: must be a mapping, got "
-                                      f"{type(sub).__name__}")
-        _check_keys(f"{where}.env.{key}", sub, _keywords(wrapper.__init__, "env"))
-    policy_class = cls.policy_aliases[policy]
-    policy_kwargs = hp.get("policy_kwargs", {})
-    _check_keys(f"{where}.policy_kwargs", policy_kwargs, _keywords(
-        policy_class.__init__, "observation_space", "action_space", "lr_schedule"))
+    Raises:
+        PolicyFileError: a missing or malformed record, naming the file and the key.
+    """
     try:
-        env = make_training_env(split="validation", **env_kwargs)
-    except (ValueError, TypeError) as exc:
-        raise HyperparameterError(f"{where}.env: {exc}") from None
-    try:
-        policy_class(env.observation_space, env.action_space, lambda _: 1e-3, **policy_kwargs)
-    except (ValueError, TypeError, RuntimeError) as exc:
-        raise HyperparameterError(f"{where}.policy_kwargs: {exc}") from None
-    finally:
-        env.close()
-
-
-def _check_noise(where: str, spec: Any) -> None:
-    if not isinstance(spec, Mapping) or set(spec) - {"kind", "sigma"} \
-            or spec.get("kind") not in ("normal", "ornstein-uhlenbeck"):
-        raise HyperparameterError(
-            f"{where}.action_noise: must be {{kind: normal | ornstein-uhlenbeck, sigma: "
-            f"number}}, got {spec!r}")
-    sigma = spec.get("sigma", 0.1)
-    if isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or not 0 <= sigma < 10:
-        raise HyperparameterError(f"{where}.action_noise.sigma: must be a number in [0, 10), "
-                                  f"got {sigma!r}")
+        record = read_yaml(path, "run record")
+    except HyperparameterError as exc:
+        raise PolicyFileError(str(exc)) from None
+    algo = record.get("algo") if isinstance(record, Mapping) else None
+    if algo not in ALGORITHMS:
+        raise PolicyFileError(f"{path}: algo: {algo!r} is not one of {sorted(ALGORITHMS)}")
+    return validate_record(record, ALGORITHMS[algo], path)
 
 
 def action_noise(spec: Mapping[str, Any] | None, n_actions: int) -> ActionNoise | None:

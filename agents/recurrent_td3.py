@@ -63,6 +63,8 @@ class RecurrentTD3(SafeLoading, TD3):
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"MlpLstmPolicy": RecurrentTD3Policy}
+    algo_name = "td3-lstm"
+    default_policy = "MlpLstmPolicy"
     policy: RecurrentTD3Policy
     actor: RecurrentActor  # type: ignore[assignment]
     actor_target: RecurrentActor  # type: ignore[assignment]

@@ -43,45 +43,21 @@ from agents.callbacks import (
     replay_buffer_path,
     save_atomic,
 )
-from agents.checkpoints import read_run_record, record_path
+from agents.checkpoints import record_path
+from agents.envs import TRAINING_SPLITS, make_training_env
 from agents.hyperparams import (
     ALGORITHMS,
     action_noise,
     load_hyperparams,
     model_kwargs,
     policy_name,
+    read_run_record,
 )
 from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
-from aoass_env.maps import list_maps, validation_split
-from aoass_env.wrappers import MapSampler, make_safe_env
 
-__all__ = ["TrainRun", "make_training_env", "train_agent"]
+__all__ = ["TRAINING_SPLITS", "TrainRun", "make_training_env", "train_agent"]
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "aoass.yml"
-#: Where training environments take their maps from: the maps to fit on, or the held-out ones.
-TRAINING_SPLITS = ("train", "validation")
-
-
-def make_training_env(*, split: str = "train", field_size: float = 100.0,
-                      densities: tuple[float, float] = (0.1, 0.4), cycle: bool = False,
-                      safety: dict[str, Any] | None = None, tracker: dict[str, Any] | None = None,
-                      **config: Any) -> gym.Env:
-    """The full safety stack on shipped training maps with ``field_size`` (m) and density in
-    ``densities``, one map per episode (drawn, or in turn with ``cycle``): ``split="train"``
-    takes the maps to fit on, ``"validation"`` the ones held out for model selection
-    (:func:`aoass_env.maps.validation_split`); maps/test is never used. ``config``: further
-    AOASS-v0 keywords (e.g. ``n_nodes``)."""
-    if split not in TRAINING_SPLITS:
-        raise ValueError(f"split={split!r} must be one of {TRAINING_SPLITS} (maps/test is for "
-                         f"reported results only)")
-    fit, held_out = validation_split(list_maps("train", field_size=field_size,
-                                               densities=tuple(densities)))
-    maps = fit if split == "train" else held_out
-    if not maps:
-        raise ValueError(f"no shipped {split} maps with field_size={field_size} and densities "
-                         f"in {list(densities)}")
-    env = make_safe_env(field_size=field_size, tracker=tracker, safety=safety, **config)
-    return MapSampler(env, maps, cycle=cycle)
 
 
 @dataclasses.dataclass
@@ -158,7 +134,7 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
         report(f"resumed {run.resume} at {model.num_timesteps} steps"
                f"{' with its replay buffer' if buffer.is_file() else ''}")
     else:
-        model = cls(policy_name(hp, run.algo), env, action_noise=noise, tensorboard_log=tb,
+        model = cls(policy_name(hp, cls), env, action_noise=noise, tensorboard_log=tb,
                     seed=run.seed, device="cpu", verbose=0, **model_kwargs(hp))
 
     n = run.n_envs

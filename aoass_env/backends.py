@@ -1,4 +1,5 @@
-"""Where independent pieces of work run: local processes (the default) or a Ray cluster.
+"""Where independent pieces of work run: local processes (the default) or a Ray cluster; and
+:func:`deliver_interrupts`, which keeps the first Ctrl-C from being lost in a physics callback.
 
 A backend maps a function over items and yields ``(item, result, None)`` or
 ``(item, None, traceback)`` as each piece finishes, in completion order. The caller (this
@@ -19,18 +20,24 @@ Ray is an optional dependency (``pip install -e '.[ray]'``), imported only by
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import multiprocessing
 import os
 import re
+import signal
+import threading
 import traceback
 from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from types import FrameType
 from typing import Any, Protocol, TypeVar
 
 import torch
 
 __all__ = ["BACKENDS", "Backend", "BackendError", "LocalBackend", "RayBackend",
-           "add_backend_arguments", "init_ray", "make_backend", "require_ray", "set_threads"]
+           "add_backend_arguments", "deliver_interrupts", "init_ray", "make_backend",
+           "require_ray", "set_threads"]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -262,3 +269,51 @@ def add_backend_arguments(parser: argparse.ArgumentParser, unit: str, local: str
     parser.add_argument("--address", metavar="ADDR",
                         help="with --backend ray: the cluster, 'auto' or HOST:PORT (default: "
                              "$RAY_ADDRESS, else a new local Ray instance)")
+
+
+# ---------------------------------------------------------------------------- interrupts
+# pymunk calls Python callbacks (the anchor's velocity function) from C through cffi, which
+# prints and swallows any exception raised in them: a KeyboardInterrupt that lands there is lost
+# and the run goes on. Within deliver_interrupts(), a Ctrl-C that arrives inside such a callback
+# is held and raised at the first moment outside it.
+
+#: The source file whose frames mean "pymunk called Python back from C".
+_CALLBACK_FILE = ("pymunk", "_callbacks.py")
+#: How soon (s) a held Ctrl-C is tried again.
+RETRY_SECONDS = 0.005
+
+
+def _in_callback(frame: FrameType | None) -> bool:
+    while frame is not None:
+        if Path(frame.f_code.co_filename).parts[-2:] == _CALLBACK_FILE:
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _handler(signum: int, frame: FrameType | None) -> None:
+    if _in_callback(frame):          # raised here, cffi would swallow it: try again shortly
+        signal.setitimer(signal.ITIMER_REAL, RETRY_SECONDS)
+        return
+    signal.setitimer(signal.ITIMER_REAL, 0)
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def deliver_interrupts() -> Iterator[None]:
+    """Within: the first Ctrl-C raises ``KeyboardInterrupt`` in the main thread even when it
+    arrives inside a pymunk callback (it is then raised a few milliseconds later, outside it).
+    Does nothing outside the main thread or when SIGINT is not Python's default handler (e.g.
+    ignored)."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield
+        return
+    old_alarm = signal.signal(signal.SIGALRM, _handler)
+    signal.signal(signal.SIGINT, _handler)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGALRM, old_alarm)

@@ -202,46 +202,19 @@ class AOASSConfig:
         if 2 * self.edge_margin >= self.field_size:
             raise ConfigError(f"edge_margin={self.edge_margin} must be less than half of "
                               f"field_size={self.field_size}")
-        if self.waypoint_step is not None:
-            from aoass_env.planning.square_spiral import default_spacing
-            spacing = self.spiral_spacing or default_spacing(
-                self.field_size, self.field_size, self.radio_range, self.beacon_interval,
-                self.edge_margin, self.spiral_origin)
-            if self.waypoint_step > spacing:
-                raise ConfigError(
-                    f"waypoint_step={self.waypoint_step} m must not exceed the spiral's pass "
-                    f"spacing {spacing:.3g} m (spiral_spacing, else derived from radio_range): "
-                    f"longer steps cut the legs short and skip whole stretches of the field")
-
     # ---------------------------------------------------------------------------------
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> AOASSConfig:
-        """Build a config from keywords; unknown keywords get a did-you-mean error.
-
-        A ``map`` given without ``field_size`` sets ``field_size`` to the map's own side: a map
-        is never rescaled (where it is loaded, a ``field_size`` that differs from the map's is a
-        :class:`ConfigError` naming both).
-        """
+        """Build a config from keywords; unknown keywords get a did-you-mean error."""
         names = [f.name for f in dataclasses.fields(cls)]
         for key in kwargs:
             if key not in names:
                 raise ConfigError(unknown_key_message(key, names))
-        if kwargs.get("map") is not None and "field_size" not in kwargs:
-            from aoass_env.maps import MapError, load_map  # read only when a map is named
-            try:
-                obstacle_map = load_map(_validate(_FIELDS["map"], kwargs["map"]))
-            except MapError as exc:
-                raise ConfigError(f"map={kwargs['map']!r}: {exc}") from None
-            kwargs["field_size"] = map_side(obstacle_map, kwargs["map"])
         return cls(**kwargs)
 
     def replace(self, **kwargs: Any) -> AOASSConfig:
-        """A copy with some fields changed (validated like :meth:`from_kwargs`; a new ``map``
-        brings its own ``field_size`` unless one is given)."""
-        base = self.to_dict()
-        if kwargs.get("map") is not None:
-            base.pop("field_size")
-        return self.from_kwargs(**{**base, **kwargs})
+        """A copy with some fields changed (validated like :meth:`from_kwargs`)."""
+        return self.from_kwargs(**{**self.to_dict(), **kwargs})
 
     def to_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
@@ -281,9 +254,6 @@ class AOASSConfig:
         return self.waypoint_step or self.beacon_interval
 
 
-_FIELDS = {f.name: f for f in dataclasses.fields(AOASSConfig)}
-
-
 def map_side(obstacle_map: Any, name: Any = "map") -> float:
     """The side (m) of a square map (an :class:`~aoass_env.maps.ObstacleMap` read at its own
     size); :class:`ConfigError` naming ``map`` for a map that is not square."""
@@ -294,15 +264,24 @@ def map_side(obstacle_map: Any, name: Any = "map") -> float:
     return width
 
 
-def check_map_size(config: AOASSConfig, obstacle_map: Any, name: Any = None) -> None:
-    """:class:`ConfigError` naming ``map`` and ``field_size`` when ``obstacle_map`` (read at its
-    own size) is not a ``config.field_size`` square: a map is never rescaled."""
-    name = config.map if name is None else name
+def config_for_map(config: AOASSConfig, obstacle_map: Any, *,
+                   explicit: bool = False) -> AOASSConfig:
+    """``config`` for ``obstacle_map`` (its ``map``, read at its own size: a map is never
+    rescaled): as it is when the map is a ``field_size`` square, with the map's side as
+    ``field_size`` when that was left at its default (and not given ``explicit``-ly), else a
+    :class:`ConfigError` naming ``map`` and ``field_size``."""
+    name = config.map
     side = map_side(obstacle_map, name)
-    if not math.isclose(side, config.field_size, rel_tol=1e-9):
-        raise ConfigError(f"map={name!r} is a {side:g} m field but field_size="
-                          f"{config.field_size:g}: a map keeps its own size; give "
-                          f"field_size={side:g} or leave field_size out")
+    if math.isclose(side, config.field_size, rel_tol=1e-9):
+        return config
+    if not explicit and config.field_size == _DEFAULT_FIELD_SIZE:
+        return config.replace(field_size=side)
+    raise ConfigError(f"map={name!r} is a {side:g} m field but field_size={config.field_size:g}: "
+                      f"a map keeps its own size; give field_size={side:g} or leave field_size "
+                      f"out")
+
+
+_DEFAULT_FIELD_SIZE = AOASSConfig.__dataclass_fields__["field_size"].default
 
 
 def _range_text(meta: dict[str, Any]) -> str:

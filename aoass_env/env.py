@@ -17,14 +17,14 @@ from gymnasium import spaces
 from gymnasium.wrappers import TimeLimit
 
 from aoass_env.beacon_log import BeaconLog
-from aoass_env.config import AOASSConfig, ConfigError, check_map_size, map_side
+from aoass_env.config import AOASSConfig, ConfigError, config_for_map, map_side
 from aoass_env.maps import MapError, ObstacleMap, load_map
 from aoass_env.metrics import energy_efficiency_ratio, energy_per_beacon, trajectory_efficiency
 from aoass_env.observation import Observer, observation_layout, observation_space
 from aoass_env.planning import WaypointFollower
 from aoass_env.planning.square_spiral import episode_spiral
 from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
-from aoass_env.simulator import Simulator
+from aoass_env.simulator import Simulator, check_waypoint_step
 from aoass_env.world import wrap_angle
 
 __all__ = ["AOASSEnv", "EpisodeTimeLimit", "checked_action", "make_env", "max_episode_steps"]
@@ -53,23 +53,24 @@ def max_episode_steps(config: AOASSConfig, obstacle_map: ObstacleMap | None = No
     ``obstacle_map`` (default: an empty ``config.field_size`` square)."""
     field = (ObstacleMap(config.field_size, config.field_size) if obstacle_map is None
              else ObstacleMap(obstacle_map.width, obstacle_map.height))
+    check_waypoint_step(config, field)
     spiral = episode_spiral(config, field)
     nominal = spiral.nominal_time(config.anchor_nominal_speed) / config.dt
     return math.ceil(config.time_limit_factor * nominal)
 
 
-def _option_map(value: Any) -> ObstacleMap:
-    """The map of ``reset(options={"map": value})`` (an ObstacleMap, a shipped name or a file
-    path) at its own size; ValueError naming the option otherwise."""
+def _option_map(value: Any, name: str = "reset option 'map'") -> ObstacleMap:
+    """The map ``value`` (an ObstacleMap, a shipped name or a file path) at its own size; an
+    error naming ``name`` (the config field or the reset option) otherwise."""
     if isinstance(value, ObstacleMap):
         return value
     if not isinstance(value, (str, os.PathLike)):
-        raise ValueError(f"reset option 'map' must be an ObstacleMap, a shipped map name or a "
-                         f"map file path, got {type(value).__name__} {value!r}")
+        raise ValueError(f"{name} must be an ObstacleMap, a shipped map name or a map file "
+                         f"path, got {type(value).__name__} {value!r}")
     try:
         return load_map(value)
     except MapError as exc:
-        raise MapError(f"reset option 'map': {exc}") from None
+        raise ConfigError(f"{name}={str(value)!r}: {exc}") from None
 
 
 class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -164,9 +165,11 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ValueError(f"render_mode={render_mode!r} is not one of "
                              f"{self.metadata['render_modes']} or None")
         self.render_mode = render_mode
-        self._map = load_map(self.config.map) if self.config.map is not None else None
-        if self._map is not None:       # a map keeps its own size (from_kwargs took it)
-            check_map_size(self.config, self._map)
+        self._map = None
+        if self.config.map is not None:     # a map keeps its own size, never rescaled
+            self._map = _option_map(self.config.map, "map")
+            self.config = config_for_map(self.config, self._map,
+                                         explicit="field_size" in kwargs)
         self.max_episode_steps = max_episode_steps(self.config)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.observation_space = observation_space(self.config)

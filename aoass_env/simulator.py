@@ -18,12 +18,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from aoass_env.beacon_log import BeaconLog, BeaconLogRecorder, episode_config_json
-from aoass_env.config import AOASSConfig, check_map_size
+from aoass_env.config import AOASSConfig, ConfigError, config_for_map
 from aoass_env.maps import MapError, ObstacleMap, generate_map, load_map
 from aoass_env.network import Network
 from aoass_env.planning import SquareSpiral, WaypointFollower, WaypointPath
 from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
-from aoass_env.planning.square_spiral import episode_spiral
+from aoass_env.planning.square_spiral import config_spacing, episode_spiral
 from aoass_env.planning.sweep import Controller
 from aoass_env.radio import Radio
 from aoass_env.trajectory import beacons_along
@@ -50,9 +50,17 @@ def episode_map(config: AOASSConfig, rng: np.random.Generator) -> ObstacleMap:
     if config.map is None:
         return generate_map(config.field_size, config.obstacle_density, rng,
                             clearance=config.map_clearance)
-    obstacle_map = load_map(config.map)          # at its own size: a map is never rescaled
-    check_map_size(config, obstacle_map)
-    return obstacle_map
+    return load_map(config.map)          # at its own size: a map is never rescaled
+
+
+def check_waypoint_step(config: AOASSConfig, obstacle_map: ObstacleMap) -> None:
+    """:class:`ConfigError` naming ``waypoint_step`` when it exceeds the spiral's pass spacing
+    on ``obstacle_map``'s field: longer steps cut the legs' corners and skip whole stretches."""
+    spacing = config_spacing(config, obstacle_map.width, obstacle_map.height)
+    if config.waypoint_step is not None and config.waypoint_step > spacing:
+        raise ConfigError(f"waypoint_step={config.waypoint_step:g} m must not exceed the "
+                          f"spiral's pass spacing {spacing:.3g} m (spiral_spacing, else derived "
+                          f"from radio_range): longer steps skip whole stretches of the field")
 
 
 class Simulator:
@@ -75,8 +83,11 @@ class Simulator:
     def __init__(self, config: AOASSConfig, rng: np.random.Generator, *,
                  obstacle_map: ObstacleMap | None = None, seed: int | None = None,
                  method: str = "spiral", path: WaypointPath | None = None) -> None:
-        self.config = config
         self.map = obstacle_map if obstacle_map is not None else episode_map(config, rng)
+        if obstacle_map is None and config.map is not None:
+            config = config_for_map(config, self.map)     # a named map brings its own size
+        check_waypoint_step(config, self.map)
+        self.config = config
         self.map.check_traversable(config.map_clearance)
         self.nodes = self.map.sample_free_points(config.n_nodes, rng)
         self.spiral = episode_spiral(config, self.map)

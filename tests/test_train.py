@@ -13,6 +13,7 @@ from agents.callbacks import save_atomic
 from agents.hyperparams import HyperparameterError, load_hyperparams
 from agents.recurrent_td3 import RecurrentTD3
 from agents.training import make_training_env
+from aoass_env.maps import list_maps
 
 ROOT = Path(__file__).resolve().parent.parent
 TINY = {
@@ -216,7 +217,7 @@ def test_training_and_selection_never_see_the_test_maps(tiny: Path, monkeypatch)
     held_names = {m.name for m in held.maps}
     assert len(fit_names) == 16 and len(held_names) == 4 and not fit_names & held_names
     assert all(n.startswith("d0.") for n in fit_names | held_names)
-    test_stems = {n.split("/")[1] for n in training.list_maps("test")}
+    test_stems = {n.split("/")[1] for n in list_maps("test")}
     assert not (fit_names | held_names) & test_stems
     with pytest.raises(ValueError, match="split='test'.*reported results only"):
         make_training_env(split="test")

@@ -29,6 +29,7 @@ from aoass_env.env import AOASSEnv, checked_action
 from aoass_env.evaluation import cli
 from aoass_env.evaluation.methods import DEFAULT_POLICY, load_policy
 from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, CheckpointError, load_checkpoint
+from aoass_env.simulator import Simulator
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "configs" / "aoass.yml"
@@ -215,8 +216,11 @@ AUDIT = [
      PolicyFileError, "corrupt.zip"),
     ("200 m map with field_size=100", lambda t, s: lambda: AOASSEnv(
         map="test/d0.10_f200_s518", field_size=100), ConfigError, "field_size"),
-    ("waypoint_step=1000", lambda t, s: lambda: AOASSConfig(waypoint_step=1000),
+    ("waypoint_step=1000", lambda t, s: lambda: AOASSEnv(waypoint_step=1000),
      ConfigError, "waypoint_step"),
+    ("waypoint_step=1000 in the simulator", lambda t, s: lambda: Simulator(
+        AOASSConfig(waypoint_step=1000), np.random.default_rng(0)), ConfigError,
+     "waypoint_step"),
     ("node at (1e6, -1e6)", lambda t, s: lambda: BeaconLog.load(
         _log(t, nodes=np.tile([[1e6, -1e6]], (10, 1)))), BeaconLogError, "nodes"),
     ("beacons at 1e9", lambda t, s: lambda: BeaconLog.load(_log(
@@ -387,7 +391,7 @@ def test_a_ctrl_c_inside_a_pymunk_callback_is_swallowed_without_the_guard():
 def test_the_first_ctrl_c_stops_even_inside_a_pymunk_callback():
     import time
 
-    from aoass_env.interrupts import deliver_interrupts
+    from aoass_env.backends import deliver_interrupts
     steps: list[int] = []
     space = _space_interrupting_itself(steps)
     with pytest.raises(KeyboardInterrupt), deliver_interrupts():

@@ -16,7 +16,12 @@ from pathlib import Path
 import torch
 
 from aoass_env.atomic import write_text_atomic
-from aoass_env.backends import BackendError, add_backend_arguments, make_backend
+from aoass_env.backends import (
+    BackendError,
+    add_backend_arguments,
+    deliver_interrupts,
+    make_backend,
+)
 from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
 from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, RunOptions, select_methods
 from aoass_env.evaluation.report import (
@@ -43,7 +48,6 @@ from aoass_env.evaluation.sweep import (
     log_jobs,
     run_jobs,
 )
-from aoass_env.interrupts import deliver_interrupts
 from aoass_env.localization import METHODS as LOCALIZERS
 from aoass_env.localization.olstm import DEFAULT_CHECKPOINT
 

@@ -125,7 +125,7 @@ def policy_stack(path: str, record: str | None = None) -> dict[str, Any]:
 @functools.lru_cache(maxsize=4)
 def _recorded_stack(record: str, mtime_ns: int) -> dict[str, Any]:
     """:func:`policy_stack` of one version (``mtime_ns``) of a run record, read once."""
-    from agents.checkpoints import read_run_record
+    from agents.hyperparams import read_run_record
     env = read_run_record(record)["hyperparameters"].get("env", {})
     return {k: env[k] for k in POLICY_STACK_KEYS if k in env}
 
