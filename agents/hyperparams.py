@@ -33,17 +33,10 @@ from stable_baselines3.common.noise import (
 
 from agents.checkpoints import TD3, PolicyFileError, validate_record
 from agents.recurrent_td3 import RecurrentTD3
-from agents.sections import (
-    EXTRA_KEYS,
-    HyperparameterError,
-    check_section,
-    model_kwargs,
-    policy_name,
-    read_yaml,
-)
+from agents.sections import EXTRA_KEYS, HyperparameterError, check_section, read_yaml
 
 __all__ = ["ALGORITHMS", "EXTRA_KEYS", "HyperparameterError", "action_noise", "check_section",
-           "load_hyperparams", "model_kwargs", "policy_name", "read_run_record", "read_yaml"]
+           "load_hyperparams", "read_run_record", "read_yaml"]
 
 #: Algorithm name on the command line -> SB3 class.
 ALGORITHMS: dict[str, type] = {cls.algo_name: cls for cls in (RecurrentTD3, TD3)}

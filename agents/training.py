@@ -45,14 +45,8 @@ from agents.callbacks import (
 )
 from agents.checkpoints import record_path
 from agents.envs import TRAINING_SPLITS, make_training_env
-from agents.hyperparams import (
-    ALGORITHMS,
-    action_noise,
-    load_hyperparams,
-    model_kwargs,
-    policy_name,
-    read_run_record,
-)
+from agents.hyperparams import ALGORITHMS, action_noise, load_hyperparams, read_run_record
+from agents.sections import model_kwargs, policy_name
 from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
 
 __all__ = ["TRAINING_SPLITS", "TrainRun", "make_training_env", "train_agent"]
