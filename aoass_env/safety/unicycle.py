@@ -28,13 +28,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BrakingEnvelope", "braking_speed", "free_travel", "speed_bounds", "turn_headings",
-           "unicycle_command"]
+__all__ = ["BrakingEnvelope", "braking_speed", "clearance", "free_travel", "speed_bounds",
+           "turn_headings", "unicycle_command"]
 
 #: Below this speed (m/s) ORCA's velocity has no usable direction.
 _STILL = 1e-9
 #: A heading whose approach rate to a segment's side is below this (m per m) runs parallel.
 _PARALLEL = 1e-12
+#: An anchor inside the envelope's radius keeps its clearance less this much (m) of round-off.
+_HELD = 1e-9
 
 
 def turn_headings(heading: float, target: float, max_turn: float, n: int = 4) -> np.ndarray:
@@ -108,6 +110,18 @@ def free_travel(starts: np.ndarray, ends: np.ndarray, position: np.ndarray,
     return best
 
 
+def clearance(starts: np.ndarray, ends: np.ndarray, point: np.ndarray) -> float:
+    """Distance (m) from ``point`` (2,) to the nearest of the segments ``starts`` -> ``ends``
+    ((m, 2) each, m); inf without segments."""
+    if len(starts) == 0:
+        return math.inf
+    e = ends - starts
+    w = np.asarray(point, dtype=np.float64) - starts
+    s = np.clip((w * e).sum(axis=1) / (e * e).sum(axis=1), 0.0, 1.0)
+    gap = w - s[:, None] * e
+    return float(np.sqrt((gap * gap).sum(axis=1)).min())
+
+
 def braking_speed(distance: np.ndarray, max_accel: float, dt: float) -> np.ndarray:
     """The largest speed s (m/s) from which the anchor, moving ``dt`` (s) at s and then braking
     at ``max_accel`` (m/s^2), stops within ``distance`` (m): s dt + s^2 / (2 max_accel) =
@@ -121,7 +135,9 @@ def braking_speed(distance: np.ndarray, max_accel: float, dt: float) -> np.ndarr
 @dataclass(frozen=True)
 class BrakingEnvelope:
     """Speed caps (m/s) by heading from the static edges near the anchor (see the module
-    docstring).
+    docstring). An anchor already closer to an edge than ``radius`` (ORCA lets it slide along
+    the edges of its inflated radius) is held to the clearance it has: it may move along or
+    away, never closer.
 
     Attributes:
         starts, ends: (m, 2) the edges' end points (m).
@@ -140,7 +156,8 @@ class BrakingEnvelope:
 
     def __call__(self, headings: np.ndarray) -> np.ndarray:
         """(k,) the speed cap on each heading (rad)."""
-        travel = free_travel(self.starts, self.ends, self.position, headings, self.radius)
+        radius = min(self.radius, clearance(self.starts, self.ends, self.position) - _HELD)
+        travel = free_travel(self.starts, self.ends, self.position, headings, max(radius, 0.0))
         return braking_speed(travel, self.max_accel, self.dt)
 
 

@@ -13,6 +13,7 @@ from aoass_env.safety.orca import orca_lines
 from aoass_env.safety.unicycle import (
     BrakingEnvelope,
     braking_speed,
+    clearance,
     free_travel,
     speed_bounds,
     turn_headings,
@@ -195,3 +196,23 @@ def test_a_braking_anchor_does_not_turn_toward_a_wall_it_cannot_stop_for():
     assert old_speed == 0.0 and stop_speed(old_heading) < floor     # turns into the wall
     new_speed, new_heading = unicycle_command(*args, envelope)
     assert new_speed == 0.0 and stop_speed(new_heading) >= floor    # can still stop
+
+
+def test_clearance_is_the_distance_to_the_nearest_segment():
+    starts, ends = np.array([[0.0, 0.0], [5.0, 0.0]]), np.array([[4.0, 0.0], [5.0, 3.0]])
+    assert clearance(starts, ends, np.array([2.0, 1.5])) == pytest.approx(1.5)
+    assert clearance(starts, ends, np.array([-3.0, 4.0])) == pytest.approx(5.0)   # end point
+    assert clearance(starts, ends, np.array([6.0, 1.0])) == pytest.approx(1.0)
+    assert math.isinf(clearance(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(2)))
+
+
+def test_an_anchor_inside_the_radius_slides_on_but_never_closer():
+    # a corner at (0, 0): edges along -x and down along -y; the anchor 0.69 m above the first
+    # edge, inside the 0.7 m envelope radius, just before the corner. Sliding along the edge
+    # past the corner keeps its clearance: free. Any heading toward the edge: capped to 0.
+    starts = np.array([[-5.0, 0.0], [0.0, 0.0]])
+    ends = np.array([[0.0, 0.0], [0.0, -5.0]])
+    position = np.array([-0.2, 0.69])
+    envelope = BrakingEnvelope(starts, ends, position, 0.7, 1.0, 0.5)
+    caps = envelope(np.array([0.0, -0.3, math.pi / 2]))
+    assert math.isinf(caps[0]) and caps[1] < 0.01 and math.isinf(caps[2])
