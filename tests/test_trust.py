@@ -399,3 +399,14 @@ def test_the_first_ctrl_c_stops_even_inside_a_pymunk_callback():
             space.step(0.1)
             time.sleep(0.001)
     assert len(steps) < 10_000
+
+
+def test_evaluate_refuses_a_nan_localizer_checkpoint_before_any_episode(tmp_path, capsys,
+                                                                         monkeypatch):
+    monkeypatch.setattr(cli, "DEFAULT_CHECKPOINT", _nan_checkpoint(tmp_path))
+    with pytest.raises(SystemExit) as err:
+        cli.main(["--preset", "smoke", "--methods", "spiral", "--localizers", "olstm-dvhop",
+                  "--out", str(tmp_path / "out"), "--no-progress"])
+    message = capsys.readouterr().err
+    assert err.value.code == 2 and "nan.pt" in message and "NaN" in message
+    assert not (tmp_path / "out" / "episodes.csv").exists()

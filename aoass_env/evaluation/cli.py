@@ -49,7 +49,7 @@ from aoass_env.evaluation.sweep import (
     run_jobs,
 )
 from aoass_env.localization import METHODS as LOCALIZERS
-from aoass_env.localization.olstm import DEFAULT_CHECKPOINT
+from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, CheckpointError, load_checkpoint
 
 DEFAULT_LOCALIZERS = ("dvhop", "olstm-dvhop")
 LOCALIZER_COMMAND = "python3 train.py localizer"
@@ -145,6 +145,11 @@ def _check_localizers(names: list[str] | None,
     if "olstm-dvhop" in chosen and not DEFAULT_CHECKPOINT.is_file():
         raise EvaluationError(f"localizer olstm-dvhop needs its checkpoint {DEFAULT_CHECKPOINT}, "
                               f"which is missing; produce it with `{LOCALIZER_COMMAND}`")
+    if "olstm-dvhop" in chosen:
+        try:        # once here, so that a damaged checkpoint fails before any episode
+            load_checkpoint(DEFAULT_CHECKPOINT)
+        except CheckpointError as exc:
+            raise EvaluationError(f"localizer olstm-dvhop: {exc}") from None
     return chosen
 
 
