@@ -13,175 +13,147 @@ paper is silent (docs/interpretations.md).
 
 from __future__ import annotations
 
-import dataclasses
-import difflib
-import json
 import math
-from collections.abc import Iterable
-from dataclasses import dataclass, field
-from numbers import Integral, Real
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
+from aoass_env.validators import ConfigError, ValidatedConfig, param, unknown_key_message
 
+__all__ = ["AOASSConfig", "ConfigError", "config_for_map", "map_side", "unknown_key_message"]
 
-class ConfigError(ValueError):
-    """A configuration value is missing, of the wrong type or out of its valid range."""
-
-
-def unknown_key_message(key: Any, valid: Iterable[str], what: str = "config keyword") -> str:
-    """The error text for an unknown ``key``: a did-you-mean suggestion and the valid names."""
-    names = list(valid)
-    close = difflib.get_close_matches(str(key), names, n=1)
-    hint = f"; did you mean {close[0]!r}?" if close else ""
-    return f"unknown {what} {key!r}{hint} (valid: {', '.join(names)})"
-
-
-def _p(default: Any, doc: str, *, unit: str = "", low: float | None = None,
-       high: float | None = None, low_open: bool = False, high_open: bool = False,
-       kind: str = "float", optional: bool = False) -> Any:
-    """A config field with its documentation and valid range as metadata."""
-    meta = {"doc": doc, "unit": unit, "low": low, "high": high, "low_open": low_open,
-            "high_open": high_open, "kind": kind, "optional": optional}
-    if isinstance(default, (list, tuple)):
-        return field(default=tuple(default), metadata=meta)
-    return field(default=default, metadata=meta)
 
 
 @dataclass(frozen=True)
-class AOASSConfig:
+class AOASSConfig(ValidatedConfig):
     """All parameters of the simulation core (units in each field's metadata and docs/env.md)."""
 
     # --- field and map -------------------------------------------------------------------
-    field_size: float = _p(100.0, "side of the square field", unit="m", low=10.0, high=5000.0)
-    n_nodes: int = _p(100, "number of static sensor nodes", low=1, high=100_000, kind="int")
-    obstacle_density: float = _p(
+    field_size: float = param(100.0, "side of the square field", unit="m", low=10.0, high=5000.0)
+    n_nodes: int = param(100, "number of static sensor nodes", low=1, high=100_000, kind="int")
+    obstacle_density: float = param(
         0.2, "obstacle area / field area of a generated map", low=0.0, high=0.6)
-    map: str | None = _p(
+    map: str | None = param(
         None, "None: generate a map per episode; else a map file path or a shipped map name",
         kind="str", optional=True)
-    map_clearance: float = _p(
+    map_clearance: float = param(
         2.5, "narrowest passage a map must keep open for the anchor (generated maps are built "
         "so; loaded maps are checked)", unit="m",
         low=0.0, high=20.0, low_open=True)
 
     # --- moving obstacles ----------------------------------------------------------------
-    n_moving_obstacles: int = _p(3, "number of moving obstacles", low=0, high=200, kind="int")
-    moving_obstacle_radius: float = _p(
+    n_moving_obstacles: int = param(3, "number of moving obstacles", low=0, high=200, kind="int")
+    moving_obstacle_radius: float = param(
         1.0, "radius of a moving obstacle", unit="m", low=0.0, high=10.0, low_open=True)
-    moving_obstacle_speed: tuple[float, float] = _p(
+    moving_obstacle_speed: tuple[float, float] = param(
         (0.3, 1.0), "(min, max) speed of moving obstacles", unit="m/s", low=0.0, high=10.0,
         kind="range")
-    moving_obstacle_turn_rate: float = _p(
+    moving_obstacle_turn_rate: float = param(
         0.1, "mean number of random heading changes per second (Poisson)", unit="1/s",
         low=0.0, high=10.0)
 
     # --- anchor dynamics and sensing -----------------------------------------------------
-    anchor_radius: float = _p(0.5, "anchor body radius", unit="m", low=0.0, high=5.0,
+    anchor_radius: float = param(0.5, "anchor body radius", unit="m", low=0.0, high=5.0,
                               low_open=True)
-    anchor_nominal_speed: float = _p(
+    anchor_nominal_speed: float = param(
         1.0, "cruise speed of the path follower", unit="m/s", low=0.0, high=20.0, low_open=True)
-    anchor_max_speed: float = _p(2.0, "speed limit", unit="m/s", low=0.0, high=20.0,
+    anchor_max_speed: float = param(2.0, "speed limit", unit="m/s", low=0.0, high=20.0,
                                  low_open=True)
-    anchor_max_accel: float = _p(1.0, "acceleration limit", unit="m/s^2", low=0.0, high=50.0,
+    anchor_max_accel: float = param(1.0, "acceleration limit", unit="m/s^2", low=0.0, high=50.0,
                                  low_open=True)
-    anchor_max_turn_rate: float = _p(
+    anchor_max_turn_rate: float = param(
         math.pi / 2, "turn-rate limit", unit="rad/s", low=0.0, high=20.0, low_open=True)
-    dt: float = _p(0.5, "control period (one env step)", unit="s", low=0.0, high=10.0,
+    dt: float = param(0.5, "control period (one env step)", unit="s", low=0.0, high=10.0,
                    low_open=True)
-    physics_substeps: int = _p(5, "pymunk steps per control period", low=1, high=100,
+    physics_substeps: int = param(5, "pymunk steps per control period", low=1, high=100,
                                kind="int")
-    n_rays: int = _p(16, "range-sensor rays, evenly spread over 360 deg", low=1, high=360,
+    n_rays: int = param(16, "range-sensor rays, evenly spread over 360 deg", low=1, high=360,
                      kind="int")
-    sensing_range: float = _p(10.0, "range-sensor reach", unit="m", low=0.0, high=200.0,
+    sensing_range: float = param(10.0, "range-sensor reach", unit="m", low=0.0, high=200.0,
                               low_open=True)
 
     # --- spiral and beacons --------------------------------------------------------------
-    beacon_interval: float = _p(
+    beacon_interval: float = param(
         2.0, "distance travelled between beacons (Table 1's step size)", unit="m", low=0.0,
         high=100.0, low_open=True)
-    spiral_spacing: float | None = _p(
+    spiral_spacing: float | None = param(
         None, "distance between parallel spiral passes (Eq. 2 leg increment); None = derived "
         "from R (planning.square_spiral.default_spacing)", unit="m", low=0.0, high=1000.0,
         low_open=True, optional=True)
-    spiral_origin: tuple[float, float] | None = _p(
+    spiral_origin: tuple[float, float] | None = param(
         None, "(x0, y0) of the spiral; None = field centre", unit="m", kind="point",
         optional=True)
-    waypoint_step: float | None = _p(
+    waypoint_step: float | None = param(
         None, "distance between waypoints along a leg (Eq. 1 step); None = beacon_interval",
         unit="m", low=0.0, high=1000.0, low_open=True, optional=True)
-    edge_margin: float = _p(
+    edge_margin: float = param(
         1.5, "inset of the outermost spiral pass from the field border", unit="m", low=0.0,
         high=100.0)
 
     # --- radio ---------------------------------------------------------------------------
-    radio_range: float = _p(25.0, "communication range R", unit="m", low=0.0, high=1000.0,
+    radio_range: float = param(25.0, "communication range R", unit="m", low=0.0, high=1000.0,
                             low_open=True)
-    line_of_sight: bool = _p(True, "obstacles block radio links", kind="bool")
-    doi: float = _p(0.0, "degree of irregularity of the radio range (0 = unit disk)",
+    line_of_sight: bool = param(True, "obstacles block radio links", kind="bool")
+    doi: float = param(0.0, "degree of irregularity of the radio range (0 = unit disk)",
                     low=0.0, high=0.5)
-    packet_bits: int = _p(256, "size of a beacon packet", unit="bit", low=1, high=1_000_000,
+    packet_bits: int = param(256, "size of a beacon packet", unit="bit", low=1, high=1_000_000,
                           kind="int")
-    e_elec: float = _p(50e-9, "radio electronics energy (Table 1)", unit="J/bit", low=0.0,
+    e_elec: float = param(50e-9, "radio electronics energy (Table 1)", unit="J/bit", low=0.0,
                        high=1e-3)
-    e_amp: float = _p(10e-12, "transmit amplifier energy (free-space, d^2)", unit="J/bit/m^2",
+    e_amp: float = param(10e-12, "transmit amplifier energy (free-space, d^2)", unit="J/bit/m^2",
                       low=0.0, high=1e-6)
-    node_initial_energy: float = _p(2.0, "initial energy of a node (Table 1)", unit="J",
+    node_initial_energy: float = param(2.0, "initial energy of a node (Table 1)", unit="J",
                                     low=0.0, high=1e6, low_open=True)
-    anchor_motion_energy: float = _p(0.8, "anchor motion cost (Table 1)", unit="J/m",
+    anchor_motion_energy: float = param(0.8, "anchor motion cost (Table 1)", unit="J/m",
                                      low=0.0, high=1e3)
-    collinearity_tol: float = _p(
+    collinearity_tol: float = param(
         1.0, "Eq. 18: heard beacons count as non-collinear when their root-sum-square distance "
         "from the best-fit line is at least this", unit="m", low=0.0, high=100.0, low_open=True)
 
     # --- reward (Eq. 14) -----------------------------------------------------------------
-    w1: float = _p(100.0, "Eq. 14 weight of the coverage gain", low=0.0, high=1e6)
-    w2: float = _p(0.01, "Eq. 14 weight of the energy imbalance", low=0.0, high=1e6)
-    w3: float = _p(0.005, "Eq. 14 weight of the online localization RMSE", unit="1/m",
+    w1: float = param(100.0, "Eq. 14 weight of the coverage gain", low=0.0, high=1e6)
+    w2: float = param(0.01, "Eq. 14 weight of the energy imbalance", low=0.0, high=1e6)
+    w3: float = param(0.005, "Eq. 14 weight of the online localization RMSE", unit="1/m",
                    low=0.0, high=1e6)
-    w_collision: float = _p(
+    w_collision: float = param(
         0.0, "opt-in shaping, not in Eq. 14: penalty per new anchor contact with an obstacle",
         low=0.0, high=1e6)
 
     # --- path follower: progress watchdog and recovery ------------------------------------
-    watchdog_time: float = _p(
+    watchdog_time: float = param(
         8.0, "the environment's follower is stuck when its distance to go has not shrunk by "
         "watchdog_progress for this long; it then backs out and re-plans around the spot, and "
         "gives the target up after two tries", unit="s", low=0.0, high=1e4, low_open=True)
-    watchdog_progress: float = _p(
+    watchdog_progress: float = param(
         1.0, "progress along the follower's plan that resets the watchdog", unit="m", low=0.0,
         high=100.0, low_open=True)
-    backout_distance: float = _p(
+    backout_distance: float = param(
         3.0, "how far back along its own track a stuck follower retreats before re-planning",
         unit="m", low=0.0, high=100.0)
 
     # --- environment: observation, action, episode ---------------------------------------
-    obs_waypoints: int = _p(8, "K: upcoming spiral waypoints in the observation", low=1,
+    obs_waypoints: int = param(8, "K: upcoming spiral waypoints in the observation", low=1,
                             high=100, kind="int")
-    obs_moving_obstacles: int = _p(
+    obs_moving_obstacles: int = param(
         3, "M: nearest moving obstacles within sensing range in the observation", low=0,
         high=100, kind="int")
-    obs_position_noise: float = _p(
+    obs_position_noise: float = param(
         0.3, "std of the Gaussian noise on observed moving-obstacle positions", unit="m",
         low=0.0, high=100.0)
-    obs_velocity_noise: float = _p(
+    obs_velocity_noise: float = param(
         0.2, "std of the Gaussian noise on observed moving-obstacle velocities", unit="m/s",
         low=0.0, high=100.0)
-    action_speed_scale: float = _p(
+    action_speed_scale: float = param(
         1.0, "speed change commanded by action[0] = +-1 on top of the follower's speed",
         unit="m/s", low=0.0, high=20.0)
-    action_heading_scale: float = _p(
+    action_heading_scale: float = param(
         math.pi / 2, "heading change commanded by action[1] = +-1 on top of the follower's "
         "heading", unit="rad", low=0.0, high=math.pi)
-    time_limit_factor: float = _p(
+    time_limit_factor: float = param(
         5.0, "episode time limit as a multiple of the ideal path's duration at nominal speed "
         "(the environment's: of the ideal spiral's; every evaluated method gets the same)",
         low=1.0, high=100.0)
 
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            object.__setattr__(self, f.name, _validate(f, getattr(self, f.name)))
+    def _check(self) -> None:
         if self.anchor_nominal_speed > self.anchor_max_speed:
             raise ConfigError(
                 f"anchor_nominal_speed={self.anchor_nominal_speed} must not exceed "
@@ -202,45 +174,6 @@ class AOASSConfig:
         if 2 * self.edge_margin >= self.field_size:
             raise ConfigError(f"edge_margin={self.edge_margin} must be less than half of "
                               f"field_size={self.field_size}")
-    # ---------------------------------------------------------------------------------
-    @classmethod
-    def from_kwargs(cls, **kwargs: Any) -> AOASSConfig:
-        """Build a config from keywords; unknown keywords get a did-you-mean error."""
-        names = [f.name for f in dataclasses.fields(cls)]
-        for key in kwargs:
-            if key not in names:
-                raise ConfigError(unknown_key_message(key, names))
-        return cls(**kwargs)
-
-    def replace(self, **kwargs: Any) -> AOASSConfig:
-        """A copy with some fields changed (validated like :meth:`from_kwargs`)."""
-        return self.from_kwargs(**{**self.to_dict(), **kwargs})
-
-    def to_dict(self) -> dict[str, Any]:
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-
-    def to_json(self) -> str:
-        return json.dumps(self.to_dict(), sort_keys=True)
-
-    @classmethod
-    def describe(cls) -> list[tuple[str, Any, str, str]]:
-        """(name, default, unit, doc) of every field, for docs and `--help` tables."""
-        return [(f.name, f.default, f.metadata["unit"], f.metadata["doc"])
-                for f in dataclasses.fields(cls)]
-
-    @classmethod
-    def markdown(cls) -> str:
-        """The parameter table of docs/config.md (a test keeps the two identical)."""
-        rows = ["| parameter | default | unit | valid | meaning |", "|---|---|---|---|---|"]
-        for f in dataclasses.fields(cls):
-            meta = f.metadata
-            valid = _range_text(meta) if meta["low"] is not None else meta["kind"]
-            if meta["optional"]:
-                valid += " or None"
-            rows.append(f"| `{f.name}` | {f.default!r} | {meta['unit']} | {valid} | "
-                        f"{meta['doc']} |")
-        return "\n".join(rows)
-
     # --- derived quantities ----------------------------------------------------------
     @property
     def substep_dt(self) -> float:
@@ -282,55 +215,3 @@ def config_for_map(config: AOASSConfig, obstacle_map: Any, *,
 
 
 _DEFAULT_FIELD_SIZE = AOASSConfig.__dataclass_fields__["field_size"].default
-
-
-def _range_text(meta: dict[str, Any]) -> str:
-    lo, hi = meta["low"], meta["high"]
-    left = "(" if meta["low_open"] else "["
-    right = ")" if meta["high_open"] else "]"
-    return f"{left}{lo}, {hi}{right}"
-
-
-def _check_number(name: str, value: Any, meta: dict[str, Any], integer: bool) -> float | int:
-    unit = f" {meta['unit']}" if meta["unit"] else ""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, Real) or (
-            integer and not (isinstance(value, Integral) or float(value).is_integer())):
-        want = "an integer" if integer else "a number"
-        raise ConfigError(f"{name}={value!r} must be {want} in {_range_text(meta)}{unit}")
-    v = int(value) if integer else float(value)
-    lo, hi = meta["low"], meta["high"]
-    bad = not math.isfinite(v)
-    if lo is not None:
-        bad |= v <= lo if meta["low_open"] else v < lo
-    if hi is not None:
-        bad |= v >= hi if meta["high_open"] else v > hi
-    if bad:
-        raise ConfigError(f"{name}={value!r} is out of range: valid is {_range_text(meta)}{unit}"
-                          f" ({meta['doc']})")
-    return v
-
-
-def _validate(f: dataclasses.Field, value: Any) -> Any:
-    meta, name, kind = f.metadata, f.name, f.metadata["kind"]
-    if value is None:
-        if meta["optional"]:
-            return None
-        raise ConfigError(f"{name} must not be None ({meta['doc']})")
-    if kind == "bool":
-        if not isinstance(value, (bool, np.bool_)):
-            raise ConfigError(f"{name}={value!r} must be True or False")
-        return bool(value)
-    if kind == "str":
-        if not isinstance(value, (str, Path)):
-            raise ConfigError(f"{name}={value!r} must be a path or a map name")
-        return str(value)
-    if kind in ("range", "point"):
-        if isinstance(value, np.ndarray):
-            value = value.tolist()
-        if not isinstance(value, (list, tuple)) or len(value) != 2:
-            raise ConfigError(f"{name}={value!r} must be a pair of numbers")
-        if kind == "point":
-            free = {**meta, "low": None, "high": None}
-            return tuple(_check_number(name, v, free, False) for v in value)
-        return tuple(_check_number(name, v, meta, False) for v in value)
-    return _check_number(name, value, meta, integer=(kind == "int"))

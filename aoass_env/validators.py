@@ -1,0 +1,241 @@
+"""Checks of user-given values, with one rule for numbers, and validated config dataclasses.
+
+**One rule for numbers.** A number is a Python or numpy real number (``int``, ``float``,
+``np.int64``, ``np.float32``, ...); ``bool`` and ``np.bool_``, strings (even ``"2"``), complex
+numbers and ``None`` are not. It must be finite and, where a range is given, inside it. An
+integer parameter also takes a real number with no fractional part (``32.0``, as YAML or JSON may
+write it). Every check raises the caller's error type (``ValueError`` by default) with a one-line
+message naming the parameter, its valid range and its unit.
+
+**Validated configs.** :class:`ValidatedConfig` is the base of every config dataclass
+(:class:`~aoass_env.config.AOASSConfig`, the safety stack's
+:class:`~aoass_env.safety.config.TrackerConfig` and :class:`~aoass_env.safety.config.SafetyConfig`):
+each field is declared with :func:`param` (default, one-line meaning, unit, valid range) and is
+checked from that metadata, so the documentation and the checks cannot drift apart; unknown
+keywords get a did-you-mean error; :meth:`ValidatedConfig.markdown` is the docs table.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import json
+import math
+from collections.abc import Iterable
+from dataclasses import field
+from numbers import Integral, Real
+from pathlib import Path
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+
+__all__ = ["ConfigError", "ValidatedConfig", "integer", "param", "positive", "real",
+           "unknown_key_message", "vec2"]
+
+
+class ConfigError(ValueError):
+    """A configuration value is missing, of the wrong type or out of its valid range."""
+
+
+def unknown_key_message(key: Any, valid: Iterable[str], what: str = "config keyword") -> str:
+    """The error text for an unknown ``key``: a did-you-mean suggestion and the valid names."""
+    names = list(valid)
+    close = difflib.get_close_matches(str(key), names, n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return f"unknown {what} {key!r}{hint} (valid: {', '.join(names)})"
+
+
+# --- numbers -----------------------------------------------------------------------------------
+def _interval(low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:
+    left = "(" if low_open or low is None else "["
+    right = ")" if high_open or high is None else "]"
+    lo = "-inf" if low is None else f"{low}"
+    hi = "inf" if high is None else f"{high}"
+    return f"{left}{lo}, {hi}{right}"
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, Real) and not isinstance(value, (bool, np.bool_))
+
+
+def real(name: str, value: Any, unit: str = "", *, low: float | None = None,
+         high: float | None = None, low_open: bool = False, high_open: bool = False,
+         doc: str = "", error: type[Exception] = ValueError) -> float:
+    """``value`` as a Python float when it is a finite real number in the range (see the
+    module docstring); else ``error`` naming ``name``, the range, ``unit`` and ``doc``."""
+    if _is_number(value):
+        v = float(value)
+        if math.isfinite(v) and not (
+                (low is not None and (v <= low if low_open else v < low))
+                or (high is not None and (v >= high if high_open else v > high))):
+            return v
+    _fail(name, value, unit, low, high, low_open, high_open, doc, error, "a number")
+
+
+def integer(name: str, value: Any, unit: str = "", *, low: float | None = None,
+            high: float | None = None, doc: str = "",
+            error: type[Exception] = ValueError) -> int:
+    """``value`` as a Python int when it is a whole real number in [low, high]; else ``error``
+    naming ``name`` (see :func:`real`)."""
+    if _is_number(value) and (isinstance(value, Integral) or float(value).is_integer()):
+        v = int(value)
+        if (low is None or v >= low) and (high is None or v <= high):
+            return v
+    _fail(name, value, unit, low, high, False, False, doc, error, "an integer")
+
+
+def positive(name: str, value: Any, unit: str = "", *, high: float | None = None,
+             error: type[Exception] = ValueError) -> float:
+    """``value`` as a float when it is a finite real number > 0 (and <= ``high``)."""
+    return real(name, value, unit, low=0.0, low_open=True, high=high, error=error)
+
+
+def vec2(name: str, value: Any, unit: str = "", *,
+         error: type[Exception] = ValueError) -> tuple[float, float]:
+    """A pair of finite real numbers (a sequence or a (2,) array) as two Python floats."""
+    items = value.tolist() if isinstance(value, np.ndarray) and value.shape == (2,) else value
+    if isinstance(items, (list, tuple)) and len(items) == 2 and all(
+            _is_number(v) and math.isfinite(float(v)) for v in items):
+        return float(items[0]), float(items[1])
+    shape = getattr(value, "shape", None)
+    got = f"shape {shape}" if shape is not None else repr(value)
+    raise error(f"{name} must be a pair of finite numbers{_unit(unit)}, got {got}")
+
+
+def _unit(unit: str) -> str:
+    return f" ({unit})" if unit else ""
+
+
+def _fail(name: str, value: Any, unit: str, low: float | None, high: float | None,
+          low_open: bool, high_open: bool, doc: str, error: type[Exception], what: str) -> Any:
+    interval = _interval(low, high, low_open, high_open)
+    units = f" {unit}" if unit else ""
+    meaning = f" ({doc})" if doc else ""
+    raise error(f"{name}={value!r} must be {what} in {interval}{units}{meaning}")
+
+
+# --- validated config dataclasses ---------------------------------------------------------------
+def param(default: Any, doc: str, *, unit: str = "", low: float | None = None,
+          high: float | None = None, low_open: bool = False, high_open: bool = False,
+          kind: str = "float", optional: bool = False, choices: tuple[str, ...] = ()) -> Any:
+    """A config field with its meaning, unit and valid values as metadata. ``kind``: float,
+    int, bool, str (a path or a name), choice (one of ``choices``), range (a (min, max) pair in
+    the range), point (a pair of numbers)."""
+    meta = {"doc": doc, "unit": unit, "low": low, "high": high, "low_open": low_open,
+            "high_open": high_open, "kind": kind, "optional": optional, "choices": choices}
+    if isinstance(default, (list, tuple)):
+        return field(default=tuple(default), metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def _valid_text(meta: dict[str, Any]) -> str:
+    if meta["kind"] == "choice":
+        return " | ".join(meta["choices"])
+    if meta["low"] is None and meta["high"] is None:
+        return meta["kind"]
+    return _interval(meta["low"], meta["high"], meta["low_open"], meta["high_open"])
+
+
+def _validate(f: dataclasses.Field, value: Any) -> Any:
+    """The value of field ``f`` checked against its metadata; :class:`ConfigError` naming it."""
+    meta, name, kind = f.metadata, f.name, f.metadata["kind"]
+    if value is None:
+        if meta["optional"]:
+            return None
+        raise ConfigError(f"{name} must not be None ({meta['doc']})")
+    number = {"unit": meta["unit"], "low": meta["low"], "high": meta["high"],
+              "doc": meta["doc"], "error": ConfigError}
+    interval = {"low_open": meta["low_open"], "high_open": meta["high_open"]}
+    if kind == "bool":
+        if not isinstance(value, (bool, np.bool_)):
+            raise ConfigError(f"{name}={value!r} must be True or False")
+        return bool(value)
+    if kind == "str":
+        if not isinstance(value, (str, Path)):
+            raise ConfigError(f"{name}={value!r} must be a path or a name")
+        return str(value)
+    if kind == "choice":
+        if value not in meta["choices"]:
+            raise ConfigError(f"{name}={value!r} must be one of {', '.join(meta['choices'])} "
+                              f"({meta['doc']})")
+        return str(value)
+    if kind in ("range", "point"):
+        if isinstance(value, np.ndarray):
+            value = value.tolist()
+        if not isinstance(value, (list, tuple)) or len(value) != 2:
+            raise ConfigError(f"{name}={value!r} must be a pair of numbers")
+        if kind == "point":
+            return tuple(real(name, v, meta["unit"], error=ConfigError) for v in value)
+        return tuple(real(name, v, **number, **interval) for v in value)
+    if kind == "int":
+        return integer(name, value, **number)
+    return real(name, value, **number, **interval)
+
+
+Config = TypeVar("Config", bound="ValidatedConfig")
+
+
+class ValidatedConfig:
+    """Base of the config dataclasses (``@dataclass(frozen=True)`` subclasses whose fields are
+    declared with :func:`param`): every field is validated on construction, then
+    :meth:`_check` (a subclass's checks across fields) runs."""
+
+    #: What the config is called in error messages ("config keyword", "safety keyword", ...).
+    KEYWORD: ClassVar[str] = "config keyword"
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, _validate(f, getattr(self, f.name)))
+        self._check()
+
+    def _check(self) -> None:
+        """Checks across fields (none by default); raise :class:`ConfigError`."""
+
+    @classmethod
+    def from_kwargs(cls: type[Config], **kwargs: Any) -> Config:
+        """Build a config from keywords; unknown keywords get a did-you-mean error."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        for key in kwargs:
+            if key not in names:
+                raise ConfigError(unknown_key_message(key, names, cls.KEYWORD))
+        return cls(**kwargs)
+
+    @classmethod
+    def coerce(cls: type[Config], value: Any, name: str) -> Config:
+        """``value`` as a config: the config itself, a mapping of its keywords, or None (the
+        defaults); :class:`ConfigError` naming ``name`` otherwise."""
+        if value is None:
+            return cls()
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, dict):
+            return cls.from_kwargs(**value)
+        raise ConfigError(f"{name} must be a {cls.__name__} or a mapping of its keywords, got "
+                          f"{type(value).__name__}")
+
+    def replace(self: Config, **kwargs: Any) -> Config:
+        """A copy with some fields changed (validated like :meth:`from_kwargs`)."""
+        return self.from_kwargs(**{**self.to_dict(), **kwargs})
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def describe(cls) -> list[tuple[str, Any, str, str]]:
+        """(name, default, unit, doc) of every field, for docs and `--help` tables."""
+        return [(f.name, f.default, f.metadata["unit"], f.metadata["doc"])
+                for f in dataclasses.fields(cls)]
+
+    @classmethod
+    def markdown(cls) -> str:
+        """The parameter table of the config's docs page (a test keeps the two identical)."""
+        rows = ["| parameter | default | unit | valid | meaning |", "|---|---|---|---|---|"]
+        for f in dataclasses.fields(cls):
+            meta = f.metadata
+            valid = _valid_text(meta) + (" or None" if meta["optional"] else "")
+            rows.append(f"| `{f.name}` | {f.default!r} | {meta['unit']} | {valid} | "
+                        f"{meta['doc']} |")
+        return "\n".join(rows)
