@@ -9,7 +9,6 @@ model (dynamics, moving obstacles, sensing, contact semantics) in full.
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Any
 
 import numpy as np
@@ -19,6 +18,7 @@ import shapely
 from aoass_env.clearance import ClearanceGrid
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
+from aoass_env.validators import real, vec2
 
 # Collision types (pymunk handlers) and filter categories (queries) of the four kinds of shape.
 _ANCHOR, _STATIC, _WALL, _MOVING = 1, 2, 3, 4
@@ -49,14 +49,6 @@ def _ramp(speed: float, heading: float, speed_target: float, heading_target: flo
     speed += min(max(speed_target - speed, -max_dv), max_dv)
     turn = wrap_angle(heading_target - heading)
     return speed, wrap_angle(heading + min(max(turn, -max_dh), max_dh))
-
-
-def _real(name: str, value: Any, unit: str) -> float:
-    """``value`` as a finite float, or a ValueError naming the parameter."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) \
-            or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite real number ({unit}), got {value!r}")
-    return float(value)
 
 
 def _obstacle_ids(obstacle_map: ObstacleMap) -> np.ndarray:
@@ -121,7 +113,7 @@ class World:
         self._clearance = ClearanceGrid(obstacle_map)
 
         x0, y0 = self._check_start(start)
-        self._heading = wrap_angle(_real("start_heading", start_heading, "rad"))
+        self._heading = wrap_angle(real("start_heading", start_heading, "rad"))
         self._speed = 0.0
         self._velocity_cmd = (0.0, 0.0)
         self._anchor = pymunk.Body(1.0, math.inf)
@@ -171,12 +163,7 @@ class World:
         self._space.add(shape)
 
     def _check_start(self, start: Any) -> tuple[float, float]:
-        try:
-            xy = np.asarray(start, dtype=np.float64)
-        except (TypeError, ValueError):
-            xy = np.full(0, np.nan)
-        if xy.shape != (2,) or not np.all(np.isfinite(xy)):
-            raise ValueError(f"start must be a finite (x, y) position in m, got {start!r}")
+        xy = np.array(vec2("start", start, "m"))
         r = self.config.anchor_radius
         m = self.obstacle_map
         if not m.bounds_contain(xy, margin=r)[0]:
@@ -288,8 +275,8 @@ class World:
             starting with the position before the period.
         """
         cfg = self.config
-        target = min(max(_real("speed_cmd", speed_cmd, "m/s"), 0.0), cfg.anchor_max_speed)
-        heading_target = _real("heading_cmd", heading_cmd, "rad")
+        target = min(max(real("speed_cmd", speed_cmd, "m/s"), 0.0), cfg.anchor_max_speed)
+        heading_target = real("heading_cmd", heading_cmd, "rad")
         max_dv, max_dh = cfg.anchor_max_accel * self._sdt, cfg.anchor_max_turn_rate * self._sdt
         anchor, bodies = self._anchor, self._mbodies
         x, y = anchor.position

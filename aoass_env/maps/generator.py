@@ -15,7 +15,8 @@ import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
-from aoass_env.maps.obstacle_map import MapError, ObstacleMap, _check_rng, _field_dims, _real
+from aoass_env.maps.obstacle_map import MapError, ObstacleMap, _check_rng, _field_dims
+from aoass_env.validators import real
 
 #: Highest obstacle density :func:`generate_map` accepts.
 MAX_DENSITY = 0.6
@@ -230,13 +231,11 @@ def generate_map(field_size: float | tuple[float, float], density: float,
         name: label of the map.
     """
     width, height = _field_dims(field_size)
-    density = _real("density", density)
-    if not 0.0 <= density <= MAX_DENSITY:
-        raise MapError(f"density={density!r} must be in [0, {MAX_DENSITY}]")
-    clearance = _real("clearance", clearance)
-    if not 0.0 < clearance < min(width, height) / 2:
-        raise MapError(f"clearance={clearance!r} must be in (0, {min(width, height) / 2:g}) m "
-                       f"for a {width:g} x {height:g} m field")
+    density = real("density", density, low=0.0, high=MAX_DENSITY,
+                   doc="obstacle area / field area", error=MapError)
+    clearance = real("clearance", clearance, "m", low=0.0, high=min(width, height) / 2,
+                     low_open=True, high_open=True, doc=f"for a {width:g} x {height:g} m field",
+                     error=MapError)
     _check_rng(rng)
     if density == 0.0:
         return ObstacleMap(width, height, (), name)

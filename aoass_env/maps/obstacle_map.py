@@ -9,16 +9,16 @@ of the other modules (shapely views, edges, convex parts, point tests) and the r
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from numbers import Integral, Real
 
 import numpy as np
 import shapely
 from pymunk import autogeometry
 from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
+
+from aoass_env.validators import integer, positive, real
 
 
 class MapError(ValueError):
@@ -36,21 +36,12 @@ def _as_ccw(vertices: np.ndarray) -> np.ndarray:
     return v[::-1].copy() if signed_area < 0 else v.copy()
 
 
-def _real(name: str, value: object) -> float:
-    """``value`` as a finite float, or a MapError naming the parameter."""
-    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
-        raise MapError(f"{name}={value!r} must be a finite number")
-    return float(value)
-
-
 def _field_dims(field_size: float | tuple[float, float]) -> tuple[float, float]:
     """(width, height) in m from a side length or a (width, height) pair."""
     sizes = tuple(field_size) if np.ndim(field_size) > 0 else (field_size, field_size)
     if len(sizes) != 2:
         raise MapError(f"field_size={field_size!r} must be a number or a (width, height) pair")
-    w, h = (_real("field_size", s) for s in sizes)
-    if w <= 0 or h <= 0:
-        raise MapError(f"field_size={field_size!r} must be positive (m)")
+    w, h = (positive("field_size", s, "m", error=MapError) for s in sizes)
     return w, h
 
 
@@ -71,9 +62,8 @@ class ObstacleMap:
     name: str = ""
 
     def __post_init__(self) -> None:
-        for label, value in (("width", self.width), ("height", self.height)):
-            if not np.isfinite(value) or value <= 0:
-                raise MapError(f"map {label}={value!r} must be a positive number of metres")
+        width = positive("map width", self.width, "m", error=MapError)
+        height = positive("map height", self.height, "m", error=MapError)
         polys = []
         for i, p in enumerate(self.polygons):
             v = _as_ccw(p)
@@ -84,8 +74,8 @@ class ObstacleMap:
                 reason = shapely.is_valid_reason(poly)
                 raise MapError(f"obstacle {i} is not a simple polygon with area ({reason})")
             polys.append(v)
-        object.__setattr__(self, "width", float(self.width))
-        object.__setattr__(self, "height", float(self.height))
+        object.__setattr__(self, "width", width)
+        object.__setattr__(self, "height", height)
         object.__setattr__(self, "polygons", tuple(polys))
 
     # --- shapely views (cached; the map is immutable) -------------------------------------
@@ -186,9 +176,7 @@ class ObstacleMap:
         ``clearance / 2``: every passage between obstacles, or between an obstacle and the
         border, is at least ``clearance`` wide (up to shapely's buffer approximation, < 0.5 %).
         """
-        clearance = _real("clearance", clearance)
-        if clearance < 0:
-            raise MapError(f"clearance={clearance!r} must be >= 0 m")
+        clearance = real("clearance", clearance, "m", low=0.0, error=MapError)
         label = f"map {self.name!r}" if self.name else "map"
         free = self.free_space
         if free.is_empty:
@@ -211,12 +199,9 @@ class ObstacleMap:
                            clearance: float = 0.0) -> np.ndarray:
         """``n`` points (n, 2) uniform in the free space, at least ``clearance`` (m) from every
         obstacle and from the border (rejection sampling in vectorised batches)."""
-        if isinstance(n, bool) or not isinstance(n, Integral) or n < 0:
-            raise MapError(f"n={n!r} must be a non-negative integer")
+        n = integer("n", n, "points", low=0, error=MapError)
         _check_rng(rng)
-        clearance = _real("clearance", clearance)
-        if clearance < 0:
-            raise MapError(f"clearance={clearance!r} must be >= 0 m")
+        clearance = real("clearance", clearance, "m", low=0.0, error=MapError)
         label = f"map {self.name!r}" if self.name else "map"
         lo = np.array([clearance, clearance])
         hi = np.array([self.width - clearance, self.height - clearance])

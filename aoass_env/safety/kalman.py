@@ -50,7 +50,6 @@ tracker has no randomness, so the same detections give the same tracks.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,6 +59,8 @@ from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
+
+from aoass_env.validators import integer, positive, real
 
 __all__ = ["MultiTargetTracker", "Track"]
 
@@ -94,20 +95,6 @@ class Track:
         return self.filter.P.copy()
 
 
-def _real(name: str, value: object) -> float:
-    try:
-        return float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}={value!r} must be a number") from None
-
-
-def _positive(name: str, value: object) -> float:
-    value = _real(name, value)
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name}={value!r} must be a finite number > 0")
-    return value
-
-
 class MultiTargetTracker:
     """Kalman tracking of several targets under a constant-velocity model.
 
@@ -132,22 +119,18 @@ class MultiTargetTracker:
                  process_noise: float = 0.5, gate: float = 0.99, birth_hits: int = 2,
                  max_misses: int = 3, initial_speed_std: float = 2.0,
                  maneuver_speed: float | None = 2.0) -> None:
-        self.dt = _positive("dt", dt)
-        self.position_noise = _positive("position_noise", position_noise)
+        self.dt = positive("dt", dt, "s")
+        self.position_noise = positive("position_noise", position_noise, "m")
         self.velocity_noise = (None if velocity_noise is None
-                               else _positive("velocity_noise", velocity_noise))
-        self.process_noise = _positive("process_noise", process_noise)
-        self.initial_speed_std = _positive("initial_speed_std", initial_speed_std)
+                               else positive("velocity_noise", velocity_noise, "m/s"))
+        self.process_noise = positive("process_noise", process_noise, "m/s^2")
+        self.initial_speed_std = positive("initial_speed_std", initial_speed_std, "m/s")
         self.maneuver_speed = (None if maneuver_speed is None
-                               else _positive("maneuver_speed", maneuver_speed))
-        gate = _real("gate", gate)
-        if not 0.0 < gate < 1.0:
-            raise ValueError(f"gate={gate!r} must be a probability in (0, 1)")
-        self.gate = gate
-        for name, value in (("birth_hits", birth_hits), ("max_misses", max_misses)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"{name}={value!r} must be an integer >= 1")
-        self.birth_hits, self.max_misses = int(birth_hits), int(max_misses)
+                               else positive("maneuver_speed", maneuver_speed, "m/s"))
+        self.gate = gate = real("gate", gate, "probability", low=0.0, high=1.0, low_open=True,
+                                high_open=True)
+        self.birth_hits = integer("birth_hits", birth_hits, "hits", low=1)
+        self.max_misses = integer("max_misses", max_misses, "misses", low=1)
 
         dz = 2 if self.velocity_noise is None else 4
         self._dz = dz
@@ -210,17 +193,13 @@ class MultiTargetTracker:
         ``horizon = k * dt``, and exact under the model for any other horizon >= 0. The
         tracks are not changed.
         """
-        horizon = _real("horizon", horizon)
-        if not (math.isfinite(horizon) and horizon >= 0):
-            raise ValueError(f"horizon={horizon!r} must be a finite time >= 0 (s)")
+        horizon = real("horizon", horizon, "s", low=0.0)
         s = self.states(confirmed_only)
         return s[:, :2] + horizon * s[:, 2:]
 
     def predict_steps(self, k: int, confirmed_only: bool = True) -> np.ndarray:
         """Positions (m) ``k`` control periods ahead: ``predict_positions(k * dt)``, (m, 2)."""
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
-            raise ValueError(f"k={k!r} must be an integer >= 0 (steps)")
-        return self.predict_positions(int(k) * self.dt, confirmed_only)
+        return self.predict_positions(integer("k", k, "steps", low=0) * self.dt, confirmed_only)
 
     # ------------------------------------------------------------------------------ step
     def _detections(self, detections: ArrayLike) -> np.ndarray:

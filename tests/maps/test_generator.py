@@ -93,18 +93,18 @@ def test_shapes_merge_into_concave_obstacles(dense_map):
 
 @pytest.mark.parametrize(("kwargs", "match"), [
     ({"density": -0.1}, "density=-0.1"),
-    ({"density": 0.61}, r"density=0\.61 must be in \[0, 0\.6\]"),
+    ({"density": 0.61}, r"density=0\.61 must be a number in \[0\.0, 0\.6\]"),
     ({"density": float("nan")}, "density=nan"),
     ({"density": "0.3"}, "density='0.3'"),
     ({"density": True}, "density=True"),
     ({"field_size": 0}, "field_size=0"),
     ({"field_size": -5.0}, "field_size=-5.0"),
     ({"field_size": (100,)}, r"field_size=\(100,\)"),
-    ({"field_size": (100, 0)}, r"field_size=\(100, 0\)"),
+    ({"field_size": (100, 0)}, r"field_size=0 must be a number in \(0\.0, inf\) m"),
     ({"field_size": "big"}, "field_size"),
     ({"clearance": 0.0}, "clearance=0.0"),
     ({"clearance": -1.0}, "clearance=-1.0"),
-    ({"clearance": 50.0}, r"clearance=50.0 must be in \(0, 50\)"),
+    ({"clearance": 50.0}, r"clearance=50.0 must be a number in \(0\.0, 50\.0\) m"),
     ({"clearance": float("inf")}, "clearance=inf"),
 ])
 def test_bad_generator_arguments_name_the_parameter(kwargs, match):

@@ -325,11 +325,11 @@ def test_edges_near_sorted_by_distance():
 # --------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("kwargs, message", [
-    ({"radius": -1}, re.escape("radius must be > 0 (m), got -1")),
+    ({"radius": -1}, re.escape("radius=-1 must be a number in (0.0, inf) m")),
     ({"radius": float("nan")}, "radius"),
-    ({"max_speed": 0.0}, "max_speed must be > 0"),
+    ({"max_speed": 0.0}, r"max_speed=0\.0 must be a number in \(0"),
     ({"position": (0.0, float("nan"))}, "position"),
-    ({"position": np.zeros(3)}, "position must be a finite 2-vector"),
+    ({"position": np.zeros(3)}, "position must be a pair of finite numbers"),
     ({"velocity": "fast"}, "velocity"),
     ({"preferred_velocity": (1.0, float("inf"))}, "preferred_velocity"),
     ({"moving_obstacles": np.zeros((3, 4))},
@@ -342,10 +342,10 @@ def test_edges_near_sorted_by_distance():
     ({"static_obstacles": [np.zeros((3, 3))]}, r"static_obstacles\[0\].*shape \(3, 3\)"),
     ({"static_obstacles": np.zeros((4, 2))}, "sequence of"),
     ({"static_obstacles": 3}, "static_obstacles"),
-    ({"time_horizon": 0}, "time_horizon must be > 0"),
-    ({"time_horizon_obst": -2}, "time_horizon_obst must be > 0"),
+    ({"time_horizon": 0}, r"time_horizon=0 must be a number in \(0"),
+    ({"time_horizon_obst": -2}, r"time_horizon_obst=-2 must be a number in \(0"),
     ({"time_step": float("inf")}, "time_step"),
-    ({"responsibility": 1.5}, r"responsibility must be in \(0, 1\]"),
+    ({"responsibility": 1.5}, r"responsibility=1\.5 must be a number in \(0\.0, 1\.0\]"),
     ({"responsibility": 0}, "responsibility"),
 ])
 def test_bad_input_names_the_parameter(kwargs, message):
