@@ -38,6 +38,7 @@ from aoass_env.maps import ObstacleMap
 from aoass_env.planning.path import WaypointPath, polyline_path
 from aoass_env.planning.square_spiral import config_spacing
 from aoass_env.planning.sweep import PlannedMethod
+from aoass_env.validators import integer, positive, real
 
 __all__ = ["CLASSICAL_METHODS", "circles_vertices", "double_scan_vertices", "hilbert_cells",
            "hilbert_order", "hilbert_vertices", "lmat_vertices", "morton_cells",
@@ -48,12 +49,9 @@ def _check_field(width: float, height: float, spacing: float, margin: float,
                  spacing_name: str = "spacing") -> None:
     """ValueError naming the first parameter out of its valid range."""
     for name, value in (("width", width), ("height", height), (spacing_name, spacing)):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"{name}={value!r} must be a positive number of metres")
-    half = min(width, height) / 2
-    if not (math.isfinite(margin) and 0 <= margin < half):
-        raise ValueError(f"margin={margin!r} must lie in [0, {half:g}) m for a {width:g} x "
-                         f"{height:g} m field")
+        positive(name, value, "m")
+    real("margin", margin, "m", low=0.0, high=min(width, height) / 2, high_open=True,
+         doc=f"for a {width:g} x {height:g} m field")
 
 
 def _n_cells(extent: float, spacing: float) -> int:
@@ -149,9 +147,7 @@ def circles_vertices(width: float, height: float, spacing: float, margin: float,
     links; then a rectangular ring along the margin-clipped border, which covers the corners
     beyond the largest circle."""
     _check_field(width, height, spacing, margin)
-    if not (math.isfinite(max_chord_error) and max_chord_error > 0):
-        raise ValueError(f"max_chord_error={max_chord_error!r} must be a positive number of "
-                         "metres")
+    positive("max_chord_error", max_chord_error, "m")
     cx, cy = width / 2, height / 2
     short = min(width, height)
     centres = np.unique(_cell_centres(short, _n_cells(short, spacing), margin))
@@ -219,9 +215,8 @@ def morton_cells(n_columns: int, n_rows: int) -> np.ndarray:
     """(n_columns * n_rows, 2) integer (column, row) cells in Morton (Z) order: sorted by the key
     whose even bits are the column's bits and odd bits the row's, so each 2 x 2 block is visited
     lower left, lower right, upper left (the diagonal jump), upper right."""
-    for name, value in (("n_columns", n_columns), ("n_rows", n_rows)):
-        if not (isinstance(value, int) and value >= 1):
-            raise ValueError(f"{name}={value!r} must be a positive integer")
+    n_columns = integer("n_columns", n_columns, "cells", low=1)
+    n_rows = integer("n_rows", n_rows, "cells", low=1)
     col, row = (g.ravel() for g in np.meshgrid(np.arange(n_columns), np.arange(n_rows)))
     key = np.zeros(len(col), dtype=np.int64)
     for bit in range(max(n_columns, n_rows).bit_length()):

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aoass_env.maps import ObstacleMap
+from aoass_env.validators import positive
 
 __all__ = ["ArcLengthTiming", "WaypointPath", "polyline_path"]
 
@@ -61,8 +62,7 @@ def polyline_path(vertices: np.ndarray, step: float) -> WaypointPath:
 
     Every vertex is kept (a corner stays a waypoint); repeated consecutive vertices are dropped.
     """
-    if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0):
-        raise ValueError(f"step={step!r} must be a positive number of metres")
+    step = positive("step", step, "m")
     v = np.asarray(vertices, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != 2 or len(v) == 0 or not np.all(np.isfinite(v)):
         raise ValueError(f"vertices must be a non-empty (V, 2) array of finite metres, "

@@ -38,6 +38,7 @@ import numpy as np
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.planning.path import ArcLengthTiming
+from aoass_env.validators import positive
 
 #: Unit direction vectors d_n of Eq. 1, cycling right, up, left, down.
 DIRECTIONS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
@@ -123,8 +124,7 @@ def square_spiral(width: float, height: float, spacing: float, step: float, *,
     """
     for name, value in (("width", width), ("height", height), ("spacing", spacing),
                         ("step", step)):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"{name}={value!r} must be a positive number of metres")
+        positive(name, value, "m")
     lo = np.array([margin, margin], dtype=np.float64)
     hi = np.array([width - margin, height - margin], dtype=np.float64)
     if np.any(hi <= lo):

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
@@ -13,14 +11,6 @@ from aoass_env.maps import ObstacleMap
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import WaypointFollower
 from aoass_env.planning.path import polyline_path
-
-
-def check_positive(name: str, value: float, high: float = math.inf) -> float:
-    """``value`` as a float when 0 < value <= high, else a ValueError naming ``name``."""
-    v = float(value)
-    if not (math.isfinite(v) and 0.0 < v <= high):
-        raise ValueError(f"{name}={value!r} must lie in (0, {high:g}]")
-    return v
 
 
 def point_follower(config: AOASSConfig, points: np.ndarray,

@@ -44,13 +44,14 @@ import numpy as np
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.planning.baselines.common import check_positive, point_follower
+from aoass_env.planning.baselines.common import point_follower
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import WaypointFollower
 from aoass_env.planning.path import WaypointPath
 from aoass_env.planning.square_spiral import episode_spiral
 from aoass_env.planning.sweep import PlannedMethod, SweepState
 from aoass_env.safety.fuzzy import FuzzyController, FuzzyVariable
+from aoass_env.validators import positive
 
 #: Candidate headings (rad): six, 60 deg apart.
 HEADINGS = np.deg2rad(np.arange(0.0, 360.0, 60.0))
@@ -104,7 +105,7 @@ def sector_inputs(position: np.ndarray, nodes: np.ndarray, radio_range: float
     """Fuzzy inputs per candidate heading from the unlocalized neighbours ``nodes`` (K, 2) (m)
     heard at ``position`` (2,) (m): (mean distance / R, share of the K nodes), each (6,).
     A sector without nodes has mean distance 0 and share 0."""
-    r = check_positive("radio_range", radio_range)
+    r = positive("radio_range", radio_range, "m")
     share, mean = np.zeros(len(HEADINGS)), np.zeros(len(HEADINGS))
     d = np.asarray(nodes, dtype=np.float64).reshape(-1, 2) - np.asarray(position)
     if len(d) == 0:
@@ -206,7 +207,7 @@ class CellMemory:
 
     def __init__(self, planner: DetourPlanner, obstacle_map: ObstacleMap, side: float,
                  margin: float) -> None:
-        self.side = check_positive("cell_side", side)
+        self.side = positive("cell_side", side, "m")
         self.shape = (math.ceil(obstacle_map.width / self.side),
                       math.ceil(obstacle_map.height / self.side))
         free = planner.centres[planner.free.ravel()]
@@ -276,12 +277,12 @@ class FDPPController:
                  cell_side: float | None = None, min_cell_side: float | None = None) -> None:
         c = sim.config
         self.sim = sim
-        self.budget = check_positive("budget", sim.spiral.length if budget is None else budget)
-        side = check_positive("cell_side", CELL_FRACTION * c.radio_range
-                              if cell_side is None else cell_side)
-        self.min_cell_side = check_positive(
+        self.budget = positive("budget", sim.spiral.length if budget is None else budget, "m")
+        side = positive("cell_side", CELL_FRACTION * c.radio_range
+                        if cell_side is None else cell_side, "m")
+        self.min_cell_side = positive(
             "min_cell_side", MIN_CELL_FRACTION * c.radio_range
-            if min_cell_side is None else min_cell_side, side)
+            if min_cell_side is None else min_cell_side, "m", high=side)
         self.cells = CellMemory(sim.planner, sim.map, side, c.edge_margin)
         self.flc = fdpp_rules()
         self.stops: list[np.ndarray] = []

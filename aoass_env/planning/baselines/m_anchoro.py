@@ -39,11 +39,12 @@ import shapely
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network
-from aoass_env.planning.baselines.common import check_positive, free_region
+from aoass_env.planning.baselines.common import free_region
 from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
 from aoass_env.planning.path import WaypointPath, polyline_path
 from aoass_env.planning.sweep import PlannedMethod
 from aoass_env.radio import Radio
+from aoass_env.validators import positive, real
 
 #: Spacing (m) of the free sample points coverage is checked on.
 SAMPLE_SPACING = 2.0
@@ -55,12 +56,10 @@ LINK_MARGIN = 0.7
 def lattice_side(radio_range: float, margin: float) -> float:
     """Triangle side a (m) = R - sqrt(2) * margin: a field point hears the three vertices of
     its lattice triangle even in a corner outside the lattice (module docstring)."""
-    r = check_positive("radio_range", radio_range)
-    a = r - math.sqrt(2.0) * margin
-    if not (margin >= 0 and a > 0):
-        raise ValueError(f"margin={margin!r} must lie in [0, {r / math.sqrt(2):g}) m for "
-                         f"radio_range={r:g} m")
-    return a
+    r = positive("radio_range", radio_range, "m")
+    margin = real("margin", margin, "m", low=0.0, high=r / math.sqrt(2.0), high_open=True,
+                  doc=f"for radio_range={r:g} m")
+    return r - math.sqrt(2.0) * margin
 
 
 def triangle_lattice(width: float, height: float, side: float, margin: float
@@ -71,10 +70,9 @@ def triangle_lattice(width: float, height: float, side: float, margin: float
     apart); odd rows are offset by half a step and closed by points on the left and right
     border. Returns (points (P, 2) (m), row index (P,)), bottom row first, left to right.
     """
-    w, h, a = (check_positive(n, v) for n, v in (("width", width), ("height", height),
-                                                  ("side", side)))
-    if not (0.0 <= margin < min(w, h) / 2):
-        raise ValueError(f"margin={margin!r} must lie in [0, {min(w, h) / 2:g}) m")
+    w, h, a = (positive(n, v, "m") for n, v in (("width", width), ("height", height),
+                                                ("side", side)))
+    margin = real("margin", margin, "m", low=0.0, high=min(w, h) / 2, high_open=True)
     span_x, span_y = w - 2 * margin, h - 2 * margin
     n_cols = max(1, math.ceil(span_x / a - 1e-9))
     n_rows = max(1, math.ceil(span_y / (a * math.sqrt(3) / 2) - 1e-9))
@@ -91,7 +89,7 @@ def triangle_lattice(width: float, height: float, side: float, margin: float
 
 def free_samples(obstacle_map: ObstacleMap, spacing: float = SAMPLE_SPACING) -> np.ndarray:
     """Cell centres (S, 2) (m) of a ``spacing`` (m) grid that lie outside every obstacle."""
-    s = check_positive("spacing", spacing)
+    s = positive("spacing", spacing, "m")
     xs = np.arange(s / 2, obstacle_map.width, s)
     ys = np.arange(s / 2, obstacle_map.height, s)
     grid = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
@@ -176,7 +174,7 @@ def scan_order(points: np.ndarray, row_y: np.ndarray) -> np.ndarray:
 
 def boundary_points(region: shapely.Geometry, spacing: float) -> np.ndarray:
     """Points (K, 2) (m) every ``spacing`` (m) along every boundary ring of ``region``."""
-    s = check_positive("spacing", spacing)
+    s = positive("spacing", spacing, "m")
     rings = [r for poly in shapely.get_parts(region) if not poly.is_empty
              for r in (poly.exterior, *poly.interiors)]
     pts = [shapely.get_coordinates(shapely.line_interpolate_point(r, np.arange(0.0, r.length, s)))

@@ -32,11 +32,12 @@ from shapely.geometry.base import BaseGeometry
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.planning.baselines.common import check_positive, free_region, point_follower
+from aoass_env.planning.baselines.common import free_region, point_follower
 from aoass_env.planning.follower import WaypointFollower
 from aoass_env.planning.path import WaypointPath, polyline_path
 from aoass_env.planning.square_spiral import default_spacing
 from aoass_env.planning.sweep import PlannedMethod, SweepState
+from aoass_env.validators import positive, real
 
 #: Gap (m) kept between the anchor's body and an obstacle while following its boundary: half
 #: the room a map guarantees beyond the anchor diameter (map_clearance 2.5 m, radius 0.5 m), so
@@ -65,11 +66,10 @@ def sweep_spacing(obstacle_map: ObstacleMap, config: AOASSConfig) -> float:
 def sweep_vertices(width: float, height: float, spacing: float, margin: float) -> np.ndarray:
     """Corners (V, 2) (m) of a boustrophedon sweep of the field shrunk by ``margin`` (m):
     horizontal lines, bottom to top, at most ``spacing`` (m) apart, left-right alternating."""
-    w = check_positive("width", width)
-    h = check_positive("height", height)
-    s = check_positive("spacing", spacing)
-    if not (0.0 <= margin < min(w, h) / 2):
-        raise ValueError(f"margin={margin!r} must lie in [0, {min(w, h) / 2:g}) m")
+    w = positive("width", width, "m")
+    h = positive("height", height, "m")
+    s = positive("spacing", spacing, "m")
+    margin = real("margin", margin, "m", low=0.0, high=min(w, h) / 2, high_open=True)
     n = max(1, math.ceil((h - 2 * margin) / s - 1e-9))
     corners = []
     for k, y in enumerate(np.linspace(margin, h - margin, n + 1)):
@@ -116,7 +116,7 @@ def boundary_route(region: BaseGeometry, base: shapely.LineString, hit_arc: floa
         ``(points, leave_arc)``: the walk (K, 2) (m), hit point first, leave point last, and the
         leave point's distance along ``base`` (m); None when no leave point is within reach.
     """
-    check_positive("max_follow", max_follow)
+    positive("max_follow", max_follow, "m")
     hit = base.interpolate(hit_arc)
     rings = [r for poly in shapely.get_parts(region) if not poly.is_empty
              for r in (poly.exterior, *poly.interiors)]
@@ -170,8 +170,8 @@ class OHMController:
     def __init__(self, sim: SweepState, gap: float = DEFAULT_GAP,
                  max_follow: float = DEFAULT_MAX_FOLLOW) -> None:
         c = sim.config
-        check_positive("gap", gap, high=10.0)
-        self.max_follow = check_positive("max_follow", max_follow)
+        positive("gap", gap, "m", high=10.0)
+        self.max_follow = positive("max_follow", max_follow, "m")
         self.config = c
         self.planner = sim.planner
         self.base = shapely.LineString(sim.path.waypoints)

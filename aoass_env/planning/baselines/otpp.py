@@ -68,7 +68,7 @@ import shapely
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.planning.baselines.common import check_positive, free_region
+from aoass_env.planning.baselines.common import free_region
 from aoass_env.planning.baselines.m_anchoro import (
     LINK_MARGIN,
     SAMPLE_SPACING,
@@ -80,6 +80,7 @@ from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
 from aoass_env.planning.path import WaypointPath, polyline_path
 from aoass_env.planning.sweep import PlannedMethod
 from aoass_env.radio import LineOfSight
+from aoass_env.validators import positive, real
 
 #: Spacing (m) of the grid of candidate positions a beacon point may move to.
 CANDIDATE_SPACING = 1.5
@@ -107,9 +108,8 @@ def basic_square_side(radio_range: float, margin: float) -> float:
 def half_lines(extent: float, side: float, margin: float) -> np.ndarray:
     """(2n + 1,) coordinates (m) of the basic squares' edges and midlines along one axis of
     ``extent`` (m) shrunk by ``margin``: n = ceil(span / side) equal basic squares."""
-    e, s = check_positive("extent", extent), check_positive("side", side)
-    if not (0.0 <= margin < e / 2):
-        raise ValueError(f"margin={margin!r} must lie in [0, {e / 2:g}) m")
+    e, s = positive("extent", extent, "m"), positive("side", side, "m")
+    margin = real("margin", margin, "m", low=0.0, high=e / 2, high_open=True)
     n = max(1, math.ceil((e - 2 * margin) / s - 1e-9))
     return np.linspace(margin, e - margin, 2 * n + 1)
 
