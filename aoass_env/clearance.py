@@ -24,6 +24,7 @@ import shapely
 from scipy import ndimage
 
 from aoass_env.maps import ObstacleMap
+from aoass_env.validators import positive
 
 __all__ = ["ClearanceGrid"]
 
@@ -50,9 +51,8 @@ class ClearanceGrid:
     """
 
     def __init__(self, obstacle_map: ObstacleMap, cell: float = 1.0) -> None:
-        if not cell > 0:
-            raise ValueError(f"cell={cell!r} must be a positive length (m)")
-        self.width, self.height, self.cell = obstacle_map.width, obstacle_map.height, float(cell)
+        cell = positive("cell", cell, "m")
+        self.width, self.height, self.cell = obstacle_map.width, obstacle_map.height, cell
         nx = max(1, math.ceil(self.width / cell))
         ny = max(1, math.ceil(self.height / cell))
         self._ny, self._inv = ny, 1.0 / self.cell

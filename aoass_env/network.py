@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from aoass_env.config import AOASSConfig
+from aoass_env.validators import integer, real
 
 __all__ = ["Network"]
 
@@ -42,12 +43,9 @@ class Network:
     """
 
     def __init__(self, n_nodes: int, config: AOASSConfig) -> None:
-        if isinstance(n_nodes, bool) or not isinstance(n_nodes, (int, np.integer)) \
-                or n_nodes < 1:
-            raise ValueError(f"n_nodes={n_nodes!r} must be a positive integer")
+        n = integer("n_nodes", n_nodes, "nodes", low=1)
         if not isinstance(config, AOASSConfig):
             raise TypeError(f"config must be an AOASSConfig, got {type(config)!r}")
-        n = int(n_nodes)
         self.config = config
         self.n_nodes = n
         self._min_scatter = config.collinearity_tol ** 2
@@ -111,11 +109,7 @@ class Network:
 
     def charge_motion(self, distance: float) -> None:
         """Account ``distance`` [m] >= 0 travelled by the anchor."""
-        d = float(distance)
-        if not (np.isfinite(d) and d >= 0):
-            raise ValueError(f"distance={distance!r} must be a finite, non-negative number "
-                             f"of metres")
-        self._distance += d
+        self._distance += real("distance", distance, "m", low=0.0)
 
     @staticmethod
     def _lambda_min(scatter: np.ndarray) -> np.ndarray:

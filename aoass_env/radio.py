@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
+from aoass_env.validators import integer, positive, real
 
 __all__ = ["LineOfSight", "Radio", "doi_pattern", "range_factor"]
 
@@ -171,19 +172,13 @@ def doi_pattern(doi: float, rng: np.random.Generator | None, n: int = 1) -> np.n
     ``|K_i - K_{i-1}| <= doi`` holds for every i, 359 -> 0 included (up to float rounding).
     ``doi = 0`` gives all ones without touching ``rng``.
     """
-    try:
-        d = float(doi)
-    except (TypeError, ValueError):
-        d = float("nan")
-    if isinstance(doi, bool) or not (np.isfinite(d) and 0.0 <= d < 1.0):
-        raise ValueError(f"doi={doi!r} must be a number in [0, 1)")
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
-        raise ValueError(f"n={n!r} must be a non-negative integer")
+    d = real("doi", doi, low=0.0, high=1.0, high_open=True, doc="degree of irregularity")
+    n = integer("n", n, "nodes", low=0)
     if d == 0.0:
-        return np.ones((int(n), 360))
+        return np.ones((n, 360))
     if not isinstance(rng, np.random.Generator):
         raise ValueError("doi > 0 needs rng, a numpy.random.Generator")
-    steps = rng.uniform(-d, d, size=(int(n), 360))
+    steps = rng.uniform(-d, d, size=(n, 360))
     pos = np.clip(steps, 0.0, None).sum(axis=1, keepdims=True)
     neg = np.clip(steps, None, 0.0).sum(axis=1, keepdims=True)
     total = pos + neg
@@ -191,7 +186,7 @@ def doi_pattern(doi: float, rng: np.random.Generator | None, n: int = 1) -> np.n
         shrink_pos = np.where(total > 0, -neg / pos, 1.0)
         shrink_neg = np.where(total < 0, -pos / neg, 1.0)
     steps = np.where(steps > 0, steps * shrink_pos, steps * shrink_neg)
-    walk = np.concatenate([np.zeros((int(n), 1)), np.cumsum(steps[:, :-1], axis=1)], axis=1)
+    walk = np.concatenate([np.zeros((n, 1)), np.cumsum(steps[:, :-1], axis=1)], axis=1)
     walk += 1.0 - walk.mean(axis=1, keepdims=True)
     return np.clip(walk, 1.0 - d, 1.0 + d)
 
@@ -229,12 +224,7 @@ class Radio:
         pts.flags.writeable = False
         if not isinstance(obstacle_map, ObstacleMap):
             raise TypeError(f"obstacle_map must be an ObstacleMap, got {type(obstacle_map)!r}")
-        try:
-            r = float(radio_range)
-        except (TypeError, ValueError):
-            r = float("nan")
-        if isinstance(radio_range, bool) or not (np.isfinite(r) and r > 0):
-            raise ValueError(f"radio_range={radio_range!r} must be a positive number of metres")
+        r = positive("radio_range", radio_range, "m")
         self.nodes = pts
         self.obstacle_map = obstacle_map
         self.radio_range = r

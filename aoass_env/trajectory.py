@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from aoass_env.validators import positive
+
 #: Paths of at most this many samples get the pure-Python odometer of :func:`beacons_along`
 #: (one control period has ``physics_substeps + 1``); numpy is faster on longer ones.
 _SHORT_PATH = 64
@@ -38,8 +40,7 @@ def beacons_along(path: np.ndarray, start_distance: float,
         ``(beacons, end_distance)``: (B, 3) rows (t, x, y) of the beacons whose odometer mark lies
         in ``(start_distance, end_distance]``, and the odometer reading at ``path[-1]``.
     """
-    if not interval > 0:
-        raise ValueError(f"interval={interval!r} must be a positive distance (m)")
+    interval = positive("interval", interval, "m")
     p = np.asarray(path, dtype=np.float64).reshape(-1, 3)
     if len(p) <= _SHORT_PATH:   # fast path: most control periods pass no beacon mark
         end = start_distance + _xy_length(p.tolist())

@@ -288,7 +288,7 @@ def test_radio_bad_input():
             Radio(np.zeros((1, 2)), m, bad)
     with pytest.raises(ValueError, match="needs rng"):
         Radio(np.zeros((1, 2)), m, 5.0, doi=0.1)
-    with pytest.raises(ValueError, match=r"doi=1\.5 must be a number in \[0, 1\)"):
+    with pytest.raises(ValueError, match=r"doi=1\.5 must be a number in \[0\.0, 1\.0\)"):
         Radio(np.zeros((1, 2)), m, 5.0, doi=1.5, rng=np.random.default_rng(0))
     radio = Radio(np.zeros((1, 2)), m, 5.0)
     with pytest.raises(ValueError, match=r"point must have shape \(2,\)"):
