@@ -19,6 +19,8 @@ from gymnasium import spaces
 from stable_baselines3.common.buffers import BaseBuffer, ReplayBuffer
 from stable_baselines3.common.vec_env import VecNormalize
 
+from aoass_env.validators import integer
+
 
 class SequenceReplayBufferSamples(NamedTuple):
     """A batch of windows; the valid steps of each window come first, then zero padding.
@@ -40,13 +42,11 @@ class SequenceReplayBufferSamples(NamedTuple):
     loss_mask: th.Tensor
 
 
-def check_sequence_lengths(burn_in: Any, train_length: Any) -> None:
-    """Raise ``ValueError`` naming the parameter when ``burn_in`` or ``train_length`` is invalid."""
-    if isinstance(burn_in, bool) or not isinstance(burn_in, (int, np.integer)) or burn_in < 0:
-        raise ValueError(f"burn_in must be an integer >= 0, got {burn_in!r}")
-    if (isinstance(train_length, bool) or not isinstance(train_length, (int, np.integer))
-            or train_length < 1):
-        raise ValueError(f"train_length must be an integer >= 1, got {train_length!r}")
+def check_sequence_lengths(burn_in: Any, train_length: Any) -> tuple[int, int]:
+    """(burn_in, train_length) as ints; ``ValueError`` naming the parameter when one is not an
+    integer >= 0 (burn_in) or >= 1 (train_length)."""
+    return (integer("burn_in", burn_in, "steps", low=0),
+            integer("train_length", train_length, "steps", low=1))
 
 
 class SequenceReplayBuffer(ReplayBuffer):
@@ -82,15 +82,13 @@ class SequenceReplayBuffer(ReplayBuffer):
             )
         if isinstance(observation_space, spaces.Dict):
             raise ValueError("SequenceReplayBuffer does not support Dict observation spaces")
-        check_sequence_lengths(burn_in, train_length)
-        if buffer_size < 1:
-            raise ValueError(f"buffer_size must be >= 1, got {buffer_size!r}")
+        burn_in, train_length = check_sequence_lengths(burn_in, train_length)
+        buffer_size = integer("buffer_size", buffer_size, "transitions", low=1)
         BaseBuffer.__init__(self, buffer_size, observation_space, action_space, device, n_envs)
         self.buffer_size = max(buffer_size // n_envs, 1)
         self.optimize_memory_usage = False
         self.handle_timeout_termination = handle_timeout_termination
-        self.burn_in = int(burn_in)
-        self.train_length = int(train_length)
+        self.burn_in, self.train_length = burn_in, train_length
 
         dtype = observation_space.dtype
         obs_dtype = np.float32 if dtype is None or np.issubdtype(dtype, np.floating) else dtype

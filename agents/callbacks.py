@@ -19,6 +19,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from aoass_env.atomic import atomic_open
+from aoass_env.validators import integer
 
 __all__ = ["AOASSMetricsCallback", "AtomicCheckpointCallback", "SaveBestAtomically",
            "save_atomic"]
@@ -84,8 +85,7 @@ class AtomicCheckpointCallback(BaseCallback):
     def __init__(self, save_freq: int, path: str | Path, *, replay_buffer: bool = True,
                  verbose: int = 0) -> None:
         super().__init__(verbose)
-        if save_freq < 1:
-            raise ValueError(f"save_freq must be >= 1, got {save_freq}")
+        save_freq = integer("save_freq", save_freq, "steps", low=1)
         self.save_freq, self.path, self.replay_buffer = save_freq, Path(path), replay_buffer
 
     def _on_step(self) -> bool:

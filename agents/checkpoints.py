@@ -31,6 +31,7 @@ from stable_baselines3 import TD3 as _SB3TD3
 
 from agents.envs import make_training_env
 from agents.sections import HyperparameterError, check_section, model_kwargs, policy_name, read_yaml
+from aoass_env.validators import integer
 
 __all__ = ["RECORD_NAME", "STATE_FIELDS", "PolicyFileError", "SafeLoading", "TD3",
            "load_model", "record_path", "validate_record"]
@@ -105,10 +106,8 @@ def _read_state(path: Path, archive: zipfile.ZipFile) -> dict[str, int]:
         raise PolicyFileError(f"{path}: data: must be a JSON object")
     state = {}
     for key in STATE_FIELDS:
-        value = data.get(key, 0)
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise PolicyFileError(f"{path}: data: {key} must be an integer >= 0, got {value!r}")
-        state[key] = value
+        state[key] = integer(f"{path}: data: {key}", data.get(key, 0), low=0,
+                             error=PolicyFileError)
     return state
 
 

@@ -29,6 +29,8 @@ from stable_baselines3.common.torch_layers import (
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
+from aoass_env.validators import integer, real
+
 LSTMState = tuple[th.Tensor, th.Tensor]
 
 
@@ -221,14 +223,12 @@ class RecurrentTD3Policy(BasePolicy):
     ):
         if isinstance(observation_space, spaces.Dict):
             raise ValueError("RecurrentTD3Policy does not support Dict observation spaces")
-        for name, value in (("lstm_hidden_size", lstm_hidden_size),
-                            ("n_lstm_layers", n_lstm_layers), ("n_critics", n_critics)):
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        if actor_final_init is not None and not (isinstance(actor_final_init, (int, float))
-                                                 and 0.0 <= actor_final_init < float("inf")):
-            raise ValueError(f"actor_final_init must be None or a number >= 0, "
-                             f"got {actor_final_init!r}")
+        lstm_hidden_size = integer("lstm_hidden_size", lstm_hidden_size, "units", low=1)
+        n_lstm_layers = integer("n_lstm_layers", n_lstm_layers, "layers", low=1)
+        n_critics = integer("n_critics", n_critics, "critics", low=1)
+        if actor_final_init is not None:
+            actor_final_init = real("actor_final_init", actor_final_init, low=0.0,
+                                    doc="or None")
         super().__init__(observation_space, action_space, features_extractor_class,
                          features_extractor_kwargs, optimizer_class=optimizer_class,
                          optimizer_kwargs=optimizer_kwargs, squash_output=True,

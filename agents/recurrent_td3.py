@@ -27,6 +27,7 @@ from torch.nn import functional as F
 from agents.buffers import SequenceReplayBuffer, SequenceReplayBufferSamples, check_sequence_lengths
 from agents.checkpoints import SafeLoading
 from agents.policies import RecurrentActor, RecurrentCritic, RecurrentTD3Policy
+from aoass_env.validators import integer
 
 SelfRecurrentTD3 = TypeVar("SelfRecurrentTD3", bound="RecurrentTD3")
 RolloutState = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -103,16 +104,13 @@ class RecurrentTD3(SafeLoading, TD3):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ):
-        check_sequence_lengths(burn_in, train_length)
+        burn_in, train_length = check_sequence_lengths(burn_in, train_length)
         if optimize_memory_usage:
             raise ValueError("optimize_memory_usage=True is not supported by RecurrentTD3")
-        if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
-            raise ValueError(f"batch_size must be an integer >= 1, got {batch_size!r}")
-        if isinstance(policy_delay, bool) or not isinstance(policy_delay, int) or policy_delay < 1:
-            raise ValueError(f"policy_delay must be an integer >= 1, got {policy_delay!r}")
-        for key, value, low in (("n_steps", n_steps, 1), ("critic_warmup", critic_warmup, 0)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-                raise ValueError(f"{key} must be an integer >= {low}, got {value!r}")
+        batch_size = integer("batch_size", batch_size, "windows", low=1)
+        policy_delay = integer("policy_delay", policy_delay, "updates", low=1)
+        n_steps = integer("n_steps", n_steps, "steps", low=1)
+        critic_warmup = integer("critic_warmup", critic_warmup, "updates", low=0)
         if replay_buffer_class is not None and not issubclass(replay_buffer_class,
                                                               SequenceReplayBuffer):
             raise ValueError("replay_buffer_class must be SequenceReplayBuffer or a subclass, got "
@@ -120,16 +118,15 @@ class RecurrentTD3(SafeLoading, TD3):
         for key in ("burn_in", "train_length"):
             if key in (replay_buffer_kwargs or {}):
                 raise ValueError(f"pass {key} to RecurrentTD3, not in replay_buffer_kwargs")
-        self.burn_in = int(burn_in)
-        self.train_length = int(train_length)
-        self.critic_warmup = int(critic_warmup)
+        self.burn_in, self.train_length = burn_in, train_length
+        self.critic_warmup = critic_warmup
         self._rollout_state: RolloutState | None = None
         super().__init__(
             policy, env, learning_rate=learning_rate, buffer_size=buffer_size,
             learning_starts=learning_starts, batch_size=batch_size, tau=tau, gamma=gamma,
             train_freq=train_freq, gradient_steps=gradient_steps, action_noise=action_noise,
             replay_buffer_class=replay_buffer_class, replay_buffer_kwargs=replay_buffer_kwargs,
-            optimize_memory_usage=False, n_steps=int(n_steps), policy_delay=policy_delay,
+            optimize_memory_usage=False, n_steps=n_steps, policy_delay=policy_delay,
             target_policy_noise=target_policy_noise, target_noise_clip=target_noise_clip,
             stats_window_size=stats_window_size, tensorboard_log=tensorboard_log,
             policy_kwargs=policy_kwargs, verbose=verbose, seed=seed, device=device,

@@ -21,6 +21,7 @@ import yaml
 
 from agents.envs import make_training_env
 from aoass_env.config import AOASSConfig, unknown_key_message
+from aoass_env.validators import integer, real
 from aoass_env.wrappers import FuzzyORCASafety, KalmanObstacleTracker, make_safe_env
 
 __all__ = ["EXTRA_KEYS", "HyperparameterError", "check_section", "model_kwargs", "policy_name",
@@ -56,16 +57,15 @@ _EVAL: dict[str, tuple[type, float, float, bool]] = {
 
 
 def _check_number(where: str, key: str, value: Any,
-                  spec: tuple[type, float, float, bool] | None = None) -> None:
+                  spec: tuple[type, float, float, bool] | None = None) -> int | float:
+    """``value`` of ``where.key`` as an int or a float checked against ``spec`` (default: the
+    key's :data:`_NUMERIC` entry); :class:`HyperparameterError` naming ``where.key``."""
     kind, low, high, low_incl = spec or _NUMERIC[key]
-    ok_type = isinstance(value, (int, float)) and not isinstance(value, bool)
+    top = None if high == math.inf else high
     if kind is int:
-        ok_type = ok_type and float(value).is_integer()
-    if not ok_type or not math.isfinite(value) or value > high \
-            or (value < low if low_incl else value <= low):
-        bound = f"{'[' if low_incl else '('}{low}, {high}]"
-        what = "an integer" if kind is int else "a number"
-        raise HyperparameterError(f"{where}.{key}: must be {what} in {bound}, got {value!r}")
+        return integer(f"{where}.{key}", value, low=low, high=top, error=HyperparameterError)
+    return real(f"{where}.{key}", value, low=low, high=top, low_open=not low_incl,
+                error=HyperparameterError)
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
@@ -133,9 +133,8 @@ def check_section(section: Any, cls: type, where: str) -> dict[str, Any]:
         raise HyperparameterError(f"{where}: must be a mapping of keys to values")
     valid = sorted(set(_keywords(cls.__init__, *RESERVED)) | set(EXTRA_KEYS))
     _check_keys(where, section, valid)
-    for key, value in section.items():
-        if key in _NUMERIC:
-            _check_number(where, key, value)
+    numbers = {key: _check_number(where, key, value) for key, value in section.items()
+               if key in _NUMERIC}
     for key in ("env", "eval", "policy_kwargs"):
         if key in section and not isinstance(section[key], Mapping):
             raise HyperparameterError(f"{where}.{key}: must be a mapping, got "
@@ -144,24 +143,24 @@ def check_section(section: Any, cls: type, where: str) -> dict[str, Any]:
         _check_noise(where, section["action_noise"])
     if "train_freq" in section:
         tf = section["train_freq"]
-        ok = (isinstance(tf, int) and not isinstance(tf, bool) and tf > 0) or (
-            isinstance(tf, list) and len(tf) == 2 and isinstance(tf[0], int) and tf[0] > 0
-            and tf[1] in ("step", "episode"))
-        if not ok:
+        n, unit = (tf[0], tf[1]) if isinstance(tf, list) and len(tf) == 2 else (tf, None)
+        if unit not in (None, "step", "episode"):
             raise HyperparameterError(f"{where}.train_freq: must be a positive integer or "
                                       f"[n, step|episode], got {tf!r}")
+        n = integer(f"{where}.train_freq", n, "steps or episodes", low=1,
+                    error=HyperparameterError)
+        numbers["train_freq"] = n if unit is None else [n, unit]
     policy = policy_name(section, cls)
     if policy not in cls.policy_aliases:
         raise HyperparameterError(f"{where}.policy: {policy!r} is not one of "
                                   f"{sorted(cls.policy_aliases)}")
     evaluation = section.get("eval", {})
     _check_keys(f"{where}.eval", evaluation, list(_EVAL))
-    for key, value in evaluation.items():
-        _check_number(f"{where}.eval", key, value, _EVAL[key])
-    hp = {k: int(v) if k in _NUMERIC and _NUMERIC[k][0] is int else v
-          for k, v in section.items()}       # integers written as 32.0 reach SB3 as ints
+    checked_eval = {key: _check_number(f"{where}.eval", key, value, _EVAL[key])
+                    for key, value in evaluation.items()}
+    hp = {**section, **numbers}       # integers written as 32.0 reach SB3 as ints
     if "eval" in hp:
-        hp["eval"] = {k: int(v) for k, v in evaluation.items()}
+        hp["eval"] = checked_eval
     _check_stack(where, cls, policy, hp)
     return hp
 
@@ -202,7 +201,5 @@ def _check_noise(where: str, spec: Any) -> None:
         raise HyperparameterError(
             f"{where}.action_noise: must be {{kind: normal | ornstein-uhlenbeck, sigma: "
             f"number}}, got {spec!r}")
-    sigma = spec.get("sigma", 0.1)
-    if isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or not 0 <= sigma < 10:
-        raise HyperparameterError(f"{where}.action_noise.sigma: must be a number in [0, 10), "
-                                  f"got {sigma!r}")
+    real(f"{where}.action_noise.sigma", spec.get("sigma", 0.1), low=0.0, high=10.0,
+         high_open=True, error=HyperparameterError)

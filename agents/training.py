@@ -48,6 +48,7 @@ from agents.envs import TRAINING_SPLITS, make_training_env
 from agents.hyperparams import ALGORITHMS, action_noise, load_hyperparams, read_run_record
 from agents.sections import model_kwargs, policy_name
 from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
+from aoass_env.validators import integer
 
 __all__ = ["TRAINING_SPLITS", "TrainRun", "make_training_env", "train_agent"]
 
@@ -87,8 +88,8 @@ class TrainRun:
             raise ValueError(f"algo={self.algo!r} must be one of {sorted(ALGORITHMS)}")
         for name in ("timesteps", "n_envs"):
             value = getattr(self, name)
-            if value is not None and (not isinstance(value, int) or value < 1):
-                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+            if value is not None:
+                setattr(self, name, integer(name, value, low=1))
         if self.resume is not None and not Path(self.resume).is_file():
             raise ValueError(f"resume={str(self.resume)!r}: no such model file")
 

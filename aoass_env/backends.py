@@ -35,6 +35,8 @@ from typing import Any, Protocol, TypeVar
 
 import torch
 
+from aoass_env.validators import integer, positive
+
 __all__ = ["BACKENDS", "Backend", "BackendError", "LocalBackend", "RayBackend",
            "add_backend_arguments", "deliver_interrupts", "init_ray", "make_backend",
            "require_ray", "set_threads"]
@@ -94,11 +96,8 @@ class LocalBackend:
     """
 
     def __init__(self, workers: int = 1, *, threads: int = 1) -> None:
-        for name, value in (("workers", workers), ("threads", threads)):
-            if value < 1:
-                raise BackendError(f"{name} must be at least 1, got {value}")
-        self.workers = workers
-        self.threads = threads
+        self.workers = integer("workers", workers, low=1, error=BackendError)
+        self.threads = integer("threads", threads, low=1, error=BackendError)
 
     @property
     def description(self) -> str:
@@ -187,11 +186,9 @@ class RayBackend:
 
     def __init__(self, address: str | None = None, *, num_cpus: int | None = None,
                  retries: int = RAY_RETRIES, task_cpus: float = 1.0, threads: int = 1) -> None:
-        if retries < 0:
-            raise BackendError(f"retries must be at least 0, got {retries}")
-        if task_cpus <= 0 or threads < 1:
-            raise BackendError(f"task_cpus must be positive and threads at least 1, got "
-                               f"task_cpus={task_cpus}, threads={threads}")
+        retries = integer("retries", retries, low=0, error=BackendError)
+        task_cpus = positive("task_cpus", task_cpus, "CPUs", error=BackendError)
+        threads = integer("threads", threads, low=1, error=BackendError)
         init_ray(address, num_cpus)
         self.retries = retries
         self.task_cpus = task_cpus

@@ -97,9 +97,9 @@ def test_interrupted_save_keeps_the_previous_checkpoint(tiny: Path, tmp_path: Pa
 
 @pytest.mark.parametrize("section, message", [
     ({"learing_rate": 0.001}, r"td3-lstm.learing_rate: unknown key"),
-    ({"learning_rate": -1.0}, r"td3-lstm.learning_rate: must be a number in \(0"),
-    ({"batch_size": 3.5}, r"td3-lstm.batch_size: must be an integer"),
-    ({"burn_in": -2}, r"td3-lstm.burn_in: must be an integer"),
+    ({"learning_rate": -1.0}, r"td3-lstm.learning_rate=-1\.0 must be a number in \(0\.0, 1\.0\]"),
+    ({"batch_size": 3.5}, r"td3-lstm.batch_size=3\.5 must be an integer in \[1, inf\)"),
+    ({"burn_in": -2}, r"td3-lstm.burn_in=-2 must be an integer in \[0, inf\)"),
     ({"action_noise": "NormalActionNoise(0, 0.1)"}, r"td3-lstm.action_noise: must be"),
     ({"action_noise": {"kind": "normal", "sigma": "big"}}, r"action_noise.sigma"),
     ({"train_freq": [4, "minute"]}, r"td3-lstm.train_freq"),
@@ -120,7 +120,7 @@ def test_cli_reports_bad_files_in_one_line(tmp_path: Path, capsys: pytest.Captur
     with pytest.raises(SystemExit) as exit_:
         train_script.main(["--config", str(path), "--no-progress"])
     assert exit_.value.code == 2
-    assert "td3-lstm.gamma: must be a number" in capsys.readouterr().err
+    assert "td3-lstm.gamma=2.0 must be a number in (0.0, 1.0]" in capsys.readouterr().err
     path.write_text("td3-lstm: [unclosed\n")
     with pytest.raises(HyperparameterError, match="not valid YAML"):
         load_hyperparams(path, "td3-lstm")
