@@ -21,8 +21,9 @@ import yaml
 
 from agents.envs import make_training_env
 from aoass_env.config import AOASSConfig, unknown_key_message
+from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.validators import integer, real
-from aoass_env.wrappers import FuzzyORCASafety, KalmanObstacleTracker, make_safe_env
+from aoass_env.wrappers import make_safe_env
 
 __all__ = ["EXTRA_KEYS", "HyperparameterError", "check_section", "model_kwargs", "policy_name",
            "read_yaml"]
@@ -173,12 +174,12 @@ def _check_stack(where: str, cls: type, policy: str, hp: Mapping[str, Any]) -> N
         {*_keywords(make_training_env, "config"), *_keywords(make_safe_env, "config", "kwargs",
                                                              "tracker", "safety"),
          *(f.name for f in dataclasses.fields(AOASSConfig))} - {"render_mode"}))
-    for key, wrapper in (("safety", FuzzyORCASafety), ("tracker", KalmanObstacleTracker)):
+    for key, config in (("safety", SafetyConfig), ("tracker", TrackerConfig)):
         sub = env_kwargs.get(key, {})
         if not isinstance(sub, Mapping):
             raise HyperparameterError(f"{where}.env.{key}: must be a mapping, got "
                                       f"{type(sub).__name__}")
-        _check_keys(f"{where}.env.{key}", sub, _keywords(wrapper.__init__, "env"))
+        _check_keys(f"{where}.env.{key}", sub, [f.name for f in dataclasses.fields(config)])
     policy_class = cls.policy_aliases[policy]
     policy_kwargs = hp.get("policy_kwargs", {})
     _check_keys(f"{where}.policy_kwargs", policy_kwargs, _keywords(

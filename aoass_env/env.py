@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any
+from typing import Any, NamedTuple
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from gymnasium.wrappers import TimeLimit
 
+from aoass_env.action import ActionType, ResidualAction
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.config import AOASSConfig, ConfigError, config_for_map, map_side
 from aoass_env.maps import MapError, ObstacleMap, load_map
@@ -27,24 +27,17 @@ from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
 from aoass_env.simulator import Simulator, check_waypoint_step
 from aoass_env.world import wrap_angle
 
-__all__ = ["AOASSEnv", "EpisodeTimeLimit", "checked_action", "make_env", "max_episode_steps"]
+__all__ = ["AOASSEnv", "AnchorState", "EpisodeTimeLimit", "make_env", "max_episode_steps"]
 
 
-def checked_action(action: Any) -> tuple[float, float]:
-    """(dv, dtheta) of an action [dv, dtheta] clipped to [-1, 1]; ValueError for a wrong shape,
-    non-numbers (strings, complex numbers, ...), NaN or infinite values."""
-    try:
-        if np.iscomplexobj(action) or np.asarray(action).dtype.kind in "SUMmV":
-            raise TypeError("not real numbers")
-        a = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"action must be 2 numbers [dv, dtheta], got {action!r}") from exc
-    if a.shape != (2,):
-        raise ValueError(f"action must have shape (2,) = [dv, dtheta], got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"action must be finite, got {a.tolist()} (NaN or infinite)")
-    dv, dtheta = np.clip(a, -1.0, 1.0).tolist()
-    return dv, dtheta
+class AnchorState(NamedTuple):
+    """The anchor at the current step, as a wrapper reads it (world frame)."""
+
+    position: np.ndarray        #: (2,) m
+    velocity: np.ndarray        #: (2,) m/s
+    heading: float              #: rad
+    speed: float                #: m/s
+    obstacle_gap: float         #: gap to the nearest static obstacle or wall (m)
 
 
 def max_episode_steps(config: AOASSConfig, obstacle_map: ObstacleMap | None = None) -> int:
@@ -156,7 +149,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
 
     def __init__(self, render_mode: str | None = None, config: AOASSConfig | None = None,
-                 **kwargs: Any) -> None:
+                 action_type: ActionType | None = None, **kwargs: Any) -> None:
         if config is not None and not isinstance(config, AOASSConfig):
             raise ConfigError(f"config must be an AOASSConfig, got {type(config).__name__}")
         self.config = (config.replace(**kwargs) if config is not None
@@ -171,7 +164,12 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
             self.config = config_for_map(self.config, self._map,
                                          explicit="field_size" in kwargs)
         self.max_episode_steps = max_episode_steps(self.config)
-        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        if action_type is not None and not isinstance(action_type, ActionType):
+            raise TypeError(f"action_type must be an aoass_env.action.ActionType, got "
+                            f"{type(action_type).__name__}")
+        #: what an action means (:mod:`aoass_env.action`): the config's residual by default
+        self.action_type = action_type or ResidualAction.from_config(self.config)
+        self.action_space = self.action_type.space
         self.observation_space = observation_space(self.config)
         self.obs_layout = observation_layout(self.config)
         self.sim: Simulator | None = None
@@ -217,11 +215,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
             raise RuntimeError("call reset() before step()")
         if self._log is not None:
             raise RuntimeError("the episode has ended; call reset() to start a new one")
-        dv, dtheta = checked_action(action)
         c = self.config
-        speed, heading = self._command
-        speed = min(max(speed + dv * c.action_speed_scale, 0.0), c.anchor_max_speed)
-        record = sim.step(speed, heading + dtheta * c.action_heading_scale)
+        record = sim.step(*self.action_type.command(action, self._command))
         self._steps += 1
         self._command = self._follower.command(sim.world.position, sim.world.heading, c.dt)
         if len(record.beacons):     # energies and estimates change only with beacons
@@ -284,14 +279,38 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                 "recoveries": self._follower.recoveries,
                 "skipped_waypoints": len(self._follower.skipped)}
 
+    # --- what wrappers read (world frame) -------------------------------------------------------
+    def _started(self, what: str) -> Simulator:
+        if self.sim is None:
+            raise RuntimeError(f"call reset() before reading {what}")
+        return self.sim
+
     @property
     def nominal_command(self) -> tuple[float, float]:
         """The follower's (speed [m/s], heading [rad]) for the next step: what the zero action
-        commands; action [dv, dtheta] commands (speed + dv x ``action_speed_scale``, heading +
-        dtheta x ``action_heading_scale``)."""
-        if self.sim is None:
-            raise RuntimeError("call reset() before reading nominal_command")
+        commands (``action_type`` maps an action onto it)."""
+        self._started("nominal_command")
         return self._command
+
+    @property
+    def anchor(self) -> AnchorState:
+        """The anchor's position, velocity, heading, speed and gap to static obstacles now."""
+        world = self._started("anchor").world
+        return AnchorState(world.position, world.velocity, world.heading, world.speed,
+                           world.nearest_obstacle_distance())
+
+    @property
+    def obstacle_map(self) -> ObstacleMap:
+        """The episode's static obstacle map (at its own size)."""
+        return self._started("obstacle_map").map
+
+    @property
+    def detections(self) -> np.ndarray:
+        """(D, 4) the moving obstacles the last observation detected, world frame: x, y (m),
+        vx, vy (m/s), with the sensor's noise, nearest first; every one in sensing range (the
+        observation holds only the nearest ``obs_moving_obstacles``, normalised and clipped)."""
+        self._started("detections")
+        return self._observe.detections
 
     @property
     def follower(self) -> WaypointFollower:

@@ -97,6 +97,9 @@ class Observer:
         self._v_scale = velocity_scale(config)
         self._upcoming_index = -1
         self._upcoming = self._free_xy[:0]
+        #: (D, 4) the moving obstacles detected by the last observation, world frame: x, y (m),
+        #: vx, vy (m/s), noisy, nearest first (all of them, not only the observation's slots)
+        self.detections = np.zeros((0, 4))
 
     def upcoming(self, index: int) -> np.ndarray:
         """(K, 2) the next K free waypoints from spiral index ``index`` on (the last one
@@ -111,9 +114,14 @@ class Observer:
         return self._upcoming
 
     def moving(self, world: World) -> np.ndarray:
-        """(M, 5) slots of the nearest moving obstacles in sensing range, noisy, nearest first."""
+        """(M, 5) slots of the nearest moving obstacles in sensing range, noisy, nearest first.
+
+        Also records every detection of this observation, in the world frame and unclipped, in
+        :attr:`detections`: what the Kalman tracker reads.
+        """
         c = self.config
         slots = np.zeros((c.obs_moving_obstacles, len(MOVING_FIELDS)))
+        self.detections = np.zeros((0, 4))
         n = c.n_moving_obstacles
         if n == 0 or c.obs_moving_obstacles == 0:
             return slots
@@ -125,6 +133,7 @@ class Observer:
         meas_pos = rel[seen] + c.obs_position_noise * noise[seen, :2]
         meas_vel = world.moving_velocities[seen] + c.obs_velocity_noise * noise[seen, 2:]
         order = np.argsort(np.hypot(meas_pos[:, 0], meas_pos[:, 1]), kind="stable")
+        self.detections = np.hstack([world.position + meas_pos[order], meas_vel[order]])
         order = order[:c.obs_moving_obstacles]
         m = len(order)
         slots[:m, :2] = meas_pos[order] / c.sensing_range

@@ -29,10 +29,12 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from aoass_env.action import ResidualAction
 from aoass_env.config import AOASSConfig, ConfigError
-from aoass_env.env import AOASSEnv, checked_action, make_env
+from aoass_env.env import AOASSEnv, make_env
 from aoass_env.maps import ObstacleMap, load_map
 from aoass_env.observation import MOVING_FIELDS, velocity_scale
+from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.safety.fuzzy import FuzzyController
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.orca import StaticObstacles, orca_lines, solve_velocity
@@ -52,13 +54,6 @@ def _aoass(env: gym.Env, wrapper: str) -> AOASSEnv:
     if not isinstance(base, AOASSEnv):
         raise TypeError(f"{wrapper} wraps an AOASS-v0 environment, got {type(base).__name__}")
     return base
-
-
-def _positive(name: str, value: float, unit: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be a positive number ({unit}), got {value!r}")
-    return float(value)
 
 
 class MapSampler(gym.Wrapper):
@@ -102,7 +97,9 @@ class MapSampler(gym.Wrapper):
 class KalmanObstacleTracker(gym.ObservationWrapper):
     """Kalman tracks of the moving obstacles in the observation.
 
-    The wrapped observation is AOASS-v0's with its ``moving_obstacles`` block (M slots of
+    Each step the tracker takes AOASS-v0's world-frame detections (``env.unwrapped.detections``:
+    every moving obstacle in sensing range, with the sensor's noise, unclipped) and updates its
+    tracks. The wrapped observation is AOASS-v0's with its ``moving_obstacles`` block (M slots of
     dx, dy, vx, vy, present) holding the M confirmed tracks nearest the anchor (filtered
     position relative to the anchor / sensing range, filtered velocity / velocity scale) instead
     of the raw noisy detections, and a new block ``moving_predicted`` appended at the end: each
@@ -112,25 +109,22 @@ class KalmanObstacleTracker(gym.ObservationWrapper):
 
     Args:
         env: an AOASS-v0 environment (possibly wrapped).
-        horizon: prediction horizon (s).
-        process_noise: std of the white acceleration of the constant-velocity model (m/s^2).
-        gate: probability of the chi-square gate for associating a detection with a track.
-        birth_hits: detections that confirm a new track.
-        max_misses: consecutive misses that delete a track.
+        config: the tracker's :class:`~aoass_env.safety.config.TrackerConfig`, or a mapping of
+            its keywords (default: its defaults).
     """
 
-    def __init__(self, env: gym.Env, *, horizon: float = 2.0, process_noise: float = 0.5,
-                 gate: float = 0.99, birth_hits: int = 2, max_misses: int = 3) -> None:
+    def __init__(self, env: gym.Env, config: TrackerConfig | dict[str, Any] | None = None
+                 ) -> None:
         super().__init__(env)
         self._base = base = _aoass(env, "KalmanObstacleTracker")
+        self.config = config = TrackerConfig.coerce(config, "tracker")
         c = base.config
-        self.horizon = _positive("horizon", horizon, "s")
+        self.horizon = config.horizon
         self.tracker = MultiTargetTracker(
             c.dt, position_noise=max(c.obs_position_noise, NOISE_FLOOR),
-            velocity_noise=max(c.obs_velocity_noise, NOISE_FLOOR), process_noise=process_noise,
-            gate=gate, birth_hits=birth_hits, max_misses=max_misses)
-        #: (n, 4) the detections of the last observation, world frame: x, y (m), vx, vy (m/s)
-        self.last_detections = np.zeros((0, 4))
+            velocity_noise=max(c.obs_velocity_noise, NOISE_FLOOR),
+            process_noise=config.process_noise, gate=config.gate,
+            birth_hits=config.birth_hits, max_misses=config.max_misses)
         layout = dict(base.obs_layout)
         self._moving = layout["moving_obstacles"]
         self._slots = c.obs_moving_obstacles
@@ -150,6 +144,11 @@ class KalmanObstacleTracker(gym.ObservationWrapper):
         return super().reset(seed=seed, options=options)
 
     @property
+    def last_detections(self) -> np.ndarray:
+        """(n, 4) the detections of the last observation, world frame: x, y (m), vx, vy (m/s)."""
+        return self._base.detections
+
+    @property
     def tracked_obstacles(self) -> np.ndarray:
         """(m, 5) confirmed tracks in the world frame: x, y (m), vx, vy (m/s), radius (m)."""
         states = self.tracker.states()
@@ -158,13 +157,8 @@ class KalmanObstacleTracker(gym.ObservationWrapper):
 
     def observation(self, observation: np.ndarray) -> np.ndarray:
         c = self._base.config
-        anchor = self._base.sim.world.position
-        slots = observation[self._moving].reshape(self._slots, len(MOVING_FIELDS))
-        seen = slots[:, 4] > 0.5
-        detections = np.hstack([anchor + slots[seen, :2] * c.sensing_range,
-                                slots[seen, 2:4] * self._v_scale])
-        self.last_detections = detections
-        self.tracker.step(detections)
+        anchor = self._base.anchor.position
+        self.tracker.step(self._base.detections)
 
         states = self.tracker.states()
         predicted = self.tracker.predict_positions(self.horizon)
@@ -186,10 +180,9 @@ class KalmanObstacleTracker(gym.ObservationWrapper):
 class FuzzyORCASafety(gym.ActionWrapper):
     """Fuzzy-logic + ORCA velocity filter between the agent and AOASS-v0 (Eq. 7-10).
 
-    The agent's action a = [dv, dtheta] in [-1, 1]^2 is a residual on the spiral follower, as in
-    AOASS-v0: desired speed v_des = follower speed + dv x ``speed_scale`` (clipped to
-    [0, ``anchor_max_speed``]) and desired heading = follower heading + dtheta x
-    ``heading_scale``. Then:
+    The agent's action means what AOASS-v0's config says (:class:`~aoass_env.action.
+    ResidualAction` of its ``action_speed_scale`` and ``action_heading_scale``): a residual on
+    the spiral follower giving the desired speed and heading. Then:
 
     1. Eq. 7: the fuzzy controller maps the gap to the nearest obstacle d (m) and the heading
        error (desired - current heading) to a turn-rate fraction and a speed fraction; the
@@ -198,7 +191,7 @@ class FuzzyORCASafety(gym.ActionWrapper):
     2. Eq. 8-10: ORCA returns the velocity v* closest to the preferred one that is collision-free
        for ``time_horizon_obst`` (s) against the static obstacles near the anchor (the
        boundary of free space of the episode's map, field border included) and for
-       ``time_horizon`` (s) against the Kalman-tracked moving obstacles (which do not
+       ``time_horizon`` (s) against the tracker's moving obstacles (which do not
        reciprocate: the anchor takes full responsibility). The anchor's radius is inflated by
        ``margin`` (m), the moving obstacles' by ``moving_margin`` (m).
     3. The anchor is commanded v*'s heading and the largest speed up to |v*| that stays safe on
@@ -208,76 +201,53 @@ class FuzzyORCASafety(gym.ActionWrapper):
        static edge (the braking envelope: ORCA assumes an instant change of velocity, the
        anchor's lags; :mod:`aoass_env.safety.unicycle`).
 
+    The command is sent to AOASS-v0 through its own action type, which must reach every speed
+    and heading (:meth:`ResidualAction.full_range <aoass_env.action.ResidualAction.full_range>`;
+    :func:`make_safe_env` builds it so).
+
     ``info["safety"]`` holds ``intervention`` = |v* - v_des| (m/s, the agent's desired
     velocity), ``orca_correction`` = |v* - v_pref| (m/s), the fuzzy outputs, the executed
     speed and heading, and the number of ORCA constraints (``constraints``, ``static``) and of
     those active at v* (``active``, ``active_static``).
 
-    The wrapped AOASS-v0 must let its action reach every speed and heading:
-    ``action_speed_scale >= anchor_max_speed`` and ``action_heading_scale = pi``
-    (:func:`make_safe_env` builds it so), and a :class:`KalmanObstacleTracker` must lie between
-    this wrapper and AOASS-v0.
-
     Args:
-        env: a :class:`KalmanObstacleTracker`-wrapped AOASS-v0.
-        speed_scale: the agent's dv = +-1 in m/s (AOASS-v0's default, 1 m/s).
-        heading_scale: the agent's dtheta = +-1 in rad (AOASS-v0's default, pi / 2).
-        time_horizon: ORCA horizon against moving obstacles (s).
-        time_horizon_obst: ORCA horizon against static obstacles (s); at least
-            ``anchor_max_speed / anchor_max_accel`` lets the anchor brake in time.
-        margin: safety margin added to the anchor's radius (m).
-        moving_margin: further margin added to the radius of the moving obstacles (m): they
-            do not avoid the anchor and turn at random, so it keeps clear of them.
+        env: an AOASS-v0 environment wrapped by ``tracker`` (possibly among other wrappers).
+        tracker: the :class:`KalmanObstacleTracker` whose tracks are the moving obstacles ORCA
+            avoids.
+        config: the filter's :class:`~aoass_env.safety.config.SafetyConfig`, or a mapping of
+            its keywords (default: its defaults).
         controller: the fuzzy controller (default: :meth:`FuzzyController.default`).
     """
 
-    def __init__(self, env: gym.Env, *, speed_scale: float = 1.0,
-                 heading_scale: float = math.pi / 2, time_horizon: float = 4.0,
-                 time_horizon_obst: float = 2.5, margin: float = 0.2,
-                 moving_margin: float = 1.0,
+    def __init__(self, env: gym.Env, tracker: KalmanObstacleTracker,
+                 config: SafetyConfig | dict[str, Any] | None = None, *,
                  controller: FuzzyController | None = None) -> None:
         super().__init__(env)
         self._base = base = _aoass(env, "FuzzyORCASafety")
-        c = base.config
-        if c.action_speed_scale < c.anchor_max_speed or \
-                not math.isclose(c.action_heading_scale, math.pi):
+        if not isinstance(tracker, KalmanObstacleTracker) or tracker.unwrapped is not base:
+            raise TypeError("tracker must be the KalmanObstacleTracker of the same AOASS-v0 "
+                            "environment; build the stack with aoass_env.make_safe_env")
+        inner = base.action_type
+        if not (isinstance(inner, ResidualAction) and inner.reaches_every_command):
             raise ValueError(
-                f"FuzzyORCASafety needs an AOASS-v0 whose action reaches every speed and "
-                f"heading: action_speed_scale >= anchor_max_speed ({c.anchor_max_speed}) and "
-                f"action_heading_scale = pi, got {c.action_speed_scale} and "
-                f"{c.action_heading_scale}; build the stack with aoass_env.make_safe_env")
-        self._tracker = self._find_tracker(env)
-        self.speed_scale = _positive("speed_scale", speed_scale, "m/s")
-        self.heading_scale = _positive("heading_scale", heading_scale, "rad")
-        self.time_horizon = _positive("time_horizon", time_horizon, "s")
-        self.time_horizon_obst = _positive("time_horizon_obst", time_horizon_obst, "s")
-        for name, value in (("margin", margin), ("moving_margin", moving_margin)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not 0.0 <= value < math.inf:
-                raise ValueError(f"{name} must be a finite number >= 0 (m), got {value!r}")
-        self.margin, self.moving_margin = float(margin), float(moving_margin)
+                "FuzzyORCASafety needs an AOASS-v0 whose action reaches every speed and heading "
+                "(action_type=ResidualAction.full_range(config)); build the stack with "
+                "aoass_env.make_safe_env")
+        self._tracker = tracker
+        self.config = config = SafetyConfig.coerce(config, "safety")
+        #: what the agent's action means: the residual of the environment's config
+        self.agent_action = ResidualAction.from_config(base.config)
         if controller is not None and not isinstance(controller, FuzzyController):
             raise TypeError(f"controller must be a FuzzyController, got "
                             f"{type(controller).__name__}")
         self.controller = controller if controller is not None else FuzzyController.default()
-        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self.action_space = self.agent_action.space
         self._static: StaticObstacles | None = None
         self._static_map: Any = None
 
-    @staticmethod
-    def _find_tracker(env: gym.Env) -> KalmanObstacleTracker:
-        inner: Any = env
-        while isinstance(inner, gym.Wrapper):
-            if isinstance(inner, KalmanObstacleTracker):
-                return inner
-            inner = inner.env
-        raise ValueError("FuzzyORCASafety needs a KalmanObstacleTracker between it and AOASS-v0 "
-                         "(its tracks are the moving obstacles ORCA avoids); build the stack "
-                         "with aoass_env.make_safe_env")
-
     def _static_obstacles(self) -> StaticObstacles:
         """The boundary of free space of the episode's map (built once per map)."""
-        episode_map = self._base.sim.map
+        episode_map = self._base.obstacle_map
         if episode_map is not self._static_map:
             self._static = StaticObstacles.from_loops(episode_map.free_space_loops)
             self._static_map = episode_map
@@ -288,7 +258,7 @@ class FuzzyORCASafety(gym.ActionWrapper):
         speed, as speed caps by heading (:class:`~aoass_env.safety.unicycle.BrakingEnvelope`;
         the anchor's radius is inflated by ``margin``, as for ORCA)."""
         c = self._base.config
-        radius = c.anchor_radius + self.margin
+        radius = c.anchor_radius + self.config.margin
         top = c.anchor_max_speed
         reach = top * c.dt + top * top / (2.0 * c.anchor_max_accel) + radius
         static = self._static_obstacles()
@@ -300,7 +270,7 @@ class FuzzyORCASafety(gym.ActionWrapper):
     def _moving_obstacles(self) -> np.ndarray:
         """Kalman-tracked moving obstacles (x, y, vx, vy, radius + moving_margin)."""
         tracks = self._tracker.tracked_obstacles
-        tracks[:, 4] += self.moving_margin
+        tracks[:, 4] += self.config.moving_margin
         return tracks
 
     def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
@@ -313,36 +283,30 @@ class FuzzyORCASafety(gym.ActionWrapper):
         return self._filter(action)[0]
 
     def _filter(self, action: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
-        base = self._base
-        if base.sim is None:
-            raise RuntimeError("call reset() before step()")
-        c, world = base.config, base.sim.world
-        dv, dtheta = checked_action(action)
-        speed_nom, heading_nom = base.nominal_command
-        speed_des = min(max(speed_nom + dv * self.speed_scale, 0.0), c.anchor_max_speed)
-        heading_des = heading_nom + dtheta * self.heading_scale
+        base, cfg = self._base, self.config
+        c = base.config
+        nominal = base.nominal_command          # raises before the first reset
+        anchor = base.anchor
+        speed_des, heading_des = self.agent_action.command(action, nominal)
         v_des = speed_des * np.array([math.cos(heading_des), math.sin(heading_des)])
 
-        heading = world.heading
-        turn, slow = self.controller(world.nearest_obstacle_distance(),
-                                     wrap_angle(heading_des - heading))
+        heading = anchor.heading
+        turn, slow = self.controller(anchor.obstacle_gap, wrap_angle(heading_des - heading))
         max_turn = c.anchor_max_turn_rate * c.dt
         heading_pref = heading + float(turn) * max_turn
         speed_pref = float(slow) * speed_des
         v_pref = speed_pref * np.array([math.cos(heading_pref), math.sin(heading_pref)])
 
-        lines = orca_lines(world.position, world.velocity, c.anchor_radius + self.margin,
+        lines = orca_lines(anchor.position, anchor.velocity, c.anchor_radius + cfg.margin,
                            c.anchor_max_speed, static_obstacles=self._static_obstacles(),
                            moving_obstacles=self._moving_obstacles(),
-                           time_horizon=self.time_horizon,
-                           time_horizon_obst=self.time_horizon_obst, time_step=c.dt)
+                           time_horizon=cfg.time_horizon,
+                           time_horizon_obst=cfg.time_horizon_obst, time_step=c.dt)
         v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
         speed_cmd, heading_cmd = unicycle_command(
-            v_star, heading, world.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
-            lines.direction, heading_pref, self._braking_envelope(world.position))
-        executed = np.clip([(speed_cmd - speed_nom) / c.action_speed_scale,
-                            wrap_angle(heading_cmd - heading_nom) / c.action_heading_scale],
-                           -1.0, 1.0).astype(np.float32)
+            v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
+            lines.direction, heading_pref, self._braking_envelope(anchor.position))
+        executed = base.action_type.action(speed_cmd, heading_cmd, nominal)
 
         # constraints active at v*: on the line (within 1e-6 m/s) or violated
         slack = (lines.direction[:, 0] * (lines.point[:, 1] - v_star[1])
@@ -385,32 +349,31 @@ class ActionRepeat(gym.Wrapper):
 
 
 def make_safe_env(*, config: AOASSConfig | None = None, render_mode: str | None = None,
-                  tracker: dict[str, Any] | None = None, safety: dict[str, Any] | None = None,
+                  tracker: TrackerConfig | dict[str, Any] | None = None,
+                  safety: SafetyConfig | dict[str, Any] | None = None,
                   action_repeat: int = 1, **kwargs: Any) -> gym.Env:
     """The full AOASS stack: AOASS-v0 (in its ``TimeLimit``) -> :class:`KalmanObstacleTracker`
     -> :class:`FuzzyORCASafety` (-> :class:`ActionRepeat` when ``action_repeat`` > 1).
 
     Args:
         config, kwargs: the environment's configuration, as for ``gymnasium.make("AOASS-v0")``;
-            ``action_speed_scale`` and ``action_heading_scale`` are set by the stack (the
-            agent's scales are ``safety={"speed_scale": ..., "heading_scale": ...}``).
+            its ``action_speed_scale`` and ``action_heading_scale`` are what the agent's action
+            means. The inner AOASS-v0 takes the filter's commands through a full-range
+            residual (:meth:`~aoass_env.action.ResidualAction.full_range`).
         render_mode: as for AOASS-v0.
-        tracker: keywords of :class:`KalmanObstacleTracker`.
-        safety: keywords of :class:`FuzzyORCASafety`.
+        tracker: the tracker's :class:`~aoass_env.safety.config.TrackerConfig` (or keywords).
+        safety: the filter's :class:`~aoass_env.safety.config.SafetyConfig` (or keywords).
         action_repeat: control periods each agent action is held (1: every period).
     """
-    for key in ("action_speed_scale", "action_heading_scale"):
-        if key in kwargs:
-            raise ConfigError(f"{key} is set by the safety stack (the inner environment must "
-                              f"reach every speed and heading); set the agent's scale with "
-                              f"safety={{'speed_scale': ..., 'heading_scale': ...}}")
     if config is not None and not isinstance(config, AOASSConfig):
         raise ConfigError(f"config must be an AOASSConfig, got {type(config).__name__}")
     cfg = config.replace(**kwargs) if config is not None else AOASSConfig.from_kwargs(**kwargs)
-    cfg = cfg.replace(action_speed_scale=cfg.anchor_max_speed, action_heading_scale=math.pi)
-    env = make_env(config=cfg, render_mode=render_mode)
-    env = KalmanObstacleTracker(env, **(tracker or {}))
-    env = FuzzyORCASafety(env, **(safety or {}))
+    tracker_config = TrackerConfig.coerce(tracker, "tracker")
+    safety_config = SafetyConfig.coerce(safety, "safety")
+    env = make_env(config=cfg, render_mode=render_mode,
+                   action_type=ResidualAction.full_range(cfg))
+    tracked = KalmanObstacleTracker(env, tracker_config)
+    env = FuzzyORCASafety(tracked, tracked, safety_config)
     if type(action_repeat) is int and action_repeat == 1:
         return env
     return ActionRepeat(env, action_repeat)   # which checks action_repeat

@@ -10,7 +10,6 @@ stands beside evaluation and never imports it.
 from __future__ import annotations
 
 import ast
-from collections import defaultdict
 from pathlib import Path
 
 import pytest
@@ -28,7 +27,7 @@ LAYERS = {
     "aoass_env.network": 2, "aoass_env.beacon_log": 2,
     "aoass_env.planning": 3,
     "aoass_env.simulator": 4,
-    "aoass_env.env": 5, "aoass_env.observation": 5, "aoass_env.reward": 5,
+    "aoass_env.env": 5, "aoass_env.action": 5, "aoass_env.observation": 5, "aoass_env.reward": 5,
     "aoass_env.render": 5, "aoass_env.wrappers": 5, "aoass_env.registration": 5,
     "aoass_env.localization": 6,
     "aoass_env.evaluation": 7,

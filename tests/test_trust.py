@@ -23,9 +23,10 @@ from agents.checkpoints import PolicyFileError, load_replay_buffer
 from agents.hyperparams import HyperparameterError, load_hyperparams
 from agents.recurrent_td3 import RecurrentTD3
 from agents.seeds import parse_seeds
+from aoass_env.action import checked_action
 from aoass_env.beacon_log import BeaconLog, BeaconLogError
 from aoass_env.config import AOASSConfig, ConfigError
-from aoass_env.env import AOASSEnv, checked_action
+from aoass_env.env import AOASSEnv
 from aoass_env.evaluation import cli
 from aoass_env.evaluation.methods import DEFAULT_POLICY, load_policy
 from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, CheckpointError, load_checkpoint

@@ -13,8 +13,11 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import aoass_env  # noqa: F401  (registers the environments)
 from aoass_env import AOASSEnv, ConfigError
+from aoass_env.action import ResidualAction
+from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.registration import SAFE_ENV_ID
+from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.wrappers import (
     ActionRepeat,
     FuzzyORCASafety,
@@ -82,7 +85,7 @@ def test_tracker_layout_appends_predictions_and_stays_in_bounds():
 def test_noiseless_tracks_match_the_true_obstacles():
     env = KalmanObstacleTracker(AOASSEnv(**{**SMALL, "n_moving_obstacles": 3},
                                          obs_position_noise=0.0, obs_velocity_noise=0.0,
-                                         sensing_range=200.0), horizon=2.0)
+                                         sensing_range=200.0), TrackerConfig(horizon=2.0))
     env.reset(seed=2)
     for _ in range(5):
         env.step(np.zeros(2, np.float32))
@@ -217,20 +220,26 @@ def test_map_sampler_draws_reproducibly_and_cycles_in_order():
 
 
 # --- bad input ------------------------------------------------------------------------------
-def test_safety_filter_needs_full_range_actions_and_a_tracker():
-    with pytest.raises(ValueError, match="action_heading_scale = pi"):
-        FuzzyORCASafety(KalmanObstacleTracker(AOASSEnv(**SMALL)))
-    full = AOASSEnv(**SMALL, action_speed_scale=2.0, action_heading_scale=math.pi)
-    with pytest.raises(ValueError, match="needs a KalmanObstacleTracker"):
-        FuzzyORCASafety(full)
-    with pytest.raises(ValueError, match="time_horizon must be a positive"):
-        FuzzyORCASafety(KalmanObstacleTracker(full), time_horizon=-1.0)
-    with pytest.raises(ValueError, match="moving_margin"):
-        FuzzyORCASafety(KalmanObstacleTracker(full), moving_margin=float("nan"))
+def test_safety_filter_needs_full_range_actions_and_its_tracker():
+    tracked = KalmanObstacleTracker(AOASSEnv(**SMALL))
+    with pytest.raises(ValueError, match="reaches every speed and heading"):
+        FuzzyORCASafety(tracked, tracked)
+    full = KalmanObstacleTracker(AOASSEnv(**SMALL, action_type=ResidualAction.full_range(
+        AOASSConfig(**SMALL))))
+    with pytest.raises(TypeError, match="tracker must be the KalmanObstacleTracker"):
+        FuzzyORCASafety(full, None)
+    with pytest.raises(TypeError, match="tracker must be the KalmanObstacleTracker"):
+        FuzzyORCASafety(full, tracked)             # another environment's tracker
+    with pytest.raises(ConfigError, match=r"time_horizon=-1.0 must be a number in \(0.0"):
+        FuzzyORCASafety(full, full, SafetyConfig(time_horizon=-1.0))
+    with pytest.raises(ConfigError, match="moving_margin"):
+        FuzzyORCASafety(full, full, {"moving_margin": float("nan")})
+    with pytest.raises(ConfigError, match="unknown safety keyword 'heading_scale'"):
+        make_safe_env(safety={"heading_scale": 0.3})
+    with pytest.raises(ConfigError, match="tracker must be a TrackerConfig"):
+        make_safe_env(tracker=[2.0])
     with pytest.raises(TypeError, match="wraps an AOASS-v0"):
         KalmanObstacleTracker(gym.make("Pendulum-v1"))
-    with pytest.raises(ConfigError, match="action_heading_scale is set by the safety stack"):
-        make_safe_env(action_heading_scale=1.0)
     with pytest.raises(ValueError, match="non-empty list"):
         MapSampler(AOASSEnv(**SMALL), [])
     env = make_safe_env(**SMALL)

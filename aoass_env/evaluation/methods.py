@@ -45,8 +45,11 @@ DEFAULT_POLICY = Path(__file__).resolve().parents[2] / "checkpoints" / "aoass_td
 POLICY_ALGO = "td3-lstm"
 #: Training-environment keywords that set up the stack the policy acts in (reused when it is
 #: evaluated): decisions held for ``action_repeat`` control periods, the tracker's and the
-#: safety filter's keywords.
-POLICY_STACK_KEYS = ("action_repeat", "tracker", "safety")
+#: safety filter's configs, and what its actions mean (the residual's scales).
+POLICY_STACK_KEYS = ("action_repeat", "tracker", "safety", "action_speed_scale",
+                     "action_heading_scale")
+#: The keys of :data:`POLICY_STACK_KEYS` that are environment config fields.
+_ACTION_KEYS = ("action_speed_scale", "action_heading_scale")
 #: The command that produces :data:`DEFAULT_POLICY`.
 POLICY_COMMAND = "python3 train.py --algo td3-lstm --out checkpoints/aoass_td3_lstm"
 
@@ -137,6 +140,7 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
     zero action, until the episode ends or ``options.max_steps`` control periods."""
     stack = policy_stack(options.policy, options.policy_run)
     repeat = int(stack.get("action_repeat", 1)) if learned else 1
+    config = config.replace(**{k: stack[k] for k in _ACTION_KEYS if k in stack})
     env = make_safe_env(config=config, tracker=stack.get("tracker"),
                         safety=stack.get("safety"), action_repeat=repeat)
     policy = load_policy(options.policy, options.algo, options.policy_run) if learned else None

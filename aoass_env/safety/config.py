@@ -1,0 +1,62 @@
+"""Validated configurations of the safety stack's wrappers, like :class:`AOASSConfig`: each
+field's meaning, unit and valid range are metadata, checked on construction; unknown keywords get
+a did-you-mean error; docs/safety.md's tables are :meth:`~ValidatedConfig.markdown` (a test
+keeps them true).
+
+* :class:`TrackerConfig`: the Kalman tracker of the moving obstacles
+  (:class:`~aoass_env.wrappers.KalmanObstacleTracker`).
+* :class:`SafetyConfig`: the fuzzy + ORCA velocity filter
+  (:class:`~aoass_env.wrappers.FuzzyORCASafety`).
+
+``gymnasium.make("AOASS-Safe-v0", tracker=..., safety=...)``, :func:`aoass_env.make_safe_env`
+and the ``env`` section of configs/aoass.yml take either the dataclass or a mapping of its
+keywords. What the agent's action means is the environment's (``action_speed_scale``,
+``action_heading_scale``), not the filter's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+from aoass_env.validators import ValidatedConfig, param
+
+__all__ = ["SafetyConfig", "TrackerConfig"]
+
+
+@dataclass(frozen=True)
+class TrackerConfig(ValidatedConfig):
+    """The Kalman tracker of the moving obstacles (docs/safety.md)."""
+
+    KEYWORD: ClassVar[str] = "tracker keyword"
+
+    horizon: float = param(2.0, "how far ahead the tracks' predicted positions are appended to "
+                           "the observation", unit="s", low=0.0, high=60.0, low_open=True)
+    process_noise: float = param(
+        0.5, "std of the white acceleration of the constant-velocity model", unit="m/s^2",
+        low=0.0, high=100.0, low_open=True)
+    gate: float = param(0.99, "probability of the chi-square gate that associates a detection "
+                        "with a track", low=0.0, high=1.0, low_open=True, high_open=True)
+    birth_hits: int = param(2, "detections that confirm a new track", low=1, high=100,
+                            kind="int")
+    max_misses: int = param(3, "consecutive misses that delete a track", low=1, high=100,
+                            kind="int")
+
+
+@dataclass(frozen=True)
+class SafetyConfig(ValidatedConfig):
+    """The fuzzy + ORCA velocity filter (docs/safety.md)."""
+
+    KEYWORD: ClassVar[str] = "safety keyword"
+
+    time_horizon: float = param(4.0, "ORCA horizon against the moving obstacles", unit="s",
+                                low=0.0, high=60.0, low_open=True)
+    time_horizon_obst: float = param(
+        2.5, "ORCA horizon against the static obstacles (at least anchor_max_speed / "
+        "anchor_max_accel lets the anchor brake in time)", unit="s", low=0.0, high=60.0,
+        low_open=True)
+    margin: float = param(0.2, "safety margin added to the anchor's radius (ORCA and the "
+                          "braking envelope)", unit="m", low=0.0, high=5.0)
+    moving_margin: float = param(
+        1.0, "further margin added to the moving obstacles' radius (they do not avoid the "
+        "anchor and turn at random)", unit="m", low=0.0, high=10.0)

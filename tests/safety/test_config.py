@@ -1,0 +1,47 @@
+"""The safety stack's validated configs: ranges, did-you-mean, docs tables kept true."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aoass_env.safety.config import SafetyConfig, TrackerConfig
+from aoass_env.validators import ConfigError
+
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "safety.md"
+
+
+@pytest.mark.parametrize("cls", [TrackerConfig, SafetyConfig])
+def test_docs_tables_match_the_dataclasses(cls):
+    assert cls.markdown() in DOCS.read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("cls, kwargs, match", [
+    (TrackerConfig, {"horizon": 0.0}, r"horizon=0.0 must be a number in \(0.0, 60.0\] s"),
+    (TrackerConfig, {"gate": 1.0}, "gate=1.0"),
+    (TrackerConfig, {"birth_hits": 1.5}, "birth_hits=1.5 must be an integer"),
+    (TrackerConfig, {"max_misses": True}, "max_misses=True"),
+    (SafetyConfig, {"margin": -0.1}, "margin=-0.1"),
+    (SafetyConfig, {"time_horizon": "4"}, "time_horizon='4'"),
+    (SafetyConfig, {"moving_margin": float("inf")}, "moving_margin=inf"),
+])
+def test_bad_values_name_the_field_and_range(cls, kwargs, match):
+    with pytest.raises(ConfigError, match=match):
+        cls(**kwargs)
+
+
+def test_unknown_keywords_get_did_you_mean():
+    with pytest.raises(ConfigError, match="unknown safety keyword 'margn'; did you mean 'margin'"):
+        SafetyConfig.from_kwargs(margn=0.3)
+    with pytest.raises(ConfigError, match="unknown tracker keyword 'horizn'"):
+        TrackerConfig.coerce({"horizn": 1.0}, "tracker")
+
+
+def test_numpy_scalars_and_mappings_are_accepted():
+    assert TrackerConfig(birth_hits=np.int64(3)).birth_hits == 3
+    assert SafetyConfig.coerce({"margin": np.float32(0.25)}, "safety").margin == pytest.approx(0.25)
+    assert SafetyConfig.coerce(None, "safety") == SafetyConfig()
+    with pytest.raises(ConfigError, match="safety must be a SafetyConfig"):
+        SafetyConfig.coerce(0.3, "safety")

@@ -1,0 +1,90 @@
+"""Action types: one meaning of an action, shared by AOASS-v0 and the safety filter."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aoass_env.action import ResidualAction, checked_action
+from aoass_env.config import AOASSConfig
+from aoass_env.env import AOASSEnv
+from aoass_env.wrappers import make_safe_env
+
+SMALL = dict(field_size=40.0, n_nodes=30, obstacle_density=0.1, n_moving_obstacles=1)
+
+
+def test_the_residual_adds_scaled_changes_to_the_nominal_command():
+    act = ResidualAction(speed_scale=1.0, heading_scale=0.25, max_speed=2.0)
+    assert act.command([0.5, -1.0], (1.0, 0.3)) == pytest.approx((1.5, 0.05))
+    assert act.command([1.0, 0.0], (1.8, 0.0))[0] == 2.0       # clipped to max_speed
+    assert act.command([-1.0, 0.0], (0.4, 0.0))[0] == 0.0      # and to 0
+    assert act.command([7.0, -7.0], (1.0, 0.0)) == act.command([1.0, -1.0], (1.0, 0.0))
+    assert act.command(np.zeros(2), (0.7, 2.0)) == (0.7, 2.0)  # the zero action follows
+    assert act.space.shape == (2,) and act.space.dtype == np.float32
+
+
+def test_from_config_and_full_range():
+    c = AOASSConfig(action_speed_scale=0.5, action_heading_scale=0.2)
+    assert ResidualAction.from_config(c) == ResidualAction(0.5, 0.2, c.anchor_max_speed)
+    assert not ResidualAction.from_config(c).reaches_every_command
+    full = ResidualAction.full_range(c)
+    assert full == ResidualAction(c.anchor_max_speed, math.pi, c.anchor_max_speed)
+    assert full.reaches_every_command
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0.0, 2.0), st.floats(-10.0, 10.0), st.floats(0.0, 2.0), st.floats(-4.0, 4.0))
+def test_a_full_range_residual_reaches_every_command(speed, heading, nominal_speed,
+                                                     nominal_heading):
+    full = ResidualAction.full_range(AOASSConfig())
+    nominal = (nominal_speed, nominal_heading)
+    got_speed, got_heading = full.command(full.action(speed, heading, nominal), nominal)
+    assert got_speed == pytest.approx(speed, abs=1e-6)
+    assert math.remainder(got_heading - heading, 2 * math.pi) == pytest.approx(0.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("bad", [[1.0], [0.0, float("nan")], "ab", [1 + 2j, 0.0], None])
+def test_malformed_actions_name_the_action(bad):
+    with pytest.raises(ValueError, match="action"):
+        checked_action(bad)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(speed_scale=0.0, heading_scale=1.0, max_speed=2.0), "speed_scale"),
+    (dict(speed_scale=1.0, heading_scale=4.0, max_speed=2.0), "heading_scale"),
+    (dict(speed_scale=1.0, heading_scale=1.0, max_speed=True), "max_speed"),
+])
+def test_bad_scales_name_the_parameter(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ResidualAction(**kwargs)
+
+
+def test_the_env_decodes_with_its_action_type():
+    env = AOASSEnv(**SMALL, action_heading_scale=0.3)
+    assert env.action_type == ResidualAction.from_config(env.config)
+    env.reset(seed=0)
+    nominal = env.nominal_command
+    wanted = env.action_type.command([0.0, 1.0], nominal)
+    assert wanted[1] == pytest.approx(nominal[1] + 0.3)
+    with pytest.raises(TypeError, match="action_type"):
+        AOASSEnv(**SMALL, action_type="residual")
+
+
+def test_the_agent_action_means_the_same_inside_the_safety_stack():
+    """The filter reads the agent's action with the environment config's scales (one setting),
+    and drives its inner environment through a full-range residual."""
+    env = make_safe_env(**SMALL, action_heading_scale=0.3, action_speed_scale=0.5)
+    safety = env
+    base = env.unwrapped
+    assert safety.agent_action == ResidualAction(0.5, 0.3, base.config.anchor_max_speed)
+    assert base.config.action_heading_scale == 0.3
+    assert base.action_type.reaches_every_command
+    env.reset(seed=1)
+    nominal = base.nominal_command
+    speed_des, heading_des = safety.agent_action.command([1.0, -1.0], nominal)
+    assert (speed_des, heading_des) == pytest.approx(
+        (min(nominal[0] + 0.5, base.config.anchor_max_speed), nominal[1] - 0.3))
