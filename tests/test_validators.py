@@ -1,0 +1,162 @@
+"""The one rule for numbers (issue 18): aoass_env.validators and the entry points that use it."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from agents.sections import HyperparameterError, check_section
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import MapError, ObstacleMap, generate_map
+from aoass_env.planning.baselines.m_anchoro import free_samples
+from aoass_env.safety.kalman import MultiTargetTracker
+from aoass_env.safety.orca import orca_lines
+from aoass_env.validators import integer, positive, real, vec2
+from aoass_env.world import World
+
+NUMBERS = [np.float32(1.5), np.float64(1.5), np.int64(100), np.int32(7), 2, 2.0]
+NOT_NUMBERS = [True, False, np.bool_(True), "2", b"2", 2 + 0j, None, [1.0], math.nan,
+               -math.inf, math.inf, np.float32("nan")]
+
+
+class Custom(ValueError):
+    """An error type a caller asks for."""
+
+
+@pytest.mark.parametrize("value", NUMBERS)
+def test_real_accepts_python_and_numpy_numbers(value: Any) -> None:
+    out = real("x", value)
+    assert type(out) is float and out == float(value)
+    assert positive("x", value) == float(value)
+
+
+@pytest.mark.parametrize("value", NOT_NUMBERS)
+@pytest.mark.parametrize("check", [real, positive, integer])
+def test_bools_strings_complex_none_and_non_finite_are_refused(check: Callable[..., Any],
+                                                                value: Any) -> None:
+    with pytest.raises(Custom, match=r"^speed=.* must be ") as err:
+        check("speed", value, error=Custom)
+    assert repr(value) in str(err.value)
+
+
+@pytest.mark.parametrize("value, expected", [
+    (32, 32), (32.0, 32), (np.int64(100), 100), (np.float32(4.0), 4), (np.uint8(3), 3)])
+def test_integer_takes_whole_numbers(value: Any, expected: int) -> None:
+    out = integer("n", value)
+    assert type(out) is int and out == expected
+
+
+@pytest.mark.parametrize("value", [1.5, np.float32(0.5), "3", True, np.bool_(False)])
+def test_integer_refuses_fractions_and_non_numbers(value: Any) -> None:
+    with pytest.raises(ValueError, match=r"^n=.* must be an integer in \(-inf, inf\)"):
+        integer("n", value)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: real("gate", 1.0, "probability", low=0.0, high=1.0, low_open=True,
+                  high_open=True, error=Custom), r"gate=1\.0 .* in \(0\.0, 1\.0\) probability"),
+    (lambda: positive("radius", 0.0, "m", error=Custom), r"radius=0\.0 .* in \(0\.0, inf\) m"),
+    (lambda: positive("gap", 11.0, "m", high=10.0, error=Custom), r"gap=11\.0 .* \(0\.0, 10\.0\]"),
+    (lambda: integer("n", -1, low=0, error=Custom), r"n=-1 must be an integer in \[0, inf\)"),
+    (lambda: vec2("position", (1.0, "2"), "m", error=Custom), r"position must be a pair"),
+    (lambda: vec2("position", np.zeros(3), "m", error=Custom), r"position .* shape \(3,\)"),
+])
+def test_errors_name_the_parameter_and_range_in_the_requested_type(
+        call: Callable[[], Any], message: str) -> None:
+    with pytest.raises(Custom, match=message):
+        call()
+
+
+def test_vec2_takes_sequences_and_arrays_of_numbers() -> None:
+    for value in ((1, 2.0), [np.float32(1.0), np.int64(2)], np.array([1.0, 2.0]),
+                  np.array([1, 2], dtype=np.int32)):
+        out = vec2("p", value)
+        assert out == (1.0, 2.0) and all(type(v) is float for v in out)
+    for bad in ((1.0,), (1.0, math.nan), (True, 1.0), "12", None, np.zeros((2, 1))):
+        with pytest.raises(ValueError, match="p must be a pair"):
+            vec2("p", bad)
+
+
+@given(st.one_of(st.integers(-10**6, 10**6), st.floats(allow_nan=True, allow_infinity=True),
+                 st.booleans(), st.text(max_size=3), st.none(),
+                 st.floats(width=32).map(np.float32), st.integers(-10**6, 10**6).map(np.int64)))
+def test_one_rule_property(value: Any) -> None:
+    """real() accepts exactly the finite non-bool reals, and returns their float value."""
+    is_number = (isinstance(value, (int, float, np.integer, np.floating))
+                 and not isinstance(value, (bool, np.bool_)) and math.isfinite(float(value)))
+    try:
+        out = real("v", value)
+    except ValueError as err:
+        assert not is_number and str(err).startswith("v=")
+    else:
+        assert is_number and out == float(value)
+
+
+# --- the entry points converted to the one rule ----------------------------------------------
+_MAP = ObstacleMap(20.0, 20.0)
+
+
+def _orca(radius: Any) -> Any:
+    return orca_lines((0.0, 0.0), (0.0, 0.0), radius, 2.0)
+
+
+def _tracker(dt: Any) -> Any:
+    return MultiTargetTracker(dt, position_noise=0.1, velocity_noise=None)
+
+
+def _map(density: Any) -> Any:
+    return generate_map(40, density, np.random.default_rng(0), clearance=2.0)
+
+
+def _spacing(spacing: Any) -> Any:
+    return free_samples(_MAP, spacing)
+
+
+def _speed_cmd(speed: Any) -> Any:
+    world = World(AOASSConfig(n_moving_obstacles=0), _MAP, np.random.default_rng(0),
+                  start=(10.0, 10.0))
+    return world.step(speed, 0.0)
+
+
+def _batch_size(batch_size: Any) -> Any:
+    from agents.recurrent_td3 import RecurrentTD3
+    return check_section({"batch_size": batch_size}, RecurrentTD3, "f.yml.td3-lstm")
+
+
+ENTRY_POINTS = [
+    pytest.param(_orca, 0.7, 1, ValueError, "radius", id="orca_lines radius"),
+    pytest.param(_tracker, 0.1, 1, ValueError, "dt", id="tracker dt"),
+    pytest.param(_map, 0.1, 0, MapError, "density", id="generate_map density"),
+    pytest.param(_spacing, 2.5, 2, ValueError, "spacing", id="baseline spacing"),
+    pytest.param(_speed_cmd, 0.5, 1, ValueError, "speed_cmd", id="world step speed_cmd"),
+]
+
+
+@pytest.mark.parametrize("call, good, whole, error, name", ENTRY_POINTS)
+def test_entry_points_take_numpy_scalars(call: Callable[[Any], Any], good: float, whole: int,
+                                         error: type[Exception], name: str) -> None:
+    call(np.float32(good))
+    call(np.int64(whole))
+
+
+@pytest.mark.parametrize("bad", ["2", True])
+@pytest.mark.parametrize("call, good, whole, error, name", ENTRY_POINTS)
+def test_entry_points_refuse_strings_and_bools(call: Callable[[Any], Any], good: float,
+                                               whole: int, error: type[Exception], name: str,
+                                               bad: Any) -> None:
+    with pytest.raises(error, match=f"{name}={bad!r} must be a number"):
+        call(bad)
+
+
+def test_hyperparameter_sections_follow_the_rule() -> None:
+    assert _batch_size(np.int64(32))["batch_size"] == 32
+    assert _batch_size(32.0)["batch_size"] == 32
+    for bad in ("32", True, 32.5):
+        with pytest.raises(HyperparameterError, match=r"f\.yml\.td3-lstm\.batch_size=.* integer"):
+            _batch_size(bad)
