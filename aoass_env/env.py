@@ -19,12 +19,11 @@ from aoass_env.action import ActionType, ResidualAction
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.config import AOASSConfig, ConfigError, config_for_map, map_side
 from aoass_env.maps import MapError, ObstacleMap, load_map
-from aoass_env.metrics import energy_efficiency_ratio, energy_per_beacon, trajectory_efficiency
 from aoass_env.observation import Observer, observation_layout, observation_space
 from aoass_env.planning import WaypointFollower
 from aoass_env.planning.square_spiral import episode_spiral
 from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
-from aoass_env.simulator import Simulator, check_waypoint_step
+from aoass_env.simulator import Simulator, check_waypoint_step, episode_summary
 from aoass_env.world import wrap_angle
 
 __all__ = ["AOASSEnv", "AnchorState", "EpisodeTimeLimit", "make_env", "max_episode_steps"]
@@ -263,20 +262,11 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                 "recoveries": self._follower.recoveries,
                 "skipped_waypoints": len(self._follower.skipped)}
 
-    def _episode_metrics(self) -> dict[str, float]:
-        """Eq. 16-19 and the online RMSE at the end of the episode."""
-        sim, net, c = self.sim, self.sim.network, self.config
-        t_ideal = sim.spiral.nominal_time(c.anchor_nominal_speed)
-        return {"coverage": net.coverage_ratio,
-                "energy_per_beacon": energy_per_beacon(net.energy_total, net.beacons_sent),
-                "eer": energy_efficiency_ratio(net.energy_total, net.beacons_sent),
-                "eta_traj": trajectory_efficiency(sim.spiral.length, net.distance_travelled,
-                                                  t_ideal, sim.world.time),
-                "rmse_online": self._rmse, "path_length": net.distance_travelled,
-                "travel_time": sim.world.time, "l_ideal": sim.spiral.length,
-                "t_ideal": t_ideal, "collisions": sim.collisions,
-                "steps": self._steps, "path_complete": self._follower.done,
-                "recoveries": self._follower.recoveries,
+    def _episode_metrics(self) -> dict[str, Any]:
+        """:func:`~aoass_env.simulator.episode_summary` of the episode, with the online RMSE
+        (m), the control periods taken, and the follower's recoveries and skipped waypoints."""
+        return {**episode_summary(self.sim, self._follower.done), "rmse_online": self._rmse,
+                "steps": self._steps, "recoveries": self._follower.recoveries,
                 "skipped_waypoints": len(self._follower.skipped)}
 
     # --- what wrappers read (world frame) -------------------------------------------------------

@@ -14,12 +14,14 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from aoass_env.beacon_log import BeaconLog, BeaconLogRecorder, episode_config_json
 from aoass_env.config import AOASSConfig, ConfigError, config_for_map
 from aoass_env.maps import MapError, ObstacleMap, generate_map, load_map
+from aoass_env.metrics import energy_efficiency_ratio, energy_per_beacon, trajectory_efficiency
 from aoass_env.network import Network
 from aoass_env.planning import SquareSpiral, WaypointFollower, WaypointPath
 from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
@@ -191,3 +193,26 @@ class Simulator:
                                     anchor_energy=self.network.anchor_energy,
                                     collisions=self.collisions,
                                     node_links=self.radio.node_links())
+
+
+def episode_summary(sim: Simulator, complete: bool) -> dict[str, Any]:
+    """The metrics of a finished episode, with one set of keys (``episodes.csv``'s columns;
+    AOASS-v0's ``info["episode_metrics"]`` adds its own): coverage (Eq. 18), beacons, path
+    length and its ideal (m), travel time and its ideal (s), eta_traj (Eq. 19), anchor contacts
+    (all, static obstacles and walls, moving obstacles), E_total (J), E_norm (Eq. 16,
+    J/beacon), EER (Eq. 17, beacons/J), and ``path_complete``: whether the method ended the
+    sweep itself (1) or the step limit did (0)."""
+    net, world, path = sim.network, sim.world, sim.path
+    ideal_time = path.nominal_time(sim.config.anchor_nominal_speed)
+    return {"coverage": net.coverage_ratio, "beacons": net.beacons_sent,
+            "path_length": net.distance_travelled, "ideal_length": path.length,
+            "travel_time": world.time, "ideal_time": ideal_time,
+            "eta_traj": trajectory_efficiency(path.length, net.distance_travelled,
+                                              ideal_time, world.time),
+            "collisions": sim.collisions,
+            "collisions_static": world.static_contacts + world.wall_contacts,
+            "collisions_moving": world.moving_contacts,
+            "energy_total": net.energy_total,
+            "e_norm": energy_per_beacon(net.energy_total, net.beacons_sent),
+            "eer": energy_efficiency_ratio(net.energy_total, net.beacons_sent),
+            "path_complete": int(complete)}

@@ -179,7 +179,7 @@ def test_truncation_at_the_step_limit_with_episode_metrics():
     assert truncated and not terminated and len(steps) - 1 == limit
     metrics = steps[-1][2]["episode_metrics"]
     assert not metrics["path_complete"] and metrics["steps"] == limit
-    assert {"coverage", "energy_per_beacon", "eer", "eta_traj", "rmse_online"} <= set(metrics)
+    assert {"coverage", "e_norm", "eer", "eta_traj", "rmse_online"} <= set(metrics)
     with pytest.raises(RuntimeError, match="reset"):
         env.unwrapped.step(np.zeros(2))
 
@@ -199,9 +199,16 @@ def test_termination_carries_the_eq16_to_19_metrics():
     net = env.sim.network
     assert terminated and m["path_complete"]
     assert m["eer"] == pytest.approx(net.beacons_sent / net.energy_total)
-    assert m["energy_per_beacon"] == pytest.approx(1.0 / m["eer"])
+    assert m["e_norm"] == pytest.approx(1.0 / m["eer"])
     assert 0.0 < m["eta_traj"] <= 1.0 + 1e-9
     assert env.beacon_log.n_beacons == net.beacons_sent
+    # one summary, one set of keys: evaluation's episodes.csv columns are the env's too
+    from aoass_env.evaluation.store import EPISODE_FIELDS
+    from aoass_env.simulator import episode_summary
+    summary = episode_summary(env.sim, True)
+    assert {k: m[k] for k in summary} == summary
+    assert set(summary) <= set(EPISODE_FIELDS)
+    assert set(m) - set(summary) == {"rmse_online", "steps", "recoveries", "skipped_waypoints"}
 
 
 # --- determinism ---------------------------------------------------------------------------

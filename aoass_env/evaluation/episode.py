@@ -37,12 +37,8 @@ from aoass_env.evaluation.store import (
 )
 from aoass_env.localization import localize
 from aoass_env.maps import ObstacleMap, generate_map, load_map
-from aoass_env.metrics import (
-    energy_efficiency_ratio,
-    energy_per_beacon,
-    localization_rmse,
-    trajectory_efficiency,
-)
+from aoass_env.metrics import localization_rmse
+from aoass_env.simulator import episode_summary
 
 __all__ = ["GENERATED_PREFIX", "ROBUSTNESS_MAP_SEED", "episode_map", "episode_metrics",
            "localization_row", "localize_log", "log_key", "robustness_map",
@@ -105,24 +101,9 @@ def episode_map(key: EpisodeKey, clearance: float = 2.5) -> ObstacleMap:
 
 def episode_metrics(run: MethodRun) -> dict[str, Any]:
     """The episode columns of ``episodes.csv`` from a finished run (all but ``wall_seconds``):
-    coverage (Eq. 18), beacons, path length and its ideal (m), travel time and its ideal (s),
-    eta_traj (Eq. 19), anchor contacts, E_total (J), E_norm (Eq. 16, J/beacon), EER (Eq. 17,
-    beacons/J), whether the method ended the episode itself (1) or the step limit did (0), and
-    the mean safety intervention (m/s)."""
-    sim, net = run.sim, run.sim.network
-    ideal_time = sim.path.nominal_time(sim.config.anchor_nominal_speed)
-    return {"coverage": net.coverage_ratio, "beacons": net.beacons_sent,
-            "path_length": net.distance_travelled, "ideal_length": sim.path.length,
-            "travel_time": sim.world.time, "ideal_time": ideal_time,
-            "eta_traj": trajectory_efficiency(sim.path.length, net.distance_travelled,
-                                              ideal_time, sim.world.time),
-            "collisions": sim.collisions,
-            "collisions_static": sim.world.static_contacts + sim.world.wall_contacts,
-            "collisions_moving": sim.world.moving_contacts,
-            "energy_total": net.energy_total,
-            "e_norm": energy_per_beacon(net.energy_total, net.beacons_sent),
-            "eer": energy_efficiency_ratio(net.energy_total, net.beacons_sent),
-            "path_complete": int(run.complete), "safety_intervention": run.safety_intervention}
+    :func:`~aoass_env.simulator.episode_summary` and the mean safety intervention (m/s)."""
+    return {**episode_summary(run.sim, run.complete),
+            "safety_intervention": run.safety_intervention}
 
 
 def localization_row(log: BeaconLog, localizer: str) -> dict[str, Any]:
