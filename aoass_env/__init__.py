@@ -55,7 +55,11 @@ _EXPORTS = {
     "make_safe_env": "wrappers",
 }
 
-__all__ = sorted([*_EXPORTS, "ENV_ID", "SAFE_ENV_ID"])
+__all__ = ["AOASSConfig", "AOASSEnv", "BeaconLog", "BeaconLogError", "BeaconLogRecorder",
+           "ConfigError", "ENV_ID", "FuzzyORCASafety", "KalmanObstacleTracker", "MapError",
+           "MapFormatError", "MapSampler", "Network", "ObstacleMap", "Radio", "SAFE_ENV_ID",
+           "Simulator", "World", "generate_map", "list_maps", "load_map", "make_safe_env",
+           "read_map", "write_map"]
 
 
 def __getattr__(name: str) -> Any:

@@ -9,6 +9,7 @@ import shapely
 from aoass_env.maps import MapError, ObstacleMap
 from tests.maps.conftest import CLEARANCE, box, rng
 
+
 def test_empty_map_is_traversable():
     ObstacleMap(20, 20).check_traversable(CLEARANCE)
 

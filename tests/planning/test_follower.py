@@ -120,8 +120,8 @@ def test_slow_but_steady_progress_does_not_fire_the_watchdog():
 def test_a_target_that_stays_out_of_reach_is_given_up_after_the_tries():
     f = _watched()
     _drive_to(f, 10.0)
-    for _ in range(2):                       # two back-outs, each followed by a new try
-        _wait(f, [10.0, 0.0], until=lambda f: f.recoveries > _)
+    for tries in range(2):                   # two back-outs, each followed by a new try
+        _wait(f, [10.0, 0.0], until=lambda f, tries=tries: f.recoveries > tries)
         assert f.index == 1 and not f.skipped
         _drive_to(f, 10.0)
     _wait(f, [10.0, 0.0], until=lambda f: f.index == 2)
