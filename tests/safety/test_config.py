@@ -45,3 +45,20 @@ def test_numpy_scalars_and_mappings_are_accepted():
     assert SafetyConfig.coerce(None, "safety") == SafetyConfig()
     with pytest.raises(ConfigError, match="safety must be a SafetyConfig"):
         SafetyConfig.coerce(0.3, "safety")
+
+
+def test_gym_make_takes_the_dataclasses_or_their_keywords():
+    import gymnasium as gym
+
+    import aoass_env  # noqa: F401  (registers the environments)
+    env = gym.make("AOASS-Safe-v0", field_size=40.0, n_nodes=10, obstacle_density=0.1,
+                   safety=SafetyConfig(margin=0.3), tracker={"horizon": 1.0})
+    filt = env.unwrapped
+    wrapper = env
+    while not hasattr(wrapper, "agent_action"):
+        wrapper = wrapper.env
+    assert wrapper.config == SafetyConfig(margin=0.3)
+    assert wrapper._tracker.config == TrackerConfig(horizon=1.0)
+    assert filt.config.field_size == 40.0
+    with pytest.raises(ConfigError, match="unknown tracker keyword 'horizen'"):
+        gym.make("AOASS-Safe-v0", tracker={"horizen": 1.0})
