@@ -14,12 +14,14 @@ paper is silent (docs/interpretations.md).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from aoass_env.validators import ConfigError, ValidatedConfig, param, unknown_key_message
 
-__all__ = ["AOASSConfig", "ConfigError", "config_for_map", "map_side", "unknown_key_message"]
+__all__ = ["AOASSConfig", "ConfigError", "config_for_map", "config_with", "map_side",
+           "unknown_key_message"]
 
 
 
@@ -185,6 +187,15 @@ class AOASSConfig(ValidatedConfig):
         """Distance between the waypoints of a planned path (m): ``waypoint_step``, else
         ``beacon_interval``."""
         return self.waypoint_step or self.beacon_interval
+
+
+def config_with(config: AOASSConfig | Mapping[str, Any] | None,
+                keywords: Mapping[str, Any]) -> AOASSConfig:
+    """The config of ``config`` (an :class:`AOASSConfig`, a HighwayEnv-style dict of its
+    fields, or None: the defaults) with ``keywords`` overriding it; :class:`ConfigError` naming
+    ``config`` for another type, or the unknown key with a did-you-mean suggestion."""
+    plain = dict(config) if isinstance(config, Mapping) else config
+    return AOASSConfig.coerce(plain, "config").replace(**keywords)
 
 
 def map_side(obstacle_map: Any, name: Any = "map") -> float:

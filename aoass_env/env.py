@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 import gymnasium as gym
@@ -17,7 +18,7 @@ from gymnasium.wrappers import TimeLimit
 
 from aoass_env.action import ActionType, ResidualAction
 from aoass_env.beacon_log import BeaconLog
-from aoass_env.config import AOASSConfig, ConfigError, config_for_map, map_side
+from aoass_env.config import AOASSConfig, ConfigError, config_for_map, config_with, map_side
 from aoass_env.maps import MapError, ObstacleMap, load_map
 from aoass_env.observation import Observer, observation_layout, observation_space
 from aoass_env.planning import WaypointFollower
@@ -26,7 +27,13 @@ from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
 from aoass_env.simulator import Simulator, check_waypoint_step, episode_summary
 from aoass_env.world import wrap_angle
 
-__all__ = ["AOASSEnv", "AnchorState", "EpisodeTimeLimit", "make_env", "max_episode_steps"]
+__all__ = ["COST_KEYS", "AOASSEnv", "AnchorState", "EpisodeTimeLimit", "make_env",
+           "max_episode_steps"]
+
+
+#: The per-step safe-RL cost keys of ``info``: the step's new contacts, all, with static
+#: obstacles and walls, and with moving obstacles (docs/env.md).
+COST_KEYS = ("cost", "cost_static", "cost_moving")
 
 
 class AnchorState(NamedTuple):
@@ -136,7 +143,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
     :class:`~aoass_env.config.AOASSConfig` as a keyword (e.g. ``field_size=200``,
     ``n_nodes=300``, ``obstacle_density=0.4``, ``map="test/d0.40_f100_s509"``,
     ``n_moving_obstacles=5``, ``radio_range=25``, ``beacon_interval=2``, ``w1``, ``w2``,
-    ``w3``), or a whole ``config``; bad values raise ``ConfigError`` naming the field and its
+    ``w3``), or a whole ``config`` (an :class:`~aoass_env.config.AOASSConfig` or a dict of its
+    fields; keywords override it); bad values raise ``ConfigError`` naming the field and its
     valid range. ``render_mode``: ``"rgb_array"`` or ``"human"`` (pygame window).
     ``reset(options={"map": ...})`` uses a map (name, path or ``ObstacleMap``) for one episode.
 
@@ -147,12 +155,10 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
 
-    def __init__(self, render_mode: str | None = None, config: AOASSConfig | None = None,
+    def __init__(self, render_mode: str | None = None,
+                 config: AOASSConfig | Mapping[str, Any] | None = None,
                  action_type: ActionType | None = None, **kwargs: Any) -> None:
-        if config is not None and not isinstance(config, AOASSConfig):
-            raise ConfigError(f"config must be an AOASSConfig, got {type(config).__name__}")
-        self.config = (config.replace(**kwargs) if config is not None
-                       else AOASSConfig.from_kwargs(**kwargs))
+        self.config = config_with(config, kwargs)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r} is not one of "
                              f"{self.metadata['render_modes']} or None")
@@ -160,8 +166,9 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         self._map = None
         if self.config.map is not None:     # a map keeps its own size, never rescaled
             self._map = _option_map(self.config.map, "map")
-            self.config = config_for_map(self.config, self._map,
-                                         explicit="field_size" in kwargs)
+            self.config = config_for_map(
+                self.config, self._map,
+                explicit="field_size" in kwargs or "field_size" in (config or {}))
         self.max_episode_steps = max_episode_steps(self.config)
         if action_type is not None and not isinstance(action_type, ActionType):
             raise TypeError(f"action_type must be an aoass_env.action.ActionType, got "
@@ -199,7 +206,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         self._observe = Observer(config, self.sim.spiral, noise_rng)
         self._steps = 0
         self._log = None
-        self._contacts = 0
+        self._static_contacts = self._moving_contacts = 0
         self._rmse = 0.0
         self._imbalance = energy_imbalance(self.sim.network.node_energy)
         self._command = self._follower.command(self.sim.world.position,
@@ -222,21 +229,34 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
             self._rmse = online_rmse(sim.nodes, sim.network.beacon_centroid,
                                      sim.network.covered)
             self._imbalance = energy_imbalance(sim.network.node_energy)
-        contacts = sim.collisions
+        world = sim.world
+        static, moving = world.static_contacts + world.wall_contacts, world.moving_contacts
+        cost_static, cost_moving = static - self._static_contacts, moving - self._moving_contacts
+        self._static_contacts, self._moving_contacts = static, moving
         terms = reward_terms(c, delta_coverage=record.newly_covered / sim.network.n_nodes,
                              imbalance=self._imbalance, rmse=self._rmse,
-                             new_contacts=contacts - self._contacts)
-        self._contacts = contacts
+                             new_contacts=cost_static + cost_moving)
         terminated = self._follower.done
         truncated = not terminated and self._steps >= self.max_episode_steps
         info = self._info()
         info["reward_terms"] = terms
+        info.update(cost=float(cost_static + cost_moving), cost_static=float(cost_static),
+                    cost_moving=float(cost_moving))
         if terminated or truncated:
             self._log = sim.finish()
             info["episode_metrics"] = self._episode_metrics()
         if self.render_mode == "human":
             self.render()
         return self._observation(), float(sum(terms.values())), terminated, truncated, info
+
+    def end_episode(self) -> dict[str, Any]:
+        """End the episode now, as a time limit outside the environment does
+        (:class:`aoass_env.wrappers.EndOnTruncation`), and return its
+        ``info["episode_metrics"]``; the beacon log is complete from here on."""
+        sim = self._started("end_episode")
+        if self._log is None:
+            self._log = sim.finish()
+        return self._episode_metrics()
 
     # --- what the agent and the user see -----------------------------------------------------
     def _observation(self) -> np.ndarray:

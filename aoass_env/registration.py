@@ -1,30 +1,68 @@
-"""Registration of AOASS-v0 and AOASS-Safe-v0 with Gymnasium.
+"""Registration of the AOASS environments with Gymnasium.
 
-Registration imports nothing of the environment: the entry points are strings
-(``aoass_env.env:make_env``, ``aoass_env.wrappers:make_safe_env``) that Gymnasium imports at
-the first ``gymnasium.make``, so ``import aoass_env`` stays cheap (benchmarks/import_time.py).
-:func:`~aoass_env.env.make_env` wraps the environment in a ``TimeLimit`` of the episode's own
-step limit (:func:`aoass_env.env.max_episode_steps`: it depends on the field size and the
-spiral, so it cannot be one number fixed at registration); ``env.spec.max_episode_steps``
-reports the limit of the configuration that was made, and the environment truncates at the same
-step itself, so that its last ``info`` carries the episode metrics.
+* ``AOASS-v0`` (:func:`aoass_env.env.make_env`): the environment alone.
+* ``AOASS-Safe-v0`` (:func:`aoass_env.wrappers.make_safe_env`): the full AOASS safety stack.
+* ``AOASS-Train-v0`` (:func:`aoass_env.wrappers.make_training_env`): the shipped policy's
+  training setup: the safety stack, each action held 16 periods, a ±15° heading residual, a
+  shipped 100 m training map (density 0.1-0.4, 100 nodes) per episode.
+* ``AOASS-Quick-v0`` (:func:`aoass_env.wrappers.make_safe_env`): the same agent on a generated
+  50 m field of density 0.2 per episode: about a quarter of the episode, for quick experiments.
+
+None has a ``reward_threshold``: Eq. 14 has no level at which the task counts as solved
+(docs/env.md gives the reference returns instead).
+
+Registration imports nothing of the environment: the entry points are strings that Gymnasium
+imports at the first ``gymnasium.make``, so ``import aoass_env`` stays cheap
+(benchmarks/import_time.py). The entry points wrap the environment in a ``TimeLimit`` of the
+episode's own step limit (:func:`aoass_env.env.max_episode_steps`: it depends on the field size
+and the spiral, so it cannot be one number fixed at registration), and ``env.spec`` reports it
+(in agent steps under an action repeat). Every id carries
+:class:`~aoass_env.wrappers.EndOnTruncation` as its additional wrapper, outside the
+``TimeLimit`` of ``gymnasium.make(..., max_episode_steps=N)``, so that such a truncation keeps
+``info["episode_metrics"]``.
 """
 
 from __future__ import annotations
 
-import gymnasium as gym
+import math
 
-__all__ = ["ENV_ID", "SAFE_ENV_ID", "register"]
+import gymnasium as gym
+from gymnasium.envs.registration import WrapperSpec
+
+__all__ = ["ENV_ID", "ENV_IDS", "QUICK_ENV_ID", "SAFE_ENV_ID", "TRAIN_ENV_ID", "register"]
 
 ENV_ID = "AOASS-v0"
 #: The full AOASS stack: AOASS-v0 -> Kalman tracker -> fuzzy + ORCA safety filter
 #: (:func:`aoass_env.wrappers.make_safe_env`).
 SAFE_ENV_ID = "AOASS-Safe-v0"
+#: The shipped policy's training setup (configs/aoass.yml, section td3-lstm, key env).
+TRAIN_ENV_ID = "AOASS-Train-v0"
+#: The training setup's agent on a 50 m field: quick experiments.
+QUICK_ENV_ID = "AOASS-Quick-v0"
+
+#: What the shipped policy's agent sees: a decision every 16 control periods (8 s) and heading
+#: corrections of at most ±π/12 rad (±15°), rounded as in configs/aoass.yml.
+_AGENT = {"action_repeat": 16, "action_heading_scale": round(math.pi / 12, 4), "n_nodes": 100}
+
+#: id -> (entry point, default keywords)
+_IDS: dict[str, tuple[str, dict]] = {
+    ENV_ID: ("aoass_env.env:make_env", {}),
+    SAFE_ENV_ID: ("aoass_env.wrappers:make_safe_env", {}),
+    TRAIN_ENV_ID: ("aoass_env.wrappers:make_training_env",
+                   {"split": "train", "field_size": 100.0, "densities": [0.1, 0.4], **_AGENT}),
+    QUICK_ENV_ID: ("aoass_env.wrappers:make_safe_env",
+                   {"field_size": 50.0, "obstacle_density": 0.2, **_AGENT}),
+}
+#: Every registered id.
+ENV_IDS = tuple(_IDS)
+
+_END_ON_TRUNCATION = WrapperSpec(name="EndOnTruncation",
+                                 entry_point="aoass_env.wrappers:EndOnTruncation", kwargs={})
 
 
 def register() -> None:
-    """Register ``AOASS-v0`` and ``AOASS-Safe-v0`` (once per process)."""
-    if ENV_ID not in gym.registry:
-        gym.register(id=ENV_ID, entry_point="aoass_env.env:make_env")
-    if SAFE_ENV_ID not in gym.registry:
-        gym.register(id=SAFE_ENV_ID, entry_point="aoass_env.wrappers:make_safe_env")
+    """Register every id of :data:`ENV_IDS` (once per process)."""
+    for env_id, (entry_point, kwargs) in _IDS.items():
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point=entry_point, kwargs=kwargs,
+                         additional_wrappers=(_END_ON_TRUNCATION,))

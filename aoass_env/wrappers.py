@@ -22,17 +22,19 @@ docs/safety.md describes every part and the measured safety record.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from copy import deepcopy
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 
 from aoass_env.action import ResidualAction
-from aoass_env.config import AOASSConfig, ConfigError
-from aoass_env.env import AOASSEnv, make_env
-from aoass_env.maps import ObstacleMap, load_map
+from aoass_env.config import AOASSConfig, config_with
+from aoass_env.env import COST_KEYS, AOASSEnv, make_env
+from aoass_env.maps import ObstacleMap, list_maps, load_map, validation_split
 from aoass_env.observation import MOVING_FIELDS, velocity_scale
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.safety.fuzzy import FuzzyController
@@ -41,12 +43,22 @@ from aoass_env.safety.orca import StaticObstacles, orca_lines, solve_velocity
 from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
 from aoass_env.world import wrap_angle
 
-__all__ = ["ActionRepeat", "FuzzyORCASafety", "KalmanObstacleTracker", "MapSampler",
-           "make_safe_env"]
+__all__ = ["ActionRepeat", "EndOnTruncation", "FuzzyORCASafety", "KalmanObstacleTracker",
+           "MapSampler", "TRAINING_SPLITS", "make_safe_env", "make_training_env"]
 
 #: Measurement-noise floor of the tracker (m, m/s): a noiseless observation still needs a
 #: positive noise for the filter's innovation covariance.
 NOISE_FLOOR = 1e-3
+
+
+class _EntryPointWrapper(gym.Wrapper):
+    """A wrapper that a registered entry point applies itself: the spec's entry point and
+    keywords rebuild it, so it is not one of the spec's ``additional_wrappers`` (which
+    ``gymnasium.make`` applies on top of the entry point)."""
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        return self.env.spec
 
 
 def _aoass(env: gym.Env, wrapper: str) -> AOASSEnv:
@@ -56,7 +68,7 @@ def _aoass(env: gym.Env, wrapper: str) -> AOASSEnv:
     return base
 
 
-class MapSampler(gym.Wrapper):
+class MapSampler(_EntryPointWrapper):
     """A map drawn for every episode from a list (a seeded reset fixes the sequence of draws),
     or taken in turn (``cycle=True``, for evaluation).
 
@@ -94,7 +106,7 @@ class MapSampler(gym.Wrapper):
         return self.env.reset(seed=seed, options=options)
 
 
-class KalmanObstacleTracker(gym.ObservationWrapper):
+class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
     """Kalman tracks of the moving obstacles in the observation.
 
     Each step the tracker takes AOASS-v0's world-frame detections (``env.unwrapped.detections``:
@@ -177,7 +189,7 @@ class KalmanObstacleTracker(gym.ObservationWrapper):
                        ).astype(np.float32)
 
 
-class FuzzyORCASafety(gym.ActionWrapper):
+class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
     """Fuzzy-logic + ORCA velocity filter between the agent and AOASS-v0 (Eq. 7-10).
 
     The agent's action means what AOASS-v0's config says (:class:`~aoass_env.action.
@@ -322,7 +334,7 @@ class FuzzyORCASafety(gym.ActionWrapper):
         return executed, report
 
 
-class ActionRepeat(gym.Wrapper):
+class ActionRepeat(_EntryPointWrapper):
     """Holds each action for ``repeat`` steps of the wrapped environment (fewer when the episode
     ends first); the reward is their sum and the observation and info are the last step's.
 
@@ -338,17 +350,51 @@ class ActionRepeat(gym.Wrapper):
         super().__init__(env)
         self.repeat = repeat
 
+    @property
+    def spec(self) -> EnvSpec | None:
+        """The inner spec with ``max_episode_steps`` in agent steps: ⌈inner limit / repeat⌉."""
+        spec = self.env.spec
+        if spec is None or spec.max_episode_steps is None:
+            return spec
+        spec = deepcopy(spec)
+        spec.max_episode_steps = math.ceil(spec.max_episode_steps / self.repeat)
+        return spec
+
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         total = 0.0
+        costs = dict.fromkeys(COST_KEYS, 0.0)
         for _ in range(self.repeat):
             obs, reward, terminated, truncated, info = self.env.step(action)
             total += float(reward)
+            for key in COST_KEYS:
+                costs[key] += info[key]
             if terminated or truncated:
                 break
+        info.update(costs)
         return obs, total, terminated, truncated, info
 
 
-def make_safe_env(*, config: AOASSConfig | None = None, render_mode: str | None = None,
+class EndOnTruncation(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """The outermost wrapper of every registered id: ``gymnasium.make`` applies it outside the
+    ``TimeLimit`` that ``gymnasium.make(..., max_episode_steps=N)`` adds, and when that limit
+    ends an episode the environment has not ended itself, it ends it
+    (:meth:`AOASSEnv.end_episode <aoass_env.env.AOASSEnv.end_episode>`) and adds
+    ``info["episode_metrics"]``."""
+
+    def __init__(self, env: gym.Env) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self)
+        gym.Wrapper.__init__(self, env)
+        _aoass(env, "EndOnTruncation")
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if (terminated or truncated) and "episode_metrics" not in info:
+            info["episode_metrics"] = self.env.unwrapped.end_episode()
+        return obs, reward, terminated, truncated, info
+
+
+def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
+                  render_mode: str | None = None,
                   tracker: TrackerConfig | dict[str, Any] | None = None,
                   safety: SafetyConfig | dict[str, Any] | None = None,
                   action_repeat: int = 1, **kwargs: Any) -> gym.Env:
@@ -356,7 +402,8 @@ def make_safe_env(*, config: AOASSConfig | None = None, render_mode: str | None 
     -> :class:`FuzzyORCASafety` (-> :class:`ActionRepeat` when ``action_repeat`` > 1).
 
     Args:
-        config, kwargs: the environment's configuration, as for ``gymnasium.make("AOASS-v0")``;
+        config, kwargs: the environment's configuration, as for ``gymnasium.make("AOASS-v0")``
+            (an :class:`AOASSConfig` or a dict of its fields, keywords overriding it);
             its ``action_speed_scale`` and ``action_heading_scale`` are what the agent's action
             means. The inner AOASS-v0 takes the filter's commands through a full-range
             residual (:meth:`~aoass_env.action.ResidualAction.full_range`).
@@ -365,9 +412,7 @@ def make_safe_env(*, config: AOASSConfig | None = None, render_mode: str | None 
         safety: the filter's :class:`~aoass_env.safety.config.SafetyConfig` (or keywords).
         action_repeat: control periods each agent action is held (1: every period).
     """
-    if config is not None and not isinstance(config, AOASSConfig):
-        raise ConfigError(f"config must be an AOASSConfig, got {type(config).__name__}")
-    cfg = config.replace(**kwargs) if config is not None else AOASSConfig.from_kwargs(**kwargs)
+    cfg = config_with(config, kwargs)
     tracker_config = TrackerConfig.coerce(tracker, "tracker")
     safety_config = SafetyConfig.coerce(safety, "safety")
     env = make_env(config=cfg, render_mode=render_mode,
@@ -380,3 +425,34 @@ def make_safe_env(*, config: AOASSConfig | None = None, render_mode: str | None 
 
 
 make_safe_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render modes
+
+
+#: Where training environments take their maps from: the maps to fit on, or the held-out ones.
+TRAINING_SPLITS = ("train", "validation")
+
+
+def make_training_env(*, split: str = "train", field_size: float = 100.0,
+                      densities: Sequence[float] = (0.1, 0.4), cycle: bool = False,
+                      safety: SafetyConfig | dict[str, Any] | None = None,
+                      tracker: TrackerConfig | dict[str, Any] | None = None,
+                      **config: Any) -> gym.Env:
+    """The full safety stack on shipped training maps with ``field_size`` (m) and density in
+    ``densities`` (low, high), one map per episode (drawn, or in turn with ``cycle``):
+    ``split="train"`` takes the maps to fit on, ``"validation"`` the ones held out for model
+    selection (:func:`aoass_env.maps.validation_split`); maps/test is never used. ``config``:
+    further :func:`make_safe_env` keywords (e.g. ``n_nodes``, ``action_repeat``).
+    ``AOASS-Train-v0`` is the shipped policy's setup (docs/env.md)."""
+    if split not in TRAINING_SPLITS:
+        raise ValueError(f"split={split!r} must be one of {TRAINING_SPLITS} (maps/test is for "
+                         f"reported results only)")
+    fit, held_out = validation_split(list_maps("train", field_size=field_size,
+                                               densities=tuple(densities)))
+    maps = fit if split == "train" else held_out
+    if not maps:
+        raise ValueError(f"no shipped {split} maps with field_size={field_size} and densities "
+                         f"in {list(densities)}")
+    env = make_safe_env(field_size=field_size, tracker=tracker, safety=safety, **config)
+    return MapSampler(env, maps, cycle=cycle)
+
+
+make_training_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render modes

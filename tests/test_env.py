@@ -266,7 +266,8 @@ def test_step_before_reset_is_an_error():
     ({"radio_range": -1}, "radio_range"),
     ({"w1": "high"}, "w1"),
     ({"obs_waypoints": 0}, "obs_waypoints"),
-    ({"config": {"n_nodes": 3}}, "AOASSConfig")])
+    ({"config": ["n_nodes", 3]}, "config must be a AOASSConfig"),
+    ({"config": {"n_node": 3}}, "did you mean 'n_nodes'")])
 def test_bad_keywords_name_the_parameter(kwargs, match):
     with pytest.raises(ConfigError, match=match):
         gym.make("AOASS-v0", **kwargs)

@@ -117,6 +117,10 @@ class FuzzyVariable:
             terms[term] = p
         object.__setattr__(self, "terms", MappingProxyType(terms))
 
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickle and deepcopy: rebuilt from plain values (a mappingproxy does not pickle)."""
+        return type(self), (self.name, self.universe, dict(self.terms))
+
     def grid(self) -> np.ndarray:
         """The discretised universe, shape (n,)."""
         lo, hi, n = self.universe
@@ -227,6 +231,10 @@ class FuzzyController:
         rules = self._check_rules()
         object.__setattr__(self, "rules", MappingProxyType(rules))
         object.__setattr__(self, "_tables", self._build_tables(rules))
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickle and deepcopy: rebuilt from plain values (a mappingproxy does not pickle)."""
+        return type(self), (self.distance, self.heading, self.turn, self.speed, dict(self.rules))
 
     def _check_rules(self) -> dict[tuple[str, str], tuple[str, str]]:
         if not isinstance(self.rules, Mapping):
