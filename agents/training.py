@@ -48,11 +48,12 @@ from agents.envs import TRAINING_SPLITS, make_training_env
 from agents.hyperparams import ALGORITHMS, action_noise, load_hyperparams, read_run_record
 from agents.sections import model_kwargs, policy_name
 from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
+from aoass_env.data import shipped_dir
 from aoass_env.validators import integer
 
 __all__ = ["TRAINING_SPLITS", "TrainRun", "make_training_env", "train_agent"]
 
-DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "aoass.yml"
+DEFAULT_CONFIG = shipped_dir("configs") / "aoass.yml"
 
 
 @dataclasses.dataclass

@@ -28,6 +28,7 @@ import numpy as np
 
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.config import AOASSConfig
+from aoass_env.data import shipped_dir
 from aoass_env.evaluation.store import EvaluationError
 from aoass_env.maps import ObstacleMap
 from aoass_env.planning import PlannedMethod
@@ -41,7 +42,7 @@ __all__ = ["DEFAULT_POLICY", "METHODS", "MethodRun", "MethodSpec", "RunOptions",
            "select_methods"]
 
 #: The shipped AOASS policy and the algorithm that saved it.
-DEFAULT_POLICY = Path(__file__).resolve().parents[2] / "checkpoints" / "aoass_td3_lstm" / "best.zip"
+DEFAULT_POLICY = shipped_dir("checkpoints") / "aoass_td3_lstm" / "best.zip"
 POLICY_ALGO = "td3-lstm"
 #: Training-environment keywords that set up the stack the policy acts in (reused when it is
 #: evaluated): decisions held for ``action_repeat`` control periods, the tracker's and the

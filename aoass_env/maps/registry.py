@@ -10,11 +10,13 @@ import difflib
 import os
 from pathlib import Path
 
+from aoass_env.data import shipped_dir
 from aoass_env.maps.obstacle_map import MapError, ObstacleMap
 from aoass_env.maps.text_format import read_map
 
-#: Folder of the shipped maps (``train/`` and ``test/``), at the top of the repository.
-MAPS_DIR = Path(__file__).resolve().parents[2] / "maps"
+#: Folder of the shipped maps (``train/`` and ``test/``): the repository's ``maps/``, or the
+#: installed wheel's copy (:func:`aoass_env.data.shipped_dir`).
+MAPS_DIR = shipped_dir("maps")
 #: Splits of the shipped maps.
 SPLITS = ("train", "test")
 
