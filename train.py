@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
+import yaml
 
 from aoass_env.backends import add_backend_arguments, deliver_interrupts, make_backend
 from aoass_env.localization.training import TrainConfig, train_localizer
@@ -48,10 +49,22 @@ def _number(kind: type, low: float, low_open: bool = False) -> Callable[[str], A
 
 #: Valid ranges of the localizer's numeric options: (type, low, low open).
 _LOCALIZER_RANGES: dict[str, tuple[type, float, bool]] = {
-    "n_train_logs": (int, 1, False), "n_val_logs": (int, 1, False),
-    "nodes_per_log": (int, 1, False), "max_noise": (float, 0, False), "hidden": (int, 1, False),
-    "epochs": (int, 1, False), "patience": (int, 1, False), "batch_size": (int, 1, False),
+    "n_train_logs": (int, 1, False), "n_val_logs": (int, 1, False), "hidden": (int, 1, False),
+    "epochs": (int, 1, False), "batch_size": (int, 1, False),
     "learning_rate": (float, 0, True), "seed": (int, 0, False)}
+
+
+def _key_value(text: str) -> tuple[str, Any]:
+    """An argparse type: ``key:value``, the value read as YAML with the safe loader (numbers,
+    strings, lists and mappings; never Python objects), as RL Zoo's ``--hyperparams``."""
+    key, sep, value = text.partition(":")
+    if not sep or not key.isidentifier():
+        raise argparse.ArgumentTypeError(f"must be key:value, got {text!r}")
+    try:
+        return key, yaml.safe_load(value)
+    except yaml.YAMLError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r}: the value is not valid YAML "
+                                         f"({getattr(exc, 'problem', exc)})") from None
 
 
 def _folder(flag: str, path: Path) -> None:
@@ -111,6 +124,22 @@ def _agent_parser() -> argparse.ArgumentParser:
                    help="parallel environments, subprocesses when > 1 (default: 1)")
     p.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
                    help="hyperparameter YAML (default: configs/aoass.yml)")
+    p.add_argument("--hyperparams", type=_key_value, nargs="+", default=[], metavar="KEY:VALUE",
+                   help="replace keys of the config's section, values as YAML (e.g. "
+                        "learning_rate:0.0003 'policy_kwargs:{net_arch: [32, 32]}')")
+    p.add_argument("--env-kwargs", type=_key_value, nargs="+", default=[], metavar="KEY:VALUE",
+                   help="replace keys of the section's env (e.g. n_nodes:50 "
+                        "'densities:[0.2, 0.3]')")
+    p.add_argument("--eval-freq", type=_number(int, 1), default=None,
+                   help="env steps between evaluations on the validation maps "
+                        "(default: the config's eval.freq)")
+    p.add_argument("--eval-episodes", type=_number(int, 1), default=None,
+                   help="episodes per evaluation (default: the config's eval.episodes)")
+    p.add_argument("--checkpoint-freq", type=_number(int, 1), default=None,
+                   help="env steps between checkpoints (default: the config's checkpoint_freq)")
+    p.add_argument("--log-interval", type=_number(int, 1), default=4,
+                   help="episodes between log rows; a last row is written at the end "
+                        "(default: 4)")
     p.add_argument("--resume", type=Path, default=None,
                    help="continue training a saved model (.zip; its replay buffer is loaded "
                         "when saved beside it, as last.zip's is)")
@@ -127,9 +156,9 @@ def _agent_parser() -> argparse.ArgumentParser:
 
 def _run_agent(argv: list[str]) -> None:
     from agents.checkpoints import PolicyFileError
-    from agents.hyperparams import HyperparameterError, load_hyperparams
+    from agents.hyperparams import HyperparameterError
     from agents.seeds import parse_seeds, report_line, seed_runs, train_seeds
-    from agents.training import TrainRun, train_agent
+    from agents.training import TrainRun, run_hyperparams, train_agent
     parser = _agent_parser()
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
@@ -144,8 +173,11 @@ def _run_agent(argv: list[str]) -> None:
                        n_envs=args.n_envs, config=args.config, resume=args.resume, out=out,
                        log_dir=None if args.no_tensorboard else args.log_dir,
                        progress_bar=not args.no_progress and args.backend == "local",
-                       command="python train.py " + " ".join(shlex.quote(a) for a in argv))
-        load_hyperparams(run.config, run.algo)      # bad files fail here, before any work
+                       command="python train.py " + " ".join(shlex.quote(a) for a in argv),
+                       hyperparams=dict(args.hyperparams), env_kwargs=dict(args.env_kwargs),
+                       eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
+                       checkpoint_freq=args.checkpoint_freq, log_interval=args.log_interval)
+        run_hyperparams(run)      # bad files and overrides fail here, before any work
         if args.seeds is not None and args.resume is not None:
             raise ValueError("--resume continues one run; it does not combine with --seeds")
         runs = [run] if args.seeds is None else seed_runs(run, parse_seeds(args.seeds))

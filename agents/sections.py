@@ -25,8 +25,8 @@ from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.validators import integer, real
 from aoass_env.wrappers import make_safe_env
 
-__all__ = ["EXTRA_KEYS", "HyperparameterError", "check_section", "model_kwargs", "policy_name",
-           "read_yaml"]
+__all__ = ["EXTRA_KEYS", "HyperparameterError", "check_section", "env_keys", "model_kwargs",
+           "override_section", "policy_name", "read_yaml", "section_keys"]
 
 #: Keys of a section that are not constructor keywords.
 EXTRA_KEYS = ("n_timesteps", "policy", "action_noise", "env", "eval", "checkpoint_freq")
@@ -132,8 +132,7 @@ def check_section(section: Any, cls: type, where: str) -> dict[str, Any]:
     ``where`` and the key."""
     if not isinstance(section, Mapping):
         raise HyperparameterError(f"{where}: must be a mapping of keys to values")
-    valid = sorted(set(_keywords(cls.__init__, *RESERVED)) | set(EXTRA_KEYS))
-    _check_keys(where, section, valid)
+    _check_keys(where, section, section_keys(cls))
     numbers = {key: _check_number(where, key, value) for key, value in section.items()
                if key in _NUMERIC}
     for key in ("env", "eval", "policy_kwargs"):
@@ -166,14 +165,41 @@ def check_section(section: Any, cls: type, where: str) -> dict[str, Any]:
     return hp
 
 
+def section_keys(cls: type) -> list[str]:
+    """The keys a section of algorithm class ``cls`` may hold."""
+    return sorted(set(_keywords(cls.__init__, *RESERVED)) | set(EXTRA_KEYS))
+
+
+def env_keys() -> list[str]:
+    """The keys of a section's ``env``: the training environment's keywords."""
+    return sorted({*_keywords(make_training_env, "config"),
+                   *_keywords(make_safe_env, "config", "kwargs", "tracker", "safety"),
+                   *(f.name for f in dataclasses.fields(AOASSConfig))} - {"render_mode"})
+
+
+def override_section(hp: Mapping[str, Any], cls: type, where: str, *,
+                     hyperparams: Mapping[str, Any], env: Mapping[str, Any]) -> dict[str, Any]:
+    """The validated section ``hp`` with the command line's overrides: ``hyperparams`` replace
+    section keys (``--hyperparams``), ``env`` replaces keys of its ``env`` (``--env-kwargs``).
+    An unknown key is a :class:`HyperparameterError` naming the flag; a bad value names
+    ``where``."""
+    for flag, given, valid in (("--hyperparams", hyperparams, section_keys(cls)),
+                               ("--env-kwargs", env, env_keys())):
+        for key in given:
+            if key not in valid:
+                raise HyperparameterError(f"{flag} {key}: "
+                                          f"{unknown_key_message(key, valid, 'key')}")
+    merged = {**hp, **hyperparams}
+    if env:
+        merged["env"] = {**merged.get("env", {}), **env}
+    return check_section(merged, cls, where)
+
+
 def _check_stack(where: str, cls: type, policy: str, hp: Mapping[str, Any]) -> None:
     """Check ``env`` and ``policy_kwargs`` key by key, then build the environment and the
     policy once so that a bad value fails with ``where`` and its section."""
     env_kwargs = hp.get("env", {})
-    _check_keys(f"{where}.env", env_kwargs, sorted(
-        {*_keywords(make_training_env, "config"), *_keywords(make_safe_env, "config", "kwargs",
-                                                             "tracker", "safety"),
-         *(f.name for f in dataclasses.fields(AOASSConfig))} - {"render_mode"}))
+    _check_keys(f"{where}.env", env_kwargs, env_keys())
     for key, config in (("safety", SafetyConfig), ("tracker", TrackerConfig)):
         sub = env_kwargs.get(key, {})
         if not isinstance(sub, Mapping):

@@ -46,12 +46,12 @@ from agents.callbacks import (
 from agents.checkpoints import record_path
 from agents.envs import TRAINING_SPLITS, make_training_env
 from agents.hyperparams import ALGORITHMS, action_noise, load_hyperparams, read_run_record
-from agents.sections import model_kwargs, policy_name
+from agents.sections import model_kwargs, override_section, policy_name
 from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
 from aoass_env.data import shipped_dir
 from aoass_env.validators import integer
 
-__all__ = ["TRAINING_SPLITS", "TrainRun", "make_training_env", "train_agent"]
+__all__ = ["TRAINING_SPLITS", "TrainRun", "make_training_env", "run_hyperparams", "train_agent"]
 
 DEFAULT_CONFIG = shipped_dir("configs") / "aoass.yml"
 
@@ -71,6 +71,11 @@ class TrainRun:
         log_dir: TensorBoard folder (None: no TensorBoard).
         progress_bar: show SB3's progress bar.
         command: the command line, recorded in run.yml.
+        hyperparams: section keys replacing the file's (``--hyperparams key:value``).
+        env_kwargs: keys of the section's ``env`` replacing the file's (``--env-kwargs``).
+        eval_freq, eval_episodes, checkpoint_freq: env steps between evaluations, episodes
+            per evaluation, env steps between checkpoints (None: the file's).
+        log_interval: episodes between SB3's log rows (a last row is written at the end).
     """
 
     algo: str = "td3-lstm"
@@ -83,11 +88,18 @@ class TrainRun:
     log_dir: Path | None = Path("out/tensorboard")
     progress_bar: bool = True
     command: str = ""
+    hyperparams: dict[str, Any] = dataclasses.field(default_factory=dict)
+    env_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
+    eval_freq: int | None = None
+    eval_episodes: int | None = None
+    checkpoint_freq: int | None = None
+    log_interval: int = 4
 
     def __post_init__(self) -> None:
         if self.algo not in ALGORITHMS:
             raise ValueError(f"algo={self.algo!r} must be one of {sorted(ALGORITHMS)}")
-        for name in ("timesteps", "n_envs"):
+        self.log_interval = integer("log_interval", self.log_interval, "episodes", low=1)
+        for name in ("timesteps", "n_envs", "eval_freq", "eval_episodes", "checkpoint_freq"):
             value = getattr(self, name)
             if value is not None:
                 setattr(self, name, integer(name, value, low=1))
@@ -100,9 +112,29 @@ def _vec_env(n_envs: int, seed: int, env_kwargs: dict[str, Any]) -> Any:
                         vec_env_cls=DummyVecEnv if n_envs == 1 else SubprocVecEnv)
 
 
+def run_hyperparams(run: TrainRun) -> dict[str, Any]:
+    """The hyperparameters of ``run``: its file's section with the command line's overrides,
+    validated (:class:`~agents.sections.HyperparameterError` naming the flag or the key)."""
+    hp = load_hyperparams(run.config, run.algo)
+    hyperparams = dict(run.hyperparams)
+    if run.checkpoint_freq is not None:
+        hyperparams["checkpoint_freq"] = run.checkpoint_freq
+    evaluation = {key: value for key, value in (("freq", run.eval_freq),
+                                                ("episodes", run.eval_episodes))
+                  if value is not None}
+    if evaluation:
+        hyperparams["eval"] = {**hp.get("eval", {}), **hyperparams.get("eval", {}),
+                               **evaluation}
+    if not hyperparams and not run.env_kwargs:
+        return hp
+    return override_section(hp, ALGORITHMS[run.algo],
+                            f"the command line's overrides over {run.config}: {run.algo}",
+                            hyperparams=hyperparams, env=run.env_kwargs)
+
+
 def train_agent(run: TrainRun, report: Any = print) -> Path:
     """Train (or resume) the agent of ``run``; returns the path of the final model."""
-    hp = load_hyperparams(run.config, run.algo)
+    hp = run_hyperparams(run)
     cls = ALGORITHMS[run.algo]
     timesteps = run.timesteps or int(hp.get("n_timesteps", 100_000))
     env_kwargs = dict(hp.get("env", {}))
@@ -144,8 +176,11 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
                               callback_on_new_best=SaveBestAtomically(out / "best.zip"))]
     _write_record(out / "run.yml", run, hp, timesteps)
     model.learn(timesteps, callback=CallbackList(callbacks), progress_bar=run.progress_bar,
-                tb_log_name=f"{run.algo}_seed{run.seed}",
+                tb_log_name=f"{run.algo}_seed{run.seed}", log_interval=run.log_interval,
                 reset_num_timesteps=run.resume is None)
+    # a last row, so that a run shorter than log_interval episodes still logs its scalars
+    model.logger.record("time/total_timesteps", model.num_timesteps)
+    model.logger.dump(model.num_timesteps)
     final = out / "final.zip"
     save_atomic(model, final)
     env.close()

@@ -234,3 +234,59 @@ def test_training_and_selection_never_see_the_test_maps(tiny: Path, monkeypatch)
                                                log_dir=None, progress_bar=False))
     assert seen[0].get("split", "train") == "train"
     assert seen[1]["split"] == "validation" and seen[1]["cycle"] is True
+
+
+def _scalars(log_dir: Path) -> dict[str, list[int]]:
+    """TensorBoard scalar tag -> the steps it was written at, over every event file."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+    tags: dict[str, list[int]] = {}
+    for events in log_dir.rglob("events.out.tfevents*"):
+        acc = EventAccumulator(str(events.parent))
+        acc.Reload()
+        for tag in acc.Tags()["scalars"]:
+            tags.setdefault(tag, []).extend(e.step for e in acc.Scalars(tag))
+    return tags
+
+
+def test_overrides_and_frequencies_from_the_command_line(tiny: Path, tmp_path: Path,
+                                                         train_script):
+    """RL Zoo's habits: --hyperparams and --env-kwargs replace keys (values as YAML), the
+    frequencies are flags, and a run shorter than one episode still writes its scalars."""
+    out, tb = tmp_path / "run", tmp_path / "tb"
+    train_script.main(["--config", str(tiny), "--timesteps", "300", "--out", str(out),
+                       "--log-dir", str(tb), "--no-progress",
+                       "--hyperparams", "learning_starts:50", "policy_kwargs:{lstm_hidden_size: 4,"
+                       " net_arch: [4]}", "--env-kwargs", "n_nodes:10",
+                       "--eval-freq", "1000", "--checkpoint-freq", "1000", "--log-interval", "1"])
+    hp = yaml.safe_load((out / "run.yml").read_text())["hyperparameters"]
+    assert hp["learning_starts"] == 50 and hp["policy_kwargs"]["net_arch"] == [4]
+    assert hp["env"]["n_nodes"] == 10 and hp["env"]["densities"] == [0.1, 0.1]   # the rest kept
+    assert hp["eval"] == {"freq": 1000, "episodes": 1} and hp["checkpoint_freq"] == 1000
+    assert (out / "final.zip").is_file()
+    assert not (out / "last.zip").exists() and not (out / "evaluations.npz").exists()
+    scalars = _scalars(tb)
+    assert scalars["time/total_timesteps"] == [300]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--hyperparams", "learning_rat:0.1"],
+     "--hyperparams learning_rat: unknown key 'learning_rat'; did you mean 'learning_rate'?"),
+    (["--env-kwargs", "n_node:3"], "--env-kwargs n_node: unknown key 'n_node'; did you mean "
+                                   "'n_nodes'?"),
+    (["--hyperparams", "learning_rate:-1"], "td3-lstm.learning_rate=-1 must be a number"),
+    (["--env-kwargs", "obstacle_density:[1"], "the value is not valid YAML"),
+    (["--hyperparams", "gamma"], "must be key:value, got 'gamma'"),
+    (["--hyperparams", "policy:!!python/object/apply:os.system [echo]"],
+     "the value is not valid YAML"),
+    (["--eval-freq", "0"], "--eval-freq: must be an integer >= 1"),
+])
+def test_bad_overrides_are_one_line_errors_naming_the_flag(tiny: Path, tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture,
+                                                           train_script, argv, message):
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["--config", str(tiny), "--out", str(tmp_path / "run"),
+                           "--no-progress", *argv])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert message in err
+    assert not (tmp_path / "run" / "run.yml").exists()
