@@ -39,9 +39,10 @@ from aoass_env.evaluation.store import (
 )
 from aoass_env.evaluation.sweep import PRESETS
 
-__all__ = ["REFERENCE_METHOD", "SUMMARY_METRICS", "ci_stats", "draw_figures", "method_stats",
-           "method_table", "robustness_markdown", "robustness_stats", "seconds_per_episode",
-           "summary_markdown", "summarize", "write_summary_csv"]
+__all__ = ["REFERENCE_METHOD", "SUMMARY_METRICS", "bootstrap_interval", "ci_stats",
+           "draw_figures", "method_stats", "method_table", "robustness_markdown",
+           "robustness_stats", "seconds_per_episode", "summary_markdown", "summarize",
+           "write_summary_csv"]
 
 #: Metrics of summary.csv: the localization columns, then the episode columns.
 SUMMARY_METRICS = ("rmse", "localized", "localize_seconds") + EPISODE_FIELDS
@@ -63,6 +64,45 @@ def ci_stats(values: Iterable[float], level: float = 0.95) -> tuple[int, float, 
         return 1, float(v[0]), math.nan, math.nan
     std = float(v.std(ddof=1))
     return n, float(v.mean()), std, float(st.t.ppf((1 + level) / 2, n - 1) * std / math.sqrt(n))
+
+
+def bootstrap_interval(values: Iterable[float], groups: Iterable[Any] | None = None,
+                       level: float = 0.95, n_boot: int = 2000,
+                       seed: int = 0) -> tuple[float, float, float]:
+    """(mean, low, high): the mean of the finite values and its percentile bootstrap interval
+    at ``level``, resampling within each of ``groups`` (e.g. the obstacle density: the design's
+    strata) when given. A resampled mean lies between the smallest and the largest value, so
+    the interval stays inside the metric's range (a ratio in [0, 1] keeps its interval there);
+    NaN for no value, a zero-width interval for one. Seeded: the same data give the same
+    interval."""
+    vals = list(values)
+    keys = [None] * len(vals) if groups is None else list(groups)
+    if len(keys) != len(vals):
+        raise ValueError(f"groups has {len(keys)} entries for {len(vals)} values")
+    strata: dict[Any, list[float]] = defaultdict(list)
+    for v, k in zip(vals, keys, strict=True):
+        if v is not None and math.isfinite(v):
+            strata[k].append(float(v))
+    if not strata:
+        return math.nan, math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    total = np.zeros(n_boot)
+    n = 0
+    for members in strata.values():
+        v = np.asarray(members)
+        total += v[rng.integers(len(v), size=(n_boot, len(v)))].sum(axis=1)
+        n += len(v)
+    mean = sum(sum(m) for m in strata.values()) / n
+    low, high = np.quantile(total / n, [(1 - level) / 2, (1 + level) / 2])
+    return mean, float(min(low, mean)), float(max(high, mean))
+
+
+def _error_bars(intervals: list[tuple[float, float, float]]) -> tuple[list[float], np.ndarray]:
+    """Means and matplotlib's asymmetric ``yerr`` (2, n) of :func:`bootstrap_interval`
+    results (no bar where undefined)."""
+    means = [t[0] for t in intervals]
+    err = np.array([[t[0] - t[1] for t in intervals], [t[2] - t[0] for t in intervals]])
+    return means, np.nan_to_num(err)
 
 
 def label(method: str) -> str:
@@ -310,34 +350,39 @@ def _colors(methods: list[str]) -> dict[str, Any]:
     return {m: cmap(order.index(m) % 20) for m in methods}
 
 
-def _fig2(episodes: list[dict[str, Any]], localizers: list[str], path: Path) -> None:
+def _fig2(episodes: list[dict[str, Any]], localizers: list[str]) -> Any:
+    """Figure 2: a bar per method for RMSE (per localizer), E_total, coverage and η_traj."""
     import matplotlib.pyplot as plt
     methods = _method_order(e["method"] for e in episodes)
     colors = _colors(methods)
     x = np.arange(len(methods))
     fig, axes = plt.subplots(2, 2, figsize=(max(10, 0.9 * len(methods) + 4), 8))
+    # E_total, not EER: Eq. 17's EER came out the same for every method (0.625 beacons/J in the
+    # quick preset, issue 22), so the panel said nothing; EER stays in the tables
     panels = (("(a) localization RMSE (Eq. 15) [m]", [f"rmse:{n}" for n in localizers]),
-              ("(b) energy efficiency ratio EER (Eq. 17) [beacons/J]", ["eer"]),
+              ("(b) total energy E_total [J]", ["energy_total"]),
               ("(c) coverage ratio (Eq. 18)", ["coverage"]),
               ("(d) trajectory efficiency η_traj (Eq. 19)", ["eta_traj"]))
     for ax, (title, keys) in zip(axes.ravel(), panels, strict=True):
         width = 0.8 / len(keys)
         for k, key in enumerate(keys):
-            means, cis = zip(*[ci_stats(e.get(key, math.nan) for e in episodes
-                                        if e["method"] == m)[1::2] for m in methods],
-                             strict=True)
+            means, err = _error_bars([bootstrap_interval(
+                [e.get(key, math.nan) for e in episodes if e["method"] == m],
+                [e["obstacle_density"] for e in episodes if e["method"] == m])
+                for m in methods])
             ax.bar(x + (k - (len(keys) - 1) / 2) * width, means, width,
-                   yerr=np.nan_to_num(cis), capsize=3, color=[colors[m] for m in methods],
+                   yerr=err, capsize=3, color=[colors[m] for m in methods],
                    edgecolor="black", linewidth=0.5, hatch="//" if k else None,
                    label=key.split(":")[-1])
         ax.set_title(title, fontsize=10)
         ax.set_xticks(x, [label(m) for m in methods], rotation=40, ha="right", fontsize=8)
-        if len(keys) > 1:
-            ax.legend(fontsize=8, title="localizer", title_fontsize=8)
-    fig.suptitle(f"Figure 2: methods compared ({len(episodes)} episodes; mean, 95 % CI)")
+        if len(keys) > 1:       # beside the axes, never over a bar
+            ax.legend(fontsize=8, title="localizer", title_fontsize=8, loc="upper left",
+                      bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    fig.suptitle(f"Figure 2: methods compared ({len(episodes)} episodes; mean, 95 % "
+                 f"bootstrap interval, resampled within each obstacle density)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
 def _lines(episodes: list[dict[str, Any]], localizer: str, x_key: str, x_label: str,
@@ -359,15 +404,16 @@ def _lines(episodes: list[dict[str, Any]], localizer: str, x_key: str, x_label: 
         for row, (key, name) in enumerate(metrics):
             ax = axes[row][col] if panel_key else axes[0][row]
             for m in methods:
-                s = [ci_stats(e.get(key, math.nan) for e in sel
-                              if e["method"] == m and e[x_key] == v) for v in xs]
-                ax.errorbar(xs, [t[1] for t in s], yerr=np.nan_to_num([t[3] for t in s]),
-                            color=colors[m], marker="o", ms=3, capsize=3, label=label(m))
+                means, err = _error_bars([bootstrap_interval(
+                    [e.get(key, math.nan) for e in sel if e["method"] == m and e[x_key] == v])
+                    for v in xs])
+                ax.errorbar(xs, means, yerr=err, color=colors[m], marker="o", ms=3, capsize=3,
+                            label=label(m))
             ax.set(xlabel=x_label, ylabel=name)
             if panel_key:
                 ax.set_title(f"{panel:g} m × {panel:g} m field", fontsize=10)
     fig.legend(*axes[0][0].get_legend_handles_labels(), loc="center right", fontsize=8)
-    fig.suptitle(f"{title} (mean, 95 % CI)")
+    fig.suptitle(f"{title} (mean, 95 % bootstrap interval)")
     fig.tight_layout(rect=(0, 0, 1 - 2.6 / fig.get_figwidth(), 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -378,6 +424,7 @@ def draw_figures(rows: list[dict[str, Any]], out: Path) -> list[Path]:
     in ``rows`` (fig4 shows every density at its N and field size); returns the paths."""
     import matplotlib
     matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
     episodes = list(_episodes(rows).values())
     localizers = _localizers(rows)
     if not episodes or not localizers:     # the figures plot RMSE: not without a localizer
@@ -386,7 +433,9 @@ def draw_figures(rows: list[dict[str, Any]], out: Path) -> list[Path]:
     fig2 = [e for e in episodes if _in_grid("fig2", e)]
     if fig2:
         written.append(out / "fig2.png")
-        _fig2(fig2, localizers, written[-1])
+        figure = _fig2(fig2, localizers)
+        figure.savefig(written[-1], dpi=110)
+        plt.close(figure)
     fig3 = [e for e in episodes if _in_grid("fig3", e)]
     if fig3:
         written.append(out / "fig3.png")

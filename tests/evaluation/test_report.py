@@ -4,10 +4,12 @@ import csv
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from scipy import stats
 
 from aoass_env.evaluation.report import (
+    bootstrap_interval,
     ci_stats,
     draw_figures,
     method_stats,
@@ -154,3 +156,54 @@ def test_robustness_gap_is_paired_with_the_spiral_of_the_same_episode():
 
 def stats_t975(dof: int) -> float:
     return stats.t.ppf(0.975, dof)
+
+
+def test_bootstrap_interval_stays_inside_the_values_range():
+    """A ratio near its bound (coverage up to 1, η_traj down to 0): the t interval leaves the
+    range, the bootstrap percentile interval cannot."""
+    values = [1.0] * 9 + [0.4]
+    _, mean, _, half = ci_stats(values)
+    assert mean + half > 1.0                                    # what the figure used to show
+    m, low, high = bootstrap_interval(values)
+    assert m == pytest.approx(0.94) and 0.4 <= low < m < high <= 1.0
+    assert bootstrap_interval(values) == (m, low, high)          # seeded
+    # within strata: a density whose episodes all agree adds no spread
+    strat = bootstrap_interval([0.2, 0.2, 0.9, 0.9], groups=[0.1, 0.1, 0.4, 0.4])
+    assert strat == (pytest.approx(0.55), pytest.approx(0.55), pytest.approx(0.55))
+    pooled = bootstrap_interval([0.2, 0.2, 0.9, 0.9])
+    assert pooled[1] < 0.55 < pooled[2]
+    assert bootstrap_interval([0.3]) == (0.3, 0.3, 0.3)
+    assert all(math.isnan(v) for v in bootstrap_interval([math.nan]))
+    with pytest.raises(ValueError, match="groups has 1 entries for 2 values"):
+        bootstrap_interval([1.0, 2.0], groups=[0.1])
+
+
+def test_fig2_bars_stay_in_range_show_e_total_and_keep_the_legend_clear(tmp_path):
+    import matplotlib
+    matplotlib.use("Agg")
+    from matplotlib.patches import Rectangle
+
+    from aoass_env.evaluation.report import _fig2
+    rows = rows_for(["aoass", "spiral", "scan"], densities=(0.1, 0.2, 0.3, 0.4), seeds=3)
+    for r in rows:                      # skewed ratios at their bounds, as OHM's coverage was
+        odd = r["seed"] == 0 and r["obstacle_density"] == 0.1
+        r["coverage"] = 0.3 if odd else 1.0
+        r["eta_traj"] = 0.9 if odd else 0.02
+    episodes = [r for r in rows if r["localizer"] == "olstm-dvhop"]
+    for key in ("coverage", "eta_traj"):  # the t interval of 12 episodes leaves [0, 1]
+        _, mean, _, half = ci_stats(e[key] for e in episodes if e["method"] == "aoass")
+        assert mean + half > 1.0 or mean - half < 0.0
+    for e in episodes:
+        e["rmse:olstm-dvhop"] = e["rmse:dvhop"] = e["rmse"]
+    fig = _fig2(episodes, ["olstm-dvhop", "dvhop"])
+    axes = fig.axes
+    assert [ax.get_title() for ax in axes][1] == "(b) total energy E_total [J]"
+    for ax in axes[2:]:                 # coverage and η_traj: error bars inside [0, 1]
+        assert ax.lines                 # the caps of the error bars
+        for line in ax.lines:
+            ys = np.asarray(line.get_ydata(), dtype=float)
+            assert np.all((ys >= 0.0) & (ys <= 1.0)), (ax.get_title(), ys)
+    fig.canvas.draw()
+    legend = axes[0].get_legend().get_window_extent()
+    bars = [p.get_window_extent() for p in axes[0].patches if isinstance(p, Rectangle)]
+    assert bars and not any(legend.overlaps(b) for b in bars)
