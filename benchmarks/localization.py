@@ -34,23 +34,30 @@ import torch  # noqa: E402
 from aoass_env.atomic import write_text_atomic  # noqa: E402
 from aoass_env.beacon_log import BeaconLog  # noqa: E402
 from aoass_env.localization import localize, prepare  # noqa: E402
-from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, load_checkpoint  # noqa: E402
+from aoass_env.localization.consensus import node_consensus  # noqa: E402
+from aoass_env.localization.dvhop import dvhop  # noqa: E402
+from aoass_env.localization.olstm import (  # noqa: E402
+    DEFAULT_CHECKPOINT,
+    OLSTM,
+    load_checkpoint,
+    olstm_dvhop,
+)
 from aoass_env.localization.training import EpisodeSpec, generate_logs  # noqa: E402
 from aoass_env.maps import list_maps  # noqa: E402
 
 NODES = (100, 300, 500)
 DENSITIES = (0.1, 0.2, 0.3, 0.4)
-DOIS = (0.0, 0.1)
+DOIS = (0.0, 0.1, 0.2)
 SPEED_MAP, SPEED_NODES, SPEED_SEED = "test/d0.20_f200_s521", 1000, 7
 METHODS = ("dvhop", "consensus", "olstm-dvhop")
 LABELS = {"dvhop": "DV-Hop", "consensus": "consensus", "olstm-dvhop": "OLSTM-DV-Hop"}
 
 
-def accuracy_specs(seeds: int) -> list[EpisodeSpec]:
+def accuracy_specs(seeds: int, dois: tuple[float, ...] = DOIS) -> list[EpisodeSpec]:
     """The benchmark episodes, seed-major so that a partial run covers every cell evenly."""
     names = list_maps("test")
     specs = []
-    for doi in DOIS:
+    for doi in dois:
         for seed in range(seeds):
             for n in NODES:
                 for density in DENSITIES:
@@ -59,17 +66,30 @@ def accuracy_specs(seeds: int) -> list[EpisodeSpec]:
     return specs
 
 
-def accuracy(paths: list[Path], specs: list[EpisodeSpec], model: torch.nn.Module) -> list[dict]:
+def estimates(path: Path, model: OLSTM) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """True node positions (N, 2) and every method's estimates (N, 2) [m] of one log; the
+    consensus pass is computed once and shared with OLSTM-DV-Hop (same result as
+    :func:`localize`)."""
+    episode = prepare(BeaconLog.load(path))
+    nodes = np.flatnonzero(episode.covered)
+    first = node_consensus(episode, nodes)
+    cons = np.full((episode.log.n_nodes, 2), np.nan)
+    cons[nodes] = first.estimate
+    return episode.log.nodes, {"dvhop": dvhop(episode), "consensus": cons,
+                               "olstm-dvhop": olstm_dvhop(episode, model, first)}
+
+
+def accuracy(paths: list[Path], specs: list[EpisodeSpec], model: OLSTM) -> list[dict]:
     rows = []
     for path, spec in zip(paths, specs, strict=True):
-        episode = prepare(BeaconLog.load(path))
+        true, est_of = estimates(path, model)
         row = {"map": spec.map_name, "n_nodes": spec.n_nodes, "doi": spec.doi, "seed": spec.seed,
                "density": float(spec.map_name.split("/")[1][1:5]),
-               "coverage": float(episode.covered.mean())}
+               "coverage": float(np.mean(np.all(np.isfinite(est_of["consensus"]), axis=1)))}
         for method in METHODS:
-            est = localize(episode, method, checkpoint=model)
+            est = est_of[method]
             ok = np.all(np.isfinite(est), axis=1)
-            row[f"{method}_sq"] = float(np.sum((est[ok] - episode.log.nodes[ok]) ** 2))
+            row[f"{method}_sq"] = float(np.sum((est[ok] - true[ok]) ** 2))
             row[f"{method}_n"] = int(ok.sum())
         rows.append(row)
     return rows
@@ -79,8 +99,8 @@ def accuracy_table(rows: list[dict], doi: float) -> str:
     out = io.StringIO()
     out.write(f"DOI {doi}: RMSE [m] pooled over localized nodes (localized fraction)\n\n")
     out.write(f"| N | density | episodes | {' | '.join(LABELS[m] for m in METHODS)} | ratio "
-              f"| coverage |\n")
-    out.write("|---" * (len(METHODS) + 5) + "|\n")
+              f"| gain vs consensus | coverage |\n")
+    out.write("|---" * (len(METHODS) + 6) + "|\n")
     for n in NODES:
         for density in DENSITIES:
             cell = [r for r in rows if r["doi"] == doi and r["n_nodes"] == n
@@ -95,29 +115,33 @@ def accuracy_table(rows: list[dict], doi: float) -> str:
                 frac[m] = k / total
             cov = np.mean([r["coverage"] for r in cell])
             values = " | ".join(f"{rmse[m]:.2f} ({frac[m]:.3f})" for m in METHODS)
+            gain = 1 - rmse["olstm-dvhop"] / rmse["consensus"]
             out.write(f"| {n} | {density} | {len(cell)} | {values} | "
-                      f"{rmse['dvhop'] / rmse['olstm-dvhop']:.1f}x | {cov:.3f} |\n")
+                      f"{rmse['dvhop'] / rmse['olstm-dvhop']:.1f}x | {100 * gain:+.1f} % "
+                      f"| {cov:.3f} |\n")
     return out.getvalue()
 
 
-def speed(folder: Path, model: torch.nn.Module, repeats: int) -> str:
-    spec = EpisodeSpec(SPEED_MAP, SPEED_NODES, 0.0, SPEED_SEED)
-    path = generate_logs([spec], folder)[0]
-    log = BeaconLog.load(path)
-    times = {}
-    for method in METHODS:
-        localize(log, method, checkpoint=model)  # warm-up
-        runs = []
-        for _ in range(repeats):
-            start = time.perf_counter()
-            localize(log, method, checkpoint=model)
-            runs.append(time.perf_counter() - start)
-        times[method] = float(np.median(runs))
-    rows = "".join(f"| {LABELS[m]} | {times[m]:.3f} |\n" for m in METHODS)
+def speed(folder: Path, model: OLSTM, repeats: int) -> str:
+    """Median time [s] per method on the N = 1000, 200 m log, with DOI 0 and DOI 0.1."""
+    times: dict[float, dict[str, float]] = {}
+    for doi in (0.0, 0.1):
+        log = BeaconLog.load(generate_logs([EpisodeSpec(SPEED_MAP, SPEED_NODES, doi, SPEED_SEED)],
+                                           folder)[0])
+        times[doi] = {}
+        for method in METHODS:
+            localize(log, method, checkpoint=model)  # warm-up
+            runs = []
+            for _ in range(repeats):
+                start = time.perf_counter()
+                localize(log, method, checkpoint=model)
+                runs.append(time.perf_counter() - start)
+            times[doi][method] = float(np.median(runs))
+    rows = "".join(f"| {LABELS[m]} | {times[0.0][m]:.3f} | {times[0.1][m]:.3f} |\n"
+                   for m in METHODS)
     return (f"Speed, one core, N = {log.n_nodes}, {log.n_beacons} beacons, "
             f"{int(log.field[0])} x {int(log.field[1])} m ({SPEED_MAP}), median of {repeats}:\n\n"
-            f"| method | time [s] |\n|---|---|\n{rows}"
-            f"| ratio OLSTM / DV-Hop | {times['olstm-dvhop'] / times['dvhop']:.1f} |\n")
+            f"| method | DOI 0 [s] | DOI 0.1 [s] |\n|---|---|---|\n{rows}")
 
 
 def main() -> None:
@@ -129,10 +153,16 @@ def main() -> None:
     parser.add_argument("--logs-only", action="store_true", help="only simulate the logs")
     parser.add_argument("--cached-only", action="store_true",
                         help="only use logs already simulated (a partial run)")
+    parser.add_argument("--dois", type=float, nargs="+", default=list(DOIS),
+                        help=f"radio irregularities to run (default {' '.join(map(str, DOIS))})")
+    parser.add_argument("--logs", type=Path, default=None,
+                        help="folder of the simulated logs (default OUT/logs)")
+    parser.add_argument("--no-speed", action="store_true", help="skip the speed table")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    specs = accuracy_specs(args.seeds)
-    logs = args.out / "logs"
+    dois = tuple(args.dois)
+    specs = accuracy_specs(args.seeds, dois)
+    logs = args.out / "logs" if args.logs is None else args.logs
     if args.cached_only:
         specs = [s for s in specs if (logs / s.file_name).is_file()]
     paths = generate_logs(specs, logs, lambda line: print(line, flush=True))
@@ -140,8 +170,9 @@ def main() -> None:
         return
     model = load_checkpoint(args.checkpoint)
     rows = accuracy(paths, specs, model)
-    report = "\n".join(accuracy_table(rows, doi) for doi in DOIS)
-    report += "\n" + speed(args.out / "speed", model, args.repeats)
+    report = "\n".join(accuracy_table(rows, doi) for doi in dois)
+    if not args.no_speed:
+        report += "\n" + speed(args.out / "speed", model, args.repeats)
     print(report)
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(rows[0]))

@@ -5,8 +5,9 @@ covered under Eq. 18 (fewer than three non-collinear beacons heard). See docs/lo
 
 Modules: :mod:`.hops` (hop counts), :mod:`.dvhop` (Eq. 11, classical DV-Hop),
 :mod:`.consensus` (map-aware visibility consensus), :mod:`.multilateration` (Eq. 13),
-:mod:`.features` (OLSTM input), :mod:`.olstm` (model, checkpoints, Eq. 12), :mod:`.training`
-(training pipeline), :mod:`.cli` (folder of logs).
+:mod:`.reception` (the reception record, OLSTM input), :mod:`.olstm` (model, checkpoints, Eq. 12
+as a learned reception model), :mod:`.training` (training pipeline), :mod:`.cli` (folder of
+logs).
 """
 
 from __future__ import annotations
@@ -52,8 +53,8 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
     Args:
         log: the beacon log (or an :class:`Episode` already prepared from one).
         method: ``"dvhop"`` (classical DV-Hop, the baseline), ``"consensus"`` (the map-aware
-            visibility consensus alone) or ``"olstm-dvhop"`` (the consensus refined by the
-            OLSTM and Eq. 13); docs/localization.md.
+            visibility consensus alone) or ``"olstm-dvhop"`` (the consensus with the OLSTM's
+            learned reception range in place of the DOI bound); docs/localization.md.
         checkpoint: OLSTM checkpoint path (default: the shipped one,
             :data:`~aoass_env.localization.olstm.DEFAULT_CHECKPOINT`), or a loaded model
             (``"olstm-dvhop"`` only).

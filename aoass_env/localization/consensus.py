@@ -131,7 +131,8 @@ def _profiles(beacon_xy: np.ndarray, polygons: tuple[np.ndarray, ...], reach: fl
 
 
 def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = ANGLE_BINS,
-                      points: np.ndarray | None = None) -> VisibilityRaster:
+                      points: np.ndarray | None = None,
+                      band: tuple[np.ndarray, np.ndarray] | None = None) -> VisibilityRaster:
     """The :class:`VisibilityRaster` of ``episode`` on a grid of ``cell`` metres, for the
     transmitters at ``points`` (M, 2) [m] (default: the beacons).
 
@@ -173,8 +174,14 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
             np.int32) & (bins - 1)
         k += (np.arange(len(xy), dtype=np.int32) * bins)[:, None, None]
         sight &= dist < np.take(profile.astype(np.float32).reshape(-1), k)
-    near = sight & (dist <= r_lo)
-    weight = near.astype(np.uint8) + (sight & (dist <= r_hi))
+    if band is None:
+        near = sight & (dist <= r_lo)
+        weight = near.astype(np.uint8) + (sight & (dist <= r_hi))
+    else:
+        deg = np.rint(np.degrees(np.arctan2(dy, dx))).astype(np.int64) % 360
+        radius = episode.log.radio_range
+        near = sight & (dist <= radius * band[0][deg])
+        weight = near.astype(np.uint8) + (sight & (dist <= radius * band[1][deg]))
     certain = np.zeros((shape[0] + 2 * pad, shape[1] + 2 * pad), dtype=np.int32)
     for (ox, oy), block in zip(origin + pad, near, strict=True):
         certain[ox:ox + size, oy:oy + size] += block
@@ -303,7 +310,8 @@ def _lists(rows: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
 
 
 def node_consensus(episode: Episode, nodes: np.ndarray | None = None, *,
-                   cell: float = DEFAULT_CELL) -> Consensus:
+                   cell: float = DEFAULT_CELL,
+                   band: tuple[np.ndarray, np.ndarray] | None = None) -> Consensus:
     """Visibility-consensus estimates of ``nodes`` (default: the Eq. 18 covered nodes).
 
     Two stages: every node from the beacons; then every node whose best cells spread over more
@@ -323,7 +331,7 @@ def node_consensus(episode: Episode, nodes: np.ndarray | None = None, *,
     """
     nodes = np.flatnonzero(episode.covered) if nodes is None \
         else np.asarray(nodes, dtype=np.int64).reshape(-1)
-    beacon_raster = visibility_raster(episode, cell)
+    beacon_raster = visibility_raster(episode, cell, band=band)
     seq_of = np.full(episode.log.n_nodes, -1, dtype=np.int64)
     seq_of[nodes] = np.arange(len(nodes))
     rec = episode.log.receptions

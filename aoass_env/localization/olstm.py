@@ -1,11 +1,14 @@
-"""OLSTM-DV-Hop (Eq. 12 then Eq. 13): an LSTM predicts each node's distance to its beacons.
+"""OLSTM-DV-Hop: a learned reception model (Eq. 12) inside the visibility consensus.
 
-For every covered node the model reads the node's beacon sequence (:mod:`~aoass_env.
-localization.features`) in time order with a bidirectional LSTM and predicts, per beacon, the
-distance ``d_hat`` as the distance from the reference point plus a learned correction, and the
-log-variance of that prediction. The reference point of the sequences and the start of Eq. 13
-(weights ``1 / variance``, :func:`~aoass_env.localization.multilateration.multilaterate`) is the
-node's visibility-consensus estimate (:mod:`~aoass_env.localization.consensus`).
+With radio irregularity (DOI > 0) the anchor's range is R K(theta), one closed random walk over
+the directions shared by all beacons (:mod:`aoass_env.radio`). The visibility consensus alone
+only knows the bound: hearing is certain within R (1 - DOI), possible within R (1 + DOI). The
+OLSTM reads the log's record of heard and unheard (beacon, node) pairs near the range circle,
+placed by a first consensus pass (:mod:`~aoass_env.localization.reception`), as a circular
+sequence over the 360 degrees (a bidirectional LSTM) and predicts per degree a Gaussian over the
+range factor. Its band, mean -/+ ``band_width`` standard deviations, replaces the DOI bound in a
+second consensus pass: a heard beacon outside it, or an unheard one in sight inside its certain
+part, is a violation. With DOI 0 the unit disk is exact and OLSTM-DV-Hop is the consensus.
 
 Checkpoints are plain dictionaries (weights as tensors, metadata as lists, numbers and strings)
 saved with :func:`torch.save` and read with ``torch.load(..., weights_only=True)``; their format,
@@ -14,6 +17,7 @@ schema version and feature list must match this code.
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -23,21 +27,27 @@ import torch
 from torch import nn
 
 from aoass_env.atomic import atomic_open
-from aoass_env.localization.consensus import RELIABLE_SPREAD, node_consensus
+from aoass_env.localization.consensus import RELIABLE_SPREAD, Consensus, node_consensus
 from aoass_env.localization.episode import Episode
-from aoass_env.localization.features import FEATURE_NAMES, FEATURE_VERSION, build_sequences
-from aoass_env.localization.multilateration import multilaterate
+from aoass_env.localization.reception import (
+    FEATURE_NAMES,
+    FEATURE_VERSION,
+    N_FEATURES,
+    pair_histograms,
+    pair_statistics,
+    range_band,
+)
 
 __all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "DEFAULT_CHECKPOINT", "CheckpointError",
-           "OLSTM", "load_checkpoint", "olstm_dvhop", "predict", "save_checkpoint"]
+           "OLSTM", "load_checkpoint", "olstm_dvhop", "predict_pattern", "save_checkpoint"]
 
 CHECKPOINT_FORMAT = "aoass-olstm-dvhop"
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2
 #: The shipped, trained localizer.
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parents[2] / "checkpoints" / "olstm_dvhop.pt"
-_RANGE = FEATURE_NAMES.index("range")
-_LOGVAR_MIN, _LOGVAR_MAX = -12.0, 4.0
-_BATCH = 256  # sequences per forward call at inference
+#: Wrap-around padding of the circular sequence on each side [degrees].
+PAD = 32
+_LOGSTD_MIN, _LOGSTD_MAX = -6.0, 2.0
 
 
 class CheckpointError(ValueError):
@@ -45,42 +55,29 @@ class CheckpointError(ValueError):
 
 
 class OLSTM(nn.Module):
-    """Bidirectional LSTM over a node's beacon sequence; per step (d_hat / R, log variance).
-
-    The two directions are separate one-layer LSTMs over padded batches; the backward one reads
-    each sequence reversed within its length.
+    """Bidirectional LSTM over the 360 degrees of an episode's reception record; per degree the
+    mean (in [-1, 1]) and log standard deviation of z_K = (K - 1) / DOI.
 
     Args:
-        n_features: features per step (``len(FEATURE_NAMES)``).
         hidden: LSTM hidden size per direction.
-        mean, std: (F,) feature normalisation, stored as buffers (part of the checkpoint).
+        band_width: standard deviations on each side of the mean that make the range band
+            (chosen on validation; stored in the checkpoint).
     """
 
-    def __init__(self, n_features: int = len(FEATURE_NAMES), hidden: int = 48,
-                 mean: torch.Tensor | None = None, std: torch.Tensor | None = None) -> None:
+    def __init__(self, hidden: int = 32, band_width: float = 1.0) -> None:
         super().__init__()
         self.hidden = hidden
-        self.register_buffer("mean", torch.zeros(n_features) if mean is None else mean.float())
-        self.register_buffer("std", torch.ones(n_features) if std is None else std.float())
-        self.embed = nn.Sequential(nn.Linear(n_features, hidden), nn.ReLU())
-        self.forward_lstm = nn.LSTM(hidden, hidden, batch_first=True)
-        self.backward_lstm = nn.LSTM(hidden, hidden, batch_first=True)
+        self.band_width = float(band_width)
+        self.embed = nn.Sequential(nn.Linear(N_FEATURES, hidden), nn.ReLU())
+        self.lstm = nn.LSTM(hidden, hidden, batch_first=True, bidirectional=True)
         self.head = nn.Sequential(nn.Linear(3 * hidden, hidden), nn.ReLU(), nn.Linear(hidden, 2))
 
-    def forward(self, features: torch.Tensor,
-                lengths: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Features (S, L, F) raw, lengths (S,) -> d_hat / R (S, L), log variance (S, L)."""
-        e = self.embed((features - self.mean) / self.std)
-        # The backward direction reads each sequence reversed within its own length, so the
-        # padding after the end is never read before a real step (no packing needed).
-        steps = torch.arange(features.shape[1], device=features.device)
-        rev = torch.where(steps < lengths[:, None], lengths[:, None] - 1 - steps, steps)
-        rev = rev[..., None].expand(-1, -1, e.shape[-1])
-        h_fwd = self.forward_lstm(e)[0]
-        h_bwd = self.backward_lstm(e.gather(1, rev))[0].gather(1, rev)
-        out = self.head(torch.cat([h_fwd, h_bwd, e], dim=-1))
-        d_hat = features[..., _RANGE] + out[..., 0]
-        return d_hat, out[..., 1].clamp(_LOGVAR_MIN, _LOGVAR_MAX)
+    def forward(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Features (S, 360, N_FEATURES) -> mean z_K (S, 360), log std (S, 360)."""
+        wrapped = torch.cat([features[:, -PAD:], features, features[:, :PAD]], dim=1)
+        e = self.embed(wrapped)
+        out = self.head(torch.cat([self.lstm(e)[0], e], dim=-1))[:, PAD:-PAD]
+        return torch.tanh(out[..., 0]), out[..., 1].clamp(_LOGSTD_MIN, _LOGSTD_MAX)
 
 
 def save_checkpoint(model: OLSTM, path: str | os.PathLike[str],
@@ -88,7 +85,8 @@ def save_checkpoint(model: OLSTM, path: str | os.PathLike[str],
     """Write ``model`` and its metadata to ``path`` atomically (``training``: JSON-like info)."""
     payload = {"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION,
                "feature_names": list(FEATURE_NAMES), "feature_version": FEATURE_VERSION,
-               "hidden": model.hidden, "state_dict": model.state_dict(), "training": training}
+               "hidden": model.hidden, "band_width": model.band_width,
+               "state_dict": model.state_dict(), "training": training}
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     with atomic_open(path, "wb") as f:
         torch.save(payload, f)
@@ -98,8 +96,9 @@ def load_checkpoint(path: str | os.PathLike[str] = DEFAULT_CHECKPOINT) -> OLSTM:
     """The model stored at ``path`` (read with ``weights_only=True``), in eval mode.
 
     Raises:
-        CheckpointError: no file, not a checkpoint of this format, or its schema version or
-            feature set differs from this code's.
+        CheckpointError: no file, not a checkpoint of this format, its schema version or
+            feature set differs from this code's, or its settings or weights are invalid
+            (NaN or infinite included).
     """
     if not Path(path).is_file():
         raise CheckpointError(f"{path}: no localizer checkpoint there (train one with "
@@ -121,7 +120,11 @@ def load_checkpoint(path: str | os.PathLike[str] = DEFAULT_CHECKPOINT) -> OLSTM:
     hidden = payload.get("hidden")
     if isinstance(hidden, bool) or not isinstance(hidden, int) or hidden < 1:
         raise CheckpointError(f"{path}: hidden must be an integer >= 1, got {hidden!r}")
-    model = OLSTM(len(FEATURE_NAMES), hidden)
+    width = payload.get("band_width")
+    if isinstance(width, bool) or not isinstance(width, (int, float)) \
+            or not (math.isfinite(width) and width >= 0):
+        raise CheckpointError(f"{path}: band_width must be a finite number >= 0, got {width!r}")
+    model = OLSTM(hidden, width)
     try:
         model.load_state_dict(payload["state_dict"])
     except (KeyError, RuntimeError, TypeError, AttributeError) as exc:
@@ -132,43 +135,36 @@ def load_checkpoint(path: str | os.PathLike[str] = DEFAULT_CHECKPOINT) -> OLSTM:
     return model.eval()
 
 
-def predict(model: OLSTM, features: np.ndarray,
-            lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted d_hat / R and log variance (S, L) for padded sequences, deterministically."""
-    d_hat = np.zeros(features.shape[:2], dtype=np.float32)
-    logvar = np.zeros_like(d_hat)
-    order = np.argsort(-lengths, kind="stable")
+def predict_pattern(model: OLSTM, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean z_K and its standard deviation (360,) from one episode's features (360, F)."""
     with torch.inference_mode():
-        for start in range(0, len(order), _BATCH):
-            idx = order[start:start + _BATCH]
-            width = int(lengths[idx].max())
-            d, v = model(torch.from_numpy(np.ascontiguousarray(features[idx, :width])),
-                         torch.from_numpy(lengths[idx]))
-            d_hat[idx, :width], logvar[idx, :width] = d.numpy(), v.numpy()
-    return d_hat, logvar
+        mean, logstd = model(torch.from_numpy(features[None]))
+    return mean[0].numpy().astype(np.float64), np.exp(logstd[0].numpy().astype(np.float64))
 
 
-def olstm_dvhop(episode: Episode, model: OLSTM) -> np.ndarray:
+def olstm_dvhop(episode: Episode, model: OLSTM, first: Consensus | None = None) -> np.ndarray:
     """OLSTM-DV-Hop estimates (N, 2) [m]; NaN for nodes not covered under Eq. 18.
 
-    Every covered node starts from its visibility-consensus estimate; the nodes whose consensus
-    region is wide (spread above ``RELIABLE_SPREAD``) then get the OLSTM distances (Eq. 12) and
-    Eq. 13 from there.
+    DOI 0: the visibility consensus. DOI > 0: a first consensus pass places the nodes; the pairs
+    of the reliable ones (spread <= ``RELIABLE_SPREAD``) give the OLSTM its per-degree record; the
+    predicted range band replaces the DOI bound in a second, final consensus pass. ``first``:
+    that first pass (:func:`node_consensus` of the covered nodes) when the caller has it.
     """
     out = np.full((episode.log.n_nodes, 2), np.nan)
     nodes = np.flatnonzero(episode.covered)
     if len(nodes) == 0:
         return out
-    ref = node_consensus(episode, nodes)
-    out[nodes] = ref.estimate
-    wide = ~(ref.spread <= RELIABLE_SPREAD)  # NaN spread: no consensus cell, wide too
-    if not wide.any():
+    if first is None:
+        first = node_consensus(episode, nodes)
+    elif not np.array_equal(first.nodes, nodes):
+        raise ValueError("first must be the consensus of exactly the covered nodes")
+    doi = episode.config.doi
+    if doi == 0:
+        out[nodes] = first.estimate
         return out
-    seq = build_sequences(episode, nodes[wide], ref.estimate[wide], ref.spread[wide])
-    d_hat, logvar = predict(model, seq.features, seq.lengths)
-    mask = seq.mask
-    weights = np.where(mask, np.exp(-logvar.astype(np.float64)), 0.0)
-    out[nodes[wide]] = multilaterate(episode.beacon_xy[np.maximum(seq.beacons, 0)],
-                                     np.where(mask, d_hat * episode.log.radio_range, 0.0),
-                                     weights, ref.estimate[wide], episode.field)
+    reliable = first.spread <= RELIABLE_SPREAD
+    record = pair_statistics(episode, nodes[reliable], first.estimate[reliable])
+    mean, std = predict_pattern(model, pair_histograms(record))
+    band = range_band(mean, std, doi, model.band_width)
+    out[nodes] = node_consensus(episode, nodes, band=band).estimate
     return out

@@ -41,3 +41,13 @@ def small_sim() -> Simulator:
 @pytest.fixture(scope="session")
 def small_log(small_sim: Simulator) -> BeaconLog:
     return small_sim.finish()
+
+
+@pytest.fixture(scope="session")
+def doi_sim() -> Simulator:
+    """A finished 40 x 40 m episode with 60 nodes, a few obstacles and DOI 0.15."""
+    config = AOASSConfig(field_size=40.0, n_nodes=60, obstacle_density=0.1,
+                         n_moving_obstacles=0, doi=0.15)
+    sim = Simulator(config, np.random.default_rng(2), seed=2)
+    sim.run()
+    return sim

@@ -7,14 +7,15 @@ import pytest
 import torch
 
 from aoass_env.beacon_log import BeaconLogError
-from aoass_env.localization import localize
-from aoass_env.localization.features import FEATURE_NAMES
+from aoass_env.localization import localize, prepare
 from aoass_env.localization.olstm import (
     OLSTM,
     CheckpointError,
     load_checkpoint,
+    olstm_dvhop,
     save_checkpoint,
 )
+from aoass_env.localization.reception import N_FEATURES
 from tests.localization.conftest import make_log
 
 
@@ -41,13 +42,25 @@ def test_inference_is_deterministic_and_covers_exactly_the_covered(model, small_
     assert np.all(np.isfinite(a[covered])) and np.all(np.isnan(a[~covered]))
 
 
-def test_padding_does_not_change_predictions(model) -> None:
-    x = torch.randn(1, 6, len(FEATURE_NAMES))
-    d1, v1 = model(x, torch.tensor([6]))
-    padded = torch.cat([x, torch.randn(1, 4, len(FEATURE_NAMES))], dim=1)
-    d2, v2 = model(padded, torch.tensor([6]))
-    torch.testing.assert_close(d1, d2[:, :6])
-    torch.testing.assert_close(v1, v2[:, :6])
+def test_doi_zero_is_the_consensus(model, small_log) -> None:
+    np.testing.assert_array_equal(localize(small_log, "olstm-dvhop", checkpoint=model),
+                                  localize(small_log, "consensus"))
+
+
+def test_doi_episode_localizes_exactly_the_covered_nodes(model, doi_sim) -> None:
+    log = doi_sim.finish()
+    episode = prepare(log)
+    est = olstm_dvhop(episode, model)
+    covered = np.asarray(doi_sim.network.covered)
+    assert np.all(np.isfinite(est[covered])) and np.all(np.isnan(est[~covered]))
+    np.testing.assert_array_equal(est, localize(log, "olstm-dvhop", checkpoint=model))
+
+
+def test_output_is_a_bounded_mean_per_degree(model) -> None:
+    with torch.no_grad():
+        mean, logstd = model(torch.randn(2, 360, N_FEATURES) * 3)
+    assert mean.shape == logstd.shape == (2, 360)
+    assert float(mean.abs().max()) <= 1.0
 
 
 @pytest.mark.parametrize("change, match", [
@@ -55,6 +68,9 @@ def test_padding_does_not_change_predictions(model) -> None:
     ({"feature_version": 99}, "feature set"),
     ({"version": 99}, "version 99"),
     ({"format": "other"}, "not an"),
+    ({"band_width": float("nan")}, "band_width"),
+    ({"band_width": -1.0}, "band_width"),
+    ({"hidden": 0}, "hidden"),
 ])
 def test_mismatched_checkpoint(tmp_path, model, change, match) -> None:
     path = tmp_path / "m.pt"
@@ -63,6 +79,17 @@ def test_mismatched_checkpoint(tmp_path, model, change, match) -> None:
     payload.update(change)
     torch.save(payload, path)
     with pytest.raises(CheckpointError, match=match):
+        load_checkpoint(path)
+
+
+def test_nan_weights_are_refused(tmp_path, model) -> None:
+    path = tmp_path / "m.pt"
+    save_checkpoint(model, path, {})
+    payload = torch.load(path, weights_only=True)
+    payload["state_dict"]["head.2.bias"] = torch.full_like(payload["state_dict"]["head.2.bias"],
+                                                           float("nan"))
+    torch.save(payload, path)
+    with pytest.raises(CheckpointError, match="head.2.bias holds NaN"):
         load_checkpoint(path)
 
 

@@ -1,0 +1,57 @@
+"""Reception record: pairs agree with the true DOI pattern; histograms and bands."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aoass_env.localization.episode import prepare
+from aoass_env.localization.reception import (
+    HIST_BINS,
+    N_FEATURES,
+    Z_RANGE,
+    pair_histograms,
+    pair_statistics,
+    range_band,
+)
+
+
+def test_pairs_at_true_positions_obey_the_anchor_pattern(doi_sim) -> None:
+    episode = prepare(doi_sim.finish())
+    nodes = np.arange(episode.log.n_nodes)
+    record = pair_statistics(episode, nodes, episode.log.nodes)
+    k = doi_sim.radio.anchor_pattern[record.degree]
+    reach = (k - 1) / 0.15  # z of the range circle in each pair's direction
+    assert record.heard.any() and (~record.heard).any()
+    # no moving obstacles: heard iff within the pattern's range (unheard pairs are in sight)
+    assert np.all(record.z[record.heard] <= reach[record.heard] + 1e-9)
+    assert np.all(record.z[~record.heard] > reach[~record.heard] - 1e-9)
+    assert np.all(np.abs(record.z) <= Z_RANGE + 1e-9)
+
+
+def test_histograms_count_pairs_per_degree(doi_sim) -> None:
+    episode = prepare(doi_sim.finish())
+    record = pair_statistics(episode, np.arange(episode.log.n_nodes), episode.log.nodes)
+    x = pair_histograms(record)
+    assert x.shape == (360, N_FEATURES)
+    counts = np.expm1(x[:, :2 * HIST_BINS])
+    np.testing.assert_allclose(counts[:, :HIST_BINS].sum(), record.heard.sum(), rtol=1e-5)
+    np.testing.assert_allclose(counts[:, HIST_BINS:].sum(), (~record.heard).sum(), rtol=1e-5)
+    np.testing.assert_allclose(x[:, -1], 1.5)  # 10 DOI
+    none = pair_histograms(record, np.zeros(len(record.z), dtype=bool))
+    assert np.all(none[:, :-1] == 0)
+
+
+def test_pair_statistics_need_irregularity(small_log) -> None:
+    episode = prepare(small_log)
+    with pytest.raises(ValueError, match="DOI > 0"):
+        pair_statistics(episode, np.arange(3), episode.log.nodes[:3])
+
+
+def test_range_band_is_ordered_and_clipped_to_the_doi_bound() -> None:
+    mean = np.linspace(-1, 1, 360)
+    lo, hi = range_band(mean, np.full(360, 0.3), 0.1, 1.0)
+    assert np.all(lo <= hi) and lo.min() >= 0.9 - 1e-12 and hi.max() <= 1.1 + 1e-12
+    np.testing.assert_allclose(lo[180], 1 + 0.1 * (mean[180] - 0.3))
+    lo0, hi0 = range_band(mean, np.full(360, 0.3), 0.1, 0.0)
+    np.testing.assert_array_equal(lo0, hi0)
