@@ -23,7 +23,6 @@ from pathlib import Path
 from typing import Any
 
 import torch
-import yaml
 
 from aoass_env.backends import add_backend_arguments, deliver_interrupts, make_backend
 from aoass_env.localization.training import TrainConfig, train_localizer
@@ -54,17 +53,17 @@ _LOCALIZER_RANGES: dict[str, tuple[type, float, bool]] = {
     "learning_rate": (float, 0, True), "seed": (int, 0, False)}
 
 
-def _key_value(text: str) -> tuple[str, Any]:
-    """An argparse type: ``key:value``, the value read as YAML with the safe loader (numbers,
-    strings, lists and mappings; never Python objects), as RL Zoo's ``--hyperparams``."""
-    key, sep, value = text.partition(":")
-    if not sep or not key.isidentifier():
-        raise argparse.ArgumentTypeError(f"must be key:value, got {text!r}")
-    try:
-        return key, yaml.safe_load(value)
-    except yaml.YAMLError as exc:
-        raise argparse.ArgumentTypeError(f"{text!r}: the value is not valid YAML "
-                                         f"({getattr(exc, 'problem', exc)})") from None
+def _key_value(flag: str) -> Callable[[str], tuple[str, Any]]:
+    """An argparse type of ``flag``: ``key:value``, the value read as safe YAML
+    (:func:`agents.sections.key_value`)."""
+    def parse(text: str) -> tuple[str, Any]:
+        from agents.sections import key_value
+        try:
+            return key_value(text, flag)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    parse.__name__ = "key:value"
+    return parse
 
 
 def _folder(flag: str, path: Path) -> None:
@@ -124,10 +123,12 @@ def _agent_parser() -> argparse.ArgumentParser:
                    help="parallel environments, subprocesses when > 1 (default: 1)")
     p.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
                    help="hyperparameter YAML (default: configs/aoass.yml)")
-    p.add_argument("--hyperparams", type=_key_value, nargs="+", default=[], metavar="KEY:VALUE",
+    p.add_argument("--hyperparams", type=_key_value("--hyperparams"), nargs="+", default=[],
+                   metavar="KEY:VALUE",
                    help="replace keys of the config's section, values as YAML (e.g. "
                         "learning_rate:0.0003 'policy_kwargs:{net_arch: [32, 32]}')")
-    p.add_argument("--env-kwargs", type=_key_value, nargs="+", default=[], metavar="KEY:VALUE",
+    p.add_argument("--env-kwargs", type=_key_value("--env-kwargs"), nargs="+", default=[],
+                   metavar="KEY:VALUE",
                    help="replace keys of the section's env (e.g. n_nodes:50 "
                         "'densities:[0.2, 0.3]')")
     p.add_argument("--eval-freq", type=_number(int, 1), default=None,

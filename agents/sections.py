@@ -25,8 +25,8 @@ from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.validators import integer, real
 from aoass_env.wrappers import make_safe_env
 
-__all__ = ["EXTRA_KEYS", "HyperparameterError", "check_section", "env_keys", "model_kwargs",
-           "override_section", "policy_name", "read_yaml", "section_keys"]
+__all__ = ["EXTRA_KEYS", "HyperparameterError", "check_section", "env_keys", "key_value",
+           "model_kwargs", "override_section", "policy_name", "read_yaml", "section_keys"]
 
 #: Keys of a section that are not constructor keywords.
 EXTRA_KEYS = ("n_timesteps", "policy", "action_noise", "env", "eval", "checkpoint_freq")
@@ -96,6 +96,20 @@ def read_yaml(path: str | Path, what: str = "hyperparameter file") -> Any:
         raise HyperparameterError(f"{path}: not a readable {what} ({exc})") from None
     except yaml.YAMLError as exc:
         raise HyperparameterError(f"{path}: not valid YAML ({exc})") from None
+
+
+def key_value(text: str, flag: str) -> tuple[str, Any]:
+    """``(key, value)`` of a command line's ``key:value`` (RL Zoo's ``--hyperparams``), the
+    value read as YAML with the safe loader (numbers, strings, lists and mappings; never Python
+    objects); :class:`HyperparameterError` naming ``flag`` otherwise."""
+    key, sep, value = text.partition(":")
+    if not sep or not key.isidentifier():
+        raise HyperparameterError(f"{flag}: must be key:value, got {text!r}")
+    try:
+        return key, yaml.safe_load(value)
+    except yaml.YAMLError as exc:
+        raise HyperparameterError(f"{flag} {text!r}: the value is not valid YAML "
+                                  f"({getattr(exc, 'problem', exc)})") from None
 
 
 def _check_keys(where: str, section: Mapping[str, Any], valid: list[str]) -> None:
