@@ -168,7 +168,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
             self._map = _option_map(self.config.map, "map")
             self.config = config_for_map(
                 self.config, self._map,
-                explicit="field_size" in kwargs or "field_size" in (config or {}))
+                explicit="field_size" in kwargs
+                or (isinstance(config, Mapping) and "field_size" in config))
         self.max_episode_steps = max_episode_steps(self.config)
         if action_type is not None and not isinstance(action_type, ActionType):
             raise TypeError(f"action_type must be an aoass_env.action.ActionType, got "

@@ -103,7 +103,12 @@ def test_config_dict_or_object_beside_keywords():
     assert (env.unwrapped.config.n_nodes, env.unwrapped.config.radio_range) == (7, 20.0)
     env = gym.make(SAFE_ENV_ID, config={"n_nodes": 7}, action_heading_scale=0.5)
     assert (env.unwrapped.config.n_nodes, env.unwrapped.config.action_heading_scale) == (7, 0.5)
-    # a dict's field_size counts as given: a map of another size is refused
+    # a map keeps its own size: a config object's default field_size gives way to it, a
+    # dict's field_size counts as given and a map of another size is refused
+    assert gym.make("AOASS-v0", config=AOASSConfig(map="test/d0.10_f200_s518")
+                    ).unwrapped.config.field_size == 200.0
+    assert gym.make("AOASS-v0", config={"map": "test/d0.10_f200_s518"}
+                    ).unwrapped.config.field_size == 200.0
     with pytest.raises(ConfigError, match="field_size"):
         gym.make("AOASS-v0", config={"map": "test/d0.40_f100_s509", "field_size": 200.0})
     with pytest.raises(ConfigError, match="did you mean 'n_nodes'"):
