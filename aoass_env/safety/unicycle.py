@@ -33,10 +33,14 @@ __all__ = ["BrakingEnvelope", "braking_speed", "clearance", "free_travel", "spee
 
 #: Below this speed (m/s) ORCA's velocity has no usable direction.
 _STILL = 1e-9
+#: How far (m/s) a velocity may lie past a satisfied ORCA line: half the 2-D LP's round-off
+#: slack (1e-9 m/s, :mod:`aoass_env.safety.orca`), within which ORCA's v* lies on its lines.
+_LINE_SLACK = 5e-10
 #: A heading whose approach rate to a segment's side is below this (m per m) runs parallel.
 _PARALLEL = 1e-12
-#: An anchor inside the envelope's radius keeps its clearance less this much (m) of round-off.
-_HELD = 1e-9
+#: An anchor inside the envelope's radius keeps its clearance less this much (m): the slack
+#: lets a heading within a hair of parallel to the nearest edge (ORCA's slide along it) move on.
+_HELD = 1e-3
 
 
 def turn_headings(heading: float, target: float, max_turn: float, n: int = 4) -> np.ndarray:
@@ -50,8 +54,8 @@ def turn_headings(heading: float, target: float, max_turn: float, n: int = 4) ->
 def speed_bounds(points: np.ndarray, directions: np.ndarray,
                  headings: np.ndarray) -> np.ndarray:
     """(k,) for each heading h (rad) the largest speed s >= 0 (m/s; inf when unbounded) such
-    that s (cos h, sin h) satisfies every line that zero velocity satisfies and deepens no line
-    that zero velocity violates.
+    that s (cos h, sin h) satisfies every line that zero velocity satisfies (to within half the
+    LP's round-off slack, 5e-10 m/s) and deepens no line that zero velocity violates.
 
     Args:
         points, directions: (n, 2) the ORCA lines (velocity space, m/s; unit directions).
@@ -67,7 +71,10 @@ def speed_bounds(points: np.ndarray, directions: np.ndarray,
     along = (directions[:, 0][:, None] * h[None, :, 1]
              - directions[:, 1][:, None] * h[None, :, 0])                          # det(d, h)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        bound = np.where(along < 0.0, np.where(c[:, None] <= 0.0, c[:, None] / along, 0.0),
+        # a satisfied line may be met within ORCA's own round-off slack (v* lies on a line
+        # through the origin to within it): a heading along such a line is not held to 0
+        bound = np.where(along < 0.0,
+                         np.where(c[:, None] <= 0.0, (c[:, None] - _LINE_SLACK) / along, 0.0),
                          np.inf)
     return np.maximum(bound.min(axis=0), 0.0)
 

@@ -216,3 +216,23 @@ def test_an_anchor_inside_the_radius_slides_on_but_never_closer():
     envelope = BrakingEnvelope(starts, ends, position, 0.7, 1.0, 0.5)
     caps = envelope(np.array([0.0, -0.3, math.pi / 2]))
     assert math.isinf(caps[0]) and caps[1] < 0.01 and math.isinf(caps[2])
+
+
+def test_an_anchor_sliding_at_its_clearance_is_not_frozen_by_round_off():
+    # the anchor 0.696 m from a wall (inside the 0.7 m radius) heads along it, 0.0006 rad
+    # toward it: ORCA lets it slide; the envelope must too (it froze a sweep for 2800 s)
+    starts, ends = np.array([[0.0, 0.0]]), np.array([[100.0, 0.0]])
+    position = np.array([50.0, 0.696])
+    envelope = BrakingEnvelope(starts, ends, position, 0.7, 1.0, 0.5)
+    assert envelope(np.array([-0.0006]))[0] > 1.0
+
+
+def test_a_heading_along_a_line_through_the_origin_is_not_held_by_round_off():
+    # ORCA's line of a disc already touching a segment passes through the origin; v* slides
+    # along it. A heading parallel to it up to round-off must keep its speed (a sweep froze
+    # for 2800 s at speed 0 when it did not).
+    d = np.array([[-0.69845617, 0.71565283]])
+    heading = math.atan2(-d[0, 1], -d[0, 0]) + 1e-15
+    assert speed_bounds(np.zeros((1, 2)), d, np.array([heading]))[0] > 100.0
+    # a heading into the forbidden side is still held to (almost) nothing
+    assert speed_bounds(np.zeros((1, 2)), d, np.array([heading + 0.1]))[0] < 1e-7
