@@ -3,13 +3,19 @@ OLSTM-DV-Hop on the test maps.
 
 Accuracy: square-spiral episodes on the shipped *test* maps (``maps/test``, never used in
 training), 100 x 100 m, R = 25 m, N in {100, 300, 500}, obstacle density in {0.1, 0.2, 0.3, 0.4},
-``--seeds`` seeds per cell (spread over the three test maps of each density), once with the unit
-disk (DOI 0) and once with DOI 0.1. Per cell: the RMSE of Eq. 15 pooled over all localized nodes
-of its episodes and the localized fraction per method, and the DV-Hop / OLSTM ratio.
+``--seeds`` seeds per cell (spread over the three test maps of each density), with the unit disk
+(DOI 0) and with DOI 0.1 and 0.2 (``--dois``). Per cell: the RMSE of Eq. 15 pooled over all
+localized nodes of its episodes and the localized fraction per method, the DV-Hop / OLSTM ratio
+and the gain of OLSTM-DV-Hop over the consensus alone.
 
-Speed: one episode with N = 1000 on a 200 x 200 m test map, localized from the saved log
-(hop counts, HopSize, coverage, model and Eq. 13 included) on one core; the median of
-``--repeats`` runs per method.
+Ablation (``--ablation VAL_DIR``): on the validation logs of ``train.py localizer`` (held-out
+training maps, never the test maps), the consensus alone, with the OLSTM's band, with a
+non-learned counting band, with the true pattern, and without the map (range only) with the DOI
+bound and with the OLSTM.
+
+Speed: one episode with N = 1000 on a 200 x 200 m test map, with DOI 0 and with DOI 0.1,
+localized from the saved log (hop counts, HopSize, coverage, consensus passes and model
+included) on one core; the median of ``--repeats`` runs per method.
 
 ``python benchmarks/localization.py`` simulates the logs once into ``--out`` (cached), then
 prints both tables and writes ``episodes.csv`` and ``localization.md`` there.
@@ -24,6 +30,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import csv  # noqa: E402
+import dataclasses  # noqa: E402
 import io  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -34,15 +41,22 @@ import torch  # noqa: E402
 from aoass_env.atomic import write_text_atomic  # noqa: E402
 from aoass_env.beacon_log import BeaconLog  # noqa: E402
 from aoass_env.localization import localize, prepare  # noqa: E402
-from aoass_env.localization.consensus import node_consensus  # noqa: E402
+from aoass_env.localization.consensus import RELIABLE_SPREAD, node_consensus  # noqa: E402
 from aoass_env.localization.dvhop import dvhop  # noqa: E402
 from aoass_env.localization.olstm import (  # noqa: E402
     DEFAULT_CHECKPOINT,
     OLSTM,
     load_checkpoint,
     olstm_dvhop,
+    predict_pattern,
 )
-from aoass_env.localization.training import EpisodeSpec, generate_logs  # noqa: E402
+from aoass_env.localization.reception import (  # noqa: E402
+    PairRecord,
+    pair_histograms,
+    pair_statistics,
+    range_band,
+)
+from aoass_env.localization.training import EpisodeSpec, generate_logs, pattern_path  # noqa: E402
 from aoass_env.maps import list_maps  # noqa: E402
 
 NODES = (100, 300, 500)
@@ -144,6 +158,75 @@ def speed(folder: Path, model: OLSTM, repeats: int) -> str:
             f"| method | DOI 0 [s] | DOI 0.1 [s] |\n|---|---|---|\n{rows}")
 
 
+ABLATION = ("consensus", "olstm", "counting", "oracle", "range DOI bound", "learned alone")
+ABLATION_LABELS = ("consensus alone", "consensus + OLSTM band (olstm-dvhop)",
+                   "consensus + counting band (no LSTM)", "consensus + true pattern",
+                   "range only, DOI bound (no map)", "learned model alone (no map)")
+
+
+def counting_band(record: PairRecord, doi: float, halfwidth: int = 3) -> tuple[np.ndarray,
+                                                                              np.ndarray]:
+    """Non-learned control: per degree, the threshold z in [-1, 1] (41 candidates) with the
+    fewest heard pairs above plus unheard pairs at or below it, pairs within ``halfwidth``
+    degrees; both band edges at 1 + DOI z."""
+    grid = np.linspace(-1, 1, 41)
+    edge = np.zeros(360)
+    for d in range(360):
+        near = np.abs((record.degree - d + 180) % 360 - 180) <= halfwidth
+        z, heard = record.z[near], record.heard[near]
+        cost = (heard[:, None] & (z[:, None] > grid)).sum(0) \
+            + (~heard[:, None] & (z[:, None] <= grid)).sum(0)
+        edge[d] = grid[cost == cost.min()].mean()
+    return 1 + doi * edge, 1 + doi * edge
+
+
+def ablation_row(path: Path, model: OLSTM) -> dict:
+    """Squared errors and counts of every ablation variant on one validation log."""
+    episode = prepare(BeaconLog.load(path))
+    doi = episode.config.doi
+    nodes = np.flatnonzero(episode.covered)
+    true = episode.log.nodes[nodes]
+    first = node_consensus(episode, nodes)
+    est = {"consensus": first.estimate}
+    if doi > 0:
+        reliable = first.spread <= RELIABLE_SPREAD
+        record = pair_statistics(episode, nodes[reliable], first.estimate[reliable])
+        mean, std = predict_pattern(model, pair_histograms(record))
+        pattern = np.load(pattern_path(path), allow_pickle=False)
+        bands = {"olstm": range_band(mean, std, doi, model.band_width),
+                 "counting": counting_band(record, doi), "oracle": (pattern, pattern)}
+        for name, band in bands.items():
+            est[name] = node_consensus(episode, nodes, band=band).estimate
+    else:
+        est["olstm"] = est["counting"] = est["oracle"] = first.estimate
+    no_map = prepare(dataclasses.replace(episode.log, obstacle_vertices=np.zeros((0, 2)),
+                                         obstacle_offsets=np.zeros(1, np.int64)))
+    est["range DOI bound"] = localize(no_map, "consensus")[nodes]
+    est["learned alone"] = olstm_dvhop(no_map, model)[nodes]
+    row = {"log": path.name, "doi": doi, "n": len(nodes)}
+    row.update({name: float(np.sum((e - true) ** 2)) for name, e in est.items()})
+    return row
+
+
+def ablation(folder: Path, model: OLSTM) -> str:
+    """The ablation table (pooled RMSE [m] per DOI) over the logs of ``folder``."""
+    rows = [ablation_row(p, model) for p in sorted(folder.glob("*.npz"))]
+    out = io.StringIO()
+    out.write(f"Ablation on {len(rows)} validation logs ({folder}): RMSE [m] pooled per DOI\n\n"
+              f"| DOI | logs | {' | '.join(ABLATION_LABELS)} |\n" + "|---" * 8 + "|\n")
+    for doi in sorted({r["doi"] for r in rows}):
+        cell = [r for r in rows if r["doi"] == doi]
+        n = sum(r["n"] for r in cell)
+        values = " | ".join(f"{np.sqrt(sum(r[k] for r in cell) / n):.3f}" for k in ABLATION)
+        out.write(f"| {doi} | {len(cell)} | {values} |\n")
+    worse = [r for r in rows if r["doi"] > 0 and r["olstm"] > r["consensus"]]
+    out.write(f"\nLogs with DOI > 0 where OLSTM-DV-Hop is worse than the consensus alone: "
+              f"{len(worse)} of {sum(r['doi'] > 0 for r in rows)}"
+              + "".join(f"\n* {r['log']}: {np.sqrt(r['consensus'] / r['n']):.2f} -> "
+                        f"{np.sqrt(r['olstm'] / r['n']):.2f} m" for r in worse) + "\n")
+    return out.getvalue()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=30, help="episodes per cell (default 30)")
@@ -158,8 +241,16 @@ def main() -> None:
     parser.add_argument("--logs", type=Path, default=None,
                         help="folder of the simulated logs (default OUT/logs)")
     parser.add_argument("--no-speed", action="store_true", help="skip the speed table")
+    parser.add_argument("--ablation", type=Path, default=None, metavar="VAL_DIR",
+                        help="only the ablation table, on the validation logs of `train.py "
+                             "localizer` (e.g. out/localizer_logs/val)")
     args = parser.parse_args()
     torch.set_num_threads(1)
+    if args.ablation is not None:
+        report = ablation(args.ablation, load_checkpoint(args.checkpoint))
+        print(report)
+        write_text_atomic(args.out / "ablation.md", report)
+        return
     dois = tuple(args.dois)
     specs = accuracy_specs(args.seeds, dois)
     logs = args.out / "logs" if args.logs is None else args.logs
