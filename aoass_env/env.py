@@ -27,8 +27,8 @@ from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
 from aoass_env.simulator import Simulator, check_waypoint_step, episode_summary
 from aoass_env.world import wrap_angle
 
-__all__ = ["COST_KEYS", "AOASSEnv", "AnchorState", "EpisodeTimeLimit", "make_env",
-           "max_episode_steps"]
+__all__ = ["COST_KEYS", "AOASSEnv", "AnchorState", "EndOnTruncation", "EpisodeTimeLimit",
+           "make_env", "max_episode_steps"]
 
 
 #: The per-step safe-RL cost keys of ``info``: the step's new contacts, all, with static
@@ -252,7 +252,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def end_episode(self) -> dict[str, Any]:
         """End the episode now, as a time limit outside the environment does
-        (:class:`aoass_env.wrappers.EndOnTruncation`), and return its
+        (:class:`EndOnTruncation`), and return its
         ``info["episode_metrics"]``; the beacon log is complete from here on."""
         sim = self._started("end_episode")
         if self._log is None:
@@ -374,3 +374,24 @@ def make_env(**kwargs: Any) -> gym.Env:
 
 
 make_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render modes
+
+
+class EndOnTruncation(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """The outermost wrapper of every registered id: ``gymnasium.make`` applies it outside the
+    ``TimeLimit`` that ``gymnasium.make(..., max_episode_steps=N)`` adds, and when that limit
+    ends an episode the environment has not ended itself, it ends it
+    (:meth:`AOASSEnv.end_episode <aoass_env.env.AOASSEnv.end_episode>`) and adds
+    ``info["episode_metrics"]``."""
+
+    def __init__(self, env: gym.Env) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self)
+        gym.Wrapper.__init__(self, env)
+        if not isinstance(env.unwrapped, AOASSEnv):
+            raise TypeError(f"EndOnTruncation wraps an AOASS-v0 environment, got "
+                            f"{type(env.unwrapped).__name__}")
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if (terminated or truncated) and "episode_metrics" not in info:
+            info["episode_metrics"] = self.env.unwrapped.end_episode()
+        return obs, reward, terminated, truncated, info

@@ -17,7 +17,7 @@ imports at the first ``gymnasium.make``, so ``import aoass_env`` stays cheap
 episode's own step limit (:func:`aoass_env.env.max_episode_steps`: it depends on the field size
 and the spiral, so it cannot be one number fixed at registration), and ``env.spec`` reports it
 (in agent steps under an action repeat). Every id carries
-:class:`~aoass_env.wrappers.EndOnTruncation` as its additional wrapper, outside the
+:class:`~aoass_env.env.EndOnTruncation` as its additional wrapper, outside the
 ``TimeLimit`` of ``gymnasium.make(..., max_episode_steps=N)``, so that such a truncation keeps
 ``info["episode_metrics"]``.
 """
@@ -57,7 +57,7 @@ _IDS: dict[str, tuple[str, dict]] = {
 ENV_IDS = tuple(_IDS)
 
 _END_ON_TRUNCATION = WrapperSpec(name="EndOnTruncation",
-                                 entry_point="aoass_env.wrappers:EndOnTruncation", kwargs={})
+                                 entry_point="aoass_env.env:EndOnTruncation", kwargs={})
 
 
 def register() -> None:

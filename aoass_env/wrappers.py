@@ -43,7 +43,7 @@ from aoass_env.safety.orca import StaticObstacles, orca_lines, solve_velocity
 from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
 from aoass_env.world import wrap_angle
 
-__all__ = ["ActionRepeat", "EndOnTruncation", "FuzzyORCASafety", "KalmanObstacleTracker",
+__all__ = ["ActionRepeat", "FuzzyORCASafety", "KalmanObstacleTracker",
            "MapSampler", "TRAINING_SPLITS", "make_safe_env", "make_training_env"]
 
 #: Measurement-noise floor of the tracker (m, m/s): a noiseless observation still needs a
@@ -372,25 +372,6 @@ class ActionRepeat(_EntryPointWrapper):
                 break
         info.update(costs)
         return obs, total, terminated, truncated, info
-
-
-class EndOnTruncation(gym.Wrapper, gym.utils.RecordConstructorArgs):
-    """The outermost wrapper of every registered id: ``gymnasium.make`` applies it outside the
-    ``TimeLimit`` that ``gymnasium.make(..., max_episode_steps=N)`` adds, and when that limit
-    ends an episode the environment has not ended itself, it ends it
-    (:meth:`AOASSEnv.end_episode <aoass_env.env.AOASSEnv.end_episode>`) and adds
-    ``info["episode_metrics"]``."""
-
-    def __init__(self, env: gym.Env) -> None:
-        gym.utils.RecordConstructorArgs.__init__(self)
-        gym.Wrapper.__init__(self, env)
-        _aoass(env, "EndOnTruncation")
-
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        if (terminated or truncated) and "episode_metrics" not in info:
-            info["episode_metrics"] = self.env.unwrapped.end_episode()
-        return obs, reward, terminated, truncated, info
 
 
 def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
