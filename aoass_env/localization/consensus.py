@@ -136,6 +136,10 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
     """The :class:`VisibilityRaster` of ``episode`` on a grid of ``cell`` metres, for the
     transmitters at ``points`` (M, 2) [m] (default: the beacons).
 
+    ``band``: range factors (certain, possible), each (360,) per whole degree of the direction
+    transmitter -> cell, in place of the DOI bound (1 - DOI, 1 + DOI); within [1 - DOI, 1 + DOI]
+    (the OLSTM's learned reception range, :mod:`~aoass_env.localization.olstm`).
+
     Raises:
         ValueError: ``cell`` is not a positive number or ``bins`` not a power of two >= 8.
     """
@@ -325,6 +329,8 @@ def node_consensus(episode: Episode, nodes: np.ndarray | None = None, *,
         episode: the prepared log.
         nodes: (S,) node indices; each must have heard a beacon.
         cell: grid cell size [m].
+        band: per-degree range factors (certain, possible) of the beacons in place of the DOI
+            bound (see :func:`visibility_raster`); node-to-node links keep the bound.
 
     Raises:
         ValueError: a node heard no beacon, or ``cell`` is not a positive number.

@@ -99,3 +99,17 @@ def test_bad_cell_and_silent_node() -> None:
                               [[b, 0] for b in range(12)], []))
     with pytest.raises(ValueError, match="heard no beacon"):
         node_consensus(silent, np.array([1]))
+
+
+def test_band_of_the_doi_bound_is_the_default_and_a_narrow_band_changes_the_estimates(
+        doi_sim) -> None:
+    episode = prepare(doi_sim.finish())
+    doi = episode.config.doi
+    default = node_consensus(episode)
+    bound = (np.full(360, 1 - doi), np.full(360, 1 + doi))
+    np.testing.assert_array_equal(node_consensus(episode, band=bound).estimate, default.estimate)
+    exact = (doi_sim.radio.anchor_pattern, doi_sim.radio.anchor_pattern)
+    narrow = node_consensus(episode, band=exact)
+    err = np.hypot(*(narrow.estimate - episode.log.nodes[narrow.nodes]).T)
+    err0 = np.hypot(*(default.estimate - episode.log.nodes[default.nodes]).T)
+    assert np.sqrt(np.mean(err ** 2)) < np.sqrt(np.mean(err0 ** 2))
