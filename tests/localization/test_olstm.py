@@ -8,6 +8,7 @@ import torch
 
 from aoass_env.beacon_log import BeaconLogError
 from aoass_env.localization import localize, prepare
+from aoass_env.localization.consensus import node_consensus
 from aoass_env.localization.olstm import (
     OLSTM,
     CheckpointError,
@@ -108,3 +109,10 @@ def test_missing_and_garbage_checkpoints(tmp_path) -> None:
 def test_log_without_beacons(model) -> None:
     with pytest.raises(BeaconLogError, match="no beacons"):
         localize(make_log(np.zeros((2, 2)), np.zeros((0, 2)), [], []), checkpoint=model)
+
+
+def test_a_first_pass_of_other_nodes_is_refused(model, doi_sim) -> None:
+    episode = prepare(doi_sim.finish())
+    first = node_consensus(episode, np.flatnonzero(episode.covered)[:3])
+    with pytest.raises(ValueError, match="covered nodes"):
+        olstm_dvhop(episode, model, first)

@@ -55,3 +55,10 @@ def test_range_band_is_ordered_and_clipped_to_the_doi_bound() -> None:
     np.testing.assert_allclose(lo[180], 1 + 0.1 * (mean[180] - 0.3))
     lo0, hi0 = range_band(mean, np.full(360, 0.3), 0.1, 0.0)
     np.testing.assert_array_equal(lo0, hi0)
+
+
+def test_no_reliable_nodes_give_an_empty_record(doi_sim) -> None:
+    episode = prepare(doi_sim.finish())
+    record = pair_statistics(episode, np.zeros(0, np.int64), np.zeros((0, 2)))
+    assert len(record.z) == 0
+    assert np.all(pair_histograms(record)[:, :-1] == 0)
