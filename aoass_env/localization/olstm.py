@@ -27,6 +27,7 @@ import torch
 from torch import nn
 
 from aoass_env.atomic import atomic_open
+from aoass_env.data import shipped_dir
 from aoass_env.localization.consensus import RELIABLE_SPREAD, Consensus, node_consensus
 from aoass_env.localization.episode import Episode
 from aoass_env.localization.reception import (
@@ -43,8 +44,8 @@ __all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "DEFAULT_CHECKPOINT", "Che
 
 CHECKPOINT_FORMAT = "aoass-olstm-dvhop"
 CHECKPOINT_VERSION = 2
-#: The shipped, trained localizer.
-DEFAULT_CHECKPOINT = Path(__file__).resolve().parents[2] / "checkpoints" / "olstm_dvhop.pt"
+#: The shipped, trained localizer (the checkout's, or the installed wheel's copy).
+DEFAULT_CHECKPOINT = shipped_dir("checkpoints") / "olstm_dvhop.pt"
 #: Wrap-around padding of the circular sequence on each side [degrees].
 PAD = 32
 _LOGSTD_MIN, _LOGSTD_MAX = -6.0, 2.0
