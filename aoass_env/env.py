@@ -43,7 +43,7 @@ class AnchorState(NamedTuple):
     velocity: np.ndarray        #: (2,) m/s
     heading: float              #: rad
     speed: float                #: m/s
-    obstacle_gap: float         #: gap to the nearest static obstacle or wall (m)
+    obstacle_gap: float         #: d_obs: gap to the nearest wall, static or moving obstacle (m)
 
 
 def max_episode_steps(config: AOASSConfig, obstacle_map: ObstacleMap | None = None) -> int:
@@ -305,10 +305,11 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
 
     @property
     def anchor(self) -> AnchorState:
-        """The anchor's position, velocity, heading, speed and gap to static obstacles now."""
+        """The anchor's position, velocity, heading and speed now, and its gap to the nearest
+        obstacle as the last observation measured it (d_obs; the world has not moved since)."""
         world = self._started("anchor").world
         return AnchorState(world.position, world.velocity, world.heading, world.speed,
-                           world.nearest_obstacle_distance())
+                           self._observe.obstacle_gap)
 
     @property
     def obstacle_map(self) -> ObstacleMap:

@@ -100,6 +100,8 @@ class Observer:
         #: (D, 4) the moving obstacles detected by the last observation, world frame: x, y (m),
         #: vx, vy (m/s), noisy, nearest first (all of them, not only the observation's slots)
         self.detections = np.zeros((0, 4))
+        #: d_obs (m) of the last observation (the world's gap to the nearest obstacle then)
+        self.obstacle_gap = float(config.sensing_range)
 
     def upcoming(self, index: int) -> np.ndarray:
         """(K, 2) the next K free waypoints from spiral index ``index`` on (the last one
@@ -155,8 +157,9 @@ class Observer:
         """
         c = self.config
         (x, y), h = world.position, world.heading
+        self.obstacle_gap = world.nearest_obstacle_distance()
         head = np.array([x / c.field_size, y / c.field_size, world.speed / c.anchor_max_speed,
-                         world.nearest_obstacle_distance() / c.sensing_range,
+                         self.obstacle_gap / c.sensing_range,
                          heading_error / math.pi, math.cos(h), math.sin(h)])
         waypoints = (self.upcoming(follower_index) - (x, y)) / self._wp_scale
         obs = np.concatenate([head, waypoints.ravel(), world.ray_distances() / c.sensing_range,
