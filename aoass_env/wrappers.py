@@ -31,15 +31,17 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.envs.registration import EnvSpec
 
-from aoass_env.action import ResidualAction
+from aoass_env.action import ResidualAction, action_type_named
 from aoass_env.config import AOASSConfig, config_with
 from aoass_env.env import COST_KEYS, AOASSEnv, make_env
 from aoass_env.maps import ObstacleMap, list_maps, load_map, validation_split
 from aoass_env.observation import MOVING_FIELDS, velocity_scale
+from aoass_env.planning import AdaptiveConfig
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.safety.fuzzy import FuzzyController
 from aoass_env.safety.kalman import MultiTargetTracker
-from aoass_env.safety.orca import StaticObstacles, orca_lines, solve_velocity
+from aoass_env.safety.lookahead import Escape, escape_velocity, look_ahead_horizon, position_std
+from aoass_env.safety.orca import OrcaLines, StaticObstacles, orca_lines, solve_velocity
 from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
 from aoass_env.world import wrap_angle
 
@@ -167,6 +169,12 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
         radius = np.full((len(states), 1), self._base.config.moving_obstacle_radius)
         return np.hstack([states.reshape(-1, 4), radius])
 
+    @property
+    def tracked_covariances(self) -> np.ndarray:
+        """(m, 4, 4) covariances (m^2, m^2/s, m^2/s^2) of the confirmed tracks' states, rows as
+        in :attr:`tracked_obstacles` (the filterpy filters' ``P``)."""
+        return self.tracker.covariances()
+
     def observation(self, observation: np.ndarray) -> np.ndarray:
         c = self._base.config
         anchor = self._base.anchor.position
@@ -247,8 +255,9 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                 "aoass_env.make_safe_env")
         self._tracker = tracker
         self.config = config = SafetyConfig.coerce(config, "safety")
-        #: what the agent's action means: the residual of the environment's config
-        self.agent_action = ResidualAction.from_config(base.config)
+        #: what the agent's action means: the environment's action type (residual or
+        #: adaptive) with its config's scales
+        self.agent_action = type(inner).from_config(base.config)
         if controller is not None and not isinstance(controller, FuzzyController):
             raise TypeError(f"controller must be a FuzzyController, got "
                             f"{type(controller).__name__}")
@@ -280,10 +289,35 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                                c.anchor_max_accel, c.dt)
 
     def _moving_obstacles(self) -> np.ndarray:
-        """Kalman-tracked moving obstacles (x, y, vx, vy, radius + moving_margin)."""
+        """Kalman-tracked moving obstacles (x, y, vx, vy, radius + moving_margin +
+        covariance_sigma x the std of the position estimate along its worst axis)."""
         tracks = self._tracker.tracked_obstacles
         tracks[:, 4] += self.config.moving_margin
+        if self.config.covariance_sigma > 0.0 and len(tracks):
+            std = position_std(self._tracker.tracked_covariances, np.zeros(1))[:, 0]
+            tracks[:, 4] += self.config.covariance_sigma * std
         return tracks
+
+    def _look_ahead(self, v_star: np.ndarray, v_pref: np.ndarray) -> Escape:
+        """The look-ahead's verdict on ORCA's ``v_star`` (:func:`~aoass_env.safety.lookahead.
+        escape_velocity`): the tracks' prediction and covariance against the anchor's unicycle
+        rolled out among the static edges."""
+        c, cfg, anchor = self._base.config, self.config, self._base.anchor
+        horizon = cfg.look_ahead_horizon or look_ahead_horizon(
+            c.anchor_max_speed, c.anchor_max_accel, c.anchor_max_turn_rate, c.dt)
+        tracks = self._tracker.tracked_obstacles
+        tracks[:, 4] += c.anchor_radius
+        static = self._static_obstacles()
+        radius = c.anchor_radius + cfg.margin
+        near = static.edges_near(anchor.position, c.anchor_max_speed * horizon + radius)
+        return escape_velocity(
+            v_star, v_pref, anchor.position, anchor.heading, anchor.speed, tracks,
+            self._tracker.tracked_covariances, max_speed=c.anchor_max_speed,
+            max_accel=c.anchor_max_accel, max_turn_rate=c.anchor_max_turn_rate,
+            horizon=horizon, step=0.5 * c.dt, starts=static.point[near],
+            ends=static.point[static.next[near]], radius=radius,
+            sigma=cfg.covariance_sigma, maneuver=cfg.maneuver_share,
+            clearance=cfg.look_ahead_clearance, obstacle_radius=c.moving_obstacle_radius)
 
     def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         executed, report = self._filter(action)
@@ -315,10 +349,19 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                            time_horizon=cfg.time_horizon,
                            time_horizon_obst=cfg.time_horizon_obst, time_step=c.dt)
         v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
+        escape = None
+        if cfg.look_ahead and len(lines) > lines.n_static:
+            escape = self._look_ahead(v_star, v_pref)
+            if escape.escaping:
+                # the rollouts chose among the moving obstacles: the static lines stay hard
+                lines = OrcaLines(lines.point[:lines.n_static],
+                                  lines.direction[:lines.n_static], lines.n_static)
+                v_star = solve_velocity(lines, escape.velocity, c.anchor_max_speed)
         speed_cmd, heading_cmd = unicycle_command(
             v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
             lines.direction, heading_pref, self._braking_envelope(anchor.position))
-        executed = base.action_type.action(speed_cmd, heading_cmd, nominal)
+        executed = base.action_type.action(speed_cmd, heading_cmd, nominal,
+                                           self.agent_action.knobs(action))
 
         # constraints active at v*: on the line (within 1e-6 m/s) or violated
         slack = (lines.direction[:, 0] * (lines.point[:, 1] - v_star[1])
@@ -330,7 +373,9 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                   "speed_cmd": speed_cmd, "heading_cmd": heading_cmd,
                   "constraints": len(slack), "static": lines.n_static,
                   "active": int(active.sum()),
-                  "active_static": int(active[:lines.n_static].sum())}
+                  "active_static": int(active[:lines.n_static].sum()),
+                  "escaping": bool(escape is not None and escape.escaping),
+                  "look_ahead_shortfall": 0.0 if escape is None else escape.shortfall}
         return executed, report
 
 
@@ -378,7 +423,9 @@ def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
                   render_mode: str | None = None,
                   tracker: TrackerConfig | dict[str, Any] | None = None,
                   safety: SafetyConfig | dict[str, Any] | None = None,
-                  action_repeat: int = 1, **kwargs: Any) -> gym.Env:
+                  action_repeat: int = 1, action_type: str = "residual",
+                  adaptive: AdaptiveConfig | dict[str, Any] | None = None,
+                  **kwargs: Any) -> gym.Env:
     """The full AOASS stack: AOASS-v0 (in its ``TimeLimit``) -> :class:`KalmanObstacleTracker`
     -> :class:`FuzzyORCASafety` (-> :class:`ActionRepeat` when ``action_repeat`` > 1).
 
@@ -392,12 +439,18 @@ def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
         tracker: the tracker's :class:`~aoass_env.safety.config.TrackerConfig` (or keywords).
         safety: the filter's :class:`~aoass_env.safety.config.SafetyConfig` (or keywords).
         action_repeat: control periods each agent action is held (1: every period).
+        action_type: what the agent's action means: ``"residual"`` (Eq. 6's [Δv, Δθ] on the
+            spiral follower) or ``"adaptive"`` (the same and the adaptive sweep's knobs,
+            :class:`~aoass_env.action.AdaptiveAction`).
+        adaptive: the adaptive sweep's :class:`~aoass_env.planning.AdaptiveConfig` (or
+            keywords), used with ``action_type="adaptive"``.
     """
     cfg = config_with(config, kwargs)
     tracker_config = TrackerConfig.coerce(tracker, "tracker")
     safety_config = SafetyConfig.coerce(safety, "safety")
     env = make_env(config=cfg, render_mode=render_mode,
-                   action_type=ResidualAction.full_range(cfg))
+                   action_type=action_type_named(action_type).full_range(cfg),
+                   adaptive=adaptive)
     tracked = KalmanObstacleTracker(env, tracker_config)
     env = FuzzyORCASafety(tracked, tracked, safety_config)
     if type(action_repeat) is int and action_repeat == 1:

@@ -14,6 +14,7 @@ import aoass_env
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation.methods import METHODS, RunOptions
 from aoass_env.maps import ObstacleMap, generate_map
+from aoass_env.safety.config import SafetyConfig
 
 
 def _wall(a, b, width):
@@ -41,14 +42,14 @@ TRAPS = {
 REAL_TRAPS = ("v_wedge", "dead_end", "parked")
 
 
-def _sweep(trap: str, watchdog_time: float = 8.0) -> tuple[bool, dict]:
+def _sweep(trap: str, watchdog_time: float = 8.0, safety=None) -> tuple[bool, dict]:
     kw = dict(field_size=40.0, n_nodes=100, map_clearance=1.0, watchdog_time=watchdog_time)
     if trap == "parked":     # one obstacle that never moves, placed in the passage below
         kw.update(n_moving_obstacles=1, moving_obstacle_speed=(0.0, 0.0),
                   moving_obstacle_turn_rate=0.0)
     else:
         kw.update(n_moving_obstacles=0)
-    env = aoass_env.make_safe_env(config=AOASSConfig(**kw))
+    env = aoass_env.make_safe_env(config=AOASSConfig(**kw), safety=safety)
     env.reset(seed=1, options={"map": ObstacleMap(40.0, 40.0, tuple(TRAPS[trap]))})
     if trap == "parked":
         world = env.unwrapped.sim.world
@@ -74,8 +75,13 @@ def test_stack_ends_the_sweep_by_itself_in_a_trap(trap):
 
 @pytest.mark.parametrize("trap", REAL_TRAPS)
 def test_without_the_watchdog_the_trap_holds_the_stack(trap):
-    complete, info = _sweep(trap, watchdog_time=1e4)
+    # "parked" was built for the ORCA-only filter: the look-ahead (issue 24) backs away from
+    # the parked obstacle by itself and sweeps about two thirds of the field without the
+    # watchdog (still not the whole spiral, and without a contact)
+    complete, info = _sweep(trap, watchdog_time=1e4, safety=SafetyConfig.orca_only())
     assert not complete and info["coverage"] < 0.5
+    complete, info = _sweep(trap, watchdog_time=1e4)
+    assert not complete and info["moving_contacts"] == 0 and info["static_contacts"] == 0
 
 
 @pytest.mark.parametrize("method", ["aoass-scripted", "aoass"])

@@ -186,6 +186,19 @@ class MultiTargetTracker:
             return np.zeros((0, 4))
         return np.stack([t.filter.x[:, 0] for t in sel])
 
+    def covariances(self, confirmed_only: bool = True) -> np.ndarray:
+        """Covariances of :meth:`states` (m^2, m^2/s, m^2/s^2), shape (m, 4, 4), rows in the
+        same order; a copy."""
+        sel = self._selected(confirmed_only)
+        if not sel:
+            return np.zeros((0, 4, 4))
+        return np.stack([t.filter.P for t in sel])
+
+    def position_covariances(self, confirmed_only: bool = True) -> np.ndarray:
+        """Covariances of the estimated positions (m^2), shape (m, 2, 2), rows as in
+        :meth:`states`; a copy."""
+        return self.covariances(confirmed_only)[:, :2, :2].copy()
+
     def predict_positions(self, horizon: float, confirmed_only: bool = True) -> np.ndarray:
         """Positions (m) ``horizon`` seconds ahead under the CV model, shape (m, 2).
 

@@ -1,0 +1,305 @@
+"""Look-ahead avoidance of moving obstacles: the tracks' prediction and uncertainty, rolled out
+over a horizon sized to the anchor's braking and turning limits.
+
+ORCA (:mod:`aoass_env.safety.orca`) sees a moving obstacle as a disc that keeps its current
+velocity, and picks the velocity nearest the preferred one that is collision-free for its
+horizon. Near walls that is not enough: fleeing along an obstacle's path into a pocket is
+locally optimal and leaves the anchor pinned when the obstacle follows it there; an obstacle
+that turns toward the anchor at close range breaks the constant-velocity assumption. This
+module scores candidate commands by rolling the anchor's unicycle out against the static edges
+and the predicted obstacles:
+
+* **Obstacles** move on their Kalman estimate (constant velocity); each one's disc grows with
+  time by ``sigma`` standard deviations of its predicted position (the track covariance
+  propagated by the CV model, :func:`position_std`) and by ``maneuver`` times its speed times
+  the time (room for a turn toward the anchor; 1 would be its whole reachable disc),
+  :func:`obstacle_radii`.
+* **The anchor** (:func:`rollout`) turns toward each candidate heading at its turn-rate limit
+  and ramps its speed at its acceleration limit; a step that would bring its disc closer than
+  its radius to a static edge is not taken (it stops there: pinned against the wall).
+* **Score** (:func:`violation`): the summed shortfall of the clearance to every obstacle below a
+  required ``clearance`` over the horizon; 0 means safe.
+
+:func:`escape_velocity` keeps the velocity it is given when its rollout is safe; otherwise it
+returns the safe candidate nearest the preferred velocity or, when no candidate is safe, the one
+with the least shortfall: the anchor escapes toward free space instead of braking in place, and
+backs out of a narrow passage while it still can. The horizon (:func:`look_ahead_horizon`) is
+one control period, a full stop from top speed and a half turn: 4.5 s with the defaults.
+
+All functions are pure (NumPy in, NumPy out); lengths in m, times in s, angles in rad.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Escape", "candidate_commands", "escape_velocity", "look_ahead_horizon",
+           "obstacle_radii", "position_std", "predict_obstacles", "rollout", "segment_distances", "violation"]
+
+
+#: Weight of a predicted contact with an obstacle's bare disc (m x steps of overlap) against a
+#: shortfall from the clearance to its grown disc.
+CONTACT_WEIGHT = 10.0
+#: Price (m x steps) of changing the anchor's velocity by its top speed, among unsafe candidates.
+CONTINUITY_WEIGHT = 2.0
+
+
+def look_ahead_horizon(max_speed: float, max_accel: float, max_turn_rate: float,
+                       dt: float) -> float:
+    """Seconds (s) the anchor needs to react to a threat and get away from it: one control
+    period ``dt`` (s), a full stop from ``max_speed`` (m/s) at ``max_accel`` (m/s^2) and a half
+    turn at ``max_turn_rate`` (rad/s): 0.5 + 2 + 2 = 4.5 s with the env's defaults."""
+    return dt + max_speed / max_accel + math.pi / max_turn_rate
+
+
+def position_std(covariances: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """(m, S) standard deviation (m) along the worst axis of each track's position predicted
+    ``times`` (S,) (s) ahead under the constant-velocity model: the square root of the largest
+    eigenvalue of the position block of F(t) P F(t)', F(t) = [[I, t I], [0, I]], for each
+    (4, 4) covariance ``P`` of ``covariances`` (m, 4, 4) (m^2, m^2/s, m^2/s^2)."""
+    p = np.asarray(covariances, dtype=np.float64).reshape(-1, 4, 4)
+    t = np.asarray(times, dtype=np.float64)[None, :]
+    pv = p[:, :2, 2:] + p[:, 2:, :2].transpose(0, 2, 1)            # P_pv + P_vp'
+    a = p[:, 0, 0, None] + t * pv[:, 0, 0, None] + t * t * p[:, 2, 2, None]
+    c = p[:, 1, 1, None] + t * pv[:, 1, 1, None] + t * t * p[:, 3, 3, None]
+    b = (p[:, 0, 1, None] + 0.5 * t * (pv[:, 0, 1, None] + pv[:, 1, 0, None])
+         + t * t * p[:, 2, 3, None])
+    largest = 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + b * b)
+    return np.sqrt(np.maximum(largest, 0.0))
+
+
+def obstacle_radii(radii: np.ndarray, speeds: np.ndarray, std: np.ndarray,
+                   times: np.ndarray, sigma: float, maneuver: float) -> np.ndarray:
+    """(m, S) the radius (m) each obstacle's disc is given ``times`` (S,) (s) ahead: its radius
+    ``radii`` (m,) (m, the anchor's included when distances are between centres) plus ``sigma``
+    times its position std ``std`` (m, S) (m) plus ``maneuver`` times its speed ``speeds`` (m,)
+    (m/s) times the time."""
+    t = np.asarray(times, dtype=np.float64)[None, :]
+    return (np.asarray(radii, dtype=np.float64)[:, None] + sigma * np.asarray(std)
+            + maneuver * np.asarray(speeds, dtype=np.float64)[:, None] * t)
+
+
+def segment_distances(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """(k,) distance (m) from each of ``points`` (k, 2) to the nearest of the segments
+    ``starts`` -> ``ends`` ((e, 2) each, m); inf without segments."""
+    points = np.asarray(points, dtype=np.float64)
+    if len(starts) == 0:
+        return np.full(len(points), np.inf)
+    e = ends - starts                                                   # (e, 2)
+    ee = np.maximum((e * e).sum(axis=1), 1e-300)
+    wx = points[:, 0, None] - starts[None, :, 0]                        # (k, e)
+    wy = points[:, 1, None] - starts[None, :, 1]
+    s = np.clip((wx * e[:, 0] + wy * e[:, 1]) / ee, 0.0, 1.0)
+    gx, gy = wx - s * e[:, 0], wy - s * e[:, 1]
+    return np.sqrt((gx * gx + gy * gy).min(axis=1))
+
+
+def _nearest_on_segments(points: np.ndarray, starts: np.ndarray, ends: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """(k,) distance (m) from each point (k, 2) to the nearest segment and (k, 2) the offset
+    from that segment's nearest point to the point."""
+    e = ends - starts
+    ee = np.maximum((e * e).sum(axis=1), 1e-300)
+    wx = points[:, 0, None] - starts[None, :, 0]
+    wy = points[:, 1, None] - starts[None, :, 1]
+    s = np.clip((wx * e[:, 0] + wy * e[:, 1]) / ee, 0.0, 1.0)
+    gx, gy = wx - s * e[:, 0], wy - s * e[:, 1]
+    d2 = gx * gx + gy * gy
+    j = d2.argmin(axis=1)
+    rows = np.arange(len(points))
+    return np.sqrt(d2[rows, j]), np.stack([gx[rows, j], gy[rows, j]], axis=1)
+
+
+def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.ndarray,
+                      ends: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """(m, n_steps, 2) centres (m) of the obstacles ``states`` (m, 4) (x, y m, vx, vy m/s)
+    after each of ``n_steps`` steps of ``step`` (s) at constant velocity, reflected off the
+    static segments (``starts`` -> ``ends``, (e, 2) each) as the env's obstacles are: a disc
+    of radius ``radii`` (m,) (m) that would come closer than its radius to a segment while
+    moving toward it mirrors its velocity about the segment's normal (at the end of the step,
+    a first-order model of the bounce)."""
+    states = np.asarray(states, dtype=np.float64).reshape(-1, 4)
+    xy, v = states[:, :2].copy(), states[:, 2:].copy()
+    out = np.empty((len(states), n_steps, 2))
+    for i in range(n_steps):
+        moved = xy + step * v
+        if len(starts) and len(states):
+            gap, offset = _nearest_on_segments(moved, starts, ends)
+            normal = offset / np.maximum(gap, 1e-12)[:, None]
+            along = (v * normal).sum(axis=1)
+            hit = (gap < radii) & (along < 0.0)
+            v = np.where(hit[:, None], v - 2.0 * along[:, None] * normal, v)
+            moved = np.where(hit[:, None], xy + step * v, moved)
+        xy = moved
+        out[:, i] = xy
+    return out
+
+
+def rollout(position: np.ndarray, heading: float, speed: float, headings: np.ndarray,
+            speeds: np.ndarray, max_turn_rate: float, max_accel: float, step: float,
+            n_steps: int, starts: np.ndarray, ends: np.ndarray, radius: float) -> np.ndarray:
+    """(k, n_steps, 2) the anchor's centre (m) after each of ``n_steps`` steps of ``step`` (s)
+    for each of k candidate commands (target heading ``headings`` (k,) rad, target speed
+    ``speeds`` (k,) m/s), from ``position`` (2,) m, ``heading`` (rad) and ``speed`` (m/s).
+
+    Each step the heading turns toward its target by at most ``max_turn_rate`` * step (the
+    shorter way round), the speed moves toward its target by at most ``max_accel`` * step, and
+    the centre advances along the new heading. A step that would leave the centre closer than
+    ``radius`` (m) to a static segment (``starts`` -> ``ends``, (e, 2) each) and closer than it
+    was is not taken, and the speed drops to 0: the anchor is held against the wall.
+    """
+    headings = np.asarray(headings, dtype=np.float64)
+    target_speed = np.asarray(speeds, dtype=np.float64)
+    k = len(headings)
+    xy = np.tile(np.asarray(position, dtype=np.float64), (k, 1))
+    theta = np.full(k, float(heading))
+    v = np.full(k, float(speed))
+    gap = np.full(k, float(segment_distances(xy[:1], starts, ends)[0]))
+    max_dh, max_dv = max_turn_rate * step, max_accel * step
+    out = np.empty((k, n_steps, 2))
+    for i in range(n_steps):
+        turn = np.remainder(headings - theta + math.pi, 2.0 * math.pi) - math.pi
+        theta = theta + np.clip(turn, -max_dh, max_dh)
+        v = v + np.clip(target_speed - v, -max_dv, max_dv)
+        moved = xy + (v * step)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1)
+        new_gap = segment_distances(moved, starts, ends)
+        ok = (new_gap >= radius) | (new_gap >= gap)
+        xy = np.where(ok[:, None], moved, xy)
+        gap = np.where(ok, new_gap, gap)
+        v = np.where(ok, v, 0.0)
+        out[:, i] = xy
+    return out
+
+
+def violation(paths: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+              clearance: float) -> np.ndarray:
+    """(k,) summed shortfall (m x steps) of each path's clearance to the obstacles below
+    ``clearance`` (m): sum over the steps of max(0, clearance - min over obstacles of
+    (|path - centre| - radius)). ``paths`` (k, S, 2), ``centres`` (m, S, 2), ``radii`` (m, S),
+    all m; 0 for every path without obstacles."""
+    if len(centres) == 0:
+        return np.zeros(len(paths))
+    d = paths[:, None, :, :] - centres[None, :, :, :]                   # (k, m, S, 2)
+    gap = np.sqrt((d * d).sum(axis=3)) - radii[None, :, :]              # (k, m, S)
+    return np.maximum(clearance - gap.min(axis=1), 0.0).sum(axis=1)
+
+
+def candidate_commands(heading: float, max_speed: float, n_headings: int = 16,
+                       extra_headings: tuple[float, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """(headings [rad], speeds [m/s]) of the candidate commands: ``n_headings`` headings evenly
+    spaced from ``heading`` plus ``extra_headings``, each at a quarter, a half and all of
+    ``max_speed``, and one stop on the current heading."""
+    base = heading + 2.0 * math.pi * np.arange(n_headings) / n_headings
+    h = np.concatenate([base, np.asarray(extra_headings, dtype=np.float64)])
+    fractions = np.array([0.25, 0.5, 1.0])
+    headings = np.concatenate([np.repeat(h, len(fractions)), [heading]])
+    speeds = np.concatenate([np.tile(fractions * max_speed, len(h)), [0.0]])
+    return headings, speeds
+
+
+@dataclass(frozen=True)
+class Escape:
+    """What :func:`escape_velocity` decided.
+
+    Attributes:
+        velocity: (2,) the velocity to steer for (m/s).
+        escaping: whether the given velocity's rollout fell short of the clearance and another
+            candidate was taken.
+        shortfall: the given velocity's summed clearance shortfall (m x steps, 0: safe).
+        chosen_shortfall: the returned velocity's (equal to ``shortfall`` when not escaping).
+    """
+
+    velocity: np.ndarray
+    escaping: bool
+    shortfall: float
+    chosen_shortfall: float
+
+
+def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.ndarray,
+                    heading: float, speed: float, obstacles: np.ndarray,
+                    covariances: np.ndarray, *, max_speed: float, max_accel: float,
+                    max_turn_rate: float, horizon: float, step: float, starts: np.ndarray,
+                    ends: np.ndarray, radius: float, sigma: float, maneuver: float,
+                    clearance: float, obstacle_radius: float | None = None,
+                    n_headings: int = 16) -> Escape:
+    """The velocity (m/s) to steer for among moving obstacles (see the module docstring).
+
+    Args:
+        velocity: (2,) the velocity the anchor is about to take (ORCA's v*, m/s).
+        preferred: (2,) the velocity it would like (m/s); among safe candidates, the nearest
+            to it is taken.
+        position, heading, speed: the anchor's centre (m), heading (rad) and speed (m/s).
+        obstacles: (m, 5) tracked obstacles x, y (m), vx, vy (m/s), radius (m; the anchor's
+            radius included, distances are between centres).
+        covariances: (m, 4, 4) their state covariances (m^2, m^2/s, m^2/s^2).
+        max_speed, max_accel, max_turn_rate: the anchor's limits (m/s, m/s^2, rad/s).
+        horizon, step: the look-ahead (s) and the rollout's step (s).
+        starts, ends: (e, 2) the static edges near the anchor (m).
+        radius: the anchor's radius plus its static margin (m), for the edges.
+        sigma: position standard deviations added to an obstacle's radius.
+        maneuver: fraction of an obstacle's speed by which its radius grows per second.
+        clearance: gap (m) to keep between the anchor's centre and the grown discs.
+        obstacle_radius: the obstacles' own radius (m) for their bounces off the static
+            edges; None predicts them straight through the edges.
+        n_headings: evenly spaced candidate headings.
+    """
+    velocity = np.asarray(velocity, dtype=np.float64)
+    preferred = np.asarray(preferred, dtype=np.float64)
+    obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 5)
+    n_steps = max(int(math.ceil(horizon / step - 1e-9)), 1)
+    times = step * np.arange(1, n_steps + 1)
+    # only the obstacles that could come within reach of the anchor within the horizon
+    rel = obstacles[:, :2] - np.asarray(position, dtype=np.float64)
+    obstacle_speed = np.hypot(obstacles[:, 2], obstacles[:, 3])
+    reach = (obstacles[:, 4] + clearance + (max_speed + obstacle_speed * (1.0 + maneuver))
+             * horizon + sigma * 3.0)
+    near = np.hypot(rel[:, 0], rel[:, 1]) <= reach
+    if not near.any():
+        return Escape(velocity, False, 0.0, 0.0)
+    obs = obstacles[near]
+    if obstacle_radius is None:
+        centres = obs[:, None, :2] + times[None, :, None] * obs[:, None, 2:4]
+    else:
+        centres = predict_obstacles(obs[:, :4], step, n_steps, starts, ends,
+                                    np.full(len(obs), obstacle_radius))
+    radii = obstacle_radii(obs[:, 4], obstacle_speed[near],
+                           position_std(np.asarray(covariances)[near], times), times,
+                           sigma, maneuver)
+
+    bare = obs[:, 4][:, None] + np.zeros_like(radii)
+
+    def score(headings: np.ndarray, speeds: np.ndarray) -> np.ndarray:
+        paths = rollout(position, heading, speed, headings, speeds, max_turn_rate, max_accel,
+                        step, n_steps, starts, ends, radius)
+        # a predicted contact with the bare disc weighs CONTACT_WEIGHT times a shortfall of
+        # the grown one
+        return (CONTACT_WEIGHT * violation(paths, centres, bare, 0.0)
+                + violation(paths, centres, radii, clearance))
+
+    wanted = float(np.hypot(*velocity))
+    own = math.atan2(velocity[1], velocity[0]) if wanted > 1e-9 else heading
+    base = float(score(np.array([own]), np.array([wanted]))[0])
+    if base <= 0.0:
+        return Escape(velocity, False, 0.0, 0.0)
+    extra = [own]
+    if np.hypot(*preferred) > 1e-9:
+        extra.append(math.atan2(preferred[1], preferred[0]))
+    headings, speeds = candidate_commands(heading, max_speed, n_headings, tuple(extra))
+    shortfall = score(headings, speeds)
+    candidates = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=1)
+    if shortfall.min() <= 0.0:
+        # safe candidates: the nearest to the preferred velocity
+        distance = np.hypot(*(candidates - preferred).T)
+        pick = int(np.argmin(np.where(shortfall <= 0.0, distance, np.inf)))
+    else:
+        # none safe: the least shortfall, with a small price on changing the current velocity
+        # (so that the choice does not jump between near ties from one period to the next)
+        current = speed * np.array([math.cos(heading), math.sin(heading)])
+        change = np.hypot(*(candidates - current).T) / max_speed
+        pick = int(np.argmin(shortfall + CONTINUITY_WEIGHT * change))
+        if shortfall[pick] >= base:
+            return Escape(velocity, False, base, base)
+    return Escape(candidates[pick], True, base, float(shortfall[pick]))
