@@ -1,82 +1,53 @@
-"""Conservative clearance of the static obstacles: cheap proofs that a query cannot hit them.
+"""Clearance certificates: cheap proofs that a swept query cannot reach the static obstacles.
 
-:class:`ClearanceGrid` gives, for any point (x, y) of the field, a lower bound (m) of its distance
-to the static obstacles and the field border. The world uses it to skip pymunk's swept-disc and
-ray queries that provably return no hit, so results stay exactly what the queries would give.
+:class:`ClearanceCertificates` remembers, for each tracked body, one point and its exact distance
+(m) to the static obstacles and the field border. By the triangle inequality every point within
+``d - |p - c|`` of a query point p is at least as far from them as that, so a query whose whole
+reach lies within that distance of p provably misses every static shape and need not be run. A
+body keeps its certificate while it moves a little; a failed check measures the distance anew at
+the body's position (one nearest-shape query), which starts a fresh certificate.
 
-Construction (about 1-3 ms on a 100 x 100 m field): the field is rasterised into square cells;
-a cell is *occupied* when it holds a point sampled along an obstacle edge (spacing at most
-``cell / 2``) or when its centre lies inside an obstacle; scipy's Euclidean distance transform
-gives each cell's distance to the nearest occupied cell centre. For a point p outside every
-obstacle, the nearest obstacle point lies on an edge, within ``spacing / 2`` of a sample, whose
-cell centre is within half a cell diagonal of it, and p is within half a diagonal of its own
-cell centre; so ``edt - diagonal - spacing / 2`` bounds p's distance from below. A point inside
-an obstacle gets a bound of at most half a cell diagonal (its cell centre is inside the obstacle
-unless an edge is that close), so bounds up to half a diagonal are reported as 0.
+The world uses it to skip pymunk's swept-disc queries that would return no hit, so results stay
+exactly what the queries would give.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
-import numpy as np
-import shapely
-from scipy import ndimage
+from aoass_env.validators import integer
 
-from aoass_env.maps import ObstacleMap
-from aoass_env.validators import positive
+__all__ = ["MARGIN", "ClearanceCertificates"]
 
-__all__ = ["ClearanceGrid"]
-
-#: Absolute slack (m) for the float round-off of the distance transform and the sampling.
-_ROUND_OFF = 1e-6
+#: Slack (m) of the proofs: a query is skipped only when it stays this much clear of every
+#: static shape (far above the round-off of the distance and of the swept queries).
+MARGIN = 1e-6
 
 
-def _edge_samples(edges: np.ndarray, spacing: float) -> np.ndarray:
-    """Points (K, 2) along edges (E, 2, 2), both ends included, at most ``spacing`` (m) apart."""
-    a, d = edges[:, 0], edges[:, 1] - edges[:, 0]
-    pieces = np.maximum(np.ceil(np.hypot(d[:, 0], d[:, 1]) / spacing), 1).astype(np.int64)
-    edge = np.repeat(np.arange(len(edges)), pieces + 1)
-    first = np.repeat(np.cumsum(pieces + 1) - (pieces + 1), pieces + 1)
-    t = (np.arange(len(edge)) - first) / pieces[edge]
-    return a[edge] + t[:, None] * d[edge]
-
-
-class ClearanceGrid:
-    """Lower bounds of the distance (m) from field points to static obstacles and border.
+class ClearanceCertificates:
+    """Remembered clearances (m) of a few bodies from the static obstacles and the border.
 
     Args:
-        obstacle_map: the field and its static obstacles.
-        cell: grid cell side (m); smaller cells give tighter bounds and cost more to build.
+        distance: ``distance(x, y)``: the exact distance (m) from (x, y) (m) to the nearest
+            static obstacle or the field border, negative inside one; it may return any value
+            up to the true distance (a cap) when nothing is nearer than that.
+        slots: how many bodies keep a certificate (slot ``0 .. slots - 1``).
     """
 
-    def __init__(self, obstacle_map: ObstacleMap, cell: float = 1.0) -> None:
-        cell = positive("cell", cell, "m")
-        self.width, self.height, self.cell = obstacle_map.width, obstacle_map.height, cell
-        nx = max(1, math.ceil(self.width / cell))
-        ny = max(1, math.ceil(self.height / cell))
-        self._ny, self._inv = ny, 1.0 / self.cell
-        half_diagonal = self.cell / math.sqrt(2.0)
-        self._floor = half_diagonal
-        xs, ys = (np.arange(nx) + 0.5) * cell, (np.arange(ny) + 0.5) * cell
-        gx, gy = np.meshgrid(xs, ys, indexing="ij")
-        occupied = shapely.contains_xy(obstacle_map.union, gx, gy)
-        spacing = 0.5 * self.cell
-        ij = np.floor(_edge_samples(obstacle_map.edges, spacing) / cell).astype(np.int64)
-        ij = ij[(ij[:, 0] >= 0) & (ij[:, 0] < nx) & (ij[:, 1] >= 0) & (ij[:, 1] < ny)]
-        occupied[ij[:, 0], ij[:, 1]] = True
-        if not occupied.any():      # no obstacle in the field: the border alone bounds
-            self._bound = [math.inf] * (nx * ny)
-            return
-        edt = ndimage.distance_transform_edt(~occupied) * self.cell
-        bound = edt - 2.0 * half_diagonal - 0.5 * spacing - _ROUND_OFF
-        self._bound = bound.ravel().tolist()
+    def __init__(self, distance: Callable[[float, float], float], slots: int) -> None:
+        self._distance = distance
+        # (centre x, centre y, clearance) per slot; NaN centres force a first measurement
+        self._certs = [(math.nan, math.nan, -math.inf)] * integer("slots", slots, low=0)
 
-    def lower_bound(self, x: float, y: float) -> float:
-        """A lower bound (m) of the distance from (x, y) (m) to every static obstacle and the
-        field border; 0 when the point may be inside an obstacle or outside the field."""
-        border = min(x, self.width - x, y, self.height - y)
-        if not border > 0.0:    # outside the field (or NaN)
-            return 0.0
-        bound = min(self._bound[int(x * self._inv) * self._ny + int(y * self._inv)], border)
-        return bound if bound > self._floor else 0.0
+    def clear(self, slot: int, x: float, y: float, reach: float) -> bool:
+        """Whether every point within ``reach`` (m) of (x, y) (m) is provably more than
+        :data:`MARGIN` away from every static obstacle and the field border."""
+        cx, cy, d = self._certs[slot]
+        free = d - reach - MARGIN
+        dx, dy = x - cx, y - cy
+        if free > 0.0 and dx * dx + dy * dy < free * free:
+            return True
+        d = self._distance(x, y)
+        self._certs[slot] = (x, y, d)
+        return d - reach - MARGIN > 0.0

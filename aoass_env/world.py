@@ -15,7 +15,7 @@ import numpy as np
 import pymunk
 import shapely
 
-from aoass_env.clearance import ClearanceGrid
+from aoass_env.clearance import MARGIN, ClearanceCertificates
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.validators import real, vec2
@@ -26,11 +26,20 @@ _CAT_ANCHOR, _CAT_STATIC, _CAT_WALL, _CAT_MOVING = 1, 2, 4, 8
 _SENSED = pymunk.ShapeFilter(mask=_CAT_STATIC | _CAT_WALL | _CAT_MOVING)
 _STATIC_ONLY = pymunk.ShapeFilter(mask=_CAT_STATIC | _CAT_WALL)
 
+# The hot paths (substep loop, rays, d_obs) call Chipmunk2D's C API through pymunk's low-level
+# access (``pymunk.cp``, ``pymunk.ffi``) with reused query buffers: pymunk's wrappers cost
+# several times the query itself. Same C calls with the same arguments: same results.
+_cp, _ffi = pymunk.cp, pymunk.ffi
+_SENSED_PTR = _ffi.new("cpShapeFilter *", tuple(_SENSED))
+_STATIC_ONLY_PTR = _ffi.new("cpShapeFilter *", tuple(_STATIC_ONLY))
+_SENSED_C, _STATIC_ONLY_C = _SENSED_PTR[0], _STATIC_ONLY_PTR[0]
+
 _SLOP_FRACTION = 0.01   # allowed anchor overlap (pymunk collision_slop) / anchor radius
 _APPROACH_TOL = 1e-6    # a touched shape stops a disc moving into it faster than this * speed
 _MAX_BOUNCES = 4        # reflections of one moving obstacle within one physics substep
 _SPAWN_TRIES = 1000     # random candidates per moving obstacle before giving up
-_SKIP_MARGIN = 1e-6     # slack (m) of the proofs that a skipped query would have missed
+_SKIP_MARGIN = MARGIN   # slack (m) of the proofs that a skipped query would have missed
+_CERT_REACH = 4.0       # farthest clearance (m) a certificate measures (nearest-shape query)
 
 
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
@@ -110,7 +119,9 @@ class World:
         self._owner: dict[pymunk.Shape, tuple[str, int]] = {}
         self._add_walls()
         self._add_static_obstacles()
-        self._clearance = ClearanceGrid(obstacle_map)
+        self._c_space = space._space
+        self._seg_info = _ffi.new("cpSegmentQueryInfo *")
+        self._point_info = _ffi.new("cpPointQueryInfo *")
 
         x0, y0 = self._check_start(start)
         self._heading = wrap_angle(real("start_heading", start_heading, "rad"))
@@ -124,8 +135,12 @@ class World:
         disc.collision_type = _ANCHOR
         disc.filter = pymunk.ShapeFilter(categories=_CAT_ANCHOR)
         space.add(self._anchor, disc)
+        self._c_anchor, self._c_disc = self._anchor._body, disc._shape
 
         self._spawn_moving((x0, y0))
+        self._c_moving = [body._body for body in self._mbodies]
+        # slot 0: the anchor, slot 1 + i: moving obstacle i
+        self._clearance = ClearanceCertificates(self._static_distance, 1 + len(self._mbodies))
 
         self._touching: dict[tuple[str, int], int] = {}  # touching parts per obstacle
         self._released_at: dict[tuple[str, int], int] = {}  # substep an obstacle was let go
@@ -215,6 +230,7 @@ class World:
         self._mvel: list[tuple[float, float]] = list(zip(
             (speed * np.cos(heading)).tolist(), (speed * np.sin(heading)).tolist(), strict=True))
         self._next_turn: list[float] = next_turn.tolist()
+        self._turn_due = min(self._next_turn, default=math.inf)   # earliest heading change (s)
         self._mbodies: list[pymunk.Body] = []
         for i, p in enumerate(placed):
             body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
@@ -231,7 +247,7 @@ class World:
     def _apply_velocity_command(self, body: pymunk.Body, gravity: Any, damping: float,
                                 dt: float) -> None:
         """Velocity phase of a pymunk step: the commanded velocity, before contacts are solved."""
-        body.velocity = self._velocity_cmd
+        _cp.cpBodySetVelocity(self._c_anchor, self._velocity_cmd)
 
     def _begin(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
         """A part starts touching the anchor: a new contact unless its obstacle is touched
@@ -274,25 +290,28 @@ class World:
             (substeps + 1, 3) float64 array of (t [s], x [m], y [m]) of the anchor centre,
             starting with the position before the period.
         """
-        cfg = self.config
+        cfg, sdt = self.config, self._sdt
         target = min(max(real("speed_cmd", speed_cmd, "m/s"), 0.0), cfg.anchor_max_speed)
         heading_target = real("heading_cmd", heading_cmd, "rad")
-        max_dv, max_dh = cfg.anchor_max_accel * self._sdt, cfg.anchor_max_turn_rate * self._sdt
-        anchor, bodies = self._anchor, self._mbodies
-        x, y = anchor.position
+        max_dv, max_dh = cfg.anchor_max_accel * sdt, cfg.anchor_max_turn_rate * sdt
+        get_position, anchor, moving = _cp.cpBodyGetPosition, self._c_anchor, self._c_moving
+        p = get_position(anchor)
+        x, y = p.x, p.y
         rows = [(self.time, x, y)]
         for _ in range(cfg.physics_substeps):
-            self._speed, self._heading = _ramp(self._speed, self._heading, target,
-                                               heading_target, max_dv, max_dh)
-            self._velocity_cmd = (self._speed * math.cos(self._heading),
-                                  self._speed * math.sin(self._heading))
+            speed, heading = self._speed, self._heading = _ramp(
+                self._speed, self._heading, target, heading_target, max_dv, max_dh)
+            self._velocity_cmd = (speed * math.cos(heading), speed * math.sin(heading))
             velocity = self._limit_anchor_move(x, y)
-            self._turn_moving()
-            self._move_moving(x, y, velocity)
-            self._space.step(self._sdt)
+            if self._turn_due <= self.time:
+                self._turn_moving()
+            if moving:
+                self._move_moving(x, y, velocity)
+            _cp.cpSpaceStep(self._c_space, sdt)
             self._substeps_done += 1
-            self._mpos = [tuple(body.position) for body in bodies]
-            x, y = anchor.position
+            self._mpos = [(q.x, q.y) for q in map(get_position, moving)]
+            p = get_position(anchor)
+            x, y = p.x, p.y
             rows.append((self.time, x, y))
         return np.array(rows)
 
@@ -308,6 +327,7 @@ class World:
             self._next_turn[i] = due
             speed = self._mspeed[i]
             self._mvel[i] = (speed * math.cos(heading), speed * math.sin(heading))
+        self._turn_due = min(self._next_turn)
 
     def _move_moving(self, ax: float, ay: float, velocity: tuple[float, float]) -> None:
         """Set each moving obstacle's velocity for the coming substep, given the anchor's
@@ -325,7 +345,8 @@ class World:
         r_meet = max(r - self._skin, 0.0)
         reach = r_meet + self.config.anchor_radius + _SKIP_MARGIN   # farther: the discs miss
         ox, oy = velocity[0] * sdt, velocity[1] * sdt      # the anchor's coming move
-        for i, body in enumerate(self._mbodies):
+        clear, set_velocity = self._clearance.clear, _cp.cpBodySetVelocity
+        for i, body in enumerate(self._c_moving):
             x0, y0 = x, y = self._mpos[i]
             vx, vy = self._mvel[i]
             rest = sdt
@@ -334,29 +355,41 @@ class World:
                     break
                 ex, ey = x + vx * rest, y + vy * rest
                 move = math.hypot(vx, vy) * rest
-                hit = None if self._clear_of_static(x, y, move + r) else \
+                hit = None if clear(i + 1, x, y, move + r) else \
                     self._first_hit((x, y), (ex, ey), r, (vx, vy), _STATIC_ONLY)
                 # the anchor disc stays at (ax, ay): the sweep is relative to its coming move
                 meet = None if _apart(x - ox - ax, y - oy - ay, move + reach) else \
-                    self._anchor_disc.segment_query((x - ox, y - oy), (ex - ox, ey - oy), r_meet)
-                if _blocks(meet, (vx, vy)) and (hit is None or meet.alpha < hit.alpha):
-                    x, y = x + (ex - x) * meet.alpha, y + (ey - y) * meet.alpha
-                    vx, vy = _reflect((vx, vy), meet.normal)
+                    self._shape_hit(self._c_disc, (x - ox, y - oy), (ex - ox, ey - oy), r_meet)
+                if _blocks(meet, vx, vy) and (hit is None or meet[0] < hit[0]):
+                    alpha = meet[0]
+                    x, y = x + (ex - x) * alpha, y + (ey - y) * alpha
+                    vx, vy = _reflect((vx, vy), meet[1:])
                     break
                 if hit is None:
                     x, y = ex, ey
                     break
-                x, y = x + (ex - x) * hit.alpha, y + (ey - y) * hit.alpha
-                vx, vy = _reflect((vx, vy), hit.normal)
-                rest *= 1.0 - hit.alpha
+                alpha = hit[0]
+                x, y = x + (ex - x) * alpha, y + (ey - y) * alpha
+                vx, vy = _reflect((vx, vy), hit[1:])
+                rest *= 1.0 - alpha
             self._mvel[i] = (vx, vy)
-            body.velocity = ((x - x0) / sdt, (y - y0) / sdt)
+            set_velocity(body, ((x - x0) / sdt, (y - y0) / sdt))
+
+    def _shape_hit(self, shape: Any, start: tuple[float, float], end: tuple[float, float],
+                   radius: float) -> tuple[float, float, float] | None:
+        """(alpha, normal x, normal y) where a disc of ``radius`` (m) swept from ``start`` to
+        ``end`` (m) first touches the Chipmunk ``shape``, or None."""
+        info = self._seg_info
+        if not _cp.cpShapeSegmentQuery(shape, start, end, radius, info):
+            return None
+        normal = info.normal
+        return info.alpha, normal.x, normal.y
 
     def _first_hit(self, start: tuple[float, float], end: tuple[float, float], radius: float,
                    v: tuple[float, float], shape_filter: pymunk.ShapeFilter,
-                   ) -> pymunk.SegmentQueryInfo | None:
-        """First shape that blocks a disc of ``radius`` (m) swept from ``start`` to ``end`` with
-        velocity ``v`` (see :func:`_blocks`).
+                   ) -> tuple[float, float, float] | None:
+        """(alpha, normal x, normal y) of the first shape that blocks a disc of ``radius`` (m)
+        swept from ``start`` to ``end`` with velocity ``v`` (see :func:`_blocks`), or None.
 
         The broadphase of Space.segment_query ignores the radius (Chipmunk2D issue #138), so
         the candidates come from a box query of the swept disc and each is tested exactly.
@@ -365,9 +398,10 @@ class World:
         box = pymunk.BB(min(x0, x1) - radius, min(y0, y1) - radius,
                         max(x0, x1) + radius, max(y0, y1) + radius)
         best = None
+        vx, vy = v
         for shape in self._space.bb_query(box, shape_filter):
-            hit = shape.segment_query(start, end, radius)
-            if _blocks(hit, v) and (best is None or hit.alpha < best.alpha):
+            hit = self._shape_hit(shape._shape, start, end, radius)
+            if _blocks(hit, vx, vy) and (best is None or hit[0] < best[0]):
                 best = hit
         return best
 
@@ -382,29 +416,36 @@ class World:
         satisfy a contact with a kinematic moving obstacle and a static one at once). The sweep
         is skipped when the clearance grid and the moving obstacles' distances prove it free.
         """
-        body = self._anchor
-        vx, vy = body.velocity
+        v = _cp.cpBodyGetVelocity(self._c_anchor)
+        vx, vy = v.x, v.y
         length = math.hypot(vx, vy) * self._sdt
         if length == 0.0:
             return vx, vy
         r = self.config.anchor_radius
         reach = length + r + self.config.moving_obstacle_radius + _SKIP_MARGIN
-        if self._clear_of_static(x, y, length + r) and \
-                all(_apart(mx - x, my - y, reach) for mx, my in self._mpos):
-            return vx, vy
+        if self._clearance.clear(0, x, y, length + r):
+            for mx, my in self._mpos:
+                if not _apart(mx - x, my - y, reach):
+                    break
+            else:
+                return vx, vy
         end = (x + vx * self._sdt, y + vy * self._sdt)
         hit = self._first_hit((x, y), end, r, (vx, vy), _SENSED)
         if hit is not None:
-            allowed = hit.alpha * length + self._skin
+            allowed = hit[0] * length + self._skin
             if allowed < length:
                 vx, vy = vx * allowed / length, vy * allowed / length
-                body.velocity = (vx, vy)
+                _cp.cpBodySetVelocity(self._c_anchor, (vx, vy))
         return vx, vy
 
-    def _clear_of_static(self, x: float, y: float, reach: float) -> bool:
-        """Whether every point within ``reach`` (m) of (x, y) (m) is provably clear of static
-        obstacles and walls (clearance grid)."""
-        return self._clearance.lower_bound(x, y) > reach + _SKIP_MARGIN
+    def _static_distance(self, x: float, y: float) -> float:
+        """Distance (m) from (x, y) (m) to the nearest static obstacle or wall (negative
+        inside), or ``_CERT_REACH`` when none is nearer: the clearance certificates' measure."""
+        info = self._point_info
+        if _cp.cpSpacePointQueryNearest(self._c_space, (x, y), _CERT_REACH, _STATIC_ONLY_C,
+                                        info):
+            return info.distance
+        return _CERT_REACH
 
     # --- sensing --------------------------------------------------------------------------
     def ray_angles(self) -> np.ndarray:
@@ -416,22 +457,26 @@ class World:
         """(n_rays,) distances (m) from the anchor centre to the first wall, static or moving
         obstacle along each ray of :meth:`ray_angles`; ``sensing_range`` where none is hit."""
         reach = self.config.sensing_range
-        x, y = self._anchor.position
+        start = _cp.cpBodyGetPosition(self._c_anchor)
         angles = self._heading + self._ray_offsets
-        ends = np.column_stack([x + reach * np.cos(angles), y + reach * np.sin(angles)])
-        out = np.full(len(angles), reach)
-        for i, end in enumerate(ends.tolist()):
-            hit = self._space.segment_query_first((x, y), tuple(end), 0.0, _SENSED)
-            if hit is not None:
-                out[i] = hit.alpha * reach
-        return out
+        xs = (start.x + reach * np.cos(angles)).tolist()
+        ys = (start.y + reach * np.sin(angles)).tolist()
+        out = [reach] * len(xs)
+        query, space, info = _cp.cpSpaceSegmentQueryFirst, self._c_space, self._seg_info
+        for i, end in enumerate(zip(xs, ys, strict=True)):
+            if query(space, start, end, 0.0, _SENSED_C, info):
+                out[i] = info.alpha * reach
+        return np.array(out)
 
     def nearest_obstacle_distance(self) -> float:
         """d_obs (m): gap between the anchor's surface and the nearest wall, static or moving
         obstacle; 0 while touching, ``sensing_range`` when nothing is closer."""
         r, reach = self.config.anchor_radius, self.config.sensing_range
-        hit = self._space.point_query_nearest(self._anchor.position, r + reach, _SENSED)
-        return reach if hit is None else min(max(hit.distance - r, 0.0), reach)
+        info = self._point_info
+        if not _cp.cpSpacePointQueryNearest(self._c_space, _cp.cpBodyGetPosition(self._c_anchor),
+                                            r + reach, _SENSED_C, info):
+            return reach
+        return min(max(info.distance - r, 0.0), reach)
 
     # --- state ----------------------------------------------------------------------------
     @property
@@ -496,15 +541,17 @@ def _apart(dx: float, dy: float, reach: float) -> bool:
     return dx * dx + dy * dy > reach * reach
 
 
-def _blocks(hit: pymunk.SegmentQueryInfo | None, v: tuple[float, float]) -> bool:
-    """Whether a swept-disc ``hit`` stops a disc moving with velocity ``v``.
+def _blocks(hit: tuple[float, float, float] | None, vx: float, vy: float) -> bool:
+    """Whether a swept-disc ``hit`` (alpha, normal x, normal y) stops a disc moving with
+    velocity (vx, vy) (m/s).
 
     A shape the disc already touches at the start of the sweep (``alpha = 0``) blocks only
-    while ``v`` points into it beyond the round-off of pymunk's solver.
+    while the velocity points into it beyond the round-off of pymunk's solver.
     """
     if hit is None:
         return False
-    return hit.alpha > 0.0 or hit.normal.dot(v) < -_APPROACH_TOL * math.hypot(*v)
+    alpha, nx, ny = hit
+    return alpha > 0.0 or nx * vx + ny * vy < -_APPROACH_TOL * math.hypot(vx, vy)
 
 
 def _reflect(v: tuple[float, float], normal: tuple[float, float]) -> tuple[float, float]:

@@ -386,9 +386,10 @@ def test_bad_arguments():
 
 
 def test_skipped_sweeps_give_the_same_world(monkeypatch):
-    """The clearance-grid and distance shortcuts skip only queries that would miss."""
+    """The clearance-certificate and distance shortcuts skip only queries that would miss."""
     fast = run(3)
-    monkeypatch.setattr("aoass_env.clearance.ClearanceGrid.lower_bound", lambda self, x, y: 0.0)
+    monkeypatch.setattr("aoass_env.clearance.ClearanceCertificates.clear",
+                        lambda self, slot, x, y, reach: False)
     monkeypatch.setattr("aoass_env.world._apart", lambda dx, dy, reach: False)
     slow = run(3)
     np.testing.assert_array_equal(fast[0], slow[0])
