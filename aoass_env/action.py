@@ -10,6 +10,12 @@ environment's type (:meth:`ActionType.action`), so the meaning of an action is w
   (the zero action follows the spiral). Built from the config's ``action_speed_scale`` and
   ``action_heading_scale`` (:meth:`ResidualAction.from_config`), or reaching every speed and
   heading (:meth:`ResidualAction.full_range`, the inner environment of the safety stack).
+* :class:`AdaptiveAction`: the same residual and three knobs of the coverage-aware adaptive
+  sweep (skip, detour, densify; :mod:`aoass_env.planning.adaptive`); the zero action is the
+  hand-written rule.
+
+``gymnasium.make(..., action_type="residual" | "adaptive")`` picks one by name
+(:data:`ACTION_TYPES`).
 """
 
 from __future__ import annotations
@@ -17,36 +23,39 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
 
 from aoass_env.config import AOASSConfig
+from aoass_env.planning.adaptive import SweepKnobs
 from aoass_env.validators import positive
 from aoass_env.world import wrap_angle
 
-__all__ = ["ActionType", "ResidualAction", "checked_action"]
+__all__ = ["ACTION_TYPES", "ActionType", "AdaptiveAction", "ResidualAction", "action_type_named",
+           "checked_action"]
 
 #: A command: (speed [m/s], heading [rad], world frame).
 Command = tuple[float, float]
 
 
-def checked_action(action: Any) -> tuple[float, float]:
-    """(dv, dtheta) of an action [dv, dtheta] clipped to [-1, 1]; ValueError for a wrong shape,
-    non-numbers (strings, complex numbers, ...), NaN or infinite values."""
+def checked_action(action: Any, names: tuple[str, ...] = ("dv", "dtheta")) -> list[float]:
+    """The entries of an action with one entry per name, clipped to [-1, 1]; ValueError for a
+    wrong shape, non-numbers (strings, complex numbers, ...), NaN or infinite values."""
+    layout = f"[{', '.join(names)}]"
     try:
         if np.iscomplexobj(action) or np.asarray(action).dtype.kind in "SUMmV":
             raise TypeError("not real numbers")
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"action must be 2 numbers [dv, dtheta], got {action!r}") from exc
-    if a.shape != (2,):
-        raise ValueError(f"action must have shape (2,) = [dv, dtheta], got shape {a.shape}")
+        raise ValueError(f"action must be {len(names)} numbers {layout}, got {action!r}") from exc
+    if a.shape != (len(names),):
+        raise ValueError(f"action must have shape ({len(names)},) = {layout}, got shape "
+                         f"{a.shape}")
     if not np.all(np.isfinite(a)):
         raise ValueError(f"action must be finite, got {a.tolist()} (NaN or infinite)")
-    dv, dtheta = np.clip(a, -1.0, 1.0).tolist()
-    return dv, dtheta
+    return np.clip(a, -1.0, 1.0).tolist()
 
 
 class ActionType(ABC):
@@ -63,9 +72,26 @@ class ActionType(ABC):
         commands ``nominal``; ValueError naming the action for a malformed one."""
 
     @abstractmethod
-    def action(self, speed: float, heading: float, nominal: Command) -> np.ndarray:
+    def action(self, speed: float, heading: float, nominal: Command,
+               knobs: SweepKnobs | None = None) -> np.ndarray:
         """The action (clipped to the space) that commands (``speed``, ``heading``) when the
-        nominal follower commands ``nominal``: the inverse of :meth:`command` within reach."""
+        nominal follower commands ``nominal`` (and sets ``knobs``, for a type that has them):
+        the inverse of :meth:`command` within reach."""
+
+    def knobs(self, action: Any) -> SweepKnobs | None:
+        """The adaptive sweep's knobs that ``action`` sets; None for a type without them."""
+        return None
+
+    @classmethod
+    @abstractmethod
+    def from_config(cls, config: AOASSConfig) -> ActionType:
+        """What an agent's action means under ``config``."""
+
+    @classmethod
+    @abstractmethod
+    def full_range(cls, config: AOASSConfig) -> ActionType:
+        """The same type reaching every speed and heading from any nominal command: what a
+        safety filter sends its inner environment."""
 
 
 @dataclass(frozen=True)
@@ -79,6 +105,8 @@ class ResidualAction(ActionType):
         heading_scale: the heading change of Δθ = ±1 (rad).
         max_speed: the anchor's speed limit (m/s).
     """
+
+    NAMES: ClassVar[tuple[str, ...]] = ("dv", "dtheta")
 
     speed_scale: float
     heading_scale: float
@@ -112,13 +140,52 @@ class ResidualAction(ActionType):
         return spaces.Box(-1.0, 1.0, (2,), np.float32)
 
     def command(self, action: Any, nominal: Command) -> Command:
-        dv, dtheta = checked_action(action)
+        dv, dtheta = checked_action(action, self.NAMES)[:2]
         speed, heading = nominal
         return (min(max(speed + dv * self.speed_scale, 0.0), self.max_speed),
                 heading + dtheta * self.heading_scale)
 
-    def action(self, speed: float, heading: float, nominal: Command) -> np.ndarray:
+    def action(self, speed: float, heading: float, nominal: Command,
+               knobs: SweepKnobs | None = None) -> np.ndarray:
         speed_nom, heading_nom = nominal
         return np.clip([(speed - speed_nom) / self.speed_scale,
                         wrap_angle(heading - heading_nom) / self.heading_scale],
                        -1.0, 1.0).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class AdaptiveAction(ResidualAction):
+    """Eq. 6's residual [Δv, Δθ] (as :class:`ResidualAction`) followed by the adaptive sweep's
+    three knobs [skip, detour, densify] in [-1, 1] (:class:`~aoass_env.planning.adaptive.
+    SweepKnobs`): the environment drives the anchor with the coverage-aware
+    :class:`~aoass_env.planning.adaptive.AdaptiveSweep` and the knobs shift its thresholds.
+    The zero action is the hand-written rule."""
+
+    NAMES: ClassVar[tuple[str, ...]] = ("dv", "dtheta", *SweepKnobs._fields)
+
+    @property
+    def space(self) -> spaces.Box:
+        return spaces.Box(-1.0, 1.0, (len(self.NAMES),), np.float32)
+
+    def knobs(self, action: Any) -> SweepKnobs:
+        return SweepKnobs(*checked_action(action, self.NAMES)[2:])
+
+    def action(self, speed: float, heading: float, nominal: Command,
+               knobs: SweepKnobs | None = None) -> np.ndarray:
+        residual = super().action(speed, heading, nominal)
+        return np.concatenate([residual, np.clip(knobs or SweepKnobs(), -1.0, 1.0)]
+                              ).astype(np.float32)
+
+
+#: The action types by name: ``gymnasium.make(..., action_type="adaptive")``.
+ACTION_TYPES: dict[str, type[ResidualAction]] = {"residual": ResidualAction,
+                                                  "adaptive": AdaptiveAction}
+
+
+def action_type_named(name: Any) -> type[ResidualAction]:
+    """The action type called ``name``; ValueError naming ``action_type`` and the valid
+    names otherwise."""
+    if not isinstance(name, str) or name not in ACTION_TYPES:
+        raise ValueError(f"action_type={name!r} is not one of {sorted(ACTION_TYPES)} (or an "
+                         f"aoass_env.action.ActionType)")
+    return ACTION_TYPES[name]

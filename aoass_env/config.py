@@ -110,6 +110,9 @@ class AOASSConfig(ValidatedConfig):
     collinearity_tol: float = param(
         1.0, "Eq. 18: heard beacons count as non-collinear when their root-sum-square distance "
         "from the best-fit line is at least this", unit="m", low=0.0, high=100.0, low_open=True)
+    coverage_cell: float = param(
+        2.5, "cell side of the anchor's own coverage map (planning.coverage: Eq. 18 over the "
+        "free field as the anchor knows it)", unit="m", low=0.1, high=100.0)
 
     # --- reward (Eq. 14) -----------------------------------------------------------------
     w1: float = param(100.0, "Eq. 14 weight of the coverage gain", low=0.0, high=1e6)
@@ -144,6 +147,10 @@ class AOASSConfig(ValidatedConfig):
     obs_velocity_noise: float = param(
         0.2, "std of the Gaussian noise on observed moving-obstacle velocities", unit="m/s",
         low=0.0, high=100.0)
+    obs_coverage_sectors: int = param(
+        0, "sectors of the egocentric coverage summary in the observation (mean coverage "
+        "deficit by bearing within 2 R; 0: none, the adaptive setup uses 8)", low=0, high=64,
+        kind="int")
     action_speed_scale: float = param(
         1.0, "speed change commanded by action[0] = +-1 on top of the follower's speed",
         unit="m/s", low=0.0, high=20.0)

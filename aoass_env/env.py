@@ -16,12 +16,12 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.wrappers import TimeLimit
 
-from aoass_env.action import ActionType, ResidualAction
+from aoass_env.action import ActionType, AdaptiveAction, ResidualAction, action_type_named
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.config import AOASSConfig, ConfigError, config_for_map, config_with, map_side
 from aoass_env.maps import MapError, ObstacleMap, load_map
 from aoass_env.observation import Observer, observation_layout, observation_space
-from aoass_env.planning import WaypointFollower
+from aoass_env.planning import AdaptiveConfig, AdaptiveSweep, WaypointFollower
 from aoass_env.planning.square_spiral import episode_spiral
 from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
 from aoass_env.simulator import Simulator, check_waypoint_step, episode_summary
@@ -157,7 +157,9 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def __init__(self, render_mode: str | None = None,
                  config: AOASSConfig | Mapping[str, Any] | None = None,
-                 action_type: ActionType | None = None, **kwargs: Any) -> None:
+                 action_type: ActionType | str | None = None,
+                 adaptive: AdaptiveConfig | Mapping[str, Any] | None = None,
+                 **kwargs: Any) -> None:
         self.config = config_with(config, kwargs)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r} is not one of "
@@ -171,11 +173,15 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                 explicit="field_size" in kwargs
                 or (isinstance(config, Mapping) and "field_size" in config))
         self.max_episode_steps = max_episode_steps(self.config)
-        if action_type is not None and not isinstance(action_type, ActionType):
-            raise TypeError(f"action_type must be an aoass_env.action.ActionType, got "
-                            f"{type(action_type).__name__}")
+        if isinstance(action_type, str):
+            action_type = action_type_named(action_type).from_config(self.config)
+        elif action_type is not None and not isinstance(action_type, ActionType):
+            raise TypeError(f"action_type must be an aoass_env.action.ActionType or one of "
+                            f"'residual', 'adaptive', got {type(action_type).__name__}")
         #: what an action means (:mod:`aoass_env.action`): the config's residual by default
         self.action_type = action_type or ResidualAction.from_config(self.config)
+        #: the adaptive sweep's rule, used with the adaptive action type
+        self.adaptive = AdaptiveConfig.coerce(adaptive, "adaptive")
         self.action_space = self.action_type.space
         self.observation_space = observation_space(self.config)
         self.obs_layout = observation_layout(self.config)
@@ -203,7 +209,10 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                              obstacle_map=episode_map if episode_map is not None else self._map,
                              seed=seed, method="aoass-env")
         noise_rng = self.np_random.spawn(1)[0]
-        self._follower: WaypointFollower = self.sim.follower(recovery=True)
+        self._follower: WaypointFollower | AdaptiveSweep = (
+            self.sim.adaptive_sweep(self.adaptive)
+            if isinstance(self.action_type, AdaptiveAction)
+            else self.sim.follower(recovery=True))
         self._observe = Observer(config, self.sim.spiral, noise_rng)
         self._steps = 0
         self._log = None
@@ -224,6 +233,9 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
             raise RuntimeError("the episode has ended; call reset() to start a new one")
         c = self.config
         record = sim.step(*self.action_type.command(action, self._command))
+        knobs = self.action_type.knobs(action)
+        if knobs is not None:
+            self._follower.knobs = knobs
         self._steps += 1
         self._command = self._follower.command(sim.world.position, sim.world.heading, c.dt)
         if len(record.beacons):     # energies and estimates change only with beacons
@@ -268,7 +280,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                              heading_error=heading_error,
                              coverage=sim.network.coverage_ratio,
                              progress=self._follower.progress(),
-                             time_fraction=min(self._steps / self.max_episode_steps, 1.0))
+                             time_fraction=min(self._steps / self.max_episode_steps, 1.0),
+                             coverage_map=sim.coverage_map)
 
     def _info(self) -> dict[str, Any]:
         sim, net = self.sim, self.sim.network
@@ -281,14 +294,22 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                 "energy_total": net.energy_total, "rmse_online": self._rmse,
                 "progress": self._follower.progress(), "time": sim.world.time,
                 "recoveries": self._follower.recoveries,
-                "skipped_waypoints": len(self._follower.skipped)}
+                "skipped_waypoints": len(self._follower.skipped),
+                "area_coverage": sim.coverage_map.ratio,
+                "passed_waypoints": self._passed()}
+
+    def _passed(self) -> int:
+        """Spiral waypoints the adaptive sweep passed over by choice (0 for the follower)."""
+        return len(self._follower.passed) if isinstance(self._follower, AdaptiveSweep) else 0
 
     def _episode_metrics(self) -> dict[str, Any]:
         """:func:`~aoass_env.simulator.episode_summary` of the episode, with the online RMSE
         (m), the control periods taken, and the follower's recoveries and skipped waypoints."""
         return {**episode_summary(self.sim, self._follower.done), "rmse_online": self._rmse,
                 "steps": self._steps, "recoveries": self._follower.recoveries,
-                "skipped_waypoints": len(self._follower.skipped)}
+                "skipped_waypoints": len(self._follower.skipped),
+                "area_coverage": self.sim.coverage_map.ratio,
+                "passed_waypoints": self._passed()}
 
     # --- what wrappers read (world frame) -------------------------------------------------------
     def _started(self, what: str) -> Simulator:
@@ -325,8 +346,9 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._observe.detections
 
     @property
-    def follower(self) -> WaypointFollower:
-        """The episode's nominal path follower (its ``skipped`` waypoints and ``recoveries``)."""
+    def follower(self) -> WaypointFollower | AdaptiveSweep:
+        """The episode's controller: the nominal path follower, or the adaptive sweep under the
+        adaptive action type (their ``skipped`` waypoints and ``recoveries``)."""
         if self.sim is None:
             raise RuntimeError("call reset() before reading follower")
         return self._follower

@@ -19,6 +19,11 @@ name                   size    content (scale)
 ``coverage``           1       Eq. 18 coverage ratio                          [0, 1]
 ``progress``           1       fraction of spiral waypoints reached or skipped [0, 1]
 ``time``               1       elapsed steps / episode step limit             [0, 1]
+``coverage_sectors``   S       mean coverage deficit of the anchor's coverage map within 2 R,
+                               by bearing sector from the heading (S =
+                               ``obs_coverage_sectors``; absent when 0)       [0, 1]
+``area_coverage``      1       the coverage map's covered share of the free field (with
+                               the sectors)                                   [0, 1]
 =====================  ======  ==========================================================
 
 The first five entries are Eq. 6's state s = [x, y, v, d_obs, dtheta]. Moving obstacles are seen
@@ -36,7 +41,7 @@ import numpy as np
 from gymnasium import spaces
 
 from aoass_env.config import AOASSConfig
-from aoass_env.planning import SquareSpiral
+from aoass_env.planning import CoverageMap, SquareSpiral
 from aoass_env.world import World
 
 __all__ = ["MOVING_FIELDS", "Observer", "observation_layout", "observation_space",
@@ -52,7 +57,9 @@ def _sizes(config: AOASSConfig) -> list[tuple[str, int, float]]:
             ("heading_error", 1, -1.0), ("heading", 2, -1.0),
             ("waypoints", 2 * config.obs_waypoints, -1.0), ("rays", config.n_rays, 0.0),
             ("moving_obstacles", len(MOVING_FIELDS) * config.obs_moving_obstacles, -1.0),
-            ("coverage", 1, 0.0), ("progress", 1, 0.0), ("time", 1, 0.0)]
+            ("coverage", 1, 0.0), ("progress", 1, 0.0), ("time", 1, 0.0)] + (
+        [("coverage_sectors", config.obs_coverage_sectors, 0.0), ("area_coverage", 1, 0.0)]
+        if config.obs_coverage_sectors else [])
 
 
 def velocity_scale(config: AOASSConfig) -> float:
@@ -144,7 +151,8 @@ class Observer:
         return slots
 
     def __call__(self, world: World, *, follower_index: int, heading_error: float,
-                 coverage: float, progress: float, time_fraction: float) -> np.ndarray:
+                 coverage: float, progress: float, time_fraction: float,
+                 coverage_map: CoverageMap) -> np.ndarray:
         """The observation vector (float32) for the current state.
 
         Args:
@@ -154,6 +162,7 @@ class Observer:
             coverage: Eq. 18 coverage ratio.
             progress: fraction of the spiral's waypoints reached or skipped.
             time_fraction: elapsed steps / step limit.
+            coverage_map: the anchor's coverage map (read when ``obs_coverage_sectors`` > 0).
         """
         c = self.config
         (x, y), h = world.position, world.heading
@@ -162,7 +171,11 @@ class Observer:
                          self.obstacle_gap / c.sensing_range,
                          heading_error / math.pi, math.cos(h), math.sin(h)])
         waypoints = (self.upcoming(follower_index) - (x, y)) / self._wp_scale
-        obs = np.concatenate([head, waypoints.ravel(), world.ray_distances() / c.sensing_range,
-                              self.moving(world).ravel(),
-                              (coverage, progress, time_fraction)])
+        parts = [head, waypoints.ravel(), world.ray_distances() / c.sensing_range,
+                 self.moving(world).ravel(), (coverage, progress, time_fraction)]
+        if c.obs_coverage_sectors:
+            parts += [coverage_map.sector_deficits(world.position, h, c.obs_coverage_sectors,
+                                                   2.0 * c.radio_range),
+                      (coverage_map.ratio,)]
+        obs = np.concatenate(parts)
         return np.minimum(np.maximum(obs, self._low), 1.0).astype(np.float32)

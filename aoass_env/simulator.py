@@ -23,7 +23,14 @@ from aoass_env.config import AOASSConfig, ConfigError, config_for_map
 from aoass_env.maps import MapError, ObstacleMap, generate_map, load_map
 from aoass_env.metrics import energy_efficiency_ratio, energy_per_beacon, trajectory_efficiency
 from aoass_env.network import Network
-from aoass_env.planning import SquareSpiral, WaypointFollower, WaypointPath
+from aoass_env.planning import (
+    AdaptiveConfig,
+    AdaptiveSweep,
+    CoverageMap,
+    SquareSpiral,
+    WaypointFollower,
+    WaypointPath,
+)
 from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
 from aoass_env.planning.square_spiral import config_spacing, episode_spiral
 from aoass_env.planning.sweep import Controller
@@ -101,6 +108,9 @@ class Simulator:
         self.world = World(config, self.map, rng, tuple(start))
         self.radio = Radio.from_config(self.nodes, self.map, config, rng)
         self.network = Network(config.n_nodes, config)
+        #: the anchor's own coverage map (:mod:`aoass_env.planning.coverage`), updated with
+        #: every beacon
+        self.coverage_map = CoverageMap(self.map, config)
         self.recorder = BeaconLogRecorder(
             config_json=episode_config_json(config, seed=seed, method=method),
             obstacle_map=self.map, nodes=self.nodes, radio_range=config.radio_range)
@@ -129,6 +139,7 @@ class Simulator:
             pos = np.array([x, y])
             receivers = self.radio.receivers(pos)
             newly += self.network.record_beacon(pos, receivers)
+            self.coverage_map.add_beacon(pos)
             self.recorder.add_beacon(t, pos, receivers)
         return newly
 
@@ -155,6 +166,12 @@ class Simulator:
         spiral and the baselines, which has only its stall timer."""
         return WaypointFollower.nominal(self.config, self.path.waypoints, self.path.blocked,
                                         self.planner, start=self.start_index, recovery=recovery)
+
+    def adaptive_sweep(self, rule: AdaptiveConfig | None = None) -> AdaptiveSweep:
+        """The adaptive sweep (:mod:`aoass_env.planning.adaptive`) of this episode's spiral, on
+        the episode's coverage map, with the recovering follower."""
+        return AdaptiveSweep(self.follower(recovery=True), self.coverage_map, self.planner,
+                             self.config, rule if rule is not None else AdaptiveConfig())
 
     def nominal_steps(self) -> int:
         """Control periods the ideal path takes at nominal speed."""

@@ -70,8 +70,12 @@ def test_the_env_decodes_with_its_action_type():
     nominal = env.nominal_command
     wanted = env.action_type.command([0.0, 1.0], nominal)
     assert wanted[1] == pytest.approx(nominal[1] + 0.3)
+    assert (AOASSEnv(**SMALL, action_heading_scale=0.3, action_type="residual").action_type
+            == env.action_type)
     with pytest.raises(TypeError, match="action_type"):
-        AOASSEnv(**SMALL, action_type="residual")
+        AOASSEnv(**SMALL, action_type=3)
+    with pytest.raises(ValueError, match="action_type='residul' is not one of"):
+        AOASSEnv(**SMALL, action_type="residul")
 
 
 def test_the_agent_action_means_the_same_inside_the_safety_stack():

@@ -208,7 +208,8 @@ def test_termination_carries_the_eq16_to_19_metrics():
     summary = episode_summary(env.sim, True)
     assert {k: m[k] for k in summary} == summary
     assert set(summary) <= set(EPISODE_FIELDS)
-    assert set(m) - set(summary) == {"rmse_online", "steps", "recoveries", "skipped_waypoints"}
+    assert set(m) - set(summary) == {"rmse_online", "steps", "recoveries", "skipped_waypoints",
+                                     "area_coverage", "passed_waypoints"}
 
 
 # --- determinism ---------------------------------------------------------------------------

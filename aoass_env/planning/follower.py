@@ -103,19 +103,19 @@ class WaypointFollower:
     @classmethod
     def nominal(cls, config: AOASSConfig, waypoints: np.ndarray, blocked: np.ndarray | None = None,
                 planner: DetourPlanner | None = None, start: int = 0,
-                recovery: bool = False) -> WaypointFollower:
+                recovery: bool = False, stall_time: float = 30.0) -> WaypointFollower:
         """The nominal follower of ``config``: cruise at ``anchor_nominal_speed``, brake within
         ``anchor_max_accel``, and capture a waypoint within the anchor radius or half a control
         period's travel, whichever is larger; ``blocked`` None: no waypoint is skipped; the
         waypoints before ``start`` are skipped; ``recovery``: get out of traps with the config's
         progress watchdog (``watchdog_time``, ``watchdog_progress``, ``backout_distance``),
-        else rely on the stall timer alone."""
+        else rely on the stall timer alone (``stall_time``, s)."""
         wps = np.asarray(waypoints, dtype=np.float64)
         return cls(wps, np.zeros(len(wps), dtype=bool) if blocked is None else blocked,
                    capture_radius=max(config.anchor_radius,
                                       0.5 * config.anchor_nominal_speed * config.dt),
                    cruise_speed=config.anchor_nominal_speed, max_accel=config.anchor_max_accel,
-                   planner=planner,
+                   stall_time=stall_time, planner=planner,
                    watchdog_time=config.watchdog_time if recovery else math.inf,
                    watchdog_progress=config.watchdog_progress,
                    backout_distance=config.backout_distance, index=start)
@@ -146,6 +146,13 @@ class WaypointFollower:
         self._detour.clear()
         self._tries = 0
         self._reset_watchdog()
+
+    def pass_target(self) -> None:
+        """Leave the current target unvisited by choice (a coverage-aware sweep's skip) and
+        steer to the next free waypoint; not recorded in ``skipped``."""
+        if not self.done:
+            self._backout.clear()
+            self._advance()
 
     def _give_up(self, reason: str) -> None:
         self.skipped.append(Skip(self.index, self._clock, reason))

@@ -1,0 +1,255 @@
+"""The adaptive sweep: a square spiral that skips what the anchor's coverage map already covers,
+then densifies where coverage is still missing (Section 3.3: "the anchor can easily skip or
+locally reconfigure sub-segments of the spiral").
+
+:class:`AdaptiveSweep` drives the nominal follower (:class:`~aoass_env.planning.follower.
+WaypointFollower`, with its detours and its recovery from traps) and reads the anchor's own
+:class:`~aoass_env.planning.coverage.CoverageMap`:
+
+1. **Skip.** The *need* of a spiral waypoint is the mean coverage deficit of the free cells within
+   ``skip_radius`` of it that it sees (line of sight, within the cells' guaranteed range).
+   Every control period, while the follower's target has need <= ``skip_need``, the target is
+   passed over (whole legs go when their waypoints all are covered). A target the anchor cannot
+   reach straight (it would detour round an obstacle) is passed over under the looser
+   ``detour_need``: a detour is worth its length only where coverage is missing.
+2. **Densify.** When the spiral is done, the anchor goes after the free cells the map still
+   lacks, nearest first, each while it stays uncovered (the beacons on the way cover most
+   of them first), giving up a cell it reaches, cannot reach, or whose need is below
+   ``densify_need``.
+3. **End.** The sweep ends when the map's covered share of the free field reaches
+   ``end_coverage``, or when no cell is left to densify.
+
+Three knobs in [-1, 1] (:class:`SweepKnobs`, the adaptive action's last three entries) shift
+the thresholds by ``knob_step`` each: ``skip`` raises ``skip_need`` (skip more), ``detour``
+raises ``detour_need`` (detour less), ``densify`` raises ``densify_need`` (densify less). The
+zero knobs are the hand-written rule (evaluate.py's ``aoass-rule`` method).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import ClassVar, NamedTuple
+
+import numpy as np
+
+from aoass_env.config import AOASSConfig
+from aoass_env.planning.coverage import CoverageMap
+from aoass_env.planning.detour import DetourPlanner
+from aoass_env.planning.follower import Skip, WaypointFollower
+from aoass_env.validators import ValidatedConfig, param
+
+__all__ = ["AdaptiveConfig", "AdaptiveSweep", "SweepKnobs"]
+
+#: Open waypoints (nearest first) whose way the planner measures to choose the next densify run.
+DENSIFY_CANDIDATES = 5
+
+
+@dataclass(frozen=True)
+class AdaptiveConfig(ValidatedConfig):
+    """The adaptive sweep's rule (module docstring; docs/planning.md)."""
+
+    KEYWORD: ClassVar[str] = "adaptive keyword"
+
+    skip_radius: float = param(8.0, "a spiral waypoint's surroundings: the free cells within "
+                               "this distance that it sees", unit="m", low=0.0, high=1000.0,
+                               low_open=True)
+    skip_need: float = param(0.0, "a target whose surroundings' mean coverage deficit is at "
+                             "most this is passed over", low=-1.0, high=1.0)
+    detour_need: float = param(0.25, "the same for a target the anchor cannot reach straight "
+                               "(it would detour round an obstacle)", low=-1.0, high=1.0)
+    detour_excess: float = param(40.0, "a target whose detour is longer than the straight way "
+                                 "by more than this is passed over whatever its need (the "
+                                 "spiral's later passes and the densify phase cover what it "
+                                 "leaves)", unit="m", low=0.0, high=1e4)
+    densify_need: float = param(0.0, "after the spiral, uncovered cells with a deficit above "
+                                "this are visited, nearest first", low=-1.0, high=1.0)
+    end_coverage: float = param(0.995, "the sweep ends when the coverage map's covered share "
+                                "of the free field reaches this", low=0.0, high=1.0,
+                                low_open=True)
+    knob_step: float = param(0.25, "threshold shift of a knob at +-1", low=0.0, high=1.0)
+
+
+class SweepKnobs(NamedTuple):
+    """The agent's knobs on the rule, each in [-1, 1] (0: the rule as configured)."""
+
+    skip: float = 0.0
+    detour: float = 0.0
+    densify: float = 0.0
+
+
+@dataclass
+class AdaptiveSweep:
+    """The adaptive sweep (module docstring): a :class:`~aoass_env.planning.sweep.Controller`.
+
+    Args:
+        follower: the spiral's nominal follower (with recovery); the sweep passes its targets
+            over.
+        coverage: the episode's coverage map (the simulator updates it with every beacon).
+        planner: the detour planner of the episode's map.
+        config: the episode's configuration (the densify followers are built from it).
+        rule: the rule's thresholds.
+
+    Attributes:
+        knobs: the knobs in force (the environment sets them from the action).
+        passed: spiral waypoints passed over (index, time, "covered", "covered, detour" or
+            "long detour").
+        revisits: the densify runs: (first spiral index, time) of each.
+    """
+
+    follower: WaypointFollower
+    coverage: CoverageMap
+    planner: DetourPlanner
+    config: AOASSConfig
+    rule: AdaptiveConfig = field(default_factory=AdaptiveConfig)
+    knobs: SweepKnobs = field(default_factory=SweepKnobs)
+    passed: list[Skip] = field(default_factory=list)
+    revisits: list[tuple[int, float]] = field(default_factory=list)
+    _clock: float = 0.0
+    _near: dict[int, np.ndarray] = field(default_factory=dict)
+    _runner: WaypointFollower | None = None
+    _open: np.ndarray | None = None
+    _recoveries: int = 0
+    _done: bool = False
+
+    def __post_init__(self) -> None:
+        self._runner = self.follower
+        self._open = np.zeros(len(self.follower.waypoints), dtype=bool)
+
+    # --- the Controller protocol --------------------------------------------------------------
+    @property
+    def done(self) -> bool:
+        """True once the map says the field is covered or nothing is left to densify."""
+        return self._done
+
+    @property
+    def densifying(self) -> bool:
+        """Whether the spiral is done and the sweep revisits what it passed over."""
+        return self._runner is not self.follower
+
+    @property
+    def index(self) -> int:
+        """The spiral waypoint the sweep heads for (len(waypoints) when done)."""
+        return len(self.follower.waypoints) if self._done else self._runner.index
+
+    @property
+    def skipped(self) -> list[Skip]:
+        """Waypoints given up as unreachable by the spiral's follower (not the ones passed over
+        by choice: :attr:`passed`)."""
+        return self.follower.skipped
+
+    @property
+    def recoveries(self) -> int:
+        """Back-outs of the spiral's follower and of the densify runs."""
+        extra = self._runner.recoveries if self.densifying else 0
+        return self.follower.recoveries + self._recoveries + extra
+
+    def progress(self) -> float:
+        """Fraction of spiral waypoints reached, skipped or passed over, in [0, 1]."""
+        return self.follower.progress()
+
+    @property
+    def target(self) -> np.ndarray | None:
+        """The spiral waypoint the sweep is heading for, None when done."""
+        return None if self._done else self._runner.target
+
+    def command(self, position: np.ndarray, heading: float, dt: float) -> tuple[float, float]:
+        """(speed [m/s], heading [rad]) for the next control period (module docstring)."""
+        self._clock += dt
+        while not self._done:
+            if self.coverage.ratio >= self.rule.end_coverage:
+                self._done = True
+                break
+            runner = self._runner
+            if not runner.done:
+                self._pass_covered(position, runner)
+                if not runner.done:
+                    return runner.command(position, heading, dt)
+            self._next_run(position)
+        return 0.0, 0.0
+
+    # --- skip ------------------------------------------------------------------------------
+    def _threshold(self, base: float, knob: float) -> float:
+        return base + self.rule.knob_step * float(np.clip(knob, -1.0, 1.0))
+
+    def need(self, index: int) -> float:
+        """Mean coverage deficit of the free cells within ``skip_radius`` of spiral waypoint
+        ``index`` that it sees (0 when it sees none)."""
+        cells = self._near.get(index)
+        if cells is None:
+            cells = self.coverage.visible_near(self.follower.waypoints[index],
+                                               self.rule.skip_radius)
+            self._near[index] = cells
+        return float(self.coverage.deficit_at(cells).mean()) if len(cells) else 0.0
+
+    def _pass_covered(self, position: np.ndarray, runner: WaypointFollower) -> None:
+        """Pass over the runner's targets the rule says to skip; on the spiral, those with
+        coverage still missing stay open for the densify runs."""
+        skip_need = self._threshold(self.rule.skip_need, self.knobs.skip)
+        detour_need = self._threshold(self.rule.detour_need, self.knobs.detour)
+        max_excess = self.rule.detour_excess * 2.0 ** -float(np.clip(self.knobs.detour, -1, 1))
+        on_spiral = runner is self.follower
+        while not runner.done:
+            need = self.need(runner.index)
+            if need <= skip_need:
+                reason = "covered"
+            elif self.planner.visible(position, runner.target):
+                return
+            elif need <= detour_need:
+                reason = "covered, detour"
+            elif on_spiral and self._detour_excess(position, runner.target) > max_excess:
+                reason = "long detour"
+                self._open[runner.index] = True
+            else:
+                return
+            self.passed.append(Skip(runner.index, self._clock, reason))
+            runner.pass_target()
+
+    def _detour_excess(self, position: np.ndarray, target: np.ndarray) -> float:
+        """How much longer (m) the planner's way to ``target`` is than the straight line (inf
+        when there is none)."""
+        path = self.planner.path(position, target)
+        if path is None:
+            return math.inf
+        length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+        return length - float(np.hypot(*(target - position)))
+
+    # --- densify ---------------------------------------------------------------------------
+    def _next_run(self, position: np.ndarray) -> None:
+        """Start the next densify run: from the open waypoint (passed over for a long detour,
+        coverage still missing) the anchor reaches by the shortest way, along the spiral while
+        the waypoints stay open; done when none is left."""
+        if self.densifying:
+            self._recoveries += self._runner.recoveries
+        threshold = self._threshold(self.rule.densify_need, self.knobs.densify)
+        todo = np.flatnonzero(self._open)
+        for i in todo:
+            if self.need(i) <= threshold:
+                self._open[i] = False
+        todo = np.flatnonzero(self._open)
+        if not len(todo):
+            self._done = True
+            return
+        wps = self.follower.waypoints
+        d = wps[todo] - position
+        nearest = todo[np.argsort(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])[:DENSIFY_CANDIDATES]]
+        lengths = [self._way_length(position, wps[i]) for i in nearest]
+        first = int(nearest[int(np.argmin(lengths))])
+        if not np.isfinite(min(lengths)):
+            self._open[nearest] = False          # out of reach: nothing to do there
+            return
+        last = first
+        while last + 1 < len(wps) and (self._open[last + 1] or self.follower.blocked[last + 1]):
+            last += 1
+        run = np.zeros(len(wps), dtype=bool)
+        run[first:last + 1] = self._open[first:last + 1]
+        self._open[run] = False
+        self.revisits.append((first, self._clock))
+        self._runner = WaypointFollower.nominal(self.config, wps, ~run, self.planner,
+                                                start=first, recovery=True)
+
+    def _way_length(self, position: np.ndarray, target: np.ndarray) -> float:
+        """Length (m) of the planner's way to ``target`` (inf when there is none)."""
+        if self.planner.visible(position, target):
+            return float(np.hypot(*(target - position)))
+        return float(np.hypot(*(target - position))) + self._detour_excess(position, target)

@@ -1,0 +1,156 @@
+"""The anchor's own coverage map: where, by what it has broadcast so far, Eq. 18 coverage is
+still missing.
+
+The anchor never knows where the nodes are. It knows its beacon positions, the radio range R and
+the degree of irregularity (DOI) bound, and its static obstacle map. :class:`CoverageMap` rasters
+the field into square cells of ``coverage_cell`` metres and treats the centre of every cell
+outside the obstacles as a virtual node that hears a beacon when the beacon lies within the
+*guaranteed* range and in line of sight:
+
+    r_cell = R (1 - DOI) - cell / sqrt(2),
+
+so that any node of the cell within that range of the centre is within R (1 - DOI) of the
+beacon (line of sight is checked from the centre only). A cell is covered when it meets Eq. 18
+the way a node does (at least 3 heard beacons, not collinear: their root-sum-square distance
+from the best-fit line is at least ``collinearity_tol``). The bookkeeping is the network's own
+(:class:`~aoass_env.network.Network`), on the virtual nodes, with the radio's own receivers
+(:class:`~aoass_env.radio.Radio`): one beacon updates only the cells within r_cell of it.
+
+Each cell's **deficit** in [0, 1] says how far it is from coverage: 0 when covered, else
+(missing beacons + missing spread) / 4 with missing beacons = max(0, 3 - heard) and missing
+spread = 1 - min(1, residual / collinearity_tol); a cell that heard nothing has deficit 1.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from aoass_env.config import AOASSConfig, ConfigError
+from aoass_env.maps import ObstacleMap
+from aoass_env.network import Network
+from aoass_env.radio import Radio
+
+__all__ = ["CoverageMap", "cell_range"]
+
+
+def cell_range(config: AOASSConfig) -> float:
+    """The range r_cell (m) within which a cell surely hears a beacon (module docstring);
+    :class:`ConfigError` naming ``coverage_cell`` when the cell is too large for the range."""
+    reach = config.radio_range * (1.0 - config.doi) - config.coverage_cell / math.sqrt(2.0)
+    if reach <= config.coverage_cell:
+        raise ConfigError(
+            f"coverage_cell={config.coverage_cell:g} m is too large for radio_range="
+            f"{config.radio_range:g} m and doi={config.doi:g}: the guaranteed range R (1 - doi) "
+            f"- cell / sqrt(2) must exceed one cell")
+    return reach
+
+
+class CoverageMap:
+    """Eq. 18 coverage of the free field as the anchor can know it (module docstring).
+
+    Args:
+        obstacle_map: the static obstacles (the anchor's map).
+        config: supplies ``coverage_cell`` (m), ``radio_range`` (m), ``doi``,
+            ``line_of_sight`` and ``collinearity_tol`` (m).
+
+    Attributes:
+        cell: the cell side (m).
+        shape: (nx, ny) cells; cell (i, j) has its centre at ((i + 0.5) cell, (j + 0.5) cell).
+        centres: (C, 2) the centres (m) of the free cells (those whose centre lies outside
+            every obstacle), the cells the map keeps; ``index`` (C, 2) their (i, j).
+        reach: r_cell (m).
+    """
+
+    def __init__(self, obstacle_map: ObstacleMap, config: AOASSConfig) -> None:
+        self.cell = config.coverage_cell
+        self.reach = cell_range(config)
+        nx = max(1, math.ceil(obstacle_map.width / self.cell))
+        ny = max(1, math.ceil(obstacle_map.height / self.cell))
+        self.shape = (nx, ny)
+        gi, gj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+        index = np.stack([gi.ravel(), gj.ravel()], axis=1)
+        centres = (index + 0.5) * self.cell
+        centres = np.minimum(centres, [obstacle_map.width, obstacle_map.height])
+        free = ~obstacle_map.inside_obstacle(centres)
+        self.index = index[free]
+        self.centres = centres[free]
+        self.centres.flags.writeable = False
+        self._radio = Radio(self.centres, obstacle_map, self.reach,
+                            line_of_sight=config.line_of_sight)
+        self._network = Network(max(len(self.centres), 1), config)
+        self._tol = config.collinearity_tol
+
+    def add_beacon(self, position: np.ndarray) -> int:
+        """Record a beacon broadcast at ``position`` (2,) (m); the number of cells it made
+        covered."""
+        if not len(self.centres):
+            return 0
+        return self._network.record_beacon(position, self._radio.receivers(position))
+
+    # --- what the map says --------------------------------------------------------------------
+    @property
+    def n_cells(self) -> int:
+        """Free cells."""
+        return len(self.centres)
+
+    @property
+    def covered(self) -> np.ndarray:
+        """(C,) bool: the free cells meeting Eq. 18 (read-only)."""
+        return self._network.covered[:self.n_cells]
+
+    @property
+    def heard(self) -> np.ndarray:
+        """(C,) beacons each free cell heard (read-only)."""
+        return self._network.heard[:self.n_cells]
+
+    @property
+    def deficit(self) -> np.ndarray:
+        """(C,) how far each free cell is from coverage, in [0, 1] (module docstring)."""
+        return self.deficit_at(np.arange(self.n_cells))
+
+    @property
+    def ratio(self) -> float:
+        """Covered share of the free cells (the area coverage ratio), in [0, 1]."""
+        return self._network.n_covered / self.n_cells if self.n_cells else 1.0
+
+    def near(self, point: np.ndarray, radius: float) -> np.ndarray:
+        """Indices of the free cells whose centre lies within ``radius`` (m) of ``point``."""
+        d = self.centres - np.asarray(point, dtype=np.float64)
+        return np.flatnonzero(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] <= radius * radius)
+
+    def deficit_at(self, cells: np.ndarray) -> np.ndarray:
+        """The deficit (module docstring) of the free cells ``cells`` (indices)."""
+        net = self._network
+        missing = np.maximum(0, 3 - net.heard[cells])
+        spread = 1.0 - np.minimum(1.0, net.line_residual[cells] / self._tol)
+        return np.where(net.covered[cells], 0.0, (missing + spread) / 4.0)
+
+    def visible_near(self, point: np.ndarray, radius: float) -> np.ndarray:
+        """Indices of the free cells within ``radius`` (m, at most :attr:`reach`) of ``point``
+        that a beacon sent there reaches (line of sight)."""
+        cells = self._radio.receivers(np.asarray(point, dtype=np.float64))
+        d = self.centres[cells] - point
+        return cells[d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] <= radius * radius]
+
+    def sector_deficits(self, position: np.ndarray, heading: float, n_sectors: int,
+                        radius: float) -> np.ndarray:
+        """(n_sectors,) mean deficit of the free cells within ``radius`` (m) of ``position``, by
+        bearing sector relative to ``heading`` (rad): sector k spans [k, k + 1) x 2π /
+        n_sectors counter-clockwise from straight ahead. An empty sector (all obstacle or
+        outside the field) reads 0: nothing to cover there."""
+        d = self.centres - np.asarray(position, dtype=np.float64)
+        inside = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] <= radius * radius
+        bearing = np.arctan2(d[inside, 1], d[inside, 0]) - heading
+        sector = np.floor(np.mod(bearing, 2.0 * math.pi) / (2.0 * math.pi) * n_sectors)
+        sector = np.minimum(sector.astype(np.int64), n_sectors - 1)
+        total = np.bincount(sector, weights=self.deficit[inside], minlength=n_sectors)
+        count = np.bincount(sector, minlength=n_sectors)
+        return np.divide(total, count, out=np.zeros(n_sectors), where=count > 0)
+
+    def raster(self) -> np.ndarray:
+        """(nx, ny) deficit per cell, NaN for cells inside obstacles (for drawing)."""
+        grid = np.full(self.shape, np.nan)
+        grid[self.index[:, 0], self.index[:, 1]] = self.deficit
+        return grid
