@@ -254,17 +254,18 @@ class Radio:
     def receivers(self, point: np.ndarray) -> np.ndarray:
         """Sorted int64 indices of the nodes that hear a beacon broadcast at ``point`` (2,) [m]."""
         p = _points(point, "point", single=True)
-        cand = np.asarray(self._tree.query_ball_point(p, self.max_range * (1 + _QUERY_SLACK),
-                                                      return_sorted=True), dtype=np.int64)
-        dx = self.nodes[cand, 0] - p[0]
-        dy = self.nodes[cand, 1] - p[1]
+        cand = np.array(self._tree.query_ball_point(p, self.max_range * (1 + _QUERY_SLACK),
+                                                    return_sorted=True), dtype=np.int64)
+        d = self.nodes[cand] - p
+        dx, dy = d[:, 0], d[:, 1]
         reach = self.radio_range
         if self.doi > 0:
             reach = reach * range_factor(self.anchor_pattern, dx, dy)
         cand = cand[dx * dx + dy * dy <= reach * reach]
         if self._los is not None and len(cand):
-            cand = cand[~self._los.blocked(self.nodes[cand], p,
-                                           start_inside=self._node_inside[cand])]
+            start = self.nodes[cand]
+            cand = cand[~self._los._blocked(start, np.broadcast_to(p, start.shape),
+                                            self._node_inside[cand])]
         return cand
 
     def node_links(self) -> np.ndarray:
