@@ -18,12 +18,17 @@ The total energy of Eq. 16 is anchor motion + anchor transmissions + all node en
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from aoass_env.config import AOASSConfig
 from aoass_env.validators import integer, real
 
 __all__ = ["Network"]
+
+#: Columns of d_old and d_new whose products update Sxx, Sxy, Syy (Welford's recurrence).
+_OLD_COLS, _NEW_COLS = np.array([0, 0, 1]), np.array([0, 1, 1])
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:
@@ -78,14 +83,15 @@ class Network:
         Returns the number of nodes that became covered.
         """
         p = np.asarray(position, dtype=np.float64)
-        if p.shape != (2,) or not np.all(np.isfinite(p)):
+        if p.shape != (2,) or not (math.isfinite(p[0]) and math.isfinite(p[1])):
             raise ValueError(f"position must be a finite (2,) point in metres, got {position!r}")
         idx = np.asarray(receivers)
         if idx.ndim != 1 or (idx.size and idx.dtype.kind not in "iu"):
             raise ValueError(f"receivers must be a 1-D integer array, got shape {idx.shape} "
                              f"dtype {idx.dtype}")
         idx = idx.astype(np.int64, copy=False)
-        if idx.size and (idx[0] < 0 or idx[-1] >= self.n_nodes or np.any(np.diff(idx) <= 0)):
+        if idx.size and (idx[0] < 0 or idx[-1] >= self.n_nodes
+                         or (idx[1:] <= idx[:-1]).any()):
             raise ValueError(f"receivers must be strictly increasing node indices in "
                              f"[0, {self.n_nodes}), got {receivers!r}")
         self._beacons_sent += 1
@@ -97,14 +103,14 @@ class Network:
         d_old = p - mean
         mean += d_old / n[:, None]
         d_new = p - mean
-        self._scatter[idx] += np.stack([d_old[:, 0] * d_new[:, 0], d_old[:, 0] * d_new[:, 1],
-                                        d_old[:, 1] * d_new[:, 1]], axis=1)
+        self._scatter[idx] += d_old[:, _OLD_COLS] * d_new[:, _NEW_COLS]
         self._mean[idx] = mean
         self._heard[idx] = n
         fresh = idx[~self._covered[idx] & (n >= 3)]
-        fresh = fresh[self._lambda_min(self._scatter[fresh]) >= self._min_scatter]
-        self._covered[fresh] = True
-        self._n_covered += fresh.size
+        if fresh.size:
+            fresh = fresh[self._lambda_min(self._scatter[fresh]) >= self._min_scatter]
+            self._covered[fresh] = True
+            self._n_covered += fresh.size
         return int(fresh.size)
 
     def charge_motion(self, distance: float) -> None:
