@@ -1,22 +1,51 @@
-"""Throughput of AOASS-v0 against Gymnasium's Pendulum-v1, measured in the same run.
+"""Throughput of AOASS-v0 and AOASS-Safe-v0 against Gymnasium's Pendulum-v1, in one process.
 
-Both environments come from ``gymnasium.make`` (same wrappers), take random actions from their
-action space and are reset whenever an episode ends; the time of the resets is included. The
-script prints steps per second of each and the ratio AOASS / Pendulum (issue 3 targets: >= 0.4
-at 100 nodes, >= 0.15 at 1000 nodes).
+Every environment comes from ``gymnasium.make`` (same wrappers), takes random actions from its
+action space and is reset whenever an episode ends; the time of the resets is included. The
+script prints steps per second of each, the ratios AOASS-v0 / Pendulum-v1 (issue 20 target:
+>= 0.22) and AOASS-Safe-v0 / AOASS-v0 (target: >= 0.7), the reset time of AOASS-v0 at density
+0.4 on a 100 m field (target: <= 50 ms), and where a random-action step of AOASS-v0 goes:
+wall time per step of its parts, measured by timers around them (a part's time includes the
+parts it calls; the rest is Gymnasium's wrappers, the action, reward and info).
 
-Run: ``python3 benchmarks/env_throughput.py [--steps N] [--nodes 100 1000]``.
-Profile: ``pyinstrument benchmarks/env_throughput.py --steps 5000 --nodes 100``.
+Run: ``python3 benchmarks/env_throughput.py [--steps N] [--nodes 100 1000] [--field 100]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
+import statistics
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
 
 import gymnasium as gym
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
+from aoass_env.env import AOASSEnv
+from aoass_env.network import Network
+from aoass_env.observation import Observer
+from aoass_env.planning.follower import WaypointFollower
+from aoass_env.radio import Radio
+from aoass_env.simulator import Simulator
+from aoass_env.world import World
+
+#: (label, class, method) of the parts a step is split into, outermost first.
+PARTS: tuple[tuple[str, type, str], ...] = (
+    ("AOASSEnv.step", AOASSEnv, "step"),
+    ("  Simulator.step", Simulator, "step"),
+    ("    World.step", World, "step"),
+    ("    Simulator._broadcast", Simulator, "_broadcast"),
+    ("      Radio.receivers", Radio, "receivers"),
+    ("      Network.record_beacon", Network, "record_beacon"),
+    ("  WaypointFollower.command", WaypointFollower, "command"),
+    ("  Observer.__call__", Observer, "__call__"),
+    ("    World.ray_distances", World, "ray_distances"),
+    ("    World.nearest_obstacle_distance", World, "nearest_obstacle_distance"),
+    ("AOASSEnv.reset", AOASSEnv, "reset"),
+)
 
 
 def throughput(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int, float]:
@@ -37,26 +66,98 @@ def throughput(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int, flo
     return steps / (time.perf_counter() - start), episodes, reset_time
 
 
+def reset_ms(resets: int, **kwargs: Any) -> float:
+    """Median wall time (ms) of ``resets`` seeded resets of AOASS-v0 with ``kwargs``."""
+    env = gym.make("AOASS-v0", **kwargs)
+    env.reset(seed=10_000)                          # first-use costs (imports, caches)
+    times = []
+    for seed in range(resets):
+        t = time.perf_counter()
+        env.reset(seed=seed)
+        times.append(time.perf_counter() - t)
+    return 1e3 * statistics.median(times)
+
+
+@contextmanager
+def part_timers() -> Iterator[dict[str, list[float]]]:
+    """Wraps the methods of :data:`PARTS` in wall-clock timers while the context is open;
+    yields label -> [seconds, calls]."""
+    totals: dict[str, list[float]] = {}
+    saved = []
+
+    def timed(label: str, method: Callable) -> Callable:
+        entry = totals.setdefault(label, [0.0, 0])
+
+        @functools.wraps(method)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            t = time.perf_counter()
+            try:
+                return method(*args, **kwargs)
+            finally:
+                entry[0] += time.perf_counter() - t
+                entry[1] += 1
+        return wrapper
+
+    for label, cls, name in PARTS:
+        method = cls.__dict__[name]
+        saved.append((cls, name, method))
+        setattr(cls, name, timed(label, method))
+    try:
+        yield totals
+    finally:
+        for cls, name, method in saved:
+            setattr(cls, name, method)
+
+
+def profile(steps: int, **kwargs: Any) -> None:
+    """Print the per-part wall time of ``steps`` random steps of AOASS-v0 with ``kwargs``."""
+    env = gym.make("AOASS-v0", **kwargs)
+    with part_timers() as totals:
+        start = time.perf_counter()
+        throughput(env, steps)
+        total = time.perf_counter() - start
+    print(f"\nwhere a random-action step of AOASS-v0 {kwargs or ''} goes "
+          f"({1e6 * total / steps:.0f} us/step in all, timers included):")
+    for label, _, _ in PARTS:
+        seconds, calls = totals[label]
+        print(f"  {label:38s} {1e6 * seconds / steps:7.1f} us/step {100 * seconds / total:5.1f} %"
+              f"  ({calls} calls, {1e6 * seconds / max(calls, 1):8.1f} us/call)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--steps", type=int, default=20_000, help="random steps per env")
     parser.add_argument("--nodes", type=int, nargs="+", default=[100, 1000],
                         help="AOASS-v0 node counts to measure")
+    parser.add_argument("--field", type=float, default=100.0, help="field side (m)")
+    parser.add_argument("--resets", type=int, default=15, help="resets timed at density 0.4")
     args = parser.parse_args()
-    targets = {100: 0.4, 1000: 0.15}
+    if args.steps < 1 or args.resets < 1:
+        parser.error("--steps and --resets must be positive")
+    field = {"field_size": args.field} if args.field != 100.0 else {}
     throughput(gym.make("Pendulum-v1"), 2_000)       # warm-up (imports, CPU clock)
     ref, _, _ = throughput(gym.make("Pendulum-v1"), args.steps)
-    print(f"{'env':28s} {'steps/s':>9s} {'us/step':>8s} {'episodes':>8s} {'reset s':>8s} "
-          f"{'ratio':>6s} {'target':>6s}")
-    print(f"{'Pendulum-v1':28s} {ref:9.0f} {1e6 / ref:8.1f} {'':>8s} {'':>8s} {1.0:6.2f}")
-    for n in args.nodes:
-        rate, episodes, reset_s = throughput(gym.make("AOASS-v0", n_nodes=n), args.steps)
-        target = targets.get(n)
-        print(f"{f'AOASS-v0 n_nodes={n}':28s} {rate:9.0f} {1e6 / rate:8.1f} {episodes:8d} "
-              f"{reset_s:8.2f} {rate / ref:6.3f} {target if target else '':>6}")
+    print(f"{'env':34s} {'steps/s':>9s} {'us/step':>8s} {'episodes':>8s} {'reset s':>8s} "
+          f"{'ratio':>6s}  against")
+    print(f"{'Pendulum-v1':34s} {ref:9.0f} {1e6 / ref:8.1f}")
+    bare = None
+    for env_id, n in [("AOASS-v0", n) for n in args.nodes] + [("AOASS-Safe-v0", args.nodes[0])]:
+        rate, episodes, reset_s = throughput(gym.make(env_id, n_nodes=n, **field), args.steps)
+        if bare is None:
+            bare = rate
+        against, base = ("AOASS-v0", bare) if env_id == "AOASS-Safe-v0" else ("Pendulum", ref)
+        print(f"{f'{env_id} n_nodes={n}':34s} {rate:9.0f} {1e6 / rate:8.1f} {episodes:8d} "
+              f"{reset_s:8.2f} {rate / base:6.3f}  {against} (target "
+              f"{0.7 if against == 'AOASS-v0' else 0.22})")
     again, _, _ = throughput(gym.make("Pendulum-v1"), args.steps)
-    print(f"{'Pendulum-v1 (again)':28s} {again:9.0f} {1e6 / again:8.1f}   "
+    print(f"{'Pendulum-v1 (again)':34s} {again:9.0f} {1e6 / again:8.1f}   "
           f"(reference drift {again / ref - 1:+.1%}; ratios above use the first run)")
+    print(f"\nreset of AOASS-v0, density 0.4, {args.field:g} m field: median "
+          f"{reset_ms(args.resets, obstacle_density=0.4, **field):.1f} ms over {args.resets} "
+          f"seeds (target <= 50 ms on 100 m)")
+    profile(min(args.steps, 10_000), **field)
+    if any(n != 100 for n in args.nodes):
+        profile(min(args.steps, 10_000), n_nodes=max(args.nodes), **field)
 
 
 if __name__ == "__main__":
