@@ -1,21 +1,27 @@
-"""Safety record, Kalman accuracy and speed of the AOASS safety stack (issue 4).
+"""Safety record, Kalman accuracy and speed of the AOASS safety stack (issues 4 and 24).
 
-Four measurements, each printed as a table and saved to ``OUT/results.json``:
+Five measurements, each printed as a table and saved to ``OUT/results.json``. The stacks
+compared (``--stacks``) run the same seeds: ``stack`` (the defaults: ORCA plus the look-ahead of
+issue 24), ``orca`` (the filter before it, ``SafetyConfig.orca_only()``) and ``bare``
+(AOASS-v0 without a stack).
 
 1. **contacts**: ``--episodes`` episodes (default 200) on generated 100 m maps of densities
-   0.1-0.6, driven by uniformly random actions (a worst-case agent), inside the full stack
-   (``make_safe_env``) and, on the same seeds, on bare AOASS-v0: anchor contacts with static
-   obstacles (walls included) and with moving obstacles, per 100 episodes (targets inside the
-   stack: zero static contacts, at most 1 moving contact per 100 episodes).
-2. **zero action**: the zero action inside the stack on the shipped test maps of densities
-   0.1-0.4 (100 m): completed spirals and node coverage (target: complete, coverage >= 97 %).
+   0.1-0.6 in turn, driven by uniformly random actions (a worst-case agent): anchor contacts
+   with static obstacles (walls included) and with moving obstacles per 100 episodes, overall
+   and by density, and the minimum separation (m, surface to surface) from a moving obstacle
+   (issue 24 targets inside the stack: zero static contacts, at most 10 moving contacts per
+   100 episodes).
+2. **zero**: the zero action inside the stacks on the shipped test maps of densities 0.1-0.4
+   (100 m): completed spirals, node coverage, contacts, path and time (reported, never tuned on).
+2b. **cost**: the zero action in ``stack`` and ``orca`` on ``--cost-episodes`` generated maps
+   of densities 0.1-0.6: the same, and the path and time ratios on the episodes both complete.
 3. **kalman**: velocity error of the raw detections and of the Kalman tracks against the true
    velocities, for several observation-noise levels.
 4. **speed**: steps per second of the wrapped and the bare environment in the same run
    (target: ratio >= 0.5).
 
-Run: ``python3 benchmarks/safety.py [--episodes 200] [--jobs 2] [--parts contacts zero kalman
-speed] [--out out/bench_safety]`` (about 20 min for everything on 2 cores).
+Run: ``python3 benchmarks/safety.py [--episodes 200] [--jobs 2] [--parts contacts zero cost
+kalman speed] [--stacks stack orca bare] [--first-seed 10000] [--out out/bench_safety]``.
 """
 
 from __future__ import annotations
@@ -33,28 +39,43 @@ import numpy as np
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env.atomic import write_text_atomic
 from aoass_env.maps import list_maps
+from aoass_env.safety.config import SafetyConfig
 from aoass_env.wrappers import KalmanObstacleTracker, make_safe_env
 
 DENSITIES = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
+#: The stacks compared, on the same seeds: the defaults (look-ahead, issue 24), the filter
+#: before it (ORCA alone against the moving obstacles, ``SafetyConfig.orca_only()``) and bare
+#: AOASS-v0.
+STACKS = {"stack": SafetyConfig(), "orca": SafetyConfig.orca_only(), "bare": None}
 
 
-def episode(task: tuple[str, bool, float | str, int, str]) -> dict:
-    """One episode: (policy 'random' or 'zero', inside the stack?, density or map name, seed,
-    label) -> its record."""
-    policy, stacked, where, seed, label = task
+def episode(task: tuple[str, str, float | str, int]) -> dict:
+    """One episode: (policy 'random' or 'zero', stack label of STACKS, density or map name,
+    seed) -> its record."""
+    policy, label, where, seed = task
     kwargs = {"map": where} if isinstance(where, str) else {"obstacle_density": where}
-    env = make_safe_env(**kwargs) if stacked else gym.make("AOASS-v0", **kwargs)
+    safety = STACKS[label]
+    stacked = safety is not None
+    env = make_safe_env(safety=safety, **kwargs) if stacked else gym.make("AOASS-v0", **kwargs)
     rng = np.random.default_rng(seed + 1_000_003)
     env.reset(seed=seed)
-    interventions, active_static, steps = 0.0, 0, 0
+    world = env.unwrapped.sim.world
+    reach = world.config.anchor_radius + world.config.moving_obstacle_radius
+    interventions, active_static, escaping, steps = 0.0, 0, 0, 0
+    separation = math.inf
     while True:
         action = (rng.uniform(-1.0, 1.0, 2) if policy == "random"
                   else np.zeros(2)).astype(np.float32)
         _, _, terminated, truncated, info = env.step(action)
         steps += 1
+        moving = world.moving_positions
+        if len(moving):
+            gap = np.hypot(*(moving - world.position).T) - reach
+            separation = min(separation, float(gap.min()))
         if stacked:
             interventions += info["safety"]["intervention"]
             active_static += info["safety"]["active_static"] > 0
+            escaping += info["safety"].get("escaping", False)
         if terminated or truncated:
             break
     ep = info["episode_metrics"]
@@ -63,63 +84,134 @@ def episode(task: tuple[str, bool, float | str, int, str]) -> dict:
             "static_contacts": info["static_contacts"] + info["wall_contacts"],
             "moving_contacts": info["moving_contacts"], "coverage": ep["coverage"],
             "complete": bool(ep["path_complete"]), "steps": steps,
+            "path_length": info["path_length"], "time": info["time"],
+            "min_separation": separation,
             "eta_traj": ep["eta_traj"], "mean_intervention": interventions / steps,
-            "static_active_steps": active_static}
+            "static_active_steps": active_static, "escaping_steps": escaping}
 
 
-def run_contacts(n: int, jobs: int) -> dict:
-    tasks = []
-    for i in range(n):
-        density = DENSITIES[i % len(DENSITIES)]
-        seed = 10_000 + i
-        tasks += [("random", True, density, seed, "stack"), ("random", False, density, seed,
-                                                             "bare")]
-    rows = _map(tasks, jobs)
+def _summary(rows: list[dict], labels: tuple[str, ...]) -> dict:
     out = {}
-    print(f"\n1. random actions, {n} episodes (densities {DENSITIES[0]}-{DENSITIES[-1]}, "
-          f"100 m fields)")
-    print(f"{'':8s} {'static/100 ep':>14s} {'moving/100 ep':>14s} {'ep. with contact':>17s} "
-          f"{'coverage':>9s} {'complete':>9s}")
-    for label in ("stack", "bare"):
+    for label in labels:
         sel = [r for r in rows if r["label"] == label]
+        if not sel:
+            continue
         static = sum(r["static_contacts"] for r in sel)
         moving = sum(r["moving_contacts"] for r in sel)
-        touched = sum(r["static_contacts"] + r["moving_contacts"] > 0 for r in sel)
-        cov = float(np.mean([r["coverage"] for r in sel]))
-        complete = float(np.mean([r["complete"] for r in sel]))
         out[label] = {"episodes": len(sel), "static_contacts": static, "moving_contacts": moving,
                       "static_per_100": 100 * static / len(sel),
                       "moving_per_100": 100 * moving / len(sel),
-                      "episodes_with_contact": touched, "coverage": cov, "complete": complete}
-        print(f"{label:8s} {100 * static / len(sel):14.2f} {100 * moving / len(sel):14.2f} "
-              f"{touched:17d} {cov:9.3f} {complete:9.2f}")
-    per_density = {}
+                      "episodes_with_contact": sum(r["static_contacts"] + r["moving_contacts"]
+                                                   > 0 for r in sel),
+                      "coverage": float(np.mean([r["coverage"] for r in sel])),
+                      "complete": float(np.mean([r["complete"] for r in sel])),
+                      "min_separation": min(r["min_separation"] for r in sel),
+                      "median_min_separation": float(np.median([r["min_separation"]
+                                                                for r in sel])),
+                      "path_length": float(np.mean([r["path_length"] for r in sel])),
+                      "time": float(np.mean([r["time"] for r in sel]))}
+    return out
+
+
+def _print_summary(out: dict) -> None:
+    print(f"{'':6s} {'static/100':>10s} {'moving/100':>10s} {'ep. touched':>11s} "
+          f"{'coverage':>8s} {'complete':>8s} {'min sep':>8s} {'median':>7s} {'path m':>8s} "
+          f"{'time s':>7s}")
+    for label, o in out.items():
+        print(f"{label:6s} {o['static_per_100']:10.2f} {o['moving_per_100']:10.2f} "
+              f"{o['episodes_with_contact']:11d} {o['coverage']:8.3f} {o['complete']:8.2f} "
+              f"{o['min_separation']:8.2f} {o['median_min_separation']:7.2f} "
+              f"{o['path_length']:8.0f} {o['time']:7.0f}")
+
+
+def _per_density(rows: list[dict], labels: tuple[str, ...]) -> dict:
+    per = {}
     for d in DENSITIES:
-        sel = [r for r in rows if r["where"] == d]
-        per_density[str(d)] = {lab: {k: int(sum(r[k] for r in sel if r["label"] == lab))
-                                     for k in ("static_contacts", "moving_contacts")}
-                               for lab in ("stack", "bare")}
-    out["per_density"] = per_density
+        per[str(d)] = {lab: {
+            "episodes": sum(r["where"] == d for r in rows if r["label"] == lab),
+            "moving_contacts": int(sum(r["moving_contacts"] for r in rows
+                                       if r["label"] == lab and r["where"] == d)),
+            "static_contacts": int(sum(r["static_contacts"] for r in rows
+                                       if r["label"] == lab and r["where"] == d)),
+            "min_separation": min((r["min_separation"] for r in rows
+                                   if r["label"] == lab and r["where"] == d), default=math.nan)}
+            for lab in labels}
+    print("moving contacts per 100 episodes by density (min separation, m):")
+    for d, by in per.items():
+        print(f"  {d}: " + "  ".join(
+            f"{lab} {100 * v['moving_contacts'] / max(v['episodes'], 1):6.1f} "
+            f"({v['min_separation']:.2f})" for lab, v in by.items()))
+    return per
+
+
+def run_contacts(n: int, jobs: int, labels: tuple[str, ...] = ("stack", "orca", "bare"),
+                 first_seed: int = 10_000) -> dict:
+    tasks = []
+    for i in range(n):
+        density = DENSITIES[i % len(DENSITIES)]
+        tasks += [("random", label, density, first_seed + i) for label in labels]
+    rows = _map(tasks, jobs)
+    print(f"\n1. random actions, {n} episodes (densities {DENSITIES[0]}-{DENSITIES[-1]}, "
+          f"100 m fields, seeds {first_seed}-{first_seed + n - 1}, the same for every stack)")
+    out = _summary(rows, labels)
+    _print_summary(out)
+    out["per_density"] = _per_density(rows, labels)
     out["rows"] = rows
     return out
 
 
-def run_zero(seeds: int, jobs: int) -> dict:
-    maps = list_maps("test", field_size=100, densities=(0.0, 0.4))
-    tasks = [("zero", True, m, s, "stack") for m in maps for s in range(seeds)]
+def run_cost(n: int, jobs: int, labels: tuple[str, ...] = ("stack", "orca"),
+             first_seed: int = 30_000) -> dict:
+    """The zero action in each stack on ``n`` generated maps (densities in turn), the same
+    seeds: completion, coverage, path and time (the look-ahead's cost against ORCA alone)."""
+    tasks = []
+    for i in range(n):
+        density = DENSITIES[i % len(DENSITIES)]
+        tasks += [("zero", label, density, first_seed + i) for label in labels]
     rows = _map(tasks, jobs)
-    print(f"\n2. zero action inside the stack, {len(maps)} test maps x {seeds} seeds")
-    print(f"{'density':8s} {'episodes':>8s} {'complete':>9s} {'coverage min':>13s} "
-          f"{'coverage mean':>14s} {'contacts':>9s}")
-    out = {}
-    for d in sorted({m.split("/")[1].split("_")[0] for m in maps}):
-        sel = [r for r in rows if f"/{d}_" in r["where"]]
-        cov = [r["coverage"] for r in sel]
-        out[d] = {"episodes": len(sel), "complete": sum(r["complete"] for r in sel),
-                  "coverage_min": min(cov), "coverage_mean": float(np.mean(cov)),
-                  "contacts": sum(r["static_contacts"] + r["moving_contacts"] for r in sel)}
-        print(f"{d:8s} {len(sel):8d} {out[d]['complete']:9d} {min(cov):13.3f} "
-              f"{np.mean(cov):14.3f} {out[d]['contacts']:9d}")
+    print(f"\n2b. zero action, {n} generated 100 m maps (densities {DENSITIES[0]}-"
+          f"{DENSITIES[-1]}, seeds {first_seed}-{first_seed + n - 1}, the same for every stack)")
+    out = _summary(rows, labels)
+    _print_summary(out)
+    out["per_density"] = _per_density(rows, labels)
+    pairs = {}
+    for r in rows:
+        pairs.setdefault((r["where"], r["seed"]), {})[r["label"]] = r
+    both = [p for p in pairs.values() if all(p[lab]["complete"] for lab in labels)]
+    if len(labels) == 2 and both:
+        a, b = labels
+        path = float(np.mean([p[a]["path_length"] / p[b]["path_length"] for p in both]))
+        time_ = float(np.mean([p[a]["time"] / p[b]["time"] for p in both]))
+        out["ratio"] = {"episodes_both_complete": len(both), "path": path, "time": time_}
+        print(f"{a} / {b} on the {len(both)} episodes both completed: path x{path:.3f}, "
+              f"time x{time_:.3f}")
+    out["rows"] = rows
+    return out
+
+
+def run_zero(seeds: int, jobs: int, labels: tuple[str, ...] = ("stack", "orca")) -> dict:
+    maps = list_maps("test", field_size=100, densities=(0.0, 0.4))
+    tasks = [("zero", label, m, s) for m in maps for s in range(seeds) for label in labels]
+    rows = _map(tasks, jobs)
+    print(f"\n2. zero action inside the stacks, {len(maps)} test maps x {seeds} seeds")
+    print(f"{'stack':6s} {'density':8s} {'episodes':>8s} {'complete':>9s} {'coverage min':>13s} "
+          f"{'coverage mean':>14s} {'moving':>7s} {'static':>7s} {'path m':>7s} {'time s':>7s}")
+    out: dict = {}
+    for label in labels:
+        out[label] = {}
+        for d in sorted({m.split("/")[1].split("_")[0] for m in maps}):
+            sel = [r for r in rows if f"/{d}_" in r["where"] and r["label"] == label]
+            cov = [r["coverage"] for r in sel]
+            o = out[label][d] = {
+                "episodes": len(sel), "complete": sum(r["complete"] for r in sel),
+                "coverage_min": min(cov), "coverage_mean": float(np.mean(cov)),
+                "moving_contacts": sum(r["moving_contacts"] for r in sel),
+                "static_contacts": sum(r["static_contacts"] for r in sel),
+                "path_length": float(np.mean([r["path_length"] for r in sel])),
+                "time": float(np.mean([r["time"] for r in sel]))}
+            print(f"{label:6s} {d:8s} {len(sel):8d} {o['complete']:9d} {min(cov):13.3f} "
+                  f"{np.mean(cov):14.3f} {o['moving_contacts']:7d} {o['static_contacts']:7d} "
+                  f"{o['path_length']:7.0f} {o['time']:7.0f}")
     out["rows"] = rows
     return out
 
@@ -202,8 +294,14 @@ def main() -> None:
     parser.add_argument("--kalman-steps", type=int, default=600)
     parser.add_argument("--speed-steps", type=int, default=3000)
     parser.add_argument("--jobs", type=int, default=2)
-    parser.add_argument("--parts", nargs="+", default=["contacts", "zero", "kalman", "speed"],
-                        choices=["contacts", "zero", "kalman", "speed"])
+    parser.add_argument("--cost-episodes", type=int, default=60)
+    parser.add_argument("--first-seed", type=int, default=10_000,
+                        help="seed of the contacts part's first episode")
+    parser.add_argument("--stacks", nargs="+", default=["stack", "orca", "bare"],
+                        choices=list(STACKS), help="what the contacts part compares")
+    parser.add_argument("--parts", nargs="+",
+                        default=["contacts", "zero", "cost", "kalman", "speed"],
+                        choices=["contacts", "zero", "cost", "kalman", "speed"])
     parser.add_argument("--out", type=Path, default=Path("out/bench_safety"))
     args = parser.parse_args()
     results = {}
@@ -213,8 +311,11 @@ def main() -> None:
         results["kalman"] = run_kalman(args.kalman_steps)
     if "zero" in args.parts:
         results["zero"] = run_zero(args.zero_seeds, args.jobs)
+    if "cost" in args.parts:
+        results["cost"] = run_cost(args.cost_episodes, args.jobs)
     if "contacts" in args.parts:
-        results["contacts"] = run_contacts(args.episodes, args.jobs)
+        results["contacts"] = run_contacts(args.episodes, args.jobs, tuple(args.stacks),
+                                           args.first_seed)
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "results.json"
     write_text_atomic(path, json.dumps(results, indent=1, default=float))

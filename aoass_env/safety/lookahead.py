@@ -37,7 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Escape", "candidate_commands", "escape_velocity", "look_ahead_horizon",
-           "obstacle_radii", "position_std", "predict_obstacles", "rollout", "segment_distances", "violation"]
+           "obstacle_radii", "position_std", "predict_obstacles", "rollout",
+           "segment_distances", "violation"]
 
 
 #: Weight of a predicted contact with an obstacle's bare disc (m x steps of overlap) against a

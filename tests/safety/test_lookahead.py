@@ -1,0 +1,155 @@
+"""The look-ahead's pure functions (aoass_env.safety.lookahead) and the tracker's covariances."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from aoass_env.safety.kalman import MultiTargetTracker
+from aoass_env.safety.lookahead import (
+    candidate_commands,
+    escape_velocity,
+    look_ahead_horizon,
+    obstacle_radii,
+    position_std,
+    predict_obstacles,
+    rollout,
+    segment_distances,
+    violation,
+)
+
+LIMITS = {"max_speed": 2.0, "max_accel": 1.0, "max_turn_rate": math.pi / 2}
+
+
+def test_horizon_is_a_period_a_full_stop_and_a_half_turn():
+    assert look_ahead_horizon(2.0, 1.0, math.pi / 2, 0.5) == pytest.approx(4.5)
+    assert look_ahead_horizon(1.0, 2.0, math.pi, 0.1) == pytest.approx(1.6)
+
+
+def test_position_std_is_the_propagated_covariance():
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(3, 4, 4))
+    p = a @ a.transpose(0, 2, 1) + 0.1 * np.eye(4)
+    times = np.array([0.0, 0.5, 2.0, 4.5])
+    std = position_std(p, times)
+    for i in range(3):
+        for j, t in enumerate(times):
+            f = np.eye(4)
+            f[0, 2] = f[1, 3] = t
+            block = (f @ p[i] @ f.T)[:2, :2]
+            assert std[i, j] == pytest.approx(math.sqrt(np.linalg.eigvalsh(block).max()))
+
+
+def test_tracker_exposes_the_filters_covariances():
+    tracker = MultiTargetTracker(0.5, position_noise=0.3, velocity_noise=0.2)
+    for k in range(3):
+        tracker.step([[k * 0.5, 0.0, 1.0, 0.0], [10.0, k * 0.5, 0.0, 1.0]])
+    cov = tracker.covariances()
+    assert cov.shape == (2, 4, 4)
+    for row, track in zip(cov, tracker.confirmed, strict=True):
+        np.testing.assert_array_equal(row, track.filter.P)
+    np.testing.assert_array_equal(tracker.position_covariances(), cov[:, :2, :2])
+    cov[0, 0, 0] = 1e9                                        # a copy
+    assert tracker.confirmed[0].filter.P[0, 0] < 1.0
+    assert tracker.covariances(confirmed_only=False).shape == (2, 4, 4)
+    assert MultiTargetTracker(0.5, position_noise=0.3, velocity_noise=None
+                              ).covariances().shape == (0, 4, 4)
+
+
+def test_obstacle_radii_grow_with_uncertainty_and_speed():
+    times = np.array([0.0, 1.0, 2.0])
+    r = obstacle_radii(np.array([1.5]), np.array([1.0]), np.array([[0.1, 0.2, 0.3]]), times,
+                       sigma=2.0, maneuver=0.25)
+    np.testing.assert_allclose(r, [[1.7, 2.15, 2.6]])
+
+
+def test_segment_distances():
+    starts, ends = np.array([[0.0, 0.0]]), np.array([[10.0, 0.0]])
+    d = segment_distances(np.array([[5.0, 2.0], [-3.0, 4.0], [12.0, 0.0]]), starts, ends)
+    np.testing.assert_allclose(d, [2.0, 5.0, 2.0])
+    assert np.isinf(segment_distances(np.zeros((1, 2)), np.zeros((0, 2)), np.zeros((0, 2)))).all()
+
+
+def test_obstacles_go_straight_and_bounce_off_edges():
+    free = predict_obstacles(np.array([[0.0, 0.0, 1.0, 0.5]]), 0.5, 4, np.zeros((0, 2)),
+                             np.zeros((0, 2)), np.array([1.0]))
+    np.testing.assert_allclose(free[0, -1], [2.0, 1.0])
+    # a wall at x = 3 (a vertical segment): a disc of radius 1 moving +x turns back at x ~ 2
+    wall = (np.array([[3.0, -10.0]]), np.array([[3.0, 10.0]]))
+    path = predict_obstacles(np.array([[0.0, 0.0, 1.0, 0.0]]), 0.5, 8, *wall, np.array([1.0]))
+    assert path[0, :, 0].max() <= 2.0 + 1e-9
+    assert path[0, -1, 0] < path[0, 3, 0]                       # it came back
+
+
+def test_rollout_follows_the_unicycle_and_stops_at_walls():
+    none = np.zeros((0, 2))
+    path = rollout(np.zeros(2), 0.0, 1.0, np.array([0.0]), np.array([1.0]), **{
+        k: LIMITS[k] for k in ("max_turn_rate", "max_accel")}, step=0.5, n_steps=4,
+        starts=none, ends=none, radius=0.7)
+    np.testing.assert_allclose(path[0, :, 0], [0.5, 1.0, 1.5, 2.0])
+    # a half turn takes 2 s at pi/2 rad/s: the heading reverses within 4 steps of 0.5 s
+    back = rollout(np.zeros(2), 0.0, 0.0, np.array([math.pi]), np.array([1.0]), math.pi / 2,
+                   1.0, 0.5, 8, none, none, 0.7)
+    assert back[0, -1, 0] < back[0, 3, 0]
+    # a wall 2 m ahead: the centre never gets closer than the radius
+    wall = (np.array([[2.0, -5.0]]), np.array([[2.0, 5.0]]))
+    held = rollout(np.zeros(2), 0.0, 2.0, np.array([0.0]), np.array([2.0]), math.pi / 2, 1.0,
+                   0.25, 12, *wall, 0.7)
+    assert held[0, :, 0].max() <= 2.0 - 0.7 + 1e-12
+
+
+def test_violation_sums_the_shortfall():
+    paths = np.array([[[0.0, 0.0], [0.0, 0.0]], [[10.0, 0.0], [10.0, 0.0]]])
+    centres = np.array([[[2.0, 0.0], [3.0, 0.0]]])
+    radii = np.array([[1.5, 1.5]])
+    np.testing.assert_allclose(violation(paths, centres, radii, 1.0), [0.5, 0.0])
+    np.testing.assert_allclose(violation(paths, np.zeros((0, 2, 2)), np.zeros((0, 2)), 1.0),
+                               [0.0, 0.0])
+
+
+def test_candidates_cover_every_direction_and_a_stop():
+    headings, speeds = candidate_commands(0.3, 2.0, 8, (1.0,))
+    assert len(headings) == len(speeds) == 9 * 3 + 1
+    assert speeds[-1] == 0.0 and headings[-1] == 0.3
+    assert set(np.round(speeds[:-1], 9)) == {0.5, 1.0, 2.0}
+
+
+def _escape(velocity, obstacles, covariances=None, **kw):
+    obstacles = np.asarray(obstacles, float).reshape(-1, 5)
+    if covariances is None:
+        covariances = np.tile(np.diag([0.04, 0.04, 0.01, 0.01]), (len(obstacles), 1, 1))
+    args = dict(max_speed=2.0, max_accel=1.0, max_turn_rate=math.pi / 2, horizon=4.5,
+                step=0.25, starts=np.zeros((0, 2)), ends=np.zeros((0, 2)), radius=0.7,
+                sigma=2.0, maneuver=0.25, clearance=0.5, obstacle_radius=1.0)
+    args.update(kw)
+    return escape_velocity(np.asarray(velocity, float), np.asarray(velocity, float),
+                           np.zeros(2), 0.0, float(np.hypot(*velocity)), obstacles,
+                           covariances, **args)
+
+
+def test_a_clear_velocity_is_kept():
+    out = _escape([1.0, 0.0], np.zeros((0, 5)))
+    assert not out.escaping and out.shortfall == 0.0
+    np.testing.assert_array_equal(out.velocity, [1.0, 0.0])
+    far = _escape([1.0, 0.0], [[0.0, 30.0, 0.0, -0.5, 1.5]])
+    assert not far.escaping
+
+
+def test_a_head_on_obstacle_makes_the_anchor_escape_sideways_or_back():
+    out = _escape([1.0, 0.0], [[6.0, 0.0, -1.0, 0.0, 1.5]])
+    assert out.escaping and out.shortfall > 0.0
+    assert out.chosen_shortfall < out.shortfall
+    # the escape does not keep driving at the obstacle
+    assert out.velocity[0] < 0.5 or abs(out.velocity[1]) > 0.5
+
+
+def test_escape_avoids_a_dead_end():
+    """A wall across the way ahead and on the left: the escape from an obstacle coming from
+    behind-left takes the open side, not the corner."""
+    starts = np.array([[4.0, -10.0], [-10.0, 2.5]])
+    ends = np.array([[4.0, 10.0], [10.0, 2.5]])
+    out = _escape([1.0, 0.0], [[-3.0, 1.0, 1.0, 0.0, 1.5]], starts=starts, ends=ends)
+    assert out.escaping
+    assert out.velocity[1] < 0.0                     # toward the open side (-y)
