@@ -71,10 +71,20 @@ def _obstacle_ids(obstacle_map: ObstacleMap) -> np.ndarray:
         return np.zeros(0, dtype=np.int64)
     comps = shapely.get_parts(obstacle_map.union)
     comps = comps[shapely.get_type_id(comps) == shapely.GeometryType.POLYGON]
-    inside = shapely.intersection(np.array([shapely.Polygon(p) for p in parts]),
-                                  obstacle_map.field_polygon)
-    part_i, comp_i = shapely.STRtree(comps).query(shapely.point_on_surface(inside),
-                                                  predicate="intersects")
+    # A point strictly inside a part (inside the field) lies inside exactly one component: the
+    # vertex mean of a part that lies in the field; a point on the surface of its clipped
+    # piece otherwise (shapely, slower).
+    counts = np.array([len(p) for p in parts])
+    vertices = np.concatenate(parts)
+    points = np.add.reduceat(vertices, np.r_[0, np.cumsum(counts)[:-1]]) / counts[:, None]
+    in_field = np.logical_and.reduceat(obstacle_map.bounds_contain(vertices),
+                                       np.r_[0, np.cumsum(counts)[:-1]])
+    points = shapely.points(points)
+    out = np.flatnonzero(~in_field)
+    if len(out):
+        points[out] = shapely.point_on_surface(shapely.intersection(
+            np.array([shapely.Polygon(parts[i]) for i in out]), obstacle_map.field_polygon))
+    part_i, comp_i = shapely.STRtree(comps).query(points, predicate="intersects")
     ids = np.full(len(parts), -1, dtype=np.int64)
     ids[part_i[::-1]] = comp_i[::-1]          # the first matching component wins
     outside = ids < 0

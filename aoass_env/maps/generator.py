@@ -127,6 +127,9 @@ class _BlockedSet:
                               & (b[:, 3] >= y0))
         geoms = np.empty(len(near), dtype=object)
         geoms[:] = [self._geoms[i] for i in near]
+        # the exact predicate first: overlays only of the members the shape really meets
+        meets = shapely.intersects(geoms, shape)
+        near, geoms = near[meets], geoms[meets]
         pieces = shapely.intersection(geoms, shape)
         met = ~shapely.is_empty(pieces)
         return near[met], pieces[met]
@@ -195,14 +198,15 @@ def _draw_obstacles(width: float, height: float, density: float, rng: np.random.
         if shape.geom_type != "Polygon" or shape.is_empty:
             continue  # an L-shape cut in two by the border
         members, pieces = raw.contacts(shape)
-        gain = shape.area - shapely.union_all(pieces).area
+        gain = shape.area - (shapely.union_all(pieces).area if len(pieces) else 0.0)
         if not _MIN_GAIN * shape.area <= gain <= target - covered:
             continue  # mostly hidden by existing obstacles (or a rounding-error overshoot)
         if raw.encloses(members, pieces):
             continue
         grown = shapely.buffer(shape, half)
         grown_members, grown_pieces = eroded.contacts(grown)
-        room_left = room - grown.area + shapely.union_all(grown_pieces).area
+        room_left = room - grown.area + (shapely.union_all(grown_pieces).area
+                                         if len(grown_pieces) else 0.0)
         if room_left < clearance**2 or eroded.encloses(grown_members, grown_pieces):
             continue  # no room left for the anchor, or a pocket cut off
         covered += gain

@@ -25,7 +25,6 @@ class MapError(ValueError):
     """A map cannot be used: bad geometry, disconnected free space or too little room."""
 
 
-
 def _as_ccw(vertices: np.ndarray) -> np.ndarray:
     """(k, 2) float64 vertices in counter-clockwise order, closing duplicate removed."""
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
@@ -177,6 +176,8 @@ class ObstacleMap:
         border, is at least ``clearance`` wide (up to shapely's buffer approximation, < 0.5 %).
         """
         clearance = real("clearance", clearance, "m", low=0.0, error=MapError)
+        if clearance in self._traversable:
+            return
         label = f"map {self.name!r}" if self.name else "map"
         free = self.free_space
         if free.is_empty:
@@ -194,6 +195,13 @@ class ObstacleMap:
         if eroded.geom_type != "Polygon":
             raise MapError(f"{label}: passages narrower than clearance={clearance:g} m cut the "
                            f"free space; {_regions_text(eroded)}")
+        self._traversable.add(clearance)
+
+    @cached_property
+    def _traversable(self) -> set[float]:
+        """Clearances (m) > 0 that :meth:`check_traversable` has passed (the map is
+        immutable)."""
+        return set()
 
     def sample_free_points(self, n: int, rng: np.random.Generator,
                            clearance: float = 0.0) -> np.ndarray:
