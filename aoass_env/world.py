@@ -40,24 +40,12 @@ _MAX_BOUNCES = 4        # reflections of one moving obstacle within one physics 
 _SPAWN_TRIES = 1000     # random candidates per moving obstacle before giving up
 _SKIP_MARGIN = MARGIN   # slack (m) of the proofs that a skipped query would have missed
 _CERT_REACH = 4.0       # farthest clearance (m) a certificate measures (nearest-shape query)
+_TWO_PI = 2.0 * math.pi
 
 
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """Angle(s) (rad) wrapped to ``(-pi, pi]``."""
     return math.pi - (math.pi - angle) % (2.0 * math.pi)
-
-
-def _ramp(speed: float, heading: float, speed_target: float, heading_target: float,
-          max_dv: float, max_dh: float) -> tuple[float, float]:
-    """One substep of the bounded command filter.
-
-    Speed (m/s) moves toward ``speed_target`` by at most ``max_dv``; heading (rad) turns toward
-    ``heading_target`` the shorter way round by at most ``max_dh`` (counter-clockwise when the
-    target is exactly opposite).
-    """
-    speed += min(max(speed_target - speed, -max_dv), max_dv)
-    turn = wrap_angle(heading_target - heading)
-    return speed, wrap_angle(heading + min(max(turn, -max_dh), max_dh))
 
 
 def _obstacle_ids(obstacle_map: ObstacleMap) -> np.ndarray:
@@ -308,9 +296,14 @@ class World:
         p = get_position(anchor)
         x, y = p.x, p.y
         rows = [(self.time, x, y)]
+        speed, heading = self._speed, self._heading
         for _ in range(cfg.physics_substeps):
-            speed, heading = self._speed, self._heading = _ramp(
-                self._speed, self._heading, target, heading_target, max_dv, max_dh)
+            # the bounded command filter: speed toward the target by at most max_dv, heading
+            # the shorter way round (counter-clockwise when exactly opposite) by at most max_dh
+            speed += min(max(target - speed, -max_dv), max_dv)
+            turn = math.pi - (math.pi - (heading_target - heading)) % _TWO_PI
+            heading = math.pi - (math.pi - (heading + min(max(turn, -max_dh), max_dh))) % _TWO_PI
+            self._speed, self._heading = speed, heading
             self._velocity_cmd = (speed * math.cos(heading), speed * math.sin(heading))
             velocity = self._limit_anchor_move(x, y)
             if self._turn_due <= self.time:
@@ -349,7 +342,7 @@ class World:
         registers the contact, and reflects off it. (Once touching, :meth:`_bounce_off_anchor`
         reflects it.) So a moving obstacle never pushes the anchor deeper than ``skin``, and
         cannot squeeze it into a static obstacle. Sweeps that provably touch nothing (clearance
-        grid, distance to the anchor) are skipped: they would return no hit.
+        certificates, distance to the anchor) are skipped: they would return no hit.
         """
         r, sdt = self.config.moving_obstacle_radius, self._sdt
         r_meet = max(r - self._skin, 0.0)
@@ -359,6 +352,12 @@ class World:
         for i, body in enumerate(self._c_moving):
             x0, y0 = x, y = self._mpos[i]
             vx, vy = self._mvel[i]
+            # free flight, the common case: the whole move provably meets nothing (the first
+            # round of the loop below, with neither sweep run)
+            move = math.hypot(vx, vy) * sdt
+            if _apart(x - ox - ax, y - oy - ay, move + reach) and clear(i + 1, x, y, move + r):
+                set_velocity(body, ((x + vx * sdt - x0) / sdt, (y + vy * sdt - y0) / sdt))
+                continue
             rest = sdt
             for _ in range(_MAX_BOUNCES):
                 if rest <= 0.0 or (vx == 0.0 and vy == 0.0):
@@ -370,7 +369,8 @@ class World:
                 # the anchor disc stays at (ax, ay): the sweep is relative to its coming move
                 meet = None if _apart(x - ox - ax, y - oy - ay, move + reach) else \
                     self._shape_hit(self._c_disc, (x - ox, y - oy), (ex - ox, ey - oy), r_meet)
-                if _blocks(meet, vx, vy) and (hit is None or meet[0] < hit[0]):
+                if meet is not None and _blocks(meet, vx, vy) and \
+                        (hit is None or meet[0] < hit[0]):
                     alpha = meet[0]
                     x, y = x + (ex - x) * alpha, y + (ey - y) * alpha
                     vx, vy = _reflect((vx, vy), meet[1:])
