@@ -21,6 +21,7 @@ import yaml
 
 from agents.envs import make_training_env
 from aoass_env.config import AOASSConfig, unknown_key_message
+from aoass_env.planning import AdaptiveConfig
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.validators import integer, real
 from aoass_env.wrappers import make_safe_env
@@ -214,7 +215,8 @@ def _check_stack(where: str, cls: type, policy: str, hp: Mapping[str, Any]) -> N
     policy once so that a bad value fails with ``where`` and its section."""
     env_kwargs = hp.get("env", {})
     _check_keys(f"{where}.env", env_kwargs, env_keys())
-    for key, config in (("safety", SafetyConfig), ("tracker", TrackerConfig)):
+    for key, config in (("safety", SafetyConfig), ("tracker", TrackerConfig),
+                        ("adaptive", AdaptiveConfig)):
         sub = env_kwargs.get(key, {})
         if not isinstance(sub, Mapping):
             raise HyperparameterError(f"{where}.env.{key}: must be a mapping, got "

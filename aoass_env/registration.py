@@ -7,6 +7,13 @@
   shipped 100 m training map (density 0.1-0.4, 100 nodes) per episode.
 * ``AOASS-Quick-v0`` (:func:`aoass_env.wrappers.make_safe_env`): the same agent on a generated
   50 m field of density 0.2 per episode: about a quarter of the episode, for quick experiments.
+* ``AOASS-Adaptive-v0`` (:func:`aoass_env.wrappers.make_safe_env`): the safety stack with the
+  adaptive action type (Eq. 6's residual and the coverage-aware sweep's three knobs,
+  :class:`~aoass_env.action.AdaptiveAction`) and the coverage map's sectors in the observation;
+  the zero action is the hand-written rule.
+* ``AOASS-Adaptive-Train-v0`` (:func:`aoass_env.wrappers.make_training_env`): the adaptive
+  policy's training setup (configs/aoass_adaptive.yml): ``AOASS-Adaptive-v0`` with the
+  training setup's decisions, scales and maps.
 
 None has a ``reward_threshold``: Eq. 14 has no level at which the task counts as solved
 (docs/env.md gives the reference returns instead).
@@ -29,7 +36,8 @@ import math
 import gymnasium as gym
 from gymnasium.envs.registration import WrapperSpec
 
-__all__ = ["ENV_ID", "ENV_IDS", "QUICK_ENV_ID", "SAFE_ENV_ID", "TRAIN_ENV_ID", "register"]
+__all__ = ["ADAPTIVE_ENV_ID", "ADAPTIVE_TRAIN_ENV_ID", "ENV_ID", "ENV_IDS", "QUICK_ENV_ID",
+           "SAFE_ENV_ID", "TRAIN_ENV_ID", "register"]
 
 ENV_ID = "AOASS-v0"
 #: The full AOASS stack: AOASS-v0 -> Kalman tracker -> fuzzy + ORCA safety filter
@@ -39,10 +47,16 @@ SAFE_ENV_ID = "AOASS-Safe-v0"
 TRAIN_ENV_ID = "AOASS-Train-v0"
 #: The training setup's agent on a 50 m field: quick experiments.
 QUICK_ENV_ID = "AOASS-Quick-v0"
+#: The safety stack with the adaptive action type and the coverage sectors in the observation.
+ADAPTIVE_ENV_ID = "AOASS-Adaptive-v0"
+#: The adaptive policy's training setup (configs/aoass_adaptive.yml).
+ADAPTIVE_TRAIN_ENV_ID = "AOASS-Adaptive-Train-v0"
 
 #: What the shipped policy's agent sees: a decision every 16 control periods (8 s) and heading
 #: corrections of at most ±π/12 rad (±15°), rounded as in configs/aoass.yml.
 _AGENT = {"action_repeat": 16, "action_heading_scale": round(math.pi / 12, 4), "n_nodes": 100}
+#: What makes a setup adaptive (configs/aoass_adaptive.yml).
+_ADAPTIVE = {"action_type": "adaptive", "obs_coverage_sectors": 8}
 
 #: id -> (entry point, default keywords)
 _IDS: dict[str, tuple[str, dict]] = {
@@ -52,6 +66,10 @@ _IDS: dict[str, tuple[str, dict]] = {
                    {"split": "train", "field_size": 100.0, "densities": [0.1, 0.4], **_AGENT}),
     QUICK_ENV_ID: ("aoass_env.wrappers:make_safe_env",
                    {"field_size": 50.0, "obstacle_density": 0.2, **_AGENT}),
+    ADAPTIVE_ENV_ID: ("aoass_env.wrappers:make_safe_env", dict(_ADAPTIVE)),
+    ADAPTIVE_TRAIN_ENV_ID: ("aoass_env.wrappers:make_training_env",
+                            {"split": "train", "field_size": 100.0, "densities": [0.1, 0.4],
+                             **_AGENT, **_ADAPTIVE}),
 }
 #: Every registered id.
 ENV_IDS = tuple(_IDS)

@@ -2,8 +2,9 @@
 
 A frame shows, bottom to top: the field and its border, the ideal spiral with its waypoints
 (blocked ones as red crosses), the static obstacles, the anchor's trail and the beacons broadcast
-so far, the range-sensor rays (faint), the sensor nodes coloured by coverage, the follower's
-current target, the moving obstacles, the anchor with a heading line, and a status line.
+so far, the anchor's own coverage map (free cells it does not yet know to be covered, shaded by
+their deficit), the range-sensor rays (faint), the sensor nodes coloured by coverage, the
+follower's current target, the moving obstacles, the anchor with a heading line, and a status line.
 
 Speed: everything fixed for an episode (field, spiral, obstacles) is drawn once per episode onto
 a history layer; the trail and the beacons are then added to that layer incrementally, so a
@@ -44,6 +45,7 @@ COLORS: dict[str, Color] = {
     "node_silent": (165, 165, 165),   # heard no beacon
     "node_heard": (240, 150, 30),     # heard beacons, not covered yet
     "node_covered": (35, 165, 70),    # covered (Eq. 18)
+    "uncovered": (200, 60, 160),      # coverage map: free cells not known to be covered
     "target": (200, 40, 200),
     "moving": (190, 60, 60),
     "moving_edge": (110, 25, 25),
@@ -57,6 +59,8 @@ _BEACON_RADIUS_PX = 1
 _TRAIL_WIDTH_PX = 2
 _MIN_BODY_RADIUS_PX = 3
 _MIN_ANCHOR_RADIUS_PX = 5
+#: Opacity (0-255) of a coverage-map cell with deficit 1 (it heard nothing).
+_COVERAGE_ALPHA = 110
 
 
 class Renderer:
@@ -67,10 +71,12 @@ class Renderer:
         fps: frame rate of the human window (frames per second).
         size: side of the square frame (px).
         show_rays: draw the anchor's range-sensor rays faintly.
+        show_coverage: shade the free cells the anchor's coverage map does not yet count as
+            covered (:mod:`aoass_env.planning.coverage`), darker the larger their deficit.
     """
 
     def __init__(self, render_mode: str, fps: int, size: int = 640, *,
-                 show_rays: bool = True) -> None:
+                 show_rays: bool = True, show_coverage: bool = True) -> None:
         if render_mode not in ("rgb_array", "human"):
             raise ValueError(f"render_mode={render_mode!r} must be 'rgb_array' or 'human'")
         if size < 64:
@@ -79,6 +85,7 @@ class Renderer:
         self.fps = fps
         self.size = size
         self.show_rays = show_rays
+        self.show_coverage = show_coverage
         pygame.font.init()
         self._font = pygame.font.Font(None, max(14, size // 32))
         self._header = self._font.get_linesize() + 4   # status-line strip above the field (px)
@@ -166,6 +173,8 @@ class Renderer:
         c.blit(self._history, (0, 0))
         anchor = self.to_screen(world.position)[0]
 
+        if self.show_coverage:
+            self._draw_coverage(sim)
         if self.show_rays:
             angles, dists = world.ray_angles(), world.ray_distances()
             ends = world.position + dists[:, None] * np.column_stack([np.cos(angles),
@@ -197,7 +206,8 @@ class Renderer:
         pygame.draw.line(c, COLORS["heading"], anchor.tolist(), nose.tolist(), 2)
 
         status = (f"t {world.time:7.1f} s   coverage {100 * net.coverage_ratio:5.1f} %   "
-                  f"beacons {net.beacons_sent}   collisions {sim.collisions}")
+                  f"map {100 * sim.coverage_map.ratio:5.1f} %   beacons {net.beacons_sent}   "
+                  f"collisions {sim.collisions}")
         c.blit(self._font.render(status, True, COLORS["text"]), (6, 3))
 
         if self.render_mode == "human":
@@ -208,6 +218,20 @@ class Renderer:
         # same pixels as surfarray.array3d transposed to (H, W, 3), in a third of the time
         rgb = bytearray(pygame.image.tobytes(c, "RGB"))
         return np.frombuffer(rgb, dtype=np.uint8).reshape(self.size, self.size, 3)
+
+    def _draw_coverage(self, sim: Simulator) -> None:
+        """Shade the coverage map's uncovered free cells (alpha by deficit) over the field."""
+        deficit = np.nan_to_num(sim.coverage_map.raster(), nan=0.0)      # (nx, ny)
+        rgba = np.zeros((*deficit.shape[::-1], 4), dtype=np.uint8)        # rows = y, top first
+        rgba[..., :3] = COLORS["uncovered"]
+        rgba[..., 3] = np.round(_COVERAGE_ALPHA * deficit.T[::-1]).astype(np.uint8)
+        ny, nx = rgba.shape[:2]
+        layer = pygame.image.frombuffer(rgba.tobytes(), (nx, ny), "RGBA")
+        cell = sim.coverage_map.cell * self._scale
+        size = (round(nx * cell), round(ny * cell))
+        top = self._origin[1] - ny * cell
+        self._canvas.blit(pygame.transform.scale(layer, size), (round(self._origin[0]),
+                                                                round(top)))
 
     def close(self) -> None:
         """Close the window (human mode) and drop the surfaces; idempotent."""

@@ -9,7 +9,7 @@ from gymnasium.wrappers import RecordVideo
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env.config import AOASSConfig
-from aoass_env.render import COLORS, Renderer
+from aoass_env.render import _COVERAGE_ALPHA, COLORS, Renderer
 from aoass_env.simulator import Simulator
 
 SMALL = {"field_size": 30, "n_nodes": 20, "obstacle_density": 0.1, "n_moving_obstacles": 1}
@@ -37,8 +37,28 @@ def test_rgb_array_frame_shape_and_dtype():
     env.close()
     assert frame.shape == (640, 640, 3) and frame.dtype == np.uint8
     assert frame.flags.writeable and frame.flags.c_contiguous
-    assert _count(frame, COLORS["field"]) > 0.3 * 640 * 640
+    # at the start the coverage map has heard one beacon: the free cells are shaded
+    assert _field_pixels(frame) > 0.3 * 640 * 640
     assert _count(frame, COLORS["obstacle"]) > 0
+
+
+def _field_pixels(frame: np.ndarray) -> int:
+    """Pixels of the field's colour, bare or under the coverage map's shade (any deficit)."""
+    field = np.array(COLORS["field"], dtype=float)
+    toward = np.array(COLORS["uncovered"], dtype=float) - field
+    t = np.clip((frame - field) @ toward / (toward @ toward), 0.0, _COVERAGE_ALPHA / 255)
+    return int((np.abs(frame - field - t[..., None] * toward).max(axis=-1) <= 1.0).sum())
+
+
+def test_the_coverage_map_is_shaded_and_fades_as_cells_are_covered():
+    env = gym.make("AOASS-v0", render_mode="rgb_array", **SMALL)
+    env.reset(seed=0)
+    start = env.render()
+    for _ in range(300):
+        env.step(np.zeros(2, np.float32))
+    later = env.render()
+    env.close()
+    assert _count(later, COLORS["field"]) > _count(start, COLORS["field"]) + 1000
 
 
 def test_frame_size_is_configurable():

@@ -6,6 +6,10 @@ interval) and returns the finished :class:`~aoass_env.simulator.Simulator` with 
 * ``aoass``: the full stack of :func:`aoass_env.make_safe_env` (square spiral + Kalman tracks +
   fuzzy-ORCA) driven by the shipped TD3-LSTM policy;
 * ``aoass-scripted``: the same stack with the zero action (the ablation without the policy);
+* ``aoass-rule``: the stack with the adaptive action type and the zero action: the hand-written
+  coverage-aware rule (:mod:`aoass_env.planning.adaptive`), the strong baseline;
+* ``aoass-adaptive``: the same stack driven by the adaptive TD3-LSTM policy
+  (``checkpoints/aoass_adaptive/best.zip``), when it is shipped;
 * ``spiral``: the plain square spiral with the nominal follower, no safety stack;
 * every :class:`~aoass_env.planning.PlannedMethod` of
   :data:`~aoass_env.planning.classical.CLASSICAL_METHODS` and
@@ -48,9 +52,13 @@ POLICY_ALGO = "td3-lstm"
 #: evaluated): decisions held for ``action_repeat`` control periods, the tracker's and the
 #: safety filter's configs, and what its actions mean (the residual's scales).
 POLICY_STACK_KEYS = ("action_repeat", "tracker", "safety", "action_speed_scale",
-                     "action_heading_scale")
+                     "action_heading_scale", "action_type", "adaptive", "obs_coverage_sectors")
 #: The keys of :data:`POLICY_STACK_KEYS` that are environment config fields.
-_ACTION_KEYS = ("action_speed_scale", "action_heading_scale")
+_ACTION_KEYS = ("action_speed_scale", "action_heading_scale", "obs_coverage_sectors")
+#: The shipped adaptive policy (``aoass-adaptive``) and the command that produces it.
+ADAPTIVE_POLICY = shipped_dir("checkpoints") / "aoass_adaptive" / "best.zip"
+ADAPTIVE_POLICY_COMMAND = ("python3 train.py --config configs/aoass_adaptive.yml "
+                           "--out checkpoints/aoass_adaptive")
 #: The command that produces :data:`DEFAULT_POLICY`.
 POLICY_COMMAND = "python3 train.py --algo td3-lstm --out checkpoints/aoass_td3_lstm"
 
@@ -68,12 +76,15 @@ class RunOptions:
             ``Simulator.run``'s for the others).
         policy_run: the run record (run.yml) of the stack ``policy`` was trained in; None: the
             one beside ``policy``.
+        adaptive_policy: checkpoint of the ``aoass-adaptive`` policy (a TD3-LSTM .zip with its
+            run.yml beside it).
     """
 
     policy: str = str(DEFAULT_POLICY)
     algo: str = POLICY_ALGO
     max_steps: int | None = None
     policy_run: str | None = None
+    adaptive_policy: str = str(ADAPTIVE_POLICY)
 
 
 @dataclass(frozen=True)
@@ -135,16 +146,25 @@ def _recorded_stack(record: str, mtime_ns: int) -> dict[str, Any]:
 
 
 def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
-                      options: RunOptions, *, learned: bool) -> MethodRun:
+                      options: RunOptions, *, learned: bool, adaptive: bool = False
+                      ) -> MethodRun:
     """AOASS-v0 inside the Kalman + fuzzy-ORCA stack (set up as the policy was trained), driven
     by the policy (``learned``, one decision every ``action_repeat`` control periods) or the
-    zero action, until the episode ends or ``options.max_steps`` control periods."""
-    stack = policy_stack(options.policy, options.policy_run)
+    zero action, until the episode ends or ``options.max_steps`` control periods; ``adaptive``:
+    the adaptive action type and its policy (``options.adaptive_policy``)."""
+    if adaptive:
+        path, algo, record = options.adaptive_policy, POLICY_ALGO, None
+        stack = {"action_type": "adaptive", **policy_stack(path)}
+    else:
+        path, algo, record = options.policy, options.algo, options.policy_run
+        stack = policy_stack(path, record)
     repeat = int(stack.get("action_repeat", 1)) if learned else 1
     config = config.replace(**{k: stack[k] for k in _ACTION_KEYS if k in stack})
     env = make_safe_env(config=config, tracker=stack.get("tracker"),
-                        safety=stack.get("safety"), action_repeat=repeat)
-    policy = load_policy(options.policy, options.algo, options.policy_run) if learned else None
+                        safety=stack.get("safety"), action_repeat=repeat,
+                        action_type=stack.get("action_type", "residual"),
+                        adaptive=stack.get("adaptive"))
+    policy = load_policy(path, algo, record) if learned else None
     obs, _ = env.reset(seed=seed, options={"map": obstacle_map})
     state, start = None, np.ones(1, dtype=bool)
     interventions: list[float] = []
@@ -152,7 +172,7 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
     steps, total, terminated, truncated = 0, 0.0, False, False
     while not (terminated or truncated) and steps < limit:
         if policy is None:
-            action = np.zeros(2, np.float32)
+            action = np.zeros(env.action_space.shape, np.float32)
         else:
             action, state = policy.predict(obs, state=state, episode_start=start,
                                            deterministic=True)
@@ -205,6 +225,13 @@ def _registry() -> dict[str, MethodSpec]:
         "aoass-scripted": MethodSpec("aoass-scripted", "AOASS, zero action (ablation)",
                                      "ablation",
                                      functools.partial(_run_safety_stack, learned=False)),
+        "aoass-rule": MethodSpec("aoass-rule", "AOASS, adaptive rule", "ablation",
+                                 functools.partial(_run_safety_stack, learned=False,
+                                                   adaptive=True)),
+        "aoass-adaptive": MethodSpec("aoass-adaptive", "AOASS, adaptive policy", "aoass",
+                                     functools.partial(_run_safety_stack, learned=True,
+                                                       adaptive=True),
+                                     uses_policy=True),
         "spiral": MethodSpec("spiral", "Square spiral", "spiral", _run_spiral),
     }
     for kind, planned in (("classical", CLASSICAL_METHODS), ("baseline", BASELINE_METHODS)):
@@ -222,18 +249,24 @@ METHODS: dict[str, MethodSpec] = _registry()
 
 def select_methods(names: Sequence[str] | None, policy: str | Path = DEFAULT_POLICY
                    ) -> list[str]:
-    """The methods to run (None: all), checked before any work.
+    """The methods to run (None: all, less ``aoass-adaptive`` while its checkpoint is not
+    shipped), checked before any work.
 
     Raises:
         EvaluationError: an unknown name (the message lists the valid ones), or a method that
             needs the policy while its checkpoint file is missing.
     """
-    chosen = list(METHODS) if names is None else list(dict.fromkeys(names))
+    chosen = ([n for n in METHODS if n != "aoass-adaptive" or ADAPTIVE_POLICY.is_file()]
+              if names is None else list(dict.fromkeys(names)))
     unknown = [n for n in chosen if n not in METHODS]
     if unknown:
         raise EvaluationError(f"unknown method(s) {', '.join(map(repr, unknown))}; valid: "
                               f"{', '.join(METHODS)}")
-    needs = [n for n in chosen if METHODS[n].uses_policy]
+    if "aoass-adaptive" in chosen and not ADAPTIVE_POLICY.is_file():
+        raise EvaluationError(
+            f"method aoass-adaptive needs the adaptive policy checkpoint {ADAPTIVE_POLICY}, "
+            f"which is missing; produce it with `{ADAPTIVE_POLICY_COMMAND}`")
+    needs = [n for n in chosen if METHODS[n].uses_policy and n != "aoass-adaptive"]
     if needs and not Path(policy).is_file():
         raise EvaluationError(
             f"method(s) {', '.join(needs)} need the AOASS policy checkpoint {policy}, which is "

@@ -1,7 +1,7 @@
 """Path planning: the square spiral (Eq. 1-5), generic waypoint paths, the nominal path
-follower, the anchor's own coverage map and the adaptive sweep that reads it, and the sweep methods with what they need of a running sweep (:mod:`.sweep`:
-``PlannedMethod`` and the ``Controller`` and ``SweepState`` protocols; planning knows nothing
-of the simulator)."""
+follower, the anchor's own coverage map and the adaptive sweep that reads it, and the sweep
+methods with what they need of a running sweep (:mod:`.sweep`: ``PlannedMethod`` and the
+``Controller`` and ``SweepState`` protocols; planning knows nothing of the simulator)."""
 
 from aoass_env.planning.adaptive import AdaptiveConfig, AdaptiveSweep, SweepKnobs
 from aoass_env.planning.coverage import CoverageMap

@@ -9,20 +9,24 @@ WaypointFollower`, with its detours and its recovery from traps) and reads the a
 1. **Skip.** The *need* of a spiral waypoint is the mean coverage deficit of the free cells within
    ``skip_radius`` of it that it sees (line of sight, within the cells' guaranteed range).
    Every control period, while the follower's target has need <= ``skip_need``, the target is
-   passed over (whole legs go when their waypoints all are covered). A target the anchor cannot
-   reach straight (it would detour round an obstacle) is passed over under the looser
-   ``detour_need``: a detour is worth its length only where coverage is missing.
-2. **Densify.** When the spiral is done, the anchor goes after the free cells the map still
-   lacks, nearest first, each while it stays uncovered (the beacons on the way cover most
-   of them first), giving up a cell it reaches, cannot reach, or whose need is below
-   ``densify_need``.
+   passed over: stretches and whole legs that earlier passes covered are not driven again.
+   A target the anchor cannot reach straight is passed over when its need is at most
+   ``detour_need``, and also when the detour is longer than the straight way by more than
+   ``detour_excess`` metres: the spiral's later passes often cover what lies behind the
+   obstacle; such a waypoint stays *open*.
+2. **Densify.** When the spiral is done, the sweep revisits the open waypoints whose need is
+   still above ``densify_need``: each run starts at the open waypoint the anchor reaches by the
+   shortest way and follows the spiral while its waypoints stay open (the skip rule still
+   passing over those the run's own beacons have covered).
 3. **End.** The sweep ends when the map's covered share of the free field reaches
-   ``end_coverage``, or when no cell is left to densify.
+   ``end_coverage``, or when no open waypoint needs a visit. Visiting every spiral waypoint is
+   no longer the only ending.
 
-Three knobs in [-1, 1] (:class:`SweepKnobs`, the adaptive action's last three entries) shift
-the thresholds by ``knob_step`` each: ``skip`` raises ``skip_need`` (skip more), ``detour``
-raises ``detour_need`` (detour less), ``densify`` raises ``densify_need`` (densify less). The
-zero knobs are the hand-written rule (evaluate.py's ``aoass-rule`` method).
+Three knobs in [-1, 1] (:class:`SweepKnobs`, the adaptive action's last three entries) move the
+rule: ``skip`` raises ``skip_need`` by ``knob_step`` x skip (skip more); ``detour`` raises
+``detour_need`` the same way and divides ``detour_excess`` by 2^detour (detour less);
+``densify`` raises ``densify_need`` (densify less). The zero knobs are the hand-written rule
+(evaluate.py's ``aoass-rule`` method). Chosen on training maps (docs/planning.md).
 """
 
 from __future__ import annotations
@@ -56,9 +60,9 @@ class AdaptiveConfig(ValidatedConfig):
                                low_open=True)
     skip_need: float = param(0.0, "a target whose surroundings' mean coverage deficit is at "
                              "most this is passed over", low=-1.0, high=1.0)
-    detour_need: float = param(0.25, "the same for a target the anchor cannot reach straight "
+    detour_need: float = param(0.0, "the same for a target the anchor cannot reach straight "
                                "(it would detour round an obstacle)", low=-1.0, high=1.0)
-    detour_excess: float = param(40.0, "a target whose detour is longer than the straight way "
+    detour_excess: float = param(20.0, "a target whose detour is longer than the straight way "
                                  "by more than this is passed over whatever its need (the "
                                  "spiral's later passes and the densify phase cover what it "
                                  "leaves)", unit="m", low=0.0, high=1e4)

@@ -10,6 +10,7 @@ from aoass_env.config import AOASSConfig
 from aoass_env.evaluation import methods as methods_module
 from aoass_env.evaluation.episode import run_episode
 from aoass_env.evaluation.methods import (
+    ADAPTIVE_POLICY_COMMAND,
     METHODS,
     POLICY_COMMAND,
     RunOptions,
@@ -25,7 +26,7 @@ LOCALIZERS = ("dvhop", "olstm-dvhop")
 STEPS = 160
 
 
-@pytest.mark.parametrize("method", list(METHODS))
+@pytest.mark.parametrize("method", select_methods(None))   # every shipped method
 def test_every_method_plays_a_small_episode_with_finite_metrics(method, small_key):
     rows = run_episode(small_key(method), LOCALIZERS, RunOptions(max_steps=STEPS))
     assert [r["localizer"] for r in rows] == list(LOCALIZERS)
@@ -127,7 +128,19 @@ def test_missing_policy_names_the_file_and_the_command(tmp_path):
     assert str(missing) in str(err.value) and POLICY_COMMAND in str(err.value)
     assert "docs/training.md" in str(err.value)
     assert select_methods(["spiral", "aoass-scripted"], missing) == ["spiral", "aoass-scripted"]
-    assert select_methods(None) == list(METHODS)
+    shipped = methods_module.ADAPTIVE_POLICY.is_file()
+    assert select_methods(None) == [m for m in METHODS if m != "aoass-adaptive" or shipped]
+
+
+def test_a_missing_adaptive_policy_is_left_out_of_all_and_named_when_asked_for(tmp_path,
+                                                                                monkeypatch):
+    monkeypatch.setattr(methods_module, "ADAPTIVE_POLICY", tmp_path / "best.zip")
+    assert "aoass-adaptive" not in select_methods(None)
+    assert "aoass-rule" in select_methods(None)
+    with pytest.raises(EvaluationError) as err:
+        select_methods(["aoass-adaptive"])
+    assert str(tmp_path / "best.zip") in str(err.value)
+    assert ADAPTIVE_POLICY_COMMAND in str(err.value)
 
 
 class CountingPolicy:

@@ -1,0 +1,119 @@
+"""The adaptive sweep (aoass_env.planning.adaptive) and its action type in the environment."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aoass_env.action import AdaptiveAction, ResidualAction
+from aoass_env.config import AOASSConfig, ConfigError
+from aoass_env.env import AOASSEnv
+from aoass_env.maps import ObstacleMap
+from aoass_env.planning import AdaptiveConfig, SweepKnobs
+from aoass_env.simulator import Simulator
+from aoass_env.wrappers import make_safe_env
+
+OPEN = dict(field_size=60.0, n_nodes=120, obstacle_density=0.0, n_moving_obstacles=0)
+#: a wall across most of the field: the spiral's passes detour round its end
+WALL = ObstacleMap(60.0, 60.0, [np.array([[20.0, 29.0], [60.0, 29.0], [60.0, 31.0],
+                                          [20.0, 31.0]])])
+
+
+def _sweep(config: AOASSConfig, seed: int, rule: AdaptiveConfig | None,
+           obstacle_map: ObstacleMap | None = None,
+           knobs: SweepKnobs | None = None) -> tuple[Simulator, object]:
+    sim = Simulator(config, np.random.default_rng(seed), obstacle_map=obstacle_map)
+    ctl = sim.adaptive_sweep(rule) if rule is not None else sim.follower(recovery=True)
+    if knobs is not None:
+        ctl.knobs = knobs
+    sim.run(controller=ctl)
+    return sim, ctl
+
+
+def test_on_an_open_field_the_rule_covers_everything_with_a_shorter_path():
+    config = AOASSConfig(**OPEN)
+    spiral, done = _sweep(config, 0, None)
+    adaptive, ctl = _sweep(config, 0, AdaptiveConfig())
+    assert done.done and ctl.done
+    assert adaptive.network.coverage_ratio == spiral.network.coverage_ratio == 1.0
+    assert adaptive.coverage_map.ratio >= AdaptiveConfig().end_coverage
+    assert adaptive.network.distance_travelled < 0.9 * spiral.network.distance_travelled
+    assert {p.reason for p in ctl.passed} == {"covered"}
+
+
+def test_the_skip_knob_at_minus_one_passes_nothing_over_as_covered():
+    config = AOASSConfig(**OPEN)
+    strict, ctl = _sweep(config, 0, AdaptiveConfig(), knobs=SweepKnobs(skip=-1.0))
+    assert ctl.done and not [p for p in ctl.passed if p.reason == "covered"]
+    rule, ctl = _sweep(config, 0, AdaptiveConfig())
+    assert [p for p in ctl.passed if p.reason == "covered"]
+    assert strict.network.distance_travelled > rule.network.distance_travelled
+
+
+def test_a_long_detour_is_left_open_and_revisited_after_the_spiral():
+    config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
+    sim, ctl = _sweep(config, 1, AdaptiveConfig(detour_excess=5.0, end_coverage=1.0),
+                      obstacle_map=WALL)
+    assert ctl.done
+    long = [p for p in ctl.passed if p.reason == "long detour"]
+    assert long and ctl.revisits
+    assert sim.network.coverage_ratio >= 0.98
+    assert sim.world.static_contacts == 0
+
+
+def test_need_is_the_mean_deficit_of_the_cells_a_waypoint_sees():
+    config = AOASSConfig(**OPEN)
+    sim = Simulator(config, np.random.default_rng(0))
+    ctl = sim.adaptive_sweep()
+    i = ctl.follower.index
+    cells = sim.coverage_map.visible_near(ctl.follower.waypoints[i], ctl.rule.skip_radius)
+    assert ctl.need(i) == pytest.approx(sim.coverage_map.deficit[cells].mean())
+    assert 0.0 < ctl.need(i) <= 1.0
+
+
+def test_the_rule_config_is_validated_with_did_you_mean():
+    with pytest.raises(ConfigError, match="skip_radius"):
+        AdaptiveConfig(skip_radius=0.0)
+    with pytest.raises(ConfigError, match="did you mean 'skip_need'"):
+        AdaptiveConfig.from_kwargs(skip_needs=0.1)
+    with pytest.raises(ConfigError, match=r"skip_radius=-1.0 must be a number in \(0.0, 1000.0\]"):
+        AOASSEnv(**OPEN, action_type="adaptive", adaptive={"skip_radius": -1.0})
+
+
+def test_the_zero_adaptive_action_reproduces_the_rule_in_the_simulator():
+    env = AOASSEnv(**OPEN, action_type="adaptive")
+    assert isinstance(env.action_type, AdaptiveAction) and env.action_space.shape == (5,)
+    env.reset(seed=4)
+    terminated = truncated = False
+    while not (terminated or truncated):
+        _, _, terminated, truncated, info = env.step(np.zeros(5, np.float32))
+    assert terminated
+    ref, _ = _sweep(env.config, 4, AdaptiveConfig())
+    np.testing.assert_array_equal(env.beacon_log.anchor_path, ref.finish().anchor_path)
+    assert info["episode_metrics"]["passed_waypoints"] > 0
+    assert info["area_coverage"] == ref.coverage_map.ratio
+
+
+def test_the_safety_stack_passes_the_agents_knobs_to_the_sweep():
+    env = make_safe_env(**OPEN, action_type="adaptive", obs_coverage_sectors=8)
+    obs, _ = env.reset(seed=0)
+    base = env.unwrapped
+    assert isinstance(base.action_type, AdaptiveAction) and base.action_type.reaches_every_command
+    assert env.action_space.shape == (5,)
+    lay = base.obs_layout
+    assert lay["coverage_sectors"] == slice(57, 65) and lay["area_coverage"] == slice(65, 66)
+    env.step(np.array([0.0, 0.0, 1.0, -1.0, 0.5], np.float32))
+    assert base.follower.knobs == SweepKnobs(1.0, -1.0, 0.5)
+    with pytest.raises(ValueError, match=r"shape \(5,\) = \[dv, dtheta, skip, detour, densify\]"):
+        env.step(np.zeros(2, np.float32))
+
+
+def test_the_residual_type_keeps_the_spiral_follower_and_its_observation():
+    env = AOASSEnv(**OPEN)
+    env.reset(seed=0)
+    assert isinstance(env.action_type, ResidualAction)
+    assert env.action_type.knobs(np.zeros(2)) is None
+    assert env.observation_space.shape == (57,) and "coverage_sectors" not in env.obs_layout
+    for _ in range(120):     # past the first corner: beacons off one line
+        _, _, _, _, info = env.step(np.zeros(2, np.float32))
+    assert 0.0 < info["area_coverage"] < 1.0 and info["passed_waypoints"] == 0

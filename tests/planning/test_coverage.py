@@ -1,0 +1,116 @@
+"""The anchor's own coverage map (aoass_env.planning.coverage)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aoass_env.config import AOASSConfig, ConfigError
+from aoass_env.maps import ObstacleMap
+from aoass_env.network import Network
+from aoass_env.planning.coverage import CoverageMap, cell_range
+from aoass_env.radio import Radio
+
+EMPTY = ObstacleMap(40.0, 40.0)
+CONFIG = AOASSConfig(field_size=40.0, radio_range=10.0, coverage_cell=2.0)
+
+
+def _brute_force(centres: np.ndarray, beacons: np.ndarray, reach: float,
+                 tol: float) -> np.ndarray:
+    """Eq. 18 per cell centre from the whole beacon list (no obstacles): >= 3 beacons within
+    ``reach``, root-sum-square distance from their best-fit line >= ``tol``."""
+    out = np.zeros(len(centres), dtype=bool)
+    for k, c in enumerate(centres):
+        heard = beacons[np.hypot(*(beacons - c).T) <= reach]
+        if len(heard) >= 3:
+            centred = heard - heard.mean(axis=0)
+            lam = np.linalg.eigvalsh(centred.T @ centred)[0]
+            out[k] = math.sqrt(max(lam, 0.0)) >= tol
+    return out
+
+
+def test_cell_range_is_the_guaranteed_range_less_half_a_diagonal():
+    assert cell_range(CONFIG) == pytest.approx(10.0 - 2.0 / math.sqrt(2.0))
+    assert cell_range(CONFIG.replace(doi=0.2)) == pytest.approx(8.0 - 2.0 / math.sqrt(2.0))
+    with pytest.raises(ConfigError, match="coverage_cell=8 m is too large"):
+        cell_range(CONFIG.replace(coverage_cell=8.0))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.floats(0, 40), st.floats(0, 40)), min_size=1, max_size=30))
+def test_cells_are_covered_exactly_when_eq18_holds_at_their_centre(points):
+    beacons = np.array(points, dtype=float)
+    cov = CoverageMap(EMPTY, CONFIG)
+    newly = sum(cov.add_beacon(b) for b in beacons)
+    expected = _brute_force(cov.centres, beacons, cov.reach, CONFIG.collinearity_tol)
+    np.testing.assert_array_equal(cov.covered, expected)
+    assert newly == expected.sum()
+    assert cov.ratio == pytest.approx(expected.mean())
+
+
+def test_deficit_is_zero_exactly_on_covered_cells_and_one_where_nothing_was_heard():
+    cov = CoverageMap(EMPTY, CONFIG)
+    assert np.all(cov.deficit == 1.0)
+    for b in ([10.0, 10.0], [12.0, 10.0], [11.0, 13.0], [30.0, 30.0]):
+        cov.add_beacon(np.array(b))
+    d = cov.deficit
+    assert np.all((d == 0.0) == cov.covered) and cov.covered.any()
+    assert np.all((d >= 0.0) & (d <= 1.0))
+    assert np.all(d[cov.heard == 0] == 1.0)
+    one = (cov.heard == 1)
+    assert np.all(d[one] == 0.75)        # two beacons and the spread missing
+    np.testing.assert_array_equal(cov.deficit_at(np.flatnonzero(one)), d[one])
+
+
+@pytest.mark.parametrize("doi", [0.0, 0.2])
+def test_a_node_in_a_covered_cell_is_covered_on_an_open_field(doi):
+    """What the map calls covered, the nodes in it are (no obstacles: the range is the
+    guaranteed one less half a cell diagonal)."""
+    rng = np.random.default_rng(3)
+    config = CONFIG.replace(doi=doi)
+    nodes = EMPTY.sample_free_points(400, rng)
+    radio = Radio.from_config(nodes, EMPTY, config, rng)
+    net = Network(len(nodes), config)
+    cov = CoverageMap(EMPTY, config)
+    for b in rng.uniform(0.0, 40.0, (60, 2)):
+        net.record_beacon(b, radio.receivers(b))
+        cov.add_beacon(b)
+    cell_of = {tuple(ij): k for k, ij in enumerate(cov.index)}
+    in_covered = np.array([cov.covered[cell_of[(min(int(x // 2), 19), min(int(y // 2), 19))]]
+                           for x, y in nodes])
+    assert in_covered.sum() > 100
+    assert np.all(net.covered[in_covered])
+
+
+def test_cells_inside_obstacles_are_left_out_and_walls_block_beacons():
+    wall = ObstacleMap(40.0, 40.0, [np.array([[18.5, 0.0], [21.5, 0.0], [21.5, 40.0],
+                                              [18.5, 40.0]])])
+    cov = CoverageMap(wall, CONFIG)
+    assert cov.n_cells == 400 - 40          # the columns centred at x = 19 and 21 are inside
+    assert not np.any((cov.centres[:, 0] > 18.5) & (cov.centres[:, 0] < 21.5))
+    for b in ([10.0, 10.0], [14.0, 10.0], [12.0, 14.0]):
+        cov.add_beacon(np.array(b))
+    assert cov.covered.any()
+    assert not np.any(cov.heard[cov.centres[:, 0] > 21.5])     # behind the wall: nothing
+    seen = cov.visible_near(np.array([17.5, 10.0]), 5.0)
+    assert len(seen) and np.all(cov.centres[seen, 0] < 18.5)
+    assert np.all(np.hypot(*(cov.centres[seen] - [17.5, 10.0]).T) <= 5.0)
+    raster = cov.raster()
+    assert raster.shape == (20, 20) and np.all(np.isnan(raster[9:11]))
+
+
+def test_sector_deficits_read_by_bearing_from_the_heading():
+    cov = CoverageMap(EMPTY, CONFIG)
+    for b in ([4.0, 20.0], [8.0, 16.0], [8.0, 24.0], [2.0, 14.0], [2.0, 26.0]):
+        cov.add_beacon(np.array(b))     # covers the west of the field near the centre line
+    east = cov.sector_deficits(np.array([20.0, 20.0]), 0.0, 4, 15.0)
+    west = cov.sector_deficits(np.array([20.0, 20.0]), math.pi, 4, 15.0)
+    assert east.shape == (4,) and np.all((east >= 0) & (east <= 1))
+    # sector 0 is straight ahead: east of the anchor (nothing heard) or west (some covered)
+    assert east[0] == 1.0 and west[0] < east[0]
+    np.testing.assert_allclose(west, np.roll(east, 2))
+    assert np.all(cov.sector_deficits(np.array([-100.0, -100.0]), 0.0, 4, 5.0) == 0.0)
