@@ -295,7 +295,8 @@ class World:
         get_position, anchor, moving = _cp.cpBodyGetPosition, self._c_anchor, self._c_moving
         p = get_position(anchor)
         x, y = p.x, p.y
-        rows = [(self.time, x, y)]
+        done = self._substeps_done
+        rows = [(done * sdt, x, y)]
         speed, heading = self._speed, self._heading
         for _ in range(cfg.physics_substeps):
             # the bounded command filter: speed toward the target by at most max_dv, heading
@@ -303,19 +304,19 @@ class World:
             speed += min(max(target - speed, -max_dv), max_dv)
             turn = math.pi - (math.pi - (heading_target - heading)) % _TWO_PI
             heading = math.pi - (math.pi - (heading + min(max(turn, -max_dh), max_dh))) % _TWO_PI
-            self._speed, self._heading = speed, heading
             self._velocity_cmd = (speed * math.cos(heading), speed * math.sin(heading))
             velocity = self._limit_anchor_move(x, y)
-            if self._turn_due <= self.time:
+            if self._turn_due <= done * sdt:
                 self._turn_moving()
             if moving:
                 self._move_moving(x, y, velocity)
             _cp.cpSpaceStep(self._c_space, sdt)
-            self._substeps_done += 1
+            done = self._substeps_done = done + 1     # the contact callbacks read it
             self._mpos = [(q.x, q.y) for q in map(get_position, moving)]
             p = get_position(anchor)
             x, y = p.x, p.y
-            rows.append((self.time, x, y))
+            rows.append((done * sdt, x, y))
+        self._speed, self._heading = speed, heading
         return np.array(rows)
 
     def _turn_moving(self) -> None:
