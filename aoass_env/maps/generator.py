@@ -69,11 +69,15 @@ def _l_shape(rng: np.random.Generator) -> np.ndarray:
 _SHAPES: tuple[tuple[float, Callable[[np.random.Generator], np.ndarray]], ...] = (
     (0.35, _rectangle), (0.30, _convex), (0.15, _l_shape), (0.20, _wall))
 _SHAPE_P = np.array([w for w, _ in _SHAPES])
+# rng.choice(len(_SHAPES), p=_SHAPE_P) is this cumulative table searched with one rng.random()
+# draw: the same shape from the same stream, without choice's per-call checks
+_SHAPE_CDF = _SHAPE_P.cumsum()
+_SHAPE_CDF /= _SHAPE_CDF[-1]
 
 
 def _unit_shape(rng: np.random.Generator) -> np.ndarray:
     """Random obstacle outline of area 1 m^2, centroid at the origin, random orientation."""
-    v = _SHAPES[int(rng.choice(len(_SHAPES), p=_SHAPE_P))][1](rng)
+    v = _SHAPES[int(_SHAPE_CDF.searchsorted(rng.random(), side="right"))][1](rng)
     poly = shapely.Polygon(v)
     v = (v - shapely.get_coordinates(poly.centroid)) / math.sqrt(poly.area)
     t = rng.uniform(0.0, math.pi)

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.maps import DENSITY_TOL, MapError, generate_map
-from aoass_env.maps.generator import _BlockedSet
+from aoass_env.maps.generator import _SHAPE_CDF, _SHAPE_P, _BlockedSet
 from tests.maps.conftest import CLEARANCE, assert_same_polygons, rng
 
 GENERATED = [(size, density, seed)
@@ -153,3 +153,14 @@ def test_blocked_set_flags_exactly_the_shapes_that_cut_off_free_space(rects):
 # =========================================================================================
 # check_traversable, sample_free_points, inside_obstacle, convex_parts
 # =========================================================================================
+
+
+def test_shape_kind_lookup_draws_what_rng_choice_draws():
+    """_unit_shape's cumulative-table lookup picks the shape rng.choice(p=...) would, from the
+    same stream (generated maps stay the same)."""
+    for seed in range(20):
+        a, b = np.random.default_rng(seed), np.random.default_rng(seed)
+        for _ in range(200):
+            assert int(a.choice(len(_SHAPE_P), p=_SHAPE_P)) == \
+                int(_SHAPE_CDF.searchsorted(b.random(), side="right"))
+        assert a.random() == b.random()
