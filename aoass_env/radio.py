@@ -56,13 +56,18 @@ def _points(value: object, name: str, *, single: bool = False) -> np.ndarray:
     return pts
 
 
-# The four orientation tests of a (segment a-b, edge p-q) pair, on the rows of the (8, P)
-# differences apx, apy, aqx, aqy, bpx, bpy, bqx, bqy: the signs of p and q relative to line
-# a-b, from (a - p, b - p) and (a - q, b - q), then of a and b relative to line p-q, from
-# (a - p, a - q) and (b - p, b - q). det = dax * dby - day * dbx for differences da, db.
-_DIFF_SEG, _DIFF_EDGE = np.array([0, 1, 0, 1, 2, 3, 2, 3]), np.array([0, 1, 2, 3, 0, 1, 2, 3])
-_DAX, _DBY = np.array([0, 2, 0, 4]), np.array([5, 7, 3, 7])
-_DAY, _DBX = np.array([1, 3, 1, 5]), np.array([4, 6, 2, 6])
+def _orientation(dax: np.ndarray, day: np.ndarray, dbx: np.ndarray,
+                 dby: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sign-certain orientation of (a, b, c) from the differences a - c and b - c.
+
+    Returns ``(positive, certain)``: ``det > 0`` and whether that sign (and non-zeroness) is
+    exact under Shewchuk's error bound. An exactly zero determinant is never certain.
+    """
+    left = dax * dby
+    right = day * dbx
+    det = left - right
+    certain = np.abs(det) > _ORIENT_ERRBOUND * (np.abs(left) + np.abs(right))
+    return det > 0, certain
 
 
 class LineOfSight:
@@ -76,7 +81,8 @@ class LineOfSight:
         if not isinstance(obstacle_map, ObstacleMap):
             raise TypeError(f"obstacle_map must be an ObstacleMap, got {type(obstacle_map)!r}")
         edges = obstacle_map.edges
-        self._edge_rows = np.ascontiguousarray(edges.reshape(-1, 4).T)   # px, py, qx, qy
+        self._px, self._py = edges[:, 0, 0].copy(), edges[:, 0, 1].copy()
+        self._qx, self._qy = edges[:, 1, 0].copy(), edges[:, 1, 1].copy()
         self._edge_tree = shapely.STRtree(shapely.linestrings(edges))
         self._polygons = obstacle_map.shapes
         self._polygon_tree = shapely.STRtree(self._polygons)
@@ -123,27 +129,25 @@ class LineOfSight:
             return np.zeros(m, dtype=bool)
         segs = np.stack([a, b], axis=1)
         seg, edge = self._edge_tree.query(shapely.linestrings(segs))
+        ax, ay, bx, by = a[seg, 0], a[seg, 1], b[seg, 0], b[seg, 1]
+        px, py, qx, qy = self._px[edge], self._py[edge], self._qx[edge], self._qy[edge]
+        apx, apy, aqx, aqy = ax - px, ay - py, ax - qx, ay - qy
+        bpx, bpy, bqx, bqy = bx - px, by - py, bx - qx, by - qy
+        s1, c1 = _orientation(apx, apy, bpx, bpy)   # p relative to line a-b
+        s2, c2 = _orientation(aqx, aqy, bqx, bqy)   # q relative to line a-b
+        s3, c3 = _orientation(apx, apy, aqx, aqy)   # a relative to line p-q
+        s4, c4 = _orientation(bpx, bpy, bqx, bqy)   # b relative to line p-q
+        cross = c1 & c2 & c3 & c4 & (s1 != s2) & (s3 != s4)
+        apart = (c1 & c2 & (s1 == s2)) | (c3 & c4 & (s3 == s4))
+        blocked = np.zeros(m, dtype=bool)
+        blocked[seg[cross]] = True
+        contact = np.zeros(m, dtype=bool)
+        contact[seg[~cross & ~apart]] = True
+        contact &= ~blocked
         # No contact with any edge: the closed segment lies wholly inside or outside each
         # obstacle, like its start point.
-        blocked = np.array(a_inside, dtype=bool)
-        if len(seg) == 0:
-            return blocked
-        d = segs.reshape(m, 4).T[:, seg][_DIFF_SEG] - self._edge_rows[:, edge][_DIFF_EDGE]
-        left, right = d[_DAX] * d[_DBY], d[_DAY] * d[_DBX]
-        det = left - right
-        # sign-certain under Shewchuk's error bound (an exactly zero det is never certain)
-        certain = np.abs(det) > _ORIENT_ERRBOUND * (np.abs(left) + np.abs(right))
-        positive = det > 0
-        split_ab, split_pq = positive[0] != positive[1], positive[2] != positive[3]
-        sure_ab, sure_pq = certain[0] & certain[1], certain[2] & certain[3]
-        cross = sure_ab & sure_pq & split_ab & split_pq
-        touch = ~cross & ~((sure_ab & ~split_ab) | (sure_pq & ~split_pq))
-        crossed = np.zeros(m, dtype=bool)
-        crossed[seg[cross]] = True
-        contact = np.zeros(m, dtype=bool)
-        contact[seg[touch]] = True
-        contact &= ~crossed
-        blocked |= crossed
+        clean = ~blocked & ~contact
+        blocked[clean] = a_inside[clean]
         if contact.any():
             blocked[contact] = self._blocked_exact(segs[contact])
         return blocked
