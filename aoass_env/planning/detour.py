@@ -117,9 +117,9 @@ class DetourPlanner:
 
     def visible(self, a: np.ndarray, b: np.ndarray) -> bool:
         """True when a disc of the planner's radius can move straight from ``a`` to ``b``."""
-        if np.array_equal(a, b):
+        if a[0] == b[0] and a[1] == b[1]:
             return not shapely.intersects_xy(self._blocker, a[0], a[1])
-        return not shapely.intersects(self._blocker, shapely.LineString([a, b]))
+        return not shapely.intersects(self._blocker, shapely.linestrings([a, b]))
 
     def path(self, start: np.ndarray, goal: np.ndarray, keepout: np.ndarray | None = None,
              keepout_radius: float = 0.0) -> np.ndarray | None:
