@@ -31,7 +31,9 @@ def _as_ccw(vertices: np.ndarray) -> np.ndarray:
     if len(v) > 1 and np.array_equal(v[0], v[-1]):
         v = v[:-1]
     x, y = v[:, 0], v[:, 1]
-    signed_area = 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    # np.roll(., -1) by slicing (the same arrays, without np.roll's generic axis handling)
+    signed_area = 0.5 * float(np.dot(x, np.concatenate((y[1:], y[:1])))
+                              - np.dot(y, np.concatenate((x[1:], x[:1]))))
     return v[::-1].copy() if signed_area < 0 else v.copy()
 
 
