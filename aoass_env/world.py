@@ -425,7 +425,8 @@ class World:
         that shape, and pymunk's solver takes over from the contact. A shape already touched
         stops the anchor only if the solved velocity still points into it (pymunk cannot always
         satisfy a contact with a kinematic moving obstacle and a static one at once). The sweep
-        is skipped when the clearance grid and the moving obstacles' distances prove it free.
+        is skipped when the clearance certificates and the moving obstacles' distances prove it
+        free.
         """
         v = _cp.cpBodyGetVelocity(self._c_anchor)
         vx, vy = v.x, v.y
