@@ -117,9 +117,6 @@ class World:
         self._owner: dict[pymunk.Shape, tuple[str, int]] = {}
         self._add_walls()
         self._add_static_obstacles()
-        self._c_space = space._space
-        self._seg_info = _ffi.new("cpSegmentQueryInfo *")
-        self._point_info = _ffi.new("cpPointQueryInfo *")
 
         x0, y0 = self._check_start(start)
         self._heading = wrap_angle(real("start_heading", start_heading, "rad"))
@@ -133,10 +130,9 @@ class World:
         disc.collision_type = _ANCHOR
         disc.filter = pymunk.ShapeFilter(categories=_CAT_ANCHOR)
         space.add(self._anchor, disc)
-        self._c_anchor, self._c_disc = self._anchor._body, disc._shape
 
         self._spawn_moving((x0, y0))
-        self._c_moving = [body._body for body in self._mbodies]
+        self._bind_chipmunk()
         # slot 0: the anchor, slot 1 + i: moving obstacle i
         self._clearance = ClearanceCertificates(self._static_distance, 1 + len(self._mbodies))
 
@@ -149,6 +145,29 @@ class World:
                            separate=self._separate)
         self._substeps_done = 0
         self._ray_offsets = 2.0 * math.pi * np.arange(config.n_rays) / config.n_rays
+
+    # Chipmunk handles and query buffers (cffi objects): not picklable, rebuilt from the pymunk
+    # objects, which pymunk pickles itself
+    _C_FIELDS = ("_c_space", "_c_anchor", "_c_disc", "_c_moving", "_seg_info", "_point_info")
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        for name in self._C_FIELDS:
+            del state[name]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._bind_chipmunk()
+
+    def _bind_chipmunk(self) -> None:
+        """The Chipmunk handles of the space, the anchor and the moving obstacles, and fresh
+        query buffers."""
+        self._c_space = self._space._space
+        self._c_anchor, self._c_disc = self._anchor._body, self._anchor_disc._shape
+        self._c_moving = [body._body for body in self._mbodies]
+        self._seg_info = _ffi.new("cpSegmentQueryInfo *")
+        self._point_info = _ffi.new("cpPointQueryInfo *")
 
     # --- construction ---------------------------------------------------------------------
     def _add_walls(self) -> None:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import copy
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -395,3 +397,21 @@ def test_skipped_sweeps_give_the_same_world(monkeypatch):
     np.testing.assert_array_equal(fast[0], slow[0])
     np.testing.assert_array_equal(fast[1], slow[1])
     assert fast[2] == slow[2]
+
+
+@pytest.mark.parametrize("clone", [lambda w: pickle.loads(pickle.dumps(w)), copy.deepcopy],
+                         ids=["pickle", "deepcopy"])
+def test_a_copied_world_runs_on_like_the_original(clone):
+    """The Chipmunk handles and query buffers are rebuilt in the copy."""
+    w = make((10.0, 6.0), seed=3, obstacle_map=field_map(), n_moving_obstacles=3,
+             moving_obstacle_radius=0.5)
+    cmds = np.random.default_rng(5).uniform((0.0, -math.pi), (2.0, math.pi), size=(40, 2))
+    for c in cmds[:20].tolist():
+        w.step(*c)
+    twin = clone(w)
+    for c in cmds[20:].tolist():
+        np.testing.assert_array_equal(w.step(*c), twin.step(*c))
+        np.testing.assert_array_equal(w.ray_distances(), twin.ray_distances())
+        assert w.nearest_obstacle_distance() == twin.nearest_obstacle_distance()
+        np.testing.assert_array_equal(w.moving_positions, twin.moving_positions)
+    assert w.contacts == twin.contacts
