@@ -22,6 +22,7 @@ from aoass_env.config import AOASSConfig, ConfigError, config_for_map, config_wi
 from aoass_env.maps import MapError, ObstacleMap, load_map
 from aoass_env.observation import Observer, observation_layout, observation_space
 from aoass_env.planning import AdaptiveConfig, AdaptiveSweep, WaypointFollower
+from aoass_env.planning.adaptive import sweep_config
 from aoass_env.planning.square_spiral import episode_spiral
 from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
 from aoass_env.simulator import Simulator, check_waypoint_step, episode_summary
@@ -182,6 +183,10 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         self.action_type = action_type or ResidualAction.from_config(self.config)
         #: the adaptive sweep's rule, used with the adaptive action type
         self.adaptive = AdaptiveConfig.coerce(adaptive, "adaptive")
+        self._sweeps = isinstance(self.action_type, AdaptiveAction)
+        self._base_config = self.config      # the spiral of the time limit
+        if self._sweeps:      # the adaptive sweep's passes
+            self.config = sweep_config(self.config, self.adaptive, self.config.field_size)
         self.action_space = self.action_type.space
         self.observation_space = observation_space(self.config)
         self.obs_layout = observation_layout(self.config)
@@ -197,21 +202,22 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         episode_map = options.pop("map", None)
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: ['map']")
-        config = self.config
+        config, limit = self.config, self._base_config
         if episode_map is not None:
             episode_map = _option_map(episode_map)
             side = map_side(episode_map, "reset option 'map'")
             if not math.isclose(side, config.field_size, rel_tol=1e-9):   # its own size
-                config = config.replace(field_size=side, map=None)
+                config = limit = limit.replace(field_size=side, map=None)
+                if self._sweeps:
+                    config = sweep_config(config, self.adaptive, side)
         self.episode_config = config
-        self.max_episode_steps = max_episode_steps(config)
+        self.max_episode_steps = max_episode_steps(limit)
         self.sim = Simulator(config, self.np_random,
                              obstacle_map=episode_map if episode_map is not None else self._map,
                              seed=seed, method="aoass-env")
         noise_rng = self.np_random.spawn(1)[0]
         self._follower: WaypointFollower | AdaptiveSweep = (
-            self.sim.adaptive_sweep(self.adaptive)
-            if isinstance(self.action_type, AdaptiveAction)
+            self.sim.adaptive_sweep(self.adaptive) if self._sweeps
             else self.sim.follower(recovery=True))
         self._observe = Observer(config, self.sim.spiral, noise_rng)
         self._steps = 0

@@ -14,10 +14,16 @@ WaypointFollower`, with its detours and its recovery from traps) and reads the a
    ``detour_need``, and also when the detour is longer than the straight way by more than
    ``detour_excess`` metres: the spiral's later passes often cover what lies behind the
    obstacle; such a waypoint stays *open*.
+The spiral's passes are wider than Eq. 5's (``wide_passes``, :func:`sweep_config`): the ring
+count of Eq. 5's spacing is rounded down instead of up (2 rings instead of 3 on the default
+100 m field), and the gaps they leave are the densify phase's.
+
 2. **Densify.** When the spiral is done, the sweep revisits the open waypoints whose need is
    still above ``densify_need``: each run starts at the open waypoint the anchor reaches by the
    shortest way and follows the spiral while its waypoints stay open (the skip rule still
-   passing over those the run's own beacons have covered).
+   passing over those the run's own beacons have covered). When no open waypoint is left, it
+   heads for the free cells that heard at most one beacon (deficit above ``cell_need``),
+   nearest first, each until the cell is covered, reached within two cells, or given up.
 3. **End.** The sweep ends when the map's covered share of the free field reaches
    ``end_coverage``, or when no open waypoint needs a visit. Visiting every spiral waypoint is
    no longer the only ending.
@@ -41,12 +47,18 @@ from aoass_env.config import AOASSConfig
 from aoass_env.planning.coverage import CoverageMap
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import Skip, WaypointFollower
+from aoass_env.planning.square_spiral import config_spacing
 from aoass_env.validators import ValidatedConfig, param
 
-__all__ = ["AdaptiveConfig", "AdaptiveSweep", "SweepKnobs"]
+__all__ = ["AdaptiveConfig", "AdaptiveSweep", "SweepKnobs", "sweep_config"]
 
 #: Open waypoints (nearest first) whose way the planner measures to choose the next densify run.
 DENSIFY_CANDIDATES = 5
+#: A cell to densify counts as visited within this many cell sides of its centre.
+CELL_CAPTURE_CELLS = 2.0
+#: Seconds a cell to densify gets beyond twice its straight travel time (and the follower's
+#: allowance for a detour) before it is given up.
+CELL_STALL_TIME = 5.0
 
 
 @dataclass(frozen=True)
@@ -55,6 +67,9 @@ class AdaptiveConfig(ValidatedConfig):
 
     KEYWORD: ClassVar[str] = "adaptive keyword"
 
+    wide_passes: bool = param(True, "lay the spiral's passes with the ring count of Eq. 5's "
+                              "spacing rounded down, not up (spiral_spacing left unset): wider "
+                              "passes, the gaps left to the densify phase", kind="bool")
     skip_radius: float = param(8.0, "a spiral waypoint's surroundings: the free cells within "
                                "this distance that it sees", unit="m", low=0.0, high=1000.0,
                                low_open=True)
@@ -68,10 +83,21 @@ class AdaptiveConfig(ValidatedConfig):
                                  "leaves)", unit="m", low=0.0, high=1e4)
     densify_need: float = param(0.0, "after the spiral, uncovered cells with a deficit above "
                                 "this are visited, nearest first", low=-1.0, high=1.0)
+    cell_need: float = param(0.5, "then, free cells with a deficit above this (0.5: heard at "
+                             "most one beacon) are visited, nearest first", low=-1.0, high=1.0)
     end_coverage: float = param(0.995, "the sweep ends when the coverage map's covered share "
                                 "of the free field reaches this", low=0.0, high=1.0,
                                 low_open=True)
     knob_step: float = param(0.25, "threshold shift of a knob at +-1", low=0.0, high=1.0)
+
+
+def sweep_config(config: AOASSConfig, rule: AdaptiveConfig, side: float) -> AOASSConfig:
+    """``config`` for the adaptive sweep on a ``side`` (m) square field: with
+    ``rule.wide_passes`` and no ``spiral_spacing`` of its own, the wide passes'
+    (:func:`~aoass_env.planning.square_spiral.default_spacing` with ``wide``)."""
+    if not rule.wide_passes or config.spiral_spacing is not None:
+        return config
+    return config.replace(spiral_spacing=config_spacing(config, side, side, wide=True))
 
 
 class SweepKnobs(NamedTuple):
@@ -113,12 +139,15 @@ class AdaptiveSweep:
     _near: dict[int, np.ndarray] = field(default_factory=dict)
     _runner: WaypointFollower | None = None
     _open: np.ndarray | None = None
+    _cell: int = -1
+    _dropped: np.ndarray | None = None
     _recoveries: int = 0
     _done: bool = False
 
     def __post_init__(self) -> None:
         self._runner = self.follower
         self._open = np.zeros(len(self.follower.waypoints), dtype=bool)
+        self._dropped = np.zeros(self.coverage.n_cells, dtype=bool)
 
     # --- the Controller protocol --------------------------------------------------------------
     @property
@@ -133,8 +162,11 @@ class AdaptiveSweep:
 
     @property
     def index(self) -> int:
-        """The spiral waypoint the sweep heads for (len(waypoints) when done)."""
-        return len(self.follower.waypoints) if self._done else self._runner.index
+        """The spiral waypoint the sweep heads for (len(waypoints) when done or heading for a
+        cell)."""
+        if self._done or self._cell >= 0:
+            return len(self.follower.waypoints)
+        return self._runner.index
 
     @property
     def skipped(self) -> list[Skip]:
@@ -165,8 +197,9 @@ class AdaptiveSweep:
                 self._done = True
                 break
             runner = self._runner
-            if not runner.done:
-                self._pass_covered(position, runner)
+            if not runner.done and not (self._cell >= 0 and self.coverage.covered[self._cell]):
+                if self._cell < 0:
+                    self._pass_covered(position, runner)
                 if not runner.done:
                     return runner.command(position, heading, dt)
             self._next_run(position)
@@ -225,6 +258,10 @@ class AdaptiveSweep:
         the waypoints stay open; done when none is left."""
         if self.densifying:
             self._recoveries += self._runner.recoveries
+        if self._cell >= 0:      # what beacons around here can give that cell, they have given
+            self._dropped[self._cell] = True
+            self._dropped[self.coverage.near(position, self._runner.capture_radius)] = True
+            self._cell = -1
         threshold = self._threshold(self.rule.densify_need, self.knobs.densify)
         todo = np.flatnonzero(self._open)
         for i in todo:
@@ -232,7 +269,7 @@ class AdaptiveSweep:
                 self._open[i] = False
         todo = np.flatnonzero(self._open)
         if not len(todo):
-            self._done = True
+            self._next_cell(position, self._threshold(self.rule.cell_need, self.knobs.densify))
             return
         wps = self.follower.waypoints
         d = wps[todo] - position
@@ -251,6 +288,28 @@ class AdaptiveSweep:
         self.revisits.append((first, self._clock))
         self._runner = WaypointFollower.nominal(self.config, wps, ~run, self.planner,
                                                 start=first, recovery=True)
+
+    def _next_cell(self, position: np.ndarray, threshold: float) -> None:
+        """Head for the nearest free cell the map still lacks (deficit above ``threshold``, not
+        given up); done when there is none."""
+        cov = self.coverage
+        todo = np.flatnonzero(~self._dropped & (cov.deficit > max(threshold, 0.0)))
+        if not len(todo):
+            self._done = True
+            return
+        d = cov.centres[todo] - position
+        near = np.argmin(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+        self._cell = int(todo[near])
+        centre = cov.centres[self._cell]
+        # a cell beside an obstacle may be out of the anchor's reach: little time past the
+        # travel (the follower adds a detour's)
+        travel = 2.0 * float(np.sqrt(d[near] @ d[near])) / self.config.anchor_nominal_speed
+        self._runner = WaypointFollower.nominal(self.config, centre[None, :], planner=self.planner,
+                                                recovery=True, stall_time=CELL_STALL_TIME + travel)
+        # beacons within a few cells of it cover it as well as standing on it
+        self._runner.capture_radius = max(self._runner.capture_radius,
+                                          CELL_CAPTURE_CELLS * cov.cell)
+        self.revisits.append((-1, self._clock))
 
     def _way_length(self, position: np.ndarray, target: np.ndarray) -> float:
         """Length (m) of the planner's way to ``target`` (inf when there is none)."""

@@ -57,23 +57,30 @@ def max_spacing(radio_range: float, beacon_interval: float, margin: float = 0.0)
 
 
 def default_spacing(width: float, height: float, radio_range: float, beacon_interval: float,
-                    margin: float = 0.0, origin: tuple[float, float] | None = None) -> float:
-    """Spacing (m) fitted to the field: the outermost ring lands on the clipped border."""
+                    margin: float = 0.0, origin: tuple[float, float] | None = None, *,
+                    wide: bool = False) -> float:
+    """Spacing (m) fitted to the field: the outermost ring lands on the clipped border. The
+    ring count is the fewest at :func:`max_spacing` or less, or with ``wide`` the most at
+    :func:`max_spacing` or more (at least one): the adaptive sweep's passes, which leave the
+    gaps to its densify phase (:mod:`aoass_env.planning.adaptive`)."""
     x0, y0 = origin if origin is not None else (width / 2, height / 2)
     h = max(x0 - margin, width - margin - x0, y0 - margin, height - margin - y0)
     s_max = max_spacing(radio_range, beacon_interval, margin)
     if h <= 0:
         return s_max
+    if wide:
+        return h / max(1, math.floor(h / s_max + 1e-9))
     return h / math.ceil(h / s_max - 1e-9)
 
 
-def config_spacing(config: AOASSConfig, width: float, height: float) -> float:
+def config_spacing(config: AOASSConfig, width: float, height: float, *,
+                   wide: bool = False) -> float:
     """The pass spacing (m) of ``config`` on a ``width`` x ``height`` (m) field: its
-    ``spiral_spacing``, else :func:`default_spacing` for its radio range, beacon interval, edge
-    margin and spiral origin."""
+    ``spiral_spacing``, else :func:`default_spacing` (``wide`` or not) for its radio range,
+    beacon interval, edge margin and spiral origin."""
     return config.spiral_spacing or default_spacing(
         width, height, config.radio_range, config.beacon_interval, config.edge_margin,
-        config.spiral_origin)
+        config.spiral_origin, wide=wide)
 
 
 @dataclass(frozen=True)

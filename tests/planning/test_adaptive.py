@@ -9,7 +9,7 @@ from aoass_env.action import AdaptiveAction, ResidualAction
 from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.env import AOASSEnv
 from aoass_env.maps import ObstacleMap
-from aoass_env.planning import AdaptiveConfig, SweepKnobs
+from aoass_env.planning import AdaptiveConfig, SweepKnobs, default_spacing
 from aoass_env.simulator import Simulator
 from aoass_env.wrappers import make_safe_env
 
@@ -117,3 +117,21 @@ def test_the_residual_type_keeps_the_spiral_follower_and_its_observation():
     for _ in range(120):     # past the first corner: beacons off one line
         _, _, _, _, info = env.step(np.zeros(2, np.float32))
     assert 0.0 < info["area_coverage"] < 1.0 and info["passed_waypoints"] == 0
+
+
+def test_wide_passes_round_the_ring_count_down_and_keep_the_spirals_time_limit():
+    assert default_spacing(100.0, 100.0, 25.0, 2.0, 1.5) == pytest.approx(48.5 / 3)
+    assert default_spacing(100.0, 100.0, 25.0, 2.0, 1.5, wide=True) == pytest.approx(48.5 / 2)
+    assert default_spacing(30.0, 30.0, 25.0, 2.0, 1.5, wide=True) == pytest.approx(13.5)
+    residual = AOASSEnv()
+    adaptive = AOASSEnv(action_type="adaptive")
+    assert residual.config.spiral_spacing is None
+    assert adaptive.config.spiral_spacing == pytest.approx(24.25)
+    assert adaptive.max_episode_steps == residual.max_episode_steps     # the same time allowed
+    assert AOASSEnv(action_type="adaptive", spiral_spacing=10.0).config.spiral_spacing == 10.0
+    narrow = AOASSEnv(action_type="adaptive", adaptive={"wide_passes": False})
+    assert narrow.config.spiral_spacing is None
+    adaptive.reset(seed=0, options={"map": ObstacleMap(200.0, 200.0)})
+    assert adaptive.episode_config.spiral_spacing == pytest.approx(
+        default_spacing(200.0, 200.0, 25.0, 2.0, 1.5, wide=True))
+    assert adaptive.max_episode_steps == AOASSEnv(field_size=200.0).max_episode_steps
