@@ -81,12 +81,14 @@ class CoverageMap:
                             line_of_sight=config.line_of_sight)
         self._network = Network(max(len(self.centres), 1), config)
         self._tol = config.collinearity_tol
+        self._deficit: np.ndarray | None = None      # of every free cell, until a beacon
 
     def add_beacon(self, position: np.ndarray) -> int:
         """Record a beacon broadcast at ``position`` (2,) (m); the number of cells it made
         covered."""
         if not len(self.centres):
             return 0
+        self._deficit = None
         return self._network.record_beacon(position, self._radio.receivers(position))
 
     # --- what the map says --------------------------------------------------------------------
@@ -107,8 +109,12 @@ class CoverageMap:
 
     @property
     def deficit(self) -> np.ndarray:
-        """(C,) how far each free cell is from coverage, in [0, 1] (module docstring)."""
-        return self.deficit_at(np.arange(self.n_cells))
+        """(C,) how far each free cell is from coverage, in [0, 1] (module docstring);
+        read-only, computed once per beacon."""
+        if self._deficit is None:
+            self._deficit = self.deficit_at(np.arange(self.n_cells))
+            self._deficit.flags.writeable = False
+        return self._deficit
 
     @property
     def ratio(self) -> float:
