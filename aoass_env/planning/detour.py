@@ -163,7 +163,11 @@ class DetourPlanner:
         factor = diags(np.where(near, math.sqrt(KEEPOUT_COST), 1.0))
         graph = (factor @ self._graph @ factor).tocsr()
         s, g = self._cell(start), self._cell(goal)
-        dist, pred = dijkstra(graph, indices=s, return_predecessors=True)
+        # bounded first, as in path(): within the limit the search settles the same cells
+        limit = SEARCH_FACTOR * math.hypot(goal[0] - start[0], goal[1] - start[1]) + SEARCH_SLACK
+        dist, pred = dijkstra(graph, indices=s, return_predecessors=True, limit=limit)
+        if not np.isfinite(dist[g]):
+            dist, pred = dijkstra(graph, indices=s, return_predecessors=True)
         if not np.isfinite(dist[g]):
             return None
         pts = self._trace(start, goal, s, g, pred)

@@ -48,20 +48,26 @@ def test_bounded_search_finds_the_same_paths_as_a_full_search(monkeypatch):
     m = generate_map(60.0, 0.4, np.random.default_rng(4))
     rng = np.random.default_rng(5)
     pairs = [m.sample_free_points(2, rng) for _ in range(25)]
+    keepouts = [(a + b) / 2 + rng.normal(scale=3.0, size=(2, 2)) for a, b in pairs]
     bounded = DetourPlanner(m, radius=0.8)
     found = [bounded.path(a, b) for a, b in pairs]
+    avoiding = [bounded.path(a, b, keepout=k, keepout_radius=2.0)
+                for (a, b), k in zip(pairs, keepouts, strict=True)]
     monkeypatch.setattr(detour, "SEARCH_FACTOR", 1e9)
     full = DetourPlanner(m, radius=0.8)
-    for (a, b), path in zip(pairs, found, strict=True):
-        ref = full.path(a, b)
-        assert (path is None) == (ref is None)
-        if ref is not None:
-            np.testing.assert_array_equal(path, ref)
+    for (a, b), k, path, around in zip(pairs, keepouts, found, avoiding, strict=True):
+        for got, ref in ((path, full.path(a, b)),
+                         (around, full.path(a, b, keepout=k, keepout_radius=2.0))):
+            assert (got is None) == (ref is None)
+            if ref is not None:
+                np.testing.assert_array_equal(got, ref)
     # a goal beyond the bounded search (a long way round) is still found
     far = DetourPlanner(ObstacleMap(100, 100, [WALL]), radius=0.8)
     monkeypatch.setattr(detour, "SEARCH_FACTOR", 0.0)
     monkeypatch.setattr(detour, "SEARCH_SLACK", 1.0)
     assert far.path(np.array([20.0, 50.0]), np.array([70.0, 50.0])) is not None
+    assert far.path(np.array([20.0, 50.0]), np.array([70.0, 50.0]),
+                    keepout=np.array([[45.0, 20.0]]), keepout_radius=2.0) is not None
 
 
 def test_a_start_in_open_space_reaches_the_field_but_not_one_shut_in_a_pocket():
