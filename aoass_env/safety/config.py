@@ -75,7 +75,7 @@ class SafetyConfig(ValidatedConfig):
         0.5, "gap the look-ahead keeps between the anchor and a moving obstacle's grown disc",
         unit="m", low=0.0, high=10.0)
     maneuver_share: float = param(
-        0.25, "how fast a moving obstacle's disc grows in the look-ahead, as a fraction of its "
+        0.5, "how fast a moving obstacle's disc grows in the look-ahead, as a fraction of its "
         "speed (room for a turn toward the anchor; 1: its whole reachable disc)", low=0.0,
         high=1.0)
 

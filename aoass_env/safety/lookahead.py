@@ -44,8 +44,14 @@ __all__ = ["Escape", "candidate_commands", "escape_velocity", "look_ahead_horizo
 #: Weight of a predicted contact with an obstacle's bare disc (m x steps of overlap) against a
 #: shortfall from the clearance to its grown disc.
 CONTACT_WEIGHT = 10.0
-#: Price (m x steps) of changing the anchor's velocity by its top speed, among unsafe candidates.
-CONTINUITY_WEIGHT = 2.0
+#: Clearance (m, centre to the nearest static edge) at the end of a rollout below which the
+#: end counts as pressed against a wall, and the price (steps) of each metre short of it.
+OPEN_SPACE = 2.0
+OPEN_SPACE_WEIGHT = 10.0
+#: Price (m x steps) of a candidate as far from the preferred velocity as the top speed.
+PREFERENCE_WEIGHT = 1.0
+#: Price (m x steps) of a candidate heading opposite the current one.
+TURN_WEIGHT = 1.0
 
 
 def look_ahead_horizon(max_speed: float, max_accel: float, max_turn_rate: float,
@@ -277,30 +283,37 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
                         step, n_steps, starts, ends, radius)
         # a predicted contact with the bare disc weighs CONTACT_WEIGHT times a shortfall of
         # the grown one
+        # free space: a path that ends pressed against a wall leaves no way on
+        walls = np.maximum(OPEN_SPACE - segment_distances(paths[:, -1], starts, ends), 0.0)
         return (CONTACT_WEIGHT * violation(paths, centres, bare, 0.0)
-                + violation(paths, centres, radii, clearance))
+                + violation(paths, centres, radii, clearance)), OPEN_SPACE_WEIGHT * walls
 
     wanted = float(np.hypot(*velocity))
     own = math.atan2(velocity[1], velocity[0]) if wanted > 1e-9 else heading
-    base = float(score(np.array([own]), np.array([wanted]))[0])
+    base_moving, base_walls = score(np.array([own]), np.array([wanted]))
+    base = float(base_moving[0])
     if base <= 0.0:
         return Escape(velocity, False, 0.0, 0.0)
     extra = [own]
     if np.hypot(*preferred) > 1e-9:
         extra.append(math.atan2(preferred[1], preferred[0]))
     headings, speeds = candidate_commands(heading, max_speed, n_headings, tuple(extra))
-    shortfall = score(headings, speeds)
+    # the given velocity is candidate 0, so that it competes on the same terms: choosing
+    # between it and an escape with different rules made the anchor alternate between them
+    headings = np.concatenate([[own], headings])
+    speeds = np.concatenate([[wanted], speeds])
+    moving, walls = score(headings[1:], speeds[1:])
+    shortfall = np.concatenate([[base], moving])
+    walls = np.concatenate([base_walls, walls])
     candidates = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=1)
-    if shortfall.min() <= 0.0:
-        # safe candidates: the nearest to the preferred velocity
-        distance = np.hypot(*(candidates - preferred).T)
-        pick = int(np.argmin(np.where(shortfall <= 0.0, distance, np.inf)))
-    else:
-        # none safe: the least shortfall, with a small price on changing the current velocity
-        # (so that the choice does not jump between near ties from one period to the next)
-        current = speed * np.array([math.cos(heading), math.sin(heading)])
-        change = np.hypot(*(candidates - current).T) / max_speed
-        pick = int(np.argmin(shortfall + CONTINUITY_WEIGHT * change))
-        if shortfall[pick] >= base:
-            return Escape(velocity, False, base, base)
+    candidates[0] = velocity
+    # the least shortfall, then (priced well below any real shortfall) the nearest to the
+    # preferred velocity and the least turn from the current heading: a safe candidate near
+    # what was asked for, and no jumps between near ties from one period to the next (at low
+    # speed the heading is the only memory of the direction taken)
+    distance = np.hypot(*(candidates - preferred).T) / max_speed
+    turn = np.abs(np.remainder(headings - heading + math.pi, 2.0 * math.pi) - math.pi) / math.pi
+    pick = int(np.argmin(shortfall + walls + PREFERENCE_WEIGHT * distance + TURN_WEIGHT * turn))
+    if pick == 0:
+        return Escape(velocity, False, base, base)
     return Escape(candidates[pick], True, base, float(shortfall[pick]))
