@@ -30,7 +30,7 @@ from aoass_env.atomic import write_text_atomic
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation import cli
 from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
-from aoass_env.evaluation.methods import METHODS
+from aoass_env.evaluation.methods import select_methods
 from aoass_env.evaluation.report import (
     draw_figures,
     label,
@@ -220,7 +220,7 @@ def robustness_values(rows: Rows | None, runs: list[dict[str, Any]], seeds: int
             f"maps, the other presets or training). All methods play the same map with the "
             f"same nodes for the same (d, s), so the gap to the plain spiral is a paired "
             f"difference.")
-    missing = [label(m) for m in METHODS if m not in {r["method"] for r in rows}]
+    missing = [label(m) for m in select_methods(None) if m not in {r["method"] for r in rows}]
     if missing:
         text += (f" **Not run for this page:** {', '.join(missing)} (`{command}` runs them "
                  f"too; the preset resumes, so the episodes above are kept).")

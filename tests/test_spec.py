@@ -43,7 +43,7 @@ def test_spec_counts_agent_steps_under_an_action_repeat():
     env.reset(seed=0)
     steps, truncated, terminated = 0, False, False
     while not (terminated or truncated):
-        *_, terminated, truncated, info = env.step(np.zeros(2, np.float32))
+        *_, terminated, truncated, info = env.step(np.zeros(env.action_space.shape, np.float32))
         steps += 1
     assert truncated and not terminated
     assert steps == env.spec.max_episode_steps
@@ -56,14 +56,14 @@ def test_a_user_time_limit_keeps_the_episode_metrics(env_id):
     assert env.spec.max_episode_steps == 5
     env.reset(seed=0)
     for step in range(5):
-        *_, terminated, truncated, info = env.step(np.zeros(2, np.float32))
+        *_, terminated, truncated, info = env.step(np.zeros(env.action_space.shape, np.float32))
         assert truncated == (step == 4) and not terminated
     repeat = env.unwrapped.spec.kwargs.get("action_repeat", 1)
     assert info["episode_metrics"]["steps"] == 5 * repeat
     assert info["episode_metrics"]["beacons"] == info["beacons"] > 0
     assert env.unwrapped.beacon_log.n_beacons == info["beacons"]
     with pytest.raises(RuntimeError, match="episode has ended"):
-        env.unwrapped.step(np.zeros(2, np.float32))
+        env.unwrapped.step(np.zeros(env.unwrapped.action_space.shape, np.float32))
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -86,10 +86,10 @@ def test_every_id_copies_mid_episode_and_the_copy_runs_on_identically(env_id, cl
     env.reset(seed=3)
     rng = np.random.default_rng(0)
     for _ in range(3):
-        env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
     twin = clone(env)
     for _ in range(3):
-        action = rng.uniform(-1, 1, 2).astype(np.float32)
+        action = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
         obs, reward, *_ = env.step(action)
         obs_twin, reward_twin, *_ = twin.step(action)
         np.testing.assert_array_equal(obs, obs_twin)

@@ -92,7 +92,8 @@ def test_robustness_section_is_computed_from_its_episodes(values):
     assert "(0.1, 0.2, 0.3, 0.4, 0.5, 0.6; 12 maps in all), 100 m field, N = 100" in text
     assert "20261117" in text and "710000" in text and "s = 0 … 1" in text
     # the methods without episodes are named (the rows hold the spiral, OHM and AOASS only)
-    assert "**Not run for this page:** AOASS, zero action (ablation), SCAN" in text
+    assert ("**Not run for this page:** AOASS, zero action (ablation), AOASS, adaptive rule, "
+            in text) and ", SCAN," in text
     assert "Square spiral," not in text and "OHM," not in text
     tables = values["robustness_tables"]
     ohm = [line for line in tables.splitlines() if line.startswith("| OHM")]
