@@ -41,6 +41,9 @@ _PARALLEL = 1e-12
 #: An anchor inside the envelope's radius keeps its clearance less this much (m): the slack
 #: lets a heading within a hair of parallel to the nearest edge (ORCA's slide along it) move on.
 _HELD = 1e-3
+#: A target heading within this (rad) of the opposite of the current one is ambiguous: the
+#: drive and :func:`turn_headings` may round it to opposite turns.
+_OPPOSITE = 1e-3
 
 
 def turn_headings(heading: float, target: float, max_turn: float, n: int = 4) -> np.ndarray:
@@ -212,4 +215,10 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
         return 0.0, float(arc[int(np.argmax(np.where(stoppable, bounds, -np.inf)))])
     k = int(np.flatnonzero(reach + 1e-9 >= floor)[-1])
     command = target if k == len(arc) - 1 else float(arc[k])
+    if abs(math.remainder(target - heading, 2.0 * math.pi)) > math.pi - _OPPOSITE:
+        # a target (almost) opposite the heading: the drive's shorter-way-round turn may go
+        # the other way than the arc that was checked (the look-ahead's candidates include
+        # heading + pi exactly); command the arc's heading, which the drive turns to the same
+        # way (a turn into a wall, issue 24)
+        command = float(arc[k])
     return float(min(wanted, reach[k])), command

@@ -236,3 +236,17 @@ def test_a_heading_along_a_line_through_the_origin_is_not_held_by_round_off():
     assert speed_bounds(np.zeros((1, 2)), d, np.array([heading]))[0] > 100.0
     # a heading into the forbidden side is still held to (almost) nothing
     assert speed_bounds(np.zeros((1, 2)), d, np.array([heading + 0.1]))[0] < 1e-7
+
+
+def test_an_opposite_target_is_commanded_as_the_checked_arc():
+    """A target exactly opposite the heading: the command is the end of the arc that was
+    checked, so the drive cannot turn the other way round (into a wall; issue 24)."""
+    for heading in (-1.2217304763960306, 0.3, 2.0):
+        target = heading + math.pi
+        v_star = 0.5 * np.array([math.cos(target), math.sin(target)])
+        speed, command = unicycle_command(v_star, heading, 0.6, math.pi / 4, 0.5,
+                                          np.zeros((0, 2)), np.zeros((0, 2)),
+                                          fallback_heading=0.0)
+        # a quarter of a half turn away: the drive turns to it one way only
+        turn = math.remainder(command - heading, 2.0 * math.pi)
+        assert abs(turn) == pytest.approx(math.pi / 4)
