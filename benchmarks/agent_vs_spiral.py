@@ -1,5 +1,8 @@
 """Does the shipped AOASS policy help? It against the zero action, both inside the safety stack.
 
+With ``--adaptive``, the adaptive policy against the hand-written rule (the adaptive action
+type's zero action, issue 19: a higher return, energy no higher, coverage within 0.5 point).
+
 On the shipped 100 m test maps of densities 0.1-0.4, ``--seeds`` seeds per density (each seed a
 test map of that density in turn, the same episodes for both), both policies drive the full
 stack (AOASS-Safe-v0). Per episode: the Eq. 14 return, η_traj (Eq. 19), node coverage
@@ -31,25 +34,29 @@ from aoass_env.evaluation.methods import METHODS, RunOptions
 from aoass_env.maps import list_maps, load_map
 
 DENSITIES = ("0.10", "0.20", "0.30", "0.40")
-METRICS = ("return", "eta_traj", "coverage", "contacts", "steps")
+METRICS = ("return", "eta_traj", "coverage", "energy", "contacts", "steps")
 
 
 def episode(task: tuple[str, str, int, str]) -> dict:
     """(policy: an algorithm name or 'zero', map name, seed, model path) -> the episode's
     record. The evaluation's runners play it: the policy acts in the stack it was trained in
     (``action_repeat`` etc. from the ``run.yml`` beside the model)."""
-    policy, map_name, seed, model_path = task
+    policy, map_name, seed, model_path, adaptive = task
     torch.set_num_threads(1)
     obstacle_map = load_map(map_name)
     config = AOASSConfig(field_size=obstacle_map.width, map=map_name)
-    method = "aoass-scripted" if policy == "zero" else "aoass"
-    options = RunOptions(policy=model_path, algo="td3-lstm" if policy == "zero" else policy)
+    if adaptive:
+        method = "aoass-rule" if policy == "zero" else "aoass-adaptive"
+        options = RunOptions(adaptive_policy=model_path)
+    else:
+        method = "aoass-scripted" if policy == "zero" else "aoass"
+        options = RunOptions(policy=model_path, algo="td3-lstm" if policy == "zero" else policy)
     run = METHODS[method].runner(config, obstacle_map, seed, options)
     m = episode_metrics(run)
     return {"policy": "zero" if policy == "zero" else "agent", "map": map_name,
             "density": map_name.split("/")[1][1:5],
             "seed": seed, "return": run.episode_return, "eta_traj": m["eta_traj"],
-            "coverage": m["coverage"], "contacts": m["collisions"],
+            "coverage": m["coverage"], "energy": m["energy_total"], "contacts": m["collisions"],
             "steps": round(m["travel_time"] / config.dt), "complete": bool(m["path_complete"])}
 
 
@@ -67,6 +74,9 @@ def main() -> None:
     parser.add_argument("--model", type=Path, default=Path("checkpoints/aoass_td3_lstm/best.zip"))
     parser.add_argument("--algo", choices=["td3-lstm", "td3"], default="td3-lstm",
                         help="the algorithm that saved --model (default: td3-lstm)")
+    parser.add_argument("--adaptive", action="store_true",
+                        help="--model is an adaptive policy (checkpoints/aoass_adaptive/best.zip):"
+                             " compare it with the hand-written rule, the adaptive zero action")
     parser.add_argument("--seeds", type=int, default=30, help="episodes per density")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/bench_agent"))
@@ -78,7 +88,8 @@ def main() -> None:
         maps = list_maps("test", field_size=100, densities=(float(d), float(d)))
         for s in range(args.seeds):
             for policy in (args.algo, "zero"):
-                tasks.append((policy, maps[s % len(maps)], 100 + s, str(args.model)))
+                tasks.append((policy, maps[s % len(maps)], 100 + s, str(args.model.resolve()),
+                              args.adaptive))
     with Pool(args.jobs) as pool:
         rows = pool.map(episode, tasks, chunksize=1)
 
@@ -102,6 +113,7 @@ def main() -> None:
         "eta_traj_no_lower": overall["agent"]["eta_traj"] >= overall["zero"]["eta_traj"],
         "coverage_within_1pt": overall["agent"]["coverage"] >= overall["zero"]["coverage"]
         - 0.01,
+        "energy_no_higher": overall["agent"]["energy"] <= overall["zero"]["energy"],
         "no_more_contacts": overall["agent"]["contacts"] <= overall["zero"]["contacts"],
     }
     print("criteria:", ", ".join(f"{k} {'met' if v else 'MISSED'}" for k, v in verdict.items()))
