@@ -161,7 +161,7 @@ def run_contacts(n: int, jobs: int, labels: tuple[str, ...] = ("stack", "orca", 
 
 
 def run_cost(n: int, jobs: int, labels: tuple[str, ...] = ("stack", "orca"),
-             first_seed: int = 30_000) -> dict:
+             first_seed: int = 40_000) -> dict:
     """The zero action in each stack on ``n`` generated maps (densities in turn), the same
     seeds: completion, coverage, path and time (the look-ahead's cost against ORCA alone)."""
     tasks = []
@@ -295,6 +295,8 @@ def main() -> None:
     parser.add_argument("--speed-steps", type=int, default=3000)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--cost-episodes", type=int, default=60)
+    parser.add_argument("--cost-first-seed", type=int, default=40_000,
+                        help="seed of the cost part's first episode")
     parser.add_argument("--first-seed", type=int, default=10_000,
                         help="seed of the contacts part's first episode")
     parser.add_argument("--stacks", nargs="+", default=["stack", "orca", "bare"],
@@ -312,7 +314,8 @@ def main() -> None:
     if "zero" in args.parts:
         results["zero"] = run_zero(args.zero_seeds, args.jobs)
     if "cost" in args.parts:
-        results["cost"] = run_cost(args.cost_episodes, args.jobs)
+        results["cost"] = run_cost(args.cost_episodes, args.jobs,
+                                   first_seed=args.cost_first_seed)
     if "contacts" in args.parts:
         results["contacts"] = run_contacts(args.episodes, args.jobs, tuple(args.stacks),
                                            args.first_seed)

@@ -72,7 +72,7 @@ class SafetyConfig(ValidatedConfig):
         "top speed + a half turn (4.5 s with the defaults)", unit="s", low=0.0, high=60.0,
         low_open=True, optional=True)
     look_ahead_clearance: float = param(
-        0.5, "gap the look-ahead keeps between the anchor and a moving obstacle's grown disc",
+        0.2, "gap the look-ahead keeps between the anchor and a moving obstacle's grown disc",
         unit="m", low=0.0, high=10.0)
     maneuver_share: float = param(
         0.5, "how fast a moving obstacle's disc grows in the look-ahead, as a fraction of its "
