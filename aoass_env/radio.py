@@ -251,11 +251,14 @@ class Radio:
         """Farthest possible link, R (1 + doi) [m]."""
         return self.radio_range * (1.0 + self.doi)
 
-    def receivers(self, point: np.ndarray) -> np.ndarray:
-        """Sorted int64 indices of the nodes that hear a beacon broadcast at ``point`` (2,) [m]."""
+    def receivers(self, point: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
+        """Sorted int64 indices of the nodes that hear a beacon broadcast at ``point`` (2,) [m];
+        with ``among`` (N,) bool, only of the nodes it marks (the others are not tested)."""
         p = _points(point, "point", single=True)
         cand = np.array(self._tree.query_ball_point(p, self.max_range * (1 + _QUERY_SLACK),
                                                     return_sorted=True), dtype=np.int64)
+        if among is not None:
+            cand = cand[among[cand]]
         d = self.nodes[cand] - p
         dx, dy = d[:, 0], d[:, 1]
         reach = self.radio_range

@@ -367,3 +367,16 @@ def test_doi_receivers_and_links(los):
     as_set = {tuple(p) for p in links}
     assert {tuple(p) for p in narrow.node_links()} <= as_set
     assert as_set <= {tuple(p) for p in wide.node_links()}
+
+
+@pytest.mark.parametrize("doi", [0.0, 0.3])
+def test_receivers_among_a_subset_are_the_receivers_it_marks(doi):
+    rng = np.random.default_rng(7)
+    wall = ObstacleMap(50.0, 50.0, [np.array([[20.0, 5.0], [24.0, 5.0], [24.0, 40.0],
+                                              [20.0, 40.0]])])
+    nodes = wall.sample_free_points(300, rng)
+    radio = Radio(nodes, wall, 15.0, doi=doi, rng=rng)
+    among = rng.random(300) < 0.4
+    for point in rng.uniform(0.0, 50.0, (20, 2)):
+        full = radio.receivers(point)
+        np.testing.assert_array_equal(radio.receivers(point, among), full[among[full]])

@@ -89,7 +89,9 @@ class CoverageMap:
         if not len(self.centres):
             return 0
         self._deficit = None
-        return self._network.record_beacon(position, self._radio.receivers(position))
+        # covered cells stay covered: only the others are tested (their counts then freeze)
+        open_cells = ~self._network.covered
+        return self._network.record_beacon(position, self._radio.receivers(position, open_cells))
 
     # --- what the map says --------------------------------------------------------------------
     @property
@@ -104,7 +106,7 @@ class CoverageMap:
 
     @property
     def heard(self) -> np.ndarray:
-        """(C,) beacons each free cell heard (read-only)."""
+        """(C,) beacons each free cell heard until it was covered (read-only)."""
         return self._network.heard[:self.n_cells]
 
     @property
