@@ -144,18 +144,23 @@ def _per_density(rows: list[dict], labels: tuple[str, ...]) -> dict:
     return per
 
 
-def run_contacts(n: int, jobs: int, labels: tuple[str, ...] = ("stack", "orca", "bare"),
-                 first_seed: int = 10_000) -> dict:
-    tasks = []
-    for i in range(n):
-        density = DENSITIES[i % len(DENSITIES)]
-        tasks += [("random", label, density, first_seed + i) for label in labels]
-    rows = _map(tasks, jobs)
-    print(f"\n1. random actions, {n} episodes (densities {DENSITIES[0]}-{DENSITIES[-1]}, "
-          f"100 m fields, seeds {first_seed}-{first_seed + n - 1}, the same for every stack)")
+def _generated(policy: str, title: str, n: int, jobs: int, labels: tuple[str, ...],
+               first_seed: int) -> tuple[dict, list[dict]]:
+    """``n`` episodes of ``policy`` on generated 100 m maps (densities in turn), the same seed
+    for every stack of ``labels``: the printed summary (with ``per_density``) and the rows."""
+    rows = _map([(policy, label, DENSITIES[i % len(DENSITIES)], first_seed + i)
+                 for i in range(n) for label in labels], jobs)
+    print(f"\n{title}, {n} episodes (densities {DENSITIES[0]}-{DENSITIES[-1]}, 100 m fields, "
+          f"seeds {first_seed}-{first_seed + n - 1}, the same for every stack)")
     out = _summary(rows, labels)
     _print_summary(out)
     out["per_density"] = _per_density(rows, labels)
+    return out, rows
+
+
+def run_contacts(n: int, jobs: int, labels: tuple[str, ...] = ("stack", "orca", "bare"),
+                 first_seed: int = 10_000) -> dict:
+    out, rows = _generated("random", "1. random actions", n, jobs, labels, first_seed)
     out["rows"] = rows
     return out
 
@@ -164,16 +169,7 @@ def run_cost(n: int, jobs: int, labels: tuple[str, ...] = ("stack", "orca"),
              first_seed: int = 40_000) -> dict:
     """The zero action in each stack on ``n`` generated maps (densities in turn), the same
     seeds: completion, coverage, path and time (the look-ahead's cost against ORCA alone)."""
-    tasks = []
-    for i in range(n):
-        density = DENSITIES[i % len(DENSITIES)]
-        tasks += [("zero", label, density, first_seed + i) for label in labels]
-    rows = _map(tasks, jobs)
-    print(f"\n2b. zero action, {n} generated 100 m maps (densities {DENSITIES[0]}-"
-          f"{DENSITIES[-1]}, seeds {first_seed}-{first_seed + n - 1}, the same for every stack)")
-    out = _summary(rows, labels)
-    _print_summary(out)
-    out["per_density"] = _per_density(rows, labels)
+    out, rows = _generated("zero", "2b. zero action", n, jobs, labels, first_seed)
     pairs = {}
     for r in rows:
         pairs.setdefault((r["where"], r["seed"]), {})[r["label"]] = r
