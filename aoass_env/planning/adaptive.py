@@ -140,6 +140,7 @@ class AdaptiveSweep:
     _runner: WaypointFollower | None = None
     _open: np.ndarray | None = None
     _cell: int = -1
+    _judged: int = -1
     _dropped: np.ndarray | None = None
     _recoveries: int = 0
     _done: bool = False
@@ -221,7 +222,9 @@ class AdaptiveSweep:
 
     def _pass_covered(self, position: np.ndarray, runner: WaypointFollower) -> None:
         """Pass over the runner's targets the rule says to skip; on the spiral, those with
-        coverage still missing stay open for the densify runs."""
+        coverage still missing stay open for the densify runs. Whether to detour to a target is
+        judged once, when it becomes the target (a planner search); its coverage every
+        period."""
         skip_need = self._threshold(self.rule.skip_need, self.knobs.skip)
         detour_need = self._threshold(self.rule.detour_need, self.knobs.detour)
         max_excess = self.rule.detour_excess * 2.0 ** -float(np.clip(self.knobs.detour, -1, 1))
@@ -230,7 +233,8 @@ class AdaptiveSweep:
             need = self.need(runner.index)
             if need <= skip_need:
                 reason = "covered"
-            elif self.planner.visible(position, runner.target):
+            elif runner.index == self._judged or self.planner.visible(position, runner.target):
+                self._judged = runner.index
                 return
             elif need <= detour_need:
                 reason = "covered, detour"
@@ -238,6 +242,7 @@ class AdaptiveSweep:
                 reason = "long detour"
                 self._open[runner.index] = True
             else:
+                self._judged = runner.index
                 return
             self.passed.append(Skip(runner.index, self._clock, reason))
             runner.pass_target()
@@ -258,6 +263,7 @@ class AdaptiveSweep:
         the waypoints stay open; done when none is left."""
         if self.densifying:
             self._recoveries += self._runner.recoveries
+        self._judged = -1
         if self._cell >= 0:      # what beacons around here can give that cell, they have given
             self._dropped[self._cell] = True
             self._dropped[self.coverage.near(position, self._runner.capture_radius)] = True
