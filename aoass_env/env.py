@@ -184,6 +184,10 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         #: the adaptive sweep's rule, used with the adaptive action type
         self.adaptive = AdaptiveConfig.coerce(adaptive, "adaptive")
         self._sweeps = isinstance(self.action_type, AdaptiveAction)
+        if adaptive is not None and not self._sweeps:
+            raise ValueError("adaptive= configures the adaptive sweep, which only the adaptive "
+                             "action type drives; add action_type='adaptive' or leave adaptive "
+                             "out")
         self._base_config = self.config      # the spiral of the time limit
         if self._sweeps:      # the adaptive sweep's passes
             self.config = sweep_config(self.config, self.adaptive, self.config.field_size)

@@ -80,6 +80,13 @@ def test_the_rule_config_is_validated_with_did_you_mean():
         AOASSEnv(**OPEN, action_type="adaptive", adaptive={"skip_radius": -1.0})
 
 
+def test_a_rule_without_the_adaptive_action_type_is_refused_not_ignored():
+    with pytest.raises(ValueError, match="adaptive= configures the adaptive sweep"):
+        AOASSEnv(**OPEN, adaptive={"skip_radius": 4.0})
+    with pytest.raises(ValueError, match="action_type='adaptive'"):
+        make_safe_env(**OPEN, adaptive={"skip_radius": 4.0})
+
+
 def test_the_zero_adaptive_action_reproduces_the_rule_in_the_simulator():
     env = AOASSEnv(**OPEN, action_type="adaptive")
     assert isinstance(env.action_type, AdaptiveAction) and env.action_space.shape == (5,)
