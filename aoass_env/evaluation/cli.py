@@ -23,13 +23,7 @@ from aoass_env.backends import (
     make_backend,
 )
 from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
-from aoass_env.evaluation.methods import (
-    ADAPTIVE_POLICY,
-    DEFAULT_POLICY,
-    METHODS,
-    RunOptions,
-    select_methods,
-)
+from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, RunOptions, select_methods
 from aoass_env.evaluation.report import (
     draw_figures,
     label,
@@ -195,11 +189,11 @@ def main(argv: list[str] | None = None) -> int:
             title = f"AOASS evaluation: preset {preset.name}"
         inputs = {}
         record = None
-        if args.logs is None and "aoass-adaptive" in methods:
-            inputs["adaptive-policy"] = file_digest(ADAPTIVE_POLICY,
-                                                    ADAPTIVE_POLICY.parent / "run.yml")
-        if args.logs is None and any(METHODS[m].uses_policy and m != "aoass-adaptive"
-                                     for m in methods):
+        own = [METHODS[m] for m in methods if METHODS[m].checkpoint] if args.logs is None else []
+        for spec in own:
+            inputs[f"{spec.name} checkpoint"] = file_digest(
+                spec.checkpoint, spec.checkpoint.with_name("run.yml"))
+        if args.logs is None and any(METHODS[m].uses_policy for m in methods):
             record = _check_policy(args.policy, args.policy_run)
             inputs["policy"] = file_digest(args.policy, record)
         if "olstm-dvhop" in localizers:

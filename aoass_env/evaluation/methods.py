@@ -107,14 +107,22 @@ Runner = Callable[[AOASSConfig, ObstacleMap, int, RunOptions], MethodRun]
 @dataclass(frozen=True)
 class MethodSpec:
     """One evaluated method: command-line name, label for tables and figures, kind ("aoass",
-    "ablation", "spiral", "classical" or "baseline"), runner, and whether it needs the policy
-    checkpoint."""
+    "ablation", "spiral", "classical" or "baseline"), runner, whether it needs the policy
+    checkpoint of ``--policy``, and a shipped checkpoint of its own it needs (with the command
+    that produces it), if any."""
 
     name: str
     label: str
     kind: str
     runner: Runner
     uses_policy: bool = False
+    checkpoint: Path | None = None
+    checkpoint_command: str = ""
+
+    @property
+    def available(self) -> bool:
+        """Whether the checkpoint of its own, if it needs one, is there."""
+        return self.checkpoint is None or self.checkpoint.is_file()
 
 
 @functools.lru_cache(maxsize=2)
@@ -231,7 +239,8 @@ def _registry() -> dict[str, MethodSpec]:
         "aoass-adaptive": MethodSpec("aoass-adaptive", "AOASS, adaptive policy", "aoass",
                                      functools.partial(_run_safety_stack, learned=True,
                                                        adaptive=True),
-                                     uses_policy=True),
+                                     checkpoint=ADAPTIVE_POLICY,
+                                     checkpoint_command=ADAPTIVE_POLICY_COMMAND),
         "spiral": MethodSpec("spiral", "Square spiral", "spiral", _run_spiral),
     }
     for kind, planned in (("classical", CLASSICAL_METHODS), ("baseline", BASELINE_METHODS)):
@@ -249,24 +258,25 @@ METHODS: dict[str, MethodSpec] = _registry()
 
 def select_methods(names: Sequence[str] | None, policy: str | Path = DEFAULT_POLICY
                    ) -> list[str]:
-    """The methods to run (None: all, less ``aoass-adaptive`` while its checkpoint is not
-    shipped), checked before any work.
+    """The methods to run (None: all, less those whose own checkpoint is not shipped:
+    ``aoass-adaptive``), checked before any work.
 
     Raises:
         EvaluationError: an unknown name (the message lists the valid ones), or a method that
             needs the policy while its checkpoint file is missing.
     """
-    chosen = ([n for n in METHODS if n != "aoass-adaptive" or ADAPTIVE_POLICY.is_file()]
+    chosen = ([n for n, spec in METHODS.items() if spec.available]
               if names is None else list(dict.fromkeys(names)))
     unknown = [n for n in chosen if n not in METHODS]
     if unknown:
         raise EvaluationError(f"unknown method(s) {', '.join(map(repr, unknown))}; valid: "
                               f"{', '.join(METHODS)}")
-    if "aoass-adaptive" in chosen and not ADAPTIVE_POLICY.is_file():
-        raise EvaluationError(
-            f"method aoass-adaptive needs the adaptive policy checkpoint {ADAPTIVE_POLICY}, "
-            f"which is missing; produce it with `{ADAPTIVE_POLICY_COMMAND}`")
-    needs = [n for n in chosen if METHODS[n].uses_policy and n != "aoass-adaptive"]
+    for spec in (METHODS[n] for n in chosen):
+        if not spec.available:
+            raise EvaluationError(
+                f"method {spec.name} needs the checkpoint {spec.checkpoint}, which is missing; "
+                f"produce it with `{spec.checkpoint_command}`")
+    needs = [n for n in chosen if METHODS[n].uses_policy]
     if needs and not Path(policy).is_file():
         raise EvaluationError(
             f"method(s) {', '.join(needs)} need the AOASS policy checkpoint {policy}, which is "

@@ -1,6 +1,7 @@
 """The method registry and its runners: every method plays a small episode; the PlannedMethod
 adapter; bad names and a missing policy checkpoint."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -129,13 +130,15 @@ def test_missing_policy_names_the_file_and_the_command(tmp_path):
     assert str(missing) in str(err.value) and POLICY_COMMAND in str(err.value)
     assert "docs/training.md" in str(err.value)
     assert select_methods(["spiral", "aoass-scripted"], missing) == ["spiral", "aoass-scripted"]
-    shipped = methods_module.ADAPTIVE_POLICY.is_file()
-    assert select_methods(None) == [m for m in METHODS if m != "aoass-adaptive" or shipped]
+    assert select_methods(None) == [m for m, spec in METHODS.items() if spec.available]
+    assert [m for m, spec in METHODS.items() if spec.checkpoint is not None] == ["aoass-adaptive"]
 
 
 def test_a_missing_adaptive_policy_is_left_out_of_all_and_named_when_asked_for(tmp_path,
                                                                                 monkeypatch):
-    monkeypatch.setattr(methods_module, "ADAPTIVE_POLICY", tmp_path / "best.zip")
+    monkeypatch.setitem(METHODS, "aoass-adaptive",
+                        dataclasses.replace(METHODS["aoass-adaptive"],
+                                            checkpoint=tmp_path / "best.zip"))
     assert "aoass-adaptive" not in select_methods(None)
     assert "aoass-rule" in select_methods(None)
     with pytest.raises(EvaluationError) as err:
