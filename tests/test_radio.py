@@ -185,7 +185,9 @@ def _check_against_oracle(polys, a, b):
 
 
 GRID = st.integers(0, 12).map(float)  # small integers: exact arithmetic, many degenerate contacts
-REAL = st.floats(0, 12, allow_nan=False, allow_subnormal=False)
+#: reals, 0 or at least 1e-6: below that, products of coordinates leave the normal range and
+#: GEOS, the oracle, is itself inexact (a hypothesis example at 1e-308 split the two)
+REAL = st.one_of(st.just(0.0), st.floats(1e-6, 12, allow_nan=False, allow_subnormal=False))
 
 
 @settings(max_examples=150, deadline=None)
