@@ -16,7 +16,7 @@ from collections.abc import Callable
 import numpy as np
 import shapely
 from scipy import ndimage
-from scipy.sparse import coo_matrix, csr_matrix, diags
+from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from aoass_env.maps import ObstacleMap
@@ -70,6 +70,7 @@ class DetourPlanner:
         self._blocker = shapely.buffer(self._obstacles, radius)
         shapely.prepare(self._blocker)
         self._tree: tuple[int, float, np.ndarray, np.ndarray] | None = None
+        self._rows: np.ndarray | None = None     # row of every graph entry (keep-out searches)
 
     def _build_graph(self, cost: np.ndarray) -> csr_matrix:
         """8-connected graph of the free cells with both directions of every edge (so Dijkstra
@@ -157,11 +158,7 @@ class DetourPlanner:
         :data:`KEEPOUT_COST` times more (a path crosses a keep-out only when going round it is
         much longer); legs of the shortened path keep clear of the keep-outs where the grid
         path does."""
-        near = np.zeros(len(self.centres), dtype=bool)
-        for p in keepout:
-            near |= np.hypot(*(self.centres - p).T) <= radius
-        factor = diags(np.where(near, math.sqrt(KEEPOUT_COST), 1.0))
-        graph = (factor @ self._graph @ factor).tocsr()
+        graph = self._reweighted(self._near(keepout, radius), math.sqrt(KEEPOUT_COST))
         s, g = self._cell(start), self._cell(goal)
         # bounded first, as in path(): within the limit the search settles the same cells
         limit = SEARCH_FACTOR * math.hypot(goal[0] - start[0], goal[1] - start[1]) + SEARCH_SLACK
@@ -174,6 +171,39 @@ class DetourPlanner:
         zones = shapely.buffer(shapely.multipoints(keepout), radius)
         return self._pull(pts, lambda a, b: self.visible(a, b) and not shapely.intersects(
             zones, shapely.LineString([a, b])))
+
+    def _near(self, points: np.ndarray, radius: float) -> np.ndarray:
+        """(cells,) mask of the cells whose centre lies within ``radius`` (m) of a point of
+        ``points`` (P, 2): ``hypot(centre - point) <= radius``, evaluated on the block of cells
+        around each point only (every cell outside it is farther than ``radius``)."""
+        nx, ny = self.shape
+        res = self.res
+        near = np.zeros(len(self.centres), dtype=bool)
+        for p in points:
+            x, y = float(p[0]), float(p[1])
+            i0 = min(max(math.floor((x - radius) / res - 0.5) - 1, 0), nx)
+            i1 = min(max(math.ceil((x + radius) / res - 0.5) + 2, 0), nx)
+            j0 = min(max(math.floor((y - radius) / res - 0.5) - 1, 0), ny)
+            j1 = min(max(math.ceil((y + radius) / res - 0.5) + 2, 0), ny)
+            if i0 >= i1 or j0 >= j1:
+                continue
+            block = (np.arange(i0, i1)[:, None] * ny + np.arange(j0, j1)[None, :]).ravel()
+            near[block] |= np.hypot(*(self.centres[block] - p).T) <= radius
+        return near
+
+    def _reweighted(self, cells: np.ndarray, factor: float) -> csr_matrix:
+        """The grid graph with every edge weight multiplied by ``factor`` once for each end in
+        the mask ``cells``: the entries of ``F @ graph @ F`` for the diagonal F of ``factor``
+        on ``cells`` (1 elsewhere), the same floats ((f_i w) f_j) in the same order, without
+        two sparse products."""
+        graph = self._graph
+        if self._rows is None:
+            self._rows = np.repeat(np.arange(graph.shape[0], dtype=graph.indices.dtype),
+                                   np.diff(graph.indptr))
+        data = graph.data.copy()
+        data[cells[self._rows]] *= factor
+        data[cells[graph.indices]] *= factor
+        return csr_matrix((data, graph.indices, graph.indptr), shape=graph.shape)
 
     def _tree_from(self, s: int, limit: float) -> tuple[np.ndarray, np.ndarray]:
         """Shortest-path distances and predecessors from cell ``s``, searched up to path cost

@@ -35,6 +35,48 @@ MAX_RECOVERIES = 2
 #: The follower remembers its track as points this far apart (m), up to TRAIL_POINTS of them.
 TRAIL_SPACING = 0.5
 TRAIL_POINTS = 200
+# Relative band around a threshold inside which :func:`_within` asks numpy's hypot; outside it
+# the squared distance decides (it is within a few ulps of the true one).
+_BAND = 1e-9
+
+
+def _within(dx: float, dy: float, radius: float) -> bool:
+    """``np.hypot(dx, dy) <= radius`` for floats, without numpy unless the squared distance
+    lies within a relative 1e-9 of ``radius**2`` (then numpy decides: the same answer)."""
+    d2, r2 = dx * dx + dy * dy, radius * radius
+    if d2 < r2 * (1.0 - _BAND):
+        return True
+    if d2 > r2 * (1.0 + _BAND):
+        return False
+    return bool(np.hypot(dx, dy) <= radius)
+
+
+#: No keep-out in force (read-only).
+_NO_KEEPOUT = np.zeros((0, 2))
+_NO_KEEPOUT.flags.writeable = False
+
+
+def _reaches(dx: float, dy: float, radius: float) -> bool:
+    """``np.hypot(dx, dy) >= radius`` for floats, as :func:`_within` decides."""
+    d2, r2 = dx * dx + dy * dy, radius * radius
+    if d2 > r2 * (1.0 + _BAND):
+        return True
+    if d2 < r2 * (1.0 - _BAND):
+        return False
+    return bool(np.hypot(dx, dy) >= radius)
+
+
+def _polyline_length(points: list) -> float:
+    """``float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())`` for a list of (2,)
+    points: plain floats for one or two legs (the same float: each leg is sqrt(dx*dx + dy*dy)
+    and a sum of two is one addition), numpy for more (its pairwise summation)."""
+    if len(points) <= 3:
+        total = 0.0
+        for (x0, y0), (x1, y1) in zip(points, points[1:], strict=False):
+            dx, dy = float(x1) - float(x0), float(y1) - float(y0)
+            total += math.sqrt(dx * dx + dy * dy)
+        return total
+    return float(np.linalg.norm(np.diff(np.array(points), axis=0), axis=1).sum())
 
 
 @dataclass(frozen=True)
@@ -169,20 +211,24 @@ class WaypointFollower:
         A stuck follower backs out along its track first (module docstring).
         """
         self._clock += dt
-        if not self._trail or np.hypot(*(self._trail[-1] - position)) >= TRAIL_SPACING:
+        px, py = float(position[0]), float(position[1])
+        if not self._trail or _reaches(float(self._trail[-1][0]) - px,
+                                       float(self._trail[-1][1]) - py, TRAIL_SPACING):
             self._trail.append(np.array(position, dtype=np.float64))
         if self._backout:
             if self._backing_out(position):
                 return self._steer(position, heading, self._backout[0], None)
+        capture = self.capture_radius
         while not self.done:
             target = self.waypoints[self.index]
-            if np.hypot(*(target - position)) <= self.capture_radius:
+            if _within(float(target[0]) - px, float(target[1]) - py, capture):
                 self._advance()
                 continue
             if self._clock > self._budget:
                 self._give_up("stall timer")
                 continue
-            while self._detour and np.hypot(*(self._detour[0] - position)) <= self.capture_radius:
+            while self._detour and _within(float(self._detour[0][0]) - px,
+                                           float(self._detour[0][1]) - py, capture):
                 self._detour.pop(0)
             if self.planner is None or self._planned or self._clear(position, target):
                 break
@@ -209,12 +255,12 @@ class WaypointFollower:
                after: np.ndarray | None) -> tuple[float, float]:
         """Cruise toward ``aim``, slowed by the heading error and braked so that the speed at
         ``aim`` suits the turn toward ``after`` (a stop when that leg is obstructed)."""
-        dx, dy = aim - position
+        dx, dy = float(aim[0]) - float(position[0]), float(aim[1]) - float(position[1])
         bearing = math.atan2(dy, dx)
         speed = self.cruise_speed * max(0.0, math.cos(bearing - heading))
         if after is not None:
             # brake so that the speed at the aim point suits the turn there
-            ox, oy = after - aim
+            ox, oy = float(after[0]) - float(aim[0]), float(after[1]) - float(aim[1])
             turn = math.atan2(oy, ox) - bearing
             corner_speed = self.cruise_speed * max(0.0, math.cos(turn))
             if not self._way_on_open(aim, after):
@@ -237,8 +283,7 @@ class WaypointFollower:
 
     def _to_go(self, position: np.ndarray) -> float:
         """Distance (m) from ``position`` along the plan (detour points, then the target)."""
-        queue = np.array([position, *self._detour, self.waypoints[self.index]])
-        return float(np.linalg.norm(np.diff(queue, axis=0), axis=1).sum())
+        return _polyline_length([position, *self._detour, self.waypoints[self.index]])
 
     def _stuck(self, position: np.ndarray) -> None:
         """The watchdog fired at ``position``: keep re-plans away from it; give the target up
@@ -271,11 +316,12 @@ class WaypointFollower:
     def _backing_out(self, position: np.ndarray) -> bool:
         """Advance along the back-out; False (and the back-out ends, the target is planned
         afresh) once it is done or the watchdog fires on it."""
-        while self._backout and np.hypot(*(self._backout[0] - position)) <= self.capture_radius:
+        px, py = float(position[0]), float(position[1])
+        while self._backout and _within(float(self._backout[0][0]) - px,
+                                        float(self._backout[0][1]) - py, self.capture_radius):
             self._backout.pop(0)
         if self._backout:
-            to_go = np.array([position, *self._backout])
-            if not self._stalled(float(np.linalg.norm(np.diff(to_go, axis=0), axis=1).sum())):
+            if not self._stalled(_polyline_length([position, *self._backout])):
                 return True
         self._backout.clear()
         self._planned = False
@@ -287,6 +333,8 @@ class WaypointFollower:
     def _active_keepouts(self, position: np.ndarray) -> np.ndarray:
         """(P, 2) keep-outs still in force, less those ``position`` lies in (a follower cannot
         avoid the spot it stands on)."""
+        if not self._keepout:
+            return _NO_KEEPOUT
         self._keepout = [(p, until) for p, until in self._keepout if until >= self._clock]
         pts = [p for p, _ in self._keepout if np.hypot(*(p - position)) > KEEPOUT_RADIUS]
         return np.array(pts).reshape(-1, 2)

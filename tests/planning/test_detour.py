@@ -75,3 +75,30 @@ def test_a_start_in_open_space_reaches_the_field_but_not_one_shut_in_a_pocket():
     assert p.can_start(np.array([20.0, 20.0]), 0.5)
     assert p.can_start(np.array([59.2, 70.0]), 0.5)      # tight by the C, the field at hand
     assert not p.can_start(np.array([70.0, 70.0]), 0.5)  # inside the C: its mouth is too narrow
+
+
+def test_keepout_reweighting_equals_the_diagonal_products():
+    """The keep-out grid (cells near the keep-outs, edge weights scaled at each end) is the
+    graph ``F @ graph @ F`` of two sparse products, entry for entry (issue 20)."""
+    from scipy.sparse import diags
+
+    from aoass_env.maps import generate_map
+    from aoass_env.planning.detour import KEEPOUT_COST
+
+    rng = np.random.default_rng(0)
+    for k, side in enumerate((100.0, 60.0)):
+        m = generate_map(side, 0.3, np.random.default_rng(k))
+        p = DetourPlanner(m, radius=0.8)
+        for _ in range(6):
+            keepout = rng.uniform(-3.0, side + 3.0, (int(rng.integers(1, 4)), 2))
+            radius = float(rng.choice([0.3, 1.5, 4.0]))
+            near = np.zeros(len(p.centres), dtype=bool)
+            for q in keepout:
+                near |= np.hypot(*(p.centres - q).T) <= radius
+            np.testing.assert_array_equal(p._near(keepout, radius), near)
+            f = diags(np.where(near, np.sqrt(KEEPOUT_COST), 1.0))
+            want = (f @ p._graph @ f).tocsr()
+            got = p._reweighted(near, np.sqrt(KEEPOUT_COST))
+            np.testing.assert_array_equal(got.indptr, want.indptr)
+            np.testing.assert_array_equal(got.indices, want.indices)
+            np.testing.assert_array_equal(got.data, want.data)

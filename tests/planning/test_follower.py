@@ -166,3 +166,23 @@ def test_replan_after_backing_out_goes_round_the_stuck_spot():
     # a passage reached only through a keep-out is still planned (keep-outs are soft)
     assert planner.path(np.array([6.0, 10.0]), np.array([18.0, 10.0]),
                         np.array([[10.0, 20.0], [10.0, 10.0]]), 1.5) is not None
+
+
+def test_float_distance_tests_agree_with_numpy():
+    """The follower's plain-float distance tests and path lengths give numpy's answers, ties
+    and near-ties included (issue 20: same episodes)."""
+    from aoass_env.planning.follower import _polyline_length, _reaches, _within
+
+    rng = np.random.default_rng(7)
+    for _ in range(20000):
+        dx, dy = rng.uniform(-3.0, 3.0, 2)
+        h = float(np.hypot(dx, dy))
+        r = h * (1.0 + float(rng.choice([0.0, 1e-16, -1e-16, 3e-16, -3e-16, 1e-10, 1e-3])))
+        assert _within(dx, dy, r) == bool(np.hypot(dx, dy) <= r)
+        assert _reaches(dx, dy, r) == bool(np.hypot(dx, dy) >= r)
+    assert _within(0.0, 0.0, 0.0) and _reaches(0.0, 0.0, 0.0)
+    for n in range(1, 7):
+        for _ in range(2000):
+            pts = list(rng.uniform(-100.0, 100.0, (n, 2)) * rng.choice([1e-6, 1.0, 1e3]))
+            assert _polyline_length(pts) == float(
+                np.linalg.norm(np.diff(np.array(pts), axis=0), axis=1).sum())
