@@ -307,9 +307,18 @@ class World:
             (substeps + 1, 3) float64 array of (t [s], x [m], y [m]) of the anchor centre,
             starting with the position before the period.
         """
+        return np.array(self.advance(speed_cmd, heading_cmd))
+
+    def advance(self, speed_cmd: float, heading_cmd: float) -> list[tuple[float, float, float]]:
+        """:meth:`step`, returning its rows as a list of (t, x, y) tuples of Python floats
+        (the simulator's odometer reads them without an array)."""
         cfg, sdt = self.config, self._sdt
-        target = min(max(real("speed_cmd", speed_cmd, "m/s"), 0.0), cfg.anchor_max_speed)
-        heading_target = real("heading_cmd", heading_cmd, "rad")
+        # plain finite floats (the common case) skip the validators' generic checks
+        speed_cmd = speed_cmd if type(speed_cmd) is float and math.isfinite(speed_cmd) \
+            else real("speed_cmd", speed_cmd, "m/s")
+        heading_target = heading_cmd if type(heading_cmd) is float \
+            and math.isfinite(heading_cmd) else real("heading_cmd", heading_cmd, "rad")
+        target = min(max(speed_cmd, 0.0), cfg.anchor_max_speed)
         max_dv, max_dh = cfg.anchor_max_accel * sdt, cfg.anchor_max_turn_rate * sdt
         get_position, anchor, moving = _cp.cpBodyGetPosition, self._c_anchor, self._c_moving
         p = get_position(anchor)
@@ -336,7 +345,7 @@ class World:
             x, y = p.x, p.y
             rows.append((done * sdt, x, y))
         self._speed, self._heading = speed, heading
-        return np.array(rows)
+        return rows
 
     def _turn_moving(self) -> None:
         """Apply the Poisson heading changes that fell due: a new uniform heading, same speed."""
@@ -513,7 +522,8 @@ class World:
     @property
     def position(self) -> np.ndarray:
         """Anchor centre (x, y) (m)."""
-        return np.array(self._anchor.position)
+        p = _cp.cpBodyGetPosition(self._c_anchor)
+        return np.array((p.x, p.y))
 
     @property
     def heading(self) -> float:

@@ -68,9 +68,10 @@ def _reaches(dx: float, dy: float, radius: float) -> bool:
 
 def _polyline_length(points: list) -> float:
     """``float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())`` for a list of (2,)
-    points: plain floats for one or two legs (the same float: each leg is sqrt(dx*dx + dy*dy)
-    and a sum of two is one addition), numpy for more (its pairwise summation)."""
-    if len(points) <= 3:
+    points: plain floats for up to seven legs (the same float: each leg is sqrt(dx*dx + dy*dy)
+    and numpy sums fewer than eight numbers in order), numpy for more (its pairwise
+    summation)."""
+    if len(points) <= 8:
         total = 0.0
         for (x0, y0), (x1, y1) in zip(points, points[1:], strict=False):
             dx, dy = float(x1) - float(x0), float(y1) - float(y0)
