@@ -10,7 +10,11 @@ outside the obstacles as a virtual node that hears a beacon when the beacon lies
     r_cell = R (1 - DOI) - cell / sqrt(2),
 
 so that any node of the cell within that range of the centre is within R (1 - DOI) of the
-beacon (line of sight is checked from the centre only). A cell is covered when it meets Eq. 18
+beacon (line of sight is checked from the centre only). A cell whose centre lies inside an
+obstacle but which keeps at least ``PARTIAL_CELL_SHARE`` of its area free (a cell along an
+obstacle's edge, where nodes lie as densely as anywhere) has its virtual node at a point of its
+free part instead; there the range guarantee is approximate (a node of the free part may lie up
+to a cell's diagonal from that point). A cell is covered when it meets Eq. 18
 the way a node does (at least 3 heard beacons, not collinear: their root-sum-square distance
 from the best-fit line is at least ``collinearity_tol``). The bookkeeping is the network's own
 (:class:`~aoass_env.network.Network`), on the virtual nodes, with the radio's own receivers
@@ -26,13 +30,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import shapely
 
 from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network
 from aoass_env.radio import Radio
 
-__all__ = ["CoverageMap", "cell_range"]
+__all__ = ["PARTIAL_CELL_SHARE", "CoverageMap", "cell_range"]
+
+#: A cell whose centre lies inside an obstacle is kept when at least this share of its area is
+#: free (its virtual node then lies in the free part).
+PARTIAL_CELL_SHARE = 0.3
 
 
 def cell_range(config: AOASSConfig) -> float:
@@ -47,6 +56,23 @@ def cell_range(config: AOASSConfig) -> float:
     return reach
 
 
+def _free_points(obstacle_map: ObstacleMap, index: np.ndarray, cell: float) -> np.ndarray:
+    """(K, 2) for the cells ``index`` (K, 2) whose centre lies inside an obstacle: a point (m)
+    of each cell's free part where at least :data:`PARTIAL_CELL_SHARE` of it is free, NaN
+    elsewhere."""
+    out = np.full((len(index), 2), np.nan)
+    if not len(index):
+        return out
+    lo = index * cell
+    hi = np.minimum(lo + cell, [obstacle_map.width, obstacle_map.height])
+    parts = shapely.difference(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]),
+                               obstacle_map.union)
+    keep = shapely.area(parts) >= PARTIAL_CELL_SHARE * cell * cell
+    if keep.any():
+        out[keep] = shapely.get_coordinates(shapely.point_on_surface(parts[keep]))
+    return out
+
+
 class CoverageMap:
     """Eq. 18 coverage of the free field as the anchor can know it (module docstring).
 
@@ -58,8 +84,10 @@ class CoverageMap:
     Attributes:
         cell: the cell side (m).
         shape: (nx, ny) cells; cell (i, j) has its centre at ((i + 0.5) cell, (j + 0.5) cell).
-        centres: (C, 2) the centres (m) of the free cells (those whose centre lies outside
-            every obstacle), the cells the map keeps; ``index`` (C, 2) their (i, j).
+        centres: (C, 2) the virtual nodes (m) of the free cells, the cells the map keeps: the
+            centre of a cell whose centre lies outside every obstacle, else a point of the
+            cell's free part when at least ``PARTIAL_CELL_SHARE`` of it is free (module
+            docstring); ``index`` (C, 2) their (i, j).
         reach: r_cell (m).
     """
 
@@ -74,6 +102,8 @@ class CoverageMap:
         centres = (index + 0.5) * self.cell
         centres = np.minimum(centres, [obstacle_map.width, obstacle_map.height])
         free = ~obstacle_map.inside_obstacle(centres)
+        centres[~free] = _free_points(obstacle_map, index[~free], self.cell)
+        free |= np.isfinite(centres[:, 0])
         self.index = index[free]
         self.centres = centres[free]
         self.centres.flags.writeable = False

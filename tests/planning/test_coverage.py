@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network
-from aoass_env.planning.coverage import CoverageMap, cell_range
+from aoass_env.planning.coverage import PARTIAL_CELL_SHARE, CoverageMap, cell_range
 from aoass_env.radio import Radio
 
 EMPTY = ObstacleMap(40.0, 40.0)
@@ -87,8 +87,8 @@ def test_a_node_in_a_covered_cell_is_covered_on_an_open_field(doi):
 
 
 def test_cells_inside_obstacles_are_left_out_and_walls_block_beacons():
-    wall = ObstacleMap(40.0, 40.0, [np.array([[18.5, 0.0], [21.5, 0.0], [21.5, 40.0],
-                                              [18.5, 40.0]])])
+    wall = ObstacleMap(40.0, 40.0, [np.array([[17.9, 0.0], [22.1, 0.0], [22.1, 40.0],
+                                              [17.9, 40.0]])])
     cov = CoverageMap(wall, CONFIG)
     assert cov.n_cells == 400 - 40          # the columns centred at x = 19 and 21 are inside
     assert not np.any((cov.centres[:, 0] > 18.5) & (cov.centres[:, 0] < 21.5))
@@ -101,6 +101,31 @@ def test_cells_inside_obstacles_are_left_out_and_walls_block_beacons():
     assert np.all(np.hypot(*(cov.centres[seen] - [17.5, 10.0]).T) <= 5.0)
     raster = cov.raster()
     assert raster.shape == (20, 20) and np.all(np.isnan(raster[9:11]))
+
+
+@pytest.mark.parametrize(("left", "kept"), [(18.8, True), (18.4, False)])
+def test_a_cell_along_an_obstacle_edge_keeps_a_virtual_node_in_its_free_part(left, kept):
+    # the cells [18, 20] x [y, y + 2] have their centre inside the wall; with x in [18, 18.8]
+    # free (40 % of the cell, PARTIAL_CELL_SHARE 30 %) they are kept, with [18, 18.4] free
+    # (20 %) left out
+    wall = ObstacleMap(40.0, 40.0, [np.array([[left, 0.0], [21.5, 0.0], [21.5, 40.0],
+                                              [left, 40.0]])])
+    assert 0.2 < PARTIAL_CELL_SHARE < 0.4
+    cov = CoverageMap(wall, CONFIG)
+    column = cov.index[:, 0] == 9
+    assert column.sum() == (20 if kept else 0)
+    points = cov.centres[column]
+    assert np.all((points[:, 0] >= 18.0) & (points[:, 0] <= left))
+    assert not wall.inside_obstacle(points).any()
+    if kept:        # a beacon on its side covers it; one behind the wall is not heard
+        for b in ([12.0, 8.0], [14.0, 12.0], [12.0, 14.0]):
+            cov.add_beacon(np.array(b))
+        cell = np.flatnonzero(column & (cov.index[:, 1] == 5))[0]
+        assert cov.covered[cell]
+        behind = CoverageMap(wall, CONFIG)
+        for b in ([28.0, 8.0], [26.0, 12.0], [28.0, 14.0]):
+            behind.add_beacon(np.array(b))
+        assert behind.heard[cell] == 0
 
 
 def test_sector_deficits_read_by_bearing_from_the_heading():
