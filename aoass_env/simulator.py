@@ -181,7 +181,7 @@ class Simulator:
     @functools.cached_property
     def planner(self) -> DetourPlanner:
         """Detour planner for the anchor on this episode's map (built on first use)."""
-        return DetourPlanner(self.map, self.config.anchor_radius + DETOUR_MARGIN)
+        return DetourPlanner.for_map(self.map, self.config.anchor_radius + DETOUR_MARGIN)
 
     def follower(self, recovery: bool = False) -> WaypointFollower:
         """A nominal follower of this episode's path from the start waypoint on; ``recovery``

@@ -9,6 +9,7 @@ are described in ``docs/maps.md``.
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from collections.abc import Callable
 
 import numpy as np
@@ -247,6 +248,50 @@ def generate_map(field_size: float | tuple[float, float], density: float,
     _check_rng(rng)
     if density == 0.0:
         return ObstacleMap(width, height, (), name)
+    key = _state_key(rng)
+    if key is not None:
+        key = (width, height, density, clearance, name, key)
+        found = _GENERATED.get(key)
+        if found is not None:        # the same draw: its map, and the generator after it
+            _GENERATED.move_to_end(key)
+            rng.bit_generator.state = found[1]
+            return found[0]
+    obstacle_map = _generate(width, height, density, rng, clearance, name)
+    if key is not None:
+        _GENERATED[key] = (obstacle_map, rng.bit_generator.state)
+        while len(_GENERATED) > _GENERATED_MAX:
+            _GENERATED.popitem(last=False)
+    return obstacle_map
+
+
+#: Maps generated lately: (field, density, clearance, name, generator state before) -> (map,
+#: generator state after), newest last. A generator in the same state draws the same map (the
+#: generator is its only source of randomness), so a reset with the same seed reuses it and
+#: leaves the generator where the draw would have; maps are immutable and may be shared.
+_GENERATED: OrderedDict[tuple, tuple[ObstacleMap, dict]] = OrderedDict()
+_GENERATED_MAX = 8
+
+
+def _state_key(rng: np.random.Generator) -> tuple | None:
+    """A hashable copy of the generator's whole state, or None when it has an unknown shape
+    (no caching then)."""
+    def freeze(value: object) -> object:
+        if isinstance(value, dict):
+            return tuple((k, freeze(v)) for k, v in sorted(value.items()))
+        if isinstance(value, np.ndarray):
+            return (value.dtype.str, value.shape, value.tobytes())
+        if isinstance(value, (int, float, str, bool, type(None))):
+            return value
+        raise TypeError(type(value).__name__)
+    try:
+        return freeze(rng.bit_generator.state)
+    except TypeError:
+        return None
+
+
+def _generate(width: float, height: float, density: float, rng: np.random.Generator,
+              clearance: float, name: str) -> ObstacleMap:
+    """:func:`generate_map` after its checks: draw maps until one verifies."""
     failures: list[str] = []
     for _ in range(_MAX_DRAWS):
         exact = shapely.union_all(_draw_obstacles(width, height, density, rng, clearance))

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import difflib
 import os
+from collections import OrderedDict
 from pathlib import Path
 
 from aoass_env.data import shipped_dir
@@ -59,17 +60,43 @@ def validation_split(names: list[str]) -> tuple[list[str], list[str]]:
     return [n for n in names if n not in held], [n for n in names if n in held]
 
 
+#: Maps read lately: (resolved path, modification time, size, field_size) -> map, newest last.
+#: A map is immutable, so the environments and episodes that load one file share one object
+#: and its cached geometry (union, convex parts, the detour planner's grid).
+_LOADED: OrderedDict[tuple, ObstacleMap] = OrderedDict()
+_LOADED_MAX = 8
+
+
+def _read_cached(path: Path, field_size: float | tuple[float, float] | None) -> ObstacleMap:
+    """:func:`read_map` of ``path``, from :data:`_LOADED` while the file is unchanged."""
+    stat = path.stat()
+    size = tuple(field_size) if isinstance(field_size, (tuple, list)) else field_size
+    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size, size)
+    try:
+        hash(key)
+    except TypeError:          # an unhashable field_size: read_map reports it
+        return read_map(path, field_size)
+    found = _LOADED.get(key)
+    if found is None:
+        found = _LOADED[key] = read_map(path, field_size)
+        while len(_LOADED) > _LOADED_MAX:
+            _LOADED.popitem(last=False)
+    else:
+        _LOADED.move_to_end(key)
+    return found
+
+
 def load_map(name_or_path: str | os.PathLike,
              field_size: float | tuple[float, float] | None = None) -> ObstacleMap:
     """A map from a file path, or a shipped map by name ("test/d0.30_f100_s500" or its stem)."""
     path = Path(name_or_path)
     if path.is_file():
-        return read_map(path, field_size)
+        return _read_cached(path, field_size)
     key = str(name_or_path).removesuffix(".txt")
     names = [n for split in SPLITS if (MAPS_DIR / split).is_dir() for n in list_maps(split)]
     matches = [n for n in names if key in (n, n.split("/", 1)[1])]
     if len(matches) == 1:
-        return read_map(MAPS_DIR / f"{matches[0]}.txt", field_size)
+        return _read_cached(MAPS_DIR / f"{matches[0]}.txt", field_size)
     if matches:
         raise MapError(f"map name {key!r} is ambiguous: {', '.join(matches)}")
     by_stem = {n.split("/", 1)[1]: n for n in names}

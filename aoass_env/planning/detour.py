@@ -10,7 +10,9 @@ pulling (keep only the points needed for straight, obstacle-free legs).
 
 from __future__ import annotations
 
+import copy
 import math
+import weakref
 from collections.abc import Callable
 
 import numpy as np
@@ -31,6 +33,10 @@ KEEPOUT_COST = 25.0
 #: Extra clearance (m) the nominal follower's detours keep from obstacles beyond the anchor
 #: radius, room for the turn-rate-limited anchor to round the corners of a detour.
 DETOUR_MARGIN = 0.3
+
+#: map -> {(radius, resolution): planner}: the planners :meth:`DetourPlanner.for_map` copies
+#: (kept while the map lives)
+_PLANNERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class DetourPlanner:
@@ -71,6 +77,22 @@ class DetourPlanner:
         shapely.prepare(self._blocker)
         self._tree: tuple[int, float, np.ndarray, np.ndarray] | None = None
         self._rows: np.ndarray | None = None     # row of every graph entry (keep-out searches)
+
+    @classmethod
+    def for_map(cls, obstacle_map: ObstacleMap, radius: float,
+                resolution: float = 0.5) -> DetourPlanner:
+        """A planner for ``obstacle_map`` with a fresh search state; the grid, its graph and the
+        buffered obstacles are built once per map (maps are immutable) and shared by the
+        planners of every episode on it (a reset on a named map, or a generated map drawn
+        again from the same seed, does not rebuild them)."""
+        per_map = _PLANNERS.setdefault(obstacle_map, {})
+        key = (float(radius), float(resolution))
+        template = per_map.get(key)
+        if template is None:
+            template = per_map[key] = cls(obstacle_map, radius, resolution)
+        planner = copy.copy(template)
+        planner._tree = None
+        return planner
 
     def _build_graph(self, cost: np.ndarray) -> csr_matrix:
         """8-connected graph of the free cells with both directions of every edge (so Dijkstra

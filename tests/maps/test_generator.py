@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+from collections import OrderedDict
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.maps import DENSITY_TOL, MapError, generate_map
+from aoass_env.maps import generator as generator_module
 from aoass_env.maps.generator import _SHAPE_CDF, _SHAPE_P, _BlockedSet
 from tests.maps.conftest import CLEARANCE, assert_same_polygons, rng
 
@@ -52,7 +54,8 @@ PINNED = [
 
 
 @pytest.mark.parametrize(("args", "count", "digest", "next_draw"), PINNED)
-def test_generated_maps_are_pinned_bit_for_bit(args, count, digest, next_draw):
+def test_generated_maps_are_pinned_bit_for_bit(args, count, digest, next_draw, monkeypatch):
+    monkeypatch.setattr(generator_module, "_GENERATED", OrderedDict())   # really generate
     field_size, density, seed = args
     generator = rng(seed)
     m = generate_map(field_size, density, generator)
@@ -164,3 +167,26 @@ def test_shape_kind_lookup_draws_what_rng_choice_draws():
             assert int(a.choice(len(_SHAPE_P), p=_SHAPE_P)) == \
                 int(_SHAPE_CDF.searchsorted(b.random(), side="right"))
         assert a.random() == b.random()
+
+
+def test_a_draw_from_the_same_generator_state_is_reused(monkeypatch):
+    """A generator in a state that drew a map before gets that map (the same object) and ends
+    in the state the draw would leave it in (issue 20: resets with a repeated seed)."""
+    monkeypatch.setattr(generator_module, "_GENERATED", OrderedDict())
+    first = rng(11)
+    a = generate_map(100, 0.3, first)
+    after = first.integers(0, 2**63, size=4)
+    again = rng(11)
+    assert generate_map(100, 0.3, again) is a
+    np.testing.assert_array_equal(again.integers(0, 2**63, size=4), after)
+    # another request from the same state is another draw
+    b = generate_map(100, 0.3, rng(11), clearance=3.0)
+    assert b is not a
+    monkeypatch.setattr(generator_module, "_GENERATED", OrderedDict())
+    fresh = rng(11)
+    assert_same_polygons(generate_map(100, 0.3, fresh), a)
+    np.testing.assert_array_equal(fresh.integers(0, 2**63, size=4), after)
+    # a bounded cache
+    for seed in range(generator_module._GENERATED_MAX + 2):
+        generate_map(40, 0.1, rng(seed))
+    assert len(generator_module._GENERATED) == generator_module._GENERATED_MAX

@@ -86,3 +86,21 @@ def test_validation_split_holds_out_the_highest_seed_of_each_group():
     lone = ["train/d0.10_f100_s000", "train/d0.20_f100_s007", "train/d0.20_f100_s005"]
     assert validation_split(lone) == (["train/d0.10_f100_s000", "train/d0.20_f100_s005"],
                                       ["train/d0.20_f100_s007"])
+
+
+def test_load_map_reads_a_file_once_until_it_changes(tmp_path):
+    """Loading one file again gives the same (immutable) map object; an edited file is read
+    afresh (issue 20: resets on named maps)."""
+    import os
+
+    name = list_maps("test")[0]
+    assert load_map(name) is load_map(name.split("/")[1])
+    assert load_map(name, field_size=50) is not load_map(name)
+    path = write(tmp_path, IMR_SAMPLE)
+    first = load_map(path)
+    assert load_map(str(path)) is first
+    stat = path.stat()
+    os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1_000_000_000))
+    again = load_map(path)
+    assert again is not first
+    assert_same_polygons(again, first)

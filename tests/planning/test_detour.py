@@ -102,3 +102,16 @@ def test_keepout_reweighting_equals_the_diagonal_products():
             np.testing.assert_array_equal(got.indptr, want.indptr)
             np.testing.assert_array_equal(got.indices, want.indices)
             np.testing.assert_array_equal(got.data, want.data)
+
+
+def test_planners_of_one_map_share_the_grid_with_a_fresh_search_state():
+    m = ObstacleMap(100, 100, [WALL])
+    a = DetourPlanner.for_map(m, 0.8)
+    path = a.path(np.array([20.0, 50.0]), np.array([70.0, 50.0]))
+    b = DetourPlanner.for_map(m, 0.8)
+    assert b is not a and b._graph is a._graph and b._tree is None and a._tree is not None
+    np.testing.assert_array_equal(b.path(np.array([20.0, 50.0]), np.array([70.0, 50.0])), path)
+    np.testing.assert_array_equal(
+        DetourPlanner(m, 0.8).path(np.array([20.0, 50.0]), np.array([70.0, 50.0])), path)
+    assert DetourPlanner.for_map(m, 1.0)._graph is not a._graph
+    assert DetourPlanner.for_map(ObstacleMap(100, 100, [WALL]), 0.8)._graph is not a._graph
