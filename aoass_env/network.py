@@ -115,7 +115,10 @@ class Network:
 
     def charge_motion(self, distance: float) -> None:
         """Account ``distance`` [m] >= 0 travelled by the anchor."""
-        self._distance += real("distance", distance, "m", low=0.0)
+        if type(distance) is float and 0.0 <= distance < math.inf:   # the common case
+            self._distance += distance
+        else:
+            self._distance += real("distance", distance, "m", low=0.0)
 
     @staticmethod
     def _lambda_min(scatter: np.ndarray) -> np.ndarray:
