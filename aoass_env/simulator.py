@@ -38,7 +38,6 @@ from aoass_env.radio import Radio
 from aoass_env.trajectory import _SHORT_PATH, beacons_along
 from aoass_env.world import World
 
-
 #: The beacons of a control period that passed no beacon mark (read-only).
 _NO_BEACONS = np.zeros((0, 3))
 _NO_BEACONS.flags.writeable = False
