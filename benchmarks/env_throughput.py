@@ -2,7 +2,8 @@
 
 Every environment comes from ``gymnasium.make`` (same wrappers), takes random actions from its
 action space and is reset whenever an episode ends; the time of the resets is included. The
-script prints steps per second of each, the ratios AOASS-v0 / Pendulum-v1 (issue 20 target:
+script prints steps per second of each (and per CPU second of the process, steadier on a shared
+machine), the ratios AOASS-v0 / Pendulum-v1 (issue 20 target:
 >= 0.22) and AOASS-Safe-v0 / AOASS-v0 (target: >= 0.7), the reset time of AOASS-v0 at density
 0.4 on a 100 m field (target: <= 50 ms) with fresh seeds, repeated seeds and a shipped map, and
 where a random-action step of AOASS-v0 goes:
@@ -53,11 +54,12 @@ PARTS: tuple[tuple[str, type, str], ...] = (
 NAMED_MAP = "test/d0.40_f100_s509"
 
 
-def throughput(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int, float]:
-    """(steps per second, episodes started, seconds spent in reset) over ``steps`` random
-    steps, resets included."""
+def throughput(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int, float, float]:
+    """(steps per second, episodes started, seconds spent in reset, steps per CPU second of
+    this process) over ``steps`` random steps, resets included. The CPU rate is the steadier
+    one on a shared machine: other processes lengthen the wall time, not this one's CPU time."""
     env.action_space.seed(seed)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     env.reset(seed=seed)
     reset_time = time.perf_counter() - start
     episodes = 1
@@ -68,7 +70,8 @@ def throughput(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int, flo
             env.reset()
             reset_time += time.perf_counter() - t
             episodes += 1
-    return steps / (time.perf_counter() - start), episodes, reset_time
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+    return steps / wall, episodes, reset_time, steps / max(cpu, 1e-9)
 
 
 def reset_ms(resets: int, seeds: list[int] | None = None, **kwargs: Any) -> float:
@@ -146,22 +149,25 @@ def main() -> None:
         parser.error("--steps and --resets must be positive")
     field = {"field_size": args.field} if args.field != 100.0 else {}
     throughput(gym.make("Pendulum-v1"), 2_000)       # warm-up (imports, CPU clock)
-    ref, _, _ = throughput(gym.make("Pendulum-v1"), args.steps)
-    print(f"{'env':34s} {'steps/s':>9s} {'us/step':>8s} {'episodes':>8s} {'reset s':>8s} "
-          f"{'ratio':>6s}  against")
-    print(f"{'Pendulum-v1':34s} {ref:9.0f} {1e6 / ref:8.1f}")
+    ref, _, _, ref_cpu = throughput(gym.make("Pendulum-v1"), args.steps)
+    print(f"{'env':34s} {'steps/s':>9s} {'us/step':>8s} {'CPU us':>7s} {'episodes':>8s} "
+          f"{'reset s':>8s} {'ratio':>6s} {'CPU':>6s}  against")
+    print(f"{'Pendulum-v1':34s} {ref:9.0f} {1e6 / ref:8.1f} {1e6 / ref_cpu:7.1f}")
     bare = None
     for env_id, n in [("AOASS-v0", n) for n in args.nodes] + [("AOASS-Safe-v0", args.nodes[0])]:
-        rate, episodes, reset_s = throughput(gym.make(env_id, n_nodes=n, **field), args.steps)
+        rate, episodes, reset_s, cpu = throughput(gym.make(env_id, n_nodes=n, **field),
+                                                  args.steps)
         if bare is None:
-            bare = rate
-        against, base = ("AOASS-v0", bare) if env_id == "AOASS-Safe-v0" else ("Pendulum", ref)
-        print(f"{f'{env_id} n_nodes={n}':34s} {rate:9.0f} {1e6 / rate:8.1f} {episodes:8d} "
-              f"{reset_s:8.2f} {rate / base:6.3f}  {against} (target "
-              f"{0.7 if against == 'AOASS-v0' else 0.22})")
-    again, _, _ = throughput(gym.make("Pendulum-v1"), args.steps)
-    print(f"{'Pendulum-v1 (again)':34s} {again:9.0f} {1e6 / again:8.1f}   "
-          f"(reference drift {again / ref - 1:+.1%}; ratios above use the first run)")
+            bare = rate, cpu
+        against, base = ("AOASS-v0", bare) if env_id == "AOASS-Safe-v0" else \
+            ("Pendulum", (ref, ref_cpu))
+        print(f"{f'{env_id} n_nodes={n}':34s} {rate:9.0f} {1e6 / rate:8.1f} {1e6 / cpu:7.1f} "
+              f"{episodes:8d} {reset_s:8.2f} {rate / base[0]:6.3f} {cpu / base[1]:6.3f}  "
+              f"{against} (target {0.7 if against == 'AOASS-v0' else 0.22})")
+    again, _, _, again_cpu = throughput(gym.make("Pendulum-v1"), args.steps)
+    print(f"{'Pendulum-v1 (again)':34s} {again:9.0f} {1e6 / again:8.1f} {1e6 / again_cpu:7.1f}"
+          f"   (reference drift {again / ref - 1:+.1%}, CPU {again_cpu / ref_cpu - 1:+.1%}; "
+          f"ratios above use the first run; 'CPU': the same from this process's CPU time)")
     fresh = reset_ms(args.resets, obstacle_density=0.4, **field)
     few = list(range(min(args.resets, 4)))
     again = reset_ms(args.resets, few, obstacle_density=0.4, **field)
