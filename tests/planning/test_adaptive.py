@@ -10,6 +10,10 @@ from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.env import AOASSEnv
 from aoass_env.maps import ObstacleMap
 from aoass_env.planning import AdaptiveConfig, SweepKnobs, default_spacing
+from aoass_env.planning.adaptive import AdaptiveSweep
+from aoass_env.planning.coverage import CoverageMap
+from aoass_env.planning.detour import DetourPlanner
+from aoass_env.planning.follower import WaypointFollower
 from aoass_env.simulator import Simulator
 from aoass_env.wrappers import make_safe_env
 
@@ -142,3 +146,32 @@ def test_wide_passes_round_the_ring_count_down_and_keep_the_spirals_time_limit()
     assert adaptive.episode_config.spiral_spacing == pytest.approx(
         default_spacing(200.0, 200.0, 25.0, 2.0, 1.5, wide=True))
     assert adaptive.max_episode_steps == AOASSEnv(field_size=200.0).max_episode_steps
+
+
+@pytest.mark.parametrize(("side_rate", "round_below"), [(0.5, True), (1000.0, False)])
+def test_a_detour_goes_round_the_side_where_coverage_is_missing(side_rate, round_below):
+    """The shortest way round the block passes above it, where beacons already covered the
+    field; below it nothing is covered, for a few metres more."""
+    block = ObstacleMap(120.0, 60.0, [np.array([[50.0, 15.0], [70.0, 15.0], [70.0, 40.0],
+                                                [50.0, 40.0]])])
+    config = AOASSConfig(field_size=120.0, n_nodes=10, obstacle_density=0.0,
+                         n_moving_obstacles=0)
+    coverage = CoverageMap(block, config)
+    for y in (44.0, 50.0):
+        for x in np.arange(50.0, 71.0, 2.0):
+            coverage.add_beacon(np.array([x, y]))
+    planner = DetourPlanner(block, config.anchor_radius + 0.5)
+    start, goal = np.array([20.0, 30.0]), np.array([100.0, 30.0])
+    shortest = planner.path(start, goal)
+    assert np.max(shortest[:, 1]) > 40.0                     # above the block
+    follower = WaypointFollower.nominal(config, np.array([start, goal]), planner=planner,
+                                        start=1, recovery=True)
+    sweep = AdaptiveSweep(follower, coverage, planner, config,
+                          AdaptiveConfig(side_rate=side_rate))
+    sweep.command(start, 0.0, config.dt)
+    if round_below:
+        assert sweep.sides == [(1, config.dt)]
+        assert sweep.target[1] < 15.0                         # the way's widest point, below
+    else:
+        assert sweep.sides == []
+        np.testing.assert_array_equal(sweep.target, goal)
