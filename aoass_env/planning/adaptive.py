@@ -14,13 +14,14 @@ WaypointFollower`, with its detours and its recovery from traps) and reads the a
    ``detour_need``, and also when the detour is longer than the straight way by more than
    ``detour_excess`` metres: the spiral's later passes often cover what lies behind the
    obstacle; such a waypoint stays *open*.
-   **Side of a detour.** When the sweep does detour to a target, it weighs the planner's
+   **Side of a detour.** When the sweep does detour to a target, it can weigh the planner's
    shortest way against the shortest way round the other side of the obstacle (a keep-out
-   fence from the first way's widest point out to the field's border): it takes the other side when the coverage deficit of the
-   free cells within ``skip_radius`` of that way, summed, exceeds the shortest way's by more
-   than ``side_rate`` per extra metre (Section 3.2's "detour direction"), heading first for
-   that way's widest point. Off by default (``side_rate`` = ``SIDE_OFF``): on training maps
-   it cost 1-11 % more path for no reliable coverage gain (docs/adaptive.md).
+   fence on the perpendicular through the first way's widest point, out to the field's
+   border): it takes the other side when the coverage deficit of the free cells within
+   ``skip_radius`` of that way, summed, exceeds the shortest way's by more than ``side_rate``
+   per extra metre (Section 3.2's "detour direction"), heading first for that way's widest
+   point. Off by default (``side_rate`` = ``SIDE_OFF``): on training maps it cost more path
+   for no reliable coverage gain (docs/planning.md).
 The spiral's passes are wider than Eq. 5's (``wide_passes``, :func:`sweep_config`): the ring
 count of Eq. 5's spacing is rounded down instead of up (2 rings instead of 3 on the default
 100 m field), and the gaps they leave are the densify phase's.

@@ -1,0 +1,134 @@
+"""The adaptive rule's coverage against its path, beside the plain spiral's, on training maps:
+where the rule's settings put it on the coverage/energy trade-off (issue 19).
+
+Every variant sweeps the same maps, nodes and seeds in the simulator alone (moving obstacles on,
+no safety stack, so the sweeps are cheap and deterministic): the plain spiral with its nominal
+follower (evaluate.py's ``spiral``), and the adaptive sweep with the rule as configured and
+with each ``--variant``'s fields changed. The maps are the shipped ``maps/train`` maps of the
+chosen split (``fit`` or ``validation``, :func:`~aoass_env.maps.registry.validation_split`),
+never maps/test. Motion costs ``anchor_motion_energy`` J/m, so the path is the energy.
+
+The script prints, per variant, the mean Eq. 18 coverage (share of nodes), the mean path (m),
+the path as a share of the spiral's on the same episodes, and the share of uncovered nodes that
+lie in cells the anchor's coverage map counts as covered, in cells it lacks, and in cells it
+does not keep (inside obstacles).
+
+Run: ``python3 benchmarks/adaptive_rule.py [--split fit] [--densities 0.1 0.2 0.3 0.4]
+[--seeds 2] [--nodes 300] [--variant NAME key=value ...]``, e.g.
+``--variant "cells 0.2" cell_need=0.2 --variant "sides 0.5" side_rate=0.5``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from aoass_env.config import AOASSConfig, ConfigError, config_for_map
+from aoass_env.maps import load_map
+from aoass_env.maps.registry import list_maps, validation_split
+from aoass_env.planning import AdaptiveConfig
+from aoass_env.planning.adaptive import sweep_config
+from aoass_env.simulator import Simulator
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One sweep: Eq. 18 coverage, path (m), and where its uncovered nodes lie on the map."""
+
+    coverage: float
+    path: float
+    in_covered: int
+    in_open: int
+    outside: int
+
+
+def sweep(name: str, seed: int, nodes: int, rule: AdaptiveConfig | None) -> Outcome:
+    """Sweep map ``name`` with ``nodes`` nodes and ``seed``: the plain spiral (``rule`` None)
+    or the adaptive sweep with ``rule``."""
+    obstacle_map = load_map(name)
+    config = config_for_map(AOASSConfig(n_nodes=nodes), obstacle_map)
+    if rule is not None:
+        config = sweep_config(config, rule, obstacle_map.width)
+    sim = Simulator(config, np.random.default_rng(seed), obstacle_map=obstacle_map, seed=seed)
+    sim.run(controller=None if rule is None else sim.adaptive_sweep(rule))
+    cov = sim.coverage_map
+    lookup = -np.ones(cov.shape, dtype=np.int64)
+    lookup[cov.index[:, 0], cov.index[:, 1]] = np.arange(cov.n_cells)
+    ij = np.minimum((sim.nodes // cov.cell).astype(np.int64), np.array(cov.shape) - 1)
+    cell = lookup[ij[:, 0], ij[:, 1]][~sim.network.covered]
+    kept = cell >= 0
+    in_covered = int(cov.covered[cell[kept]].sum())
+    return Outcome(sim.network.coverage_ratio, sim.network.distance_travelled, in_covered,
+                   int(kept.sum()) - in_covered, int((~kept).sum()))
+
+
+def parse_variants(specs: Sequence[Sequence[str]]) -> dict[str, AdaptiveConfig]:
+    """``--variant NAME key=value ...`` groups as rules (the configured rule first)."""
+    variants = {"rule": AdaptiveConfig()}
+    for name, *fields in specs:
+        kwargs = {}
+        for item in fields:
+            key, sep, value = item.partition("=")
+            if not sep:
+                raise ConfigError(f"--variant {name!r}: {item!r} is not key=value")
+            if value.lower() in ("true", "false"):
+                kwargs[key] = value.lower() == "true"
+                continue
+            try:
+                kwargs[key] = float(value)
+            except ValueError:
+                raise ConfigError(f"--variant {name!r}: {key}={value!r} is not a number, true "
+                                  f"or false") from None
+        variants[name] = AdaptiveConfig.from_kwargs(**kwargs)
+    return variants
+
+
+def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
+    """Run the comparison (module docstring); the outcomes of every sweep by row name."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--split", choices=("fit", "validation"), default="fit",
+                        help="which maps/train split (never maps/test)")
+    parser.add_argument("--field", type=float, default=100.0, help="field size of the maps (m)")
+    parser.add_argument("--densities", type=float, nargs="+", default=[0.1, 0.2, 0.3, 0.4])
+    parser.add_argument("--seeds", type=int, default=2, help="seeds (nodes, obstacles) per map")
+    parser.add_argument("--nodes", type=int, default=300, help="N")
+    parser.add_argument("--limit", type=int, help="only the first LIMIT maps of the split")
+    parser.add_argument("--variant", nargs="+", action="append", default=[],
+                        metavar="NAME key=value", help="a rule with these fields changed")
+    args = parser.parse_args(argv)
+    try:
+        variants = parse_variants(args.variant)
+    except ConfigError as exc:
+        parser.error(str(exc))
+    fit, held = validation_split(list_maps("train", field_size=args.field))
+    maps = [n for n in (fit if args.split == "fit" else held)
+            if any(f"/d{d:.2f}_" in n for d in args.densities)]
+    maps = maps[:args.limit] if args.limit is not None else maps
+    if not maps:
+        parser.error(f"no maps/train map of field {args.field:g} m at densities "
+                     f"{args.densities} in the {args.split} split")
+    episodes = [(name, seed) for name in maps for seed in range(args.seeds)]
+    spiral = [sweep(n, s, args.nodes, None) for n, s in episodes]
+    print(f"{len(maps)} maps of the {args.split} split x {args.seeds} seeds, N = {args.nodes}")
+    table = {"plain spiral": spiral}
+    print("| sweep | coverage | path [m] | path / spiral's | uncovered nodes: in covered "
+          "cells / in open cells / outside the map's cells |")
+    print("|---|---|---|---|---|")
+    table.update({name: [sweep(n, s, args.nodes, rule) for n, s in episodes]
+                  for name, rule in variants.items()})
+    for name, outcomes in table.items():
+        cov = np.mean([o.coverage for o in outcomes])
+        path = np.mean([o.path for o in outcomes])
+        share = np.mean([o.path / s.path for o, s in zip(outcomes, spiral, strict=True)])
+        where = [sum(getattr(o, k) for o in outcomes)
+                 for k in ("in_covered", "in_open", "outside")]
+        print(f"| {name} | {cov:.2%} | {path:.0f} | {share:.3f} | "
+              f"{where[0]} / {where[1]} / {where[2]} |")
+    return table
+
+
+if __name__ == "__main__":
+    main()

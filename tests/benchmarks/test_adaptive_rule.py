@@ -1,0 +1,56 @@
+"""benchmarks/adaptive_rule.py: the rule's coverage against its path, beside the spiral's."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+from aoass_env.planning import AdaptiveConfig
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def bench():
+    """``benchmarks/adaptive_rule.py`` loaded as a module."""
+    spec = importlib.util.spec_from_file_location("aoass_bench_adaptive_rule",
+                                                  ROOT / "benchmarks" / "adaptive_rule.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_variants_change_the_named_fields_and_refuse_bad_ones(bench):
+    rules = bench.parse_variants([["cells", "cell_need=0.2", "wide_passes=false"]])
+    assert rules["rule"] == AdaptiveConfig()
+    assert rules["cells"] == AdaptiveConfig(cell_need=0.2, wide_passes=False)
+    with pytest.raises(bench.ConfigError, match="did you mean 'skip_need'"):
+        bench.parse_variants([["typo", "skip_needs=0.1"]])
+    with pytest.raises(bench.ConfigError, match="cell_need='x' is not a number"):
+        bench.parse_variants([["bad", "cell_need=x"]])
+    with pytest.raises(bench.ConfigError, match="is not key=value"):
+        bench.parse_variants([["bad", "cell_need"]])
+
+
+def test_rows_share_episodes_and_account_for_every_uncovered_node(bench, capsys):
+    table = bench.main(["--densities", "0.1", "--seeds", "1", "--nodes", "40", "--limit", "1",
+                        "--variant", "no wide passes", "wide_passes=false"])
+    assert list(table) == ["plain spiral", "rule", "no wide passes"]
+    out = capsys.readouterr().out
+    assert "| plain spiral |" in out and "| 1.000 |" in out
+    for outcomes in table.values():
+        (o,) = outcomes
+        assert 0.0 < o.coverage <= 1.0 and o.path > 0.0
+        assert o.in_covered + o.in_open + o.outside == round((1.0 - o.coverage) * 40)
+    # the wide passes make the spiral part of the rule shorter
+    assert table["rule"][0].path < table["no wide passes"][0].path
+
+
+def test_a_split_without_maps_of_the_density_is_refused(bench, capsys):
+    with pytest.raises(SystemExit):
+        bench.main(["--densities", "0.05"])
+    assert "no maps/train map of field 100 m at densities [0.05]" in capsys.readouterr().err
