@@ -37,6 +37,7 @@ Speed comes from three restrictions (docs/localization.md):
 from __future__ import annotations
 
 import itertools
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -147,10 +148,95 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
         raise ValueError(f"cell={cell!r} must be a positive number of metres")
     if not (isinstance(bins, int) and bins >= 8 and bins & (bins - 1) == 0):
         raise ValueError(f"bins={bins!r} must be a power of two >= 8")
+    geo = _stencil_geometry(episode, cell, bins, points)
+    shape, size, origin, pad, xy = geo.shape, geo.size, geo.origin, geo.pad, geo.xy
+    r_hi = episode.log.radio_range * (1 + episode.config.doi)
+    r_lo = episode.log.radio_range * (1 - episode.config.doi)
+    if band is not None:
+        # dist <= radius x band[deg]: per degree, the threshold as the largest float32 not
+        # above it, so that float32 distances compare as they do with the exact threshold
+        radius = episode.log.radio_range
+        lo_at, hi_at = (_float32_floor(radius * b) for b in band)
+    n, stencil = len(xy), size * size
+    tail = shape[0] * size + shape[1]          # all-zero padding lands here
+    weight = np.zeros(n * stencil + tail, dtype=np.uint8)
+    table = weight[:n * stencil].reshape(n, size, size)
+    certain = np.zeros((shape[0] + 2 * pad, shape[1] + 2 * pad), dtype=np.int32)
+    for a, z in _chunks(n, stencil):
+        dist, sight = geo.dist[a:z], geo.sight[a:z]
+        if band is None:
+            near = sight & (dist <= r_lo)
+            np.add(near, sight & (dist <= r_hi), out=table[a:z], dtype=np.uint8)
+        else:
+            # whole degrees of the direction (int32: the same values as int64 in [0, 360))
+            deg = np.degrees(np.arctan2(geo.dy[a:z], geo.dx[a:z]))
+            np.rint(deg, out=deg)
+            deg = deg.astype(np.int32)
+            deg %= 360
+            near = sight & (dist <= lo_at[deg])
+            np.add(near, sight & (dist <= hi_at[deg]), out=table[a:z], dtype=np.uint8)
+        for (ox, oy), block in zip(origin[a:z] + pad, near, strict=True):
+            certain[ox:ox + size, oy:oy + size] += block
+    certain = certain[pad:-pad, pad:-pad]
+    key = np.r_[np.arange(n) * stencil - origin[:, 0] * size - origin[:, 1], n * stencil]
+    return VisibilityRaster(cell=float(cell), shape=shape, size=size, key=key,
+                            weight=weight, certain=certain, inside=geo.inside)
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """What a visibility raster's transmitters see of their stencils, whatever the range
+    model: the stencil placement, the (M, S, S) float32 distances of the cell centres from each
+    transmitter (offsets ``dx`` (M, S, 1), ``dy`` (M, 1, S)), and which cells are in sight."""
+
+    xy: np.ndarray
+    shape: tuple[int, int]
+    size: int
+    origin: np.ndarray
+    pad: int
+    dx: np.ndarray
+    dy: np.ndarray
+    dist: np.ndarray
+    sight: np.ndarray
+    inside: np.ndarray
+
+
+#: The last beacon stencil geometry: (weak reference to its episode, cell, bins, geometry). The
+#: OLSTM's two consensus passes over one log share it (only the range model differs).
+_LAST_GEOMETRY: list[tuple[weakref.ref, float, int, _Geometry]] = []
+#: Stencil cells per chunk of transmitters: the temporaries of a chunk are reused by the next
+#: instead of each being a fresh whole-raster array.
+_CHUNK_CELLS = 1 << 21
+
+
+def _chunks(n: int, stencil: int) -> list[tuple[int, int]]:
+    """[a, z) ranges of ``n`` transmitters of ``stencil`` cells each, about
+    :data:`_CHUNK_CELLS` cells per range."""
+    step = max(1, _CHUNK_CELLS // max(stencil, 1))
+    return [(a, min(a + step, n)) for a in range(0, n, step)]
+
+
+def _float32_floor(values: np.ndarray) -> np.ndarray:
+    """The largest float32 not above each of ``values``: for a float32 d, ``d <= v`` exactly
+    when ``d <= _float32_floor(v)``."""
+    v = np.asarray(values)
+    out = v.astype(np.float32)
+    above = out.astype(v.dtype) > v
+    out[above] = np.nextafter(out[above], np.float32(-np.inf))
+    return out
+
+
+def _stencil_geometry(episode: Episode, cell: float, bins: int,
+                      points: np.ndarray | None) -> _Geometry:
+    """The :class:`_Geometry` of ``points`` (default: the beacons; then shared with the last
+    call on the same episode, cell and bins)."""
+    if points is None and _LAST_GEOMETRY:
+        ref, last_cell, last_bins, geo = _LAST_GEOMETRY[0]
+        if ref() is episode and last_cell == cell and last_bins == bins:
+            return geo
     config = episode.config
     xy = episode.beacon_xy if points is None else np.asarray(points, dtype=np.float64)
     r_hi = episode.log.radio_range * (1 + config.doi)
-    r_lo = episode.log.radio_range * (1 - config.doi)
     w, h = episode.field
     shape = (int(np.ceil(w / cell)), int(np.ceil(h / cell)))
     # the border ring of the stencil lies beyond r_hi, and every cell of a candidate box lies
@@ -163,39 +249,38 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
     cx = ((origin[:, 0, None] + offs + 0.5) * cell - xy[:, 0, None]).astype(np.float32)
     cy = ((origin[:, 1, None] + offs + 0.5) * cell - xy[:, 1, None]).astype(np.float32)
     dx, dy = cx[:, :, None], cy[:, None, :]
-    dist = np.sqrt(dx * dx + dy * dy)
     inside = _inside_cells(episode.log.obstacle_map.polygons, shape, cell)
     # cells off the field or inside an obstacle are never in sight
     pad = half + 1
     excluded = np.ones((shape[0] + 2 * pad, shape[1] + 2 * pad), dtype=bool)
     excluded[pad:-pad, pad:-pad] = inside
-    sight = ~excluded[(origin[:, 0, None] + pad + offs)[:, :, None],
-                      (origin[:, 1, None] + pad + offs)[:, None, :]]
+    gx, gy = (origin[:, 0, None] + pad + offs)[:, :, None], (origin[:, 1, None] + pad + offs)
+    n = len(xy)
+    dist = np.empty((n, size, size), dtype=np.float32)
+    sight = np.empty((n, size, size), dtype=bool)
+    profile = None
     if config.line_of_sight and episode.log.obstacle_map.polygons:
         profile = _profiles(xy, episode.log.obstacle_map.polygons, r_hi, bins)
-        # angle bin, floor of a positive number by truncation, wrapped by a mask (bins = 2^k)
-        k = (np.arctan2(dy, dx) * np.float32(bins / (2 * np.pi)) + np.float32(bins)).astype(
-            np.int32) & (bins - 1)
-        k += (np.arange(len(xy), dtype=np.int32) * bins)[:, None, None]
-        sight &= dist < np.take(profile.astype(np.float32).reshape(-1), k)
-    if band is None:
-        near = sight & (dist <= r_lo)
-        weight = near.astype(np.uint8) + (sight & (dist <= r_hi))
-    else:
-        deg = np.rint(np.degrees(np.arctan2(dy, dx))).astype(np.int64) % 360
-        radius = episode.log.radio_range
-        near = sight & (dist <= radius * band[0][deg])
-        weight = near.astype(np.uint8) + (sight & (dist <= radius * band[1][deg]))
-    certain = np.zeros((shape[0] + 2 * pad, shape[1] + 2 * pad), dtype=np.int32)
-    for (ox, oy), block in zip(origin + pad, near, strict=True):
-        certain[ox:ox + size, oy:oy + size] += block
-    certain = certain[pad:-pad, pad:-pad]
-    n, stencil = len(xy), size * size
-    key = np.r_[np.arange(n) * stencil - origin[:, 0] * size - origin[:, 1], n * stencil]
-    tail = np.zeros(shape[0] * size + shape[1], dtype=np.uint8)  # padding lands here
-    return VisibilityRaster(cell=float(cell), shape=shape, size=size, key=key,
-                            weight=np.r_[weight.reshape(-1), tail], certain=certain,
-                            inside=inside)
+        profile = profile.astype(np.float32).reshape(-1)
+    for a, z in _chunks(n, size * size):
+        d = dist[a:z]
+        np.add(dx[a:z] * dx[a:z], dy[a:z] * dy[a:z], out=d)
+        np.sqrt(d, out=d)
+        np.logical_not(excluded[gx[a:z], gy[a:z, None, :]], out=sight[a:z])
+        if profile is not None:
+            # angle bin, floor of a positive number by truncation, wrapped by a mask (bins =
+            # 2^k)
+            k = np.arctan2(dy[a:z], dx[a:z])
+            k *= np.float32(bins / (2 * np.pi))
+            k += np.float32(bins)
+            k = k.astype(np.int32)
+            k &= bins - 1
+            k += (np.arange(a, z, dtype=np.int32) * bins)[:, None, None]
+            sight[a:z] &= d < np.take(profile, k)
+    geo = _Geometry(xy, shape, size, origin, pad, dx, dy, dist, sight, inside)
+    if points is None:
+        _LAST_GEOMETRY[:] = [(weakref.ref(episode), cell, bins, geo)]
+    return geo
 
 
 def _inside_cells(polygons: tuple[np.ndarray, ...], shape: tuple[int, int],

@@ -113,3 +113,82 @@ def test_band_of_the_doi_bound_is_the_default_and_a_narrow_band_changes_the_esti
     err = np.hypot(*(narrow.estimate - episode.log.nodes[narrow.nodes]).T)
     err0 = np.hypot(*(default.estimate - episode.log.nodes[default.nodes]).T)
     assert np.sqrt(np.mean(err ** 2)) < np.sqrt(np.mean(err0 ** 2))
+
+
+def _reference_raster(episode, band=None, cell=0.5, bins=1024):
+    """The visibility raster as computed before issue 20's speed-up: whole-raster arrays, the
+    band as float64 thresholds (the oracle of the chunked, shared-geometry version)."""
+    from aoass_env.localization.consensus import _inside_cells, _profiles
+
+    config, xy = episode.config, episode.beacon_xy
+    r_hi = episode.log.radio_range * (1 + config.doi)
+    r_lo = episode.log.radio_range * (1 - config.doi)
+    w, h = episode.field
+    shape = (int(np.ceil(w / cell)), int(np.ceil(h / cell)))
+    half = int(np.ceil(r_hi / cell)) + 2
+    size = 2 * half + 1
+    origin = np.floor(xy / cell).astype(np.int64) - half
+    offs = np.arange(size)
+    cx = ((origin[:, 0, None] + offs + 0.5) * cell - xy[:, 0, None]).astype(np.float32)
+    cy = ((origin[:, 1, None] + offs + 0.5) * cell - xy[:, 1, None]).astype(np.float32)
+    dx, dy = cx[:, :, None], cy[:, None, :]
+    dist = np.sqrt(dx * dx + dy * dy)
+    inside = _inside_cells(episode.log.obstacle_map.polygons, shape, cell)
+    pad = half + 1
+    excluded = np.ones((shape[0] + 2 * pad, shape[1] + 2 * pad), dtype=bool)
+    excluded[pad:-pad, pad:-pad] = inside
+    sight = ~excluded[(origin[:, 0, None] + pad + offs)[:, :, None],
+                      (origin[:, 1, None] + pad + offs)[:, None, :]]
+    profile = _profiles(xy, episode.log.obstacle_map.polygons, r_hi, bins)
+    k = (np.arctan2(dy, dx) * np.float32(bins / (2 * np.pi)) + np.float32(bins)).astype(
+        np.int32) & (bins - 1)
+    k += (np.arange(len(xy), dtype=np.int32) * bins)[:, None, None]
+    sight &= dist < np.take(profile.astype(np.float32).reshape(-1), k)
+    if band is None:
+        near = sight & (dist <= r_lo)
+        weight = near.astype(np.uint8) + (sight & (dist <= r_hi))
+    else:
+        deg = np.rint(np.degrees(np.arctan2(dy, dx))).astype(np.int64) % 360
+        radius = episode.log.radio_range
+        near = sight & (dist <= radius * band[0][deg])
+        weight = near.astype(np.uint8) + (sight & (dist <= radius * band[1][deg]))
+    certain = np.zeros((shape[0] + 2 * pad, shape[1] + 2 * pad), dtype=np.int32)
+    for (ox, oy), block in zip(origin + pad, near, strict=True):
+        certain[ox:ox + size, oy:oy + size] += block
+    return weight.reshape(-1), certain[pad:-pad, pad:-pad]
+
+
+def test_chunked_raster_with_shared_geometry_equals_the_whole_raster(small_log, monkeypatch):
+    """The raster computed in chunks of transmitters, with the beacons' geometry shared between
+    a DOI-bound pass and a band pass, is the whole-raster computation, entry for entry."""
+    from aoass_env.localization import consensus as module
+
+    episode = prepare(small_log)
+    assert small_log.obstacle_map.polygons          # line of sight in play
+    rng = np.random.default_rng(1)
+    band = (0.9 + 0.1 * rng.uniform(0.0, 1.0, 360), 1.0 + 0.1 * rng.uniform(-1.0, 1.0, 360))
+    band[1][::7] = 1.0                              # thresholds at the exact range too
+    for cells in (1 << 21, 5000):                   # one chunk; a few transmitters per chunk
+        monkeypatch.setattr(module, "_CHUNK_CELLS", cells)
+        monkeypatch.setattr(module, "_LAST_GEOMETRY", [])
+        for b in (None, band, None):                # the later passes reuse the geometry
+            raster = visibility_raster(episode, band=b)
+            weight, certain = _reference_raster(episode, band=b)
+            n = len(weight)
+            np.testing.assert_array_equal(raster.weight[:n], weight)
+            assert not raster.weight[n:].any()
+            np.testing.assert_array_equal(raster.certain, certain)
+        assert module._LAST_GEOMETRY[0][0]() is episode
+
+
+def test_float32_floor_keeps_float64_comparisons_exact():
+    from aoass_env.localization.consensus import _float32_floor
+
+    rng = np.random.default_rng(0)
+    t = rng.uniform(20.0, 30.0, 360)
+    floor = _float32_floor(t)
+    assert floor.dtype == np.float32 and np.all(floor.astype(np.float64) <= t)
+    d = np.concatenate([t.astype(np.float32), floor, np.nextafter(floor, np.float32(np.inf)),
+                        rng.uniform(20.0, 30.0, 5000).astype(np.float32)])
+    idx = np.concatenate([np.arange(360)] * 3 + [rng.integers(0, 360, 5000)])
+    np.testing.assert_array_equal(d <= floor[idx], d <= t[idx])
