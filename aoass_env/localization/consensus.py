@@ -349,8 +349,9 @@ def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray]], i0: np.ndarray,
     for raster, heard in parts:
         # #heard - #heard in sight and reach + #in sight within R (1 - DOI) - #heard among
         # those; every box cell lies on every heard transmitter's stencil
-        entries = raster.key[heard][owner] + (ix * raster.size + iy)[:, None]
-        fit = raster.weight[entries].sum(axis=1, dtype=np.int64)
+        entries = raster.key[heard][owner]
+        entries += (ix * raster.size + iy)[:, None]
+        fit = np.take(raster.weight, entries).sum(axis=1, dtype=np.int32)   # <= 2 per entry
         viol += (heard >= 0).sum(axis=1)[owner] + raster.certain[ix, iy] - fit
     viol[grid.inside[ix, iy]] = np.inf
     best = np.minimum.reduceat(viol, np.cumsum(n_cells) - n_cells)
