@@ -67,6 +67,8 @@ CELL_CAPTURE_CELLS = 2.0
 #: Seconds a cell to densify gets beyond twice its straight travel time (and the follower's
 #: allowance for a detour) before it is given up.
 CELL_STALL_TIME = 5.0
+#: Cells within this distance (m) of a cell the sweep gave up on the way to are given up too.
+GIVE_UP_RADIUS = 10.0
 #: Radius (m) and spacing of the keep-outs that fence off the shortest way's side of an
 #: obstacle, from its widest point out to the field's border.
 SIDE_KEEPOUT = 4.0
@@ -226,13 +228,14 @@ class AdaptiveSweep:
             if self.coverage.ratio >= self.rule.end_coverage:
                 self._done = True
                 break
+            cell_done = self._cell >= 0 and self._cell_done(position)
             if self._via is not None:
-                if not self._via.done:
+                if not (self._via.done or cell_done):
                     return self._via.command(position, heading, dt)
                 self._recoveries += self._via.recoveries
                 self._via = None
             runner = self._runner
-            if not runner.done and not (self._cell >= 0 and self.coverage.covered[self._cell]):
+            if not runner.done and not cell_done:
                 if self._cell < 0:
                     self._pass_covered(position, runner)
                 if not runner.done:
@@ -344,8 +347,14 @@ class AdaptiveSweep:
             self._recoveries += self._runner.recoveries
         self._judged = -1
         if self._cell >= 0:      # what beacons around here can give that cell, they have given
+            capture = CELL_CAPTURE_CELLS * self.coverage.cell
             self._dropped[self._cell] = True
-            self._dropped[self.coverage.near(position, self._runner.capture_radius)] = True
+            self._dropped[self.coverage.near(position, capture)] = True
+            centre = self.coverage.centres[self._cell]
+            if (not self.coverage.covered[self._cell]
+                    and math.hypot(*(centre - position)) > capture):
+                # given up on the way: the cells around it need the same way
+                self._dropped[self.coverage.near(centre, GIVE_UP_RADIUS)] = True
             self._cell = -1
         threshold = self._threshold(self.rule.densify_need, self.knobs.densify)
         todo = np.flatnonzero(self._open)
@@ -359,7 +368,8 @@ class AdaptiveSweep:
         wps = self.follower.waypoints
         d = wps[todo] - position
         nearest = todo[np.argsort(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])[:DENSIFY_CANDIDATES]]
-        lengths = [self._way_length(position, wps[i]) for i in nearest]
+        start = self._start(position)
+        lengths = [self._way_length(start, wps[i]) for i in nearest]
         first = int(nearest[int(np.argmin(lengths))])
         if not np.isfinite(min(lengths)):
             self._open[nearest] = False          # out of reach: nothing to do there
@@ -373,28 +383,59 @@ class AdaptiveSweep:
         self.revisits.append((first, self._clock))
         self._runner = WaypointFollower.nominal(self.config, wps, ~run, self.planner,
                                                 start=first, recovery=True)
+        self._via = self._way_to(position, wps[first])
+
+    def _start(self, position: np.ndarray) -> np.ndarray:
+        """Where the planner's ways from ``position`` start: ``position``, or where the anchor
+        rejoins the field's main region when the planner sees it shut in a pocket."""
+        if self.planner.can_start(position, 0.0):
+            return position
+        return self.planner.main_point(position)
+
+    def _way_to(self, position: np.ndarray, target: np.ndarray) -> WaypointFollower | None:
+        """A runner along the inner points of the planner's way to ``target`` (None when the way
+        is straight or there is none): sent to a far target alone, the follower cuts corners
+        where it sees the target, and at densities 0.5-0.6 ran into the same trap for target
+        after target."""
+        start = self._start(position)
+        if start is not position:
+            # the planner sees the anchor shut in a pocket (its dilated obstacles close a gap
+            # the anchor came through): straight back to the field's main region first
+            return WaypointFollower.nominal(self.config, start[None], recovery=True)
+        way = self.planner.path(position, target)
+        if way is None or len(way) < 3:
+            return None
+        return WaypointFollower.nominal(self.config, way[1:-1], planner=self.planner,
+                                        recovery=True)
 
     def _next_cell(self, position: np.ndarray, threshold: float) -> None:
-        """Head for the nearest free cell the map still lacks (deficit above ``threshold``, not
-        given up); done when there is none."""
+        """Head for the free cell the map still lacks (deficit above ``threshold``, not given
+        up) that the planner's way reaches at the least cost; cells it cannot reach are given
+        up; done when none is left."""
         cov = self.coverage
         todo = np.flatnonzero(~self._dropped & (cov.deficit > max(threshold, 0.0)))
-        if not len(todo):
+        cost = self.planner.costs(self._start(position), cov.centres[todo])
+        self._dropped[todo[~np.isfinite(cost)]] = True      # out of the anchor's reach
+        if not np.isfinite(cost).any():
             self._done = True
             return
-        d = cov.centres[todo] - position
-        near = np.argmin(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+        near = int(np.argmin(cost))
         self._cell = int(todo[near])
         centre = cov.centres[self._cell]
         # a cell beside an obstacle may be out of the anchor's reach: little time past the
-        # travel (the follower adds a detour's)
-        travel = 2.0 * float(np.sqrt(d[near] @ d[near])) / self.config.anchor_nominal_speed
+        # travel
+        travel = 2.0 * float(cost[near]) / self.config.anchor_nominal_speed
         self._runner = WaypointFollower.nominal(self.config, centre[None, :], planner=self.planner,
                                                 recovery=True, stall_time=CELL_STALL_TIME + travel)
-        # beacons within a few cells of it cover it as well as standing on it
-        self._runner.capture_radius = max(self._runner.capture_radius,
-                                          CELL_CAPTURE_CELLS * cov.cell)
+        self._via = self._way_to(position, centre)
         self.revisits.append((-1, self._clock))
+
+    def _cell_done(self, position: np.ndarray) -> bool:
+        """Whether the cell the sweep heads for is covered, or reached: beacons within a few
+        cells of it cover it as well as standing on it."""
+        centre = self.coverage.centres[self._cell]
+        return bool(self.coverage.covered[self._cell]) or math.hypot(
+            *(centre - position)) <= CELL_CAPTURE_CELLS * self.coverage.cell
 
     def _way_length(self, position: np.ndarray, target: np.ndarray) -> float:
         """Length (m) of the planner's way to ``target`` (inf when there is none)."""

@@ -76,6 +76,7 @@ class DetourPlanner:
         self._blocker = shapely.buffer(self._obstacles, radius)
         shapely.prepare(self._blocker)
         self._tree: tuple[int, float, np.ndarray, np.ndarray] | None = None
+        self._nearest_main: np.ndarray | None = None     # built on first use (main_point)
         self._rows: np.ndarray | None = None     # row of every graph entry (keep-out searches)
 
     @classmethod
@@ -125,6 +126,27 @@ class DetourPlanner:
 
     def _cell(self, point: np.ndarray) -> int:
         return int(self._nearest[self._index(point)])
+
+    def costs(self, start: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """(K,) cost of the planner's way (m, weighted as its searches: length x (1 + 1 /
+        clearance), so at least the length) from ``start`` to each of ``goals`` (K, 2), each
+        snapped to its nearest free grid cell as :meth:`path` does; inf where there is no way.
+        One search for all the goals."""
+        goals = np.asarray(goals, dtype=np.float64).reshape(-1, 2)
+        dist, _ = self._tree_from(self._cell(start), math.inf)
+        i = np.clip((goals[:, 0] / self.res).astype(np.int64), 0, self.shape[0] - 1)
+        j = np.clip((goals[:, 1] / self.res).astype(np.int64), 0, self.shape[1] - 1)
+        return dist[self._nearest[i * self.shape[1] + j]]
+
+    def main_point(self, point: np.ndarray) -> np.ndarray:
+        """(2,) the centre (m) of the free grid cell nearest to ``point`` in the largest
+        connected free region (where :meth:`can_start` holds): where an anchor the planner
+        sees shut in a pocket heads to rejoin the field."""
+        if self._nearest_main is None:
+            main = self._main.reshape(self.shape)
+            _, near = ndimage.distance_transform_edt(~main, return_indices=True)
+            self._nearest_main = np.ravel_multi_index((near[0], near[1]), self.shape).ravel()
+        return self.centres[self._nearest_main[self._index(point)]].copy()
 
     def can_start(self, point: np.ndarray, clearance: float) -> bool:
         """Whether the field is reachable from ``point`` (m): the free cell the planner snaps it

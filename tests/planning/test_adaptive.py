@@ -175,3 +175,22 @@ def test_a_detour_goes_round_the_side_where_coverage_is_missing(side_rate, round
     else:
         assert sweep.sides == []
         np.testing.assert_array_equal(sweep.target, goal)
+
+
+def test_a_cell_behind_a_wall_is_reached_along_the_planners_way_not_by_cutting_toward_it():
+    """Below the wall everything is covered; the cells it lacks lie above, reached round the
+    wall's open end: the sweep steers for the planner's inner points first."""
+    config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
+    coverage = CoverageMap(WALL, config)
+    for x in np.arange(2.0, 60.0, 4.0):
+        for y in np.arange(2.0, 28.0, 4.0):
+            coverage.add_beacon(np.array([x, y]))
+    planner = DetourPlanner(WALL, config.anchor_radius + 0.5)
+    start = np.array([40.0, 20.0])
+    follower = WaypointFollower.nominal(config, start[None, :], planner=planner, recovery=True)
+    sweep = AdaptiveSweep(follower, coverage, planner, config, AdaptiveConfig())
+    sweep.command(start, 0.0, config.dt)
+    assert sweep.densifying and not sweep.done and sweep.revisits == [(-1, config.dt)]
+    # the way's first corner at the wall's open end (x < 20), not the cell above the wall
+    assert sweep.target[0] < 21.0 and sweep.target[1] < 29.0
+    assert planner.visible(start, sweep.target)

@@ -115,3 +115,33 @@ def test_planners_of_one_map_share_the_grid_with_a_fresh_search_state():
         DetourPlanner(m, 0.8).path(np.array([20.0, 50.0]), np.array([70.0, 50.0])), path)
     assert DetourPlanner.for_map(m, 1.0)._graph is not a._graph
     assert DetourPlanner.for_map(ObstacleMap(100, 100, [WALL]), 0.8)._graph is not a._graph
+
+
+def test_costs_are_the_searched_way_at_least_its_length_and_inf_in_a_pocket():
+    m = ObstacleMap(100, 100, [WALL, C_SHAPE])
+    p = DetourPlanner(m, radius=0.8)
+    start = np.array([20.0, 50.0])
+    goals = np.array([[30.0, 50.0], [70.0, 50.0], [70.0, 70.0], [20.0, 95.0]])
+    costs = p.costs(start, goals)
+    assert np.isinf(costs[2])                           # inside the C, its mouth too narrow
+    finite = np.isfinite(costs)
+    # at least as long as the planner's shortened way, which is at least the straight line
+    # (up to the half cell the ends are snapped by)
+    ways = [p.path(start, g) for g in goals[finite]]
+    lengths = [shapely.LineString(w).length for w in ways]
+    assert np.all(costs[finite] >= np.array(lengths) - p.res)
+    assert np.all(np.array(lengths) >= np.hypot(*(goals[finite] - start).T) - 1e-9)
+    assert costs[1] > 50.0 + 2 * 10.0         # round the wall's end, not through it
+    assert costs[0] < costs[1]
+
+
+def test_main_point_leads_out_of_a_pocket_and_stays_put_on_the_field():
+    m = ObstacleMap(100, 100, [C_SHAPE])
+    p = DetourPlanner(m, radius=0.5)
+    inside = np.array([70.0, 70.0])
+    assert not p.can_start(inside, 0.0)
+    out = p.main_point(inside)
+    assert p.can_start(out, 0.0)
+    assert np.hypot(*(out - inside)) < 12.0           # just outside the C
+    on_field = np.array([20.0, 20.0])
+    assert np.hypot(*(p.main_point(on_field) - on_field)) <= p.res
