@@ -11,8 +11,12 @@ coverage no more than 1 point lower, no more contacts. Prints a table per densit
 (means, and the mean paired difference with its 95 % interval) and saves ``OUT/results.json``
 and ``OUT/episodes.csv``.
 
+With ``--maps validation`` the episodes are on the validation split of the 100 m training maps
+instead (:func:`~aoass_env.maps.registry.validation_split`): the maps on which to choose between
+policies, since maps/test is for reported tables only.
+
 Run: ``python3 benchmarks/agent_vs_spiral.py [--model checkpoints/aoass_td3_lstm/best.zip]
-[--algo td3-lstm] [--seeds 30] [--jobs 2]``.
+[--algo td3-lstm] [--seeds 30] [--jobs 2] [--maps test|validation]``.
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ from aoass_env.config import AOASSConfig
 from aoass_env.evaluation.episode import episode_metrics
 from aoass_env.evaluation.methods import METHODS, RunOptions
 from aoass_env.maps import list_maps, load_map
+from aoass_env.maps.registry import validation_split
 
 DENSITIES = ("0.10", "0.20", "0.30", "0.40")
 METRICS = ("return", "eta_traj", "coverage", "energy", "contacts", "steps")
@@ -79,13 +84,20 @@ def main() -> None:
                              " compare it with the hand-written rule, the adaptive zero action")
     parser.add_argument("--seeds", type=int, default=30, help="episodes per density")
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--maps", choices=("test", "validation"), default="test",
+                        help="maps/test (reported tables) or the validation split of maps/train "
+                             "(choosing between policies)")
     parser.add_argument("--out", type=Path, default=Path("out/bench_agent"))
     args = parser.parse_args()
     if not args.model.is_file():
         parser.error(f"--model {args.model}: no such file")
     tasks = []
     for d in DENSITIES:
-        maps = list_maps("test", field_size=100, densities=(float(d), float(d)))
+        if args.maps == "test":
+            maps = list_maps("test", field_size=100, densities=(float(d), float(d)))
+        else:
+            maps = validation_split(list_maps("train", field_size=100,
+                                              densities=(float(d), float(d))))[1]
         for s in range(args.seeds):
             for policy in (args.algo, "zero"):
                 tasks.append((policy, maps[s % len(maps)], 100 + s, str(args.model.resolve()),
@@ -93,7 +105,8 @@ def main() -> None:
     with Pool(args.jobs) as pool:
         rows = pool.map(episode, tasks, chunksize=1)
 
-    print(f"{args.model}: {args.seeds} episodes per density, both inside the safety stack")
+    print(f"{args.model}: {args.seeds} episodes per density on the {args.maps} maps, both "
+          "inside the safety stack")
     print(f"{'density':8s} {'policy':7s} " + " ".join(f"{k:>9s}" for k in METRICS))
     summary: dict = {}
     for d in (*DENSITIES, "all"):
