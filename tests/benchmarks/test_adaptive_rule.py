@@ -2,26 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 
 from aoass_env.planning import AdaptiveConfig
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.benchmarks.conftest import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def bench():
     """``benchmarks/adaptive_rule.py`` loaded as a module."""
-    spec = importlib.util.spec_from_file_location("aoass_bench_adaptive_rule",
-                                                  ROOT / "benchmarks" / "adaptive_rule.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("adaptive_rule")
 
 
 def test_variants_change_the_named_fields_and_refuse_bad_ones(bench):

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import csv
-import importlib.util
-import sys
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.benchmarks.conftest import load_benchmark
+
 TINY = ["--timesteps", "12", "--eval-every", "6", "--eval-episodes", "1", "--seeds", "0",
         "--env-kwargs", "field_size:30", "n_nodes:10", "time_limit_factor:1.0"]
 
@@ -17,12 +16,7 @@ TINY = ["--timesteps", "12", "--eval-every", "6", "--eval-episodes", "1", "--see
 @pytest.fixture(scope="module")
 def bench():
     """``benchmarks/algorithms.py`` loaded as a module."""
-    spec = importlib.util.spec_from_file_location("aoass_bench_algorithms",
-                                                  ROOT / "benchmarks" / "algorithms.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("algorithms")
 
 
 def test_every_algorithm_trains_and_is_tabled(bench, tmp_path: Path):
