@@ -1,8 +1,8 @@
 """What both localizers derive from a beacon log before estimating anything.
 
 :func:`prepare` builds an :class:`Episode`: the episode's config, the hop counts of every
-virtual anchor (:mod:`~aoass_env.localization.hops`), the HopSize of every beacon (Eq. 11) and
-which nodes are covered under Eq. 18. Coverage is recomputed by replaying the receptions through
+virtual anchor (:mod:`~aoass_env.localization.hops`) and the HopSize of every beacon (Eq. 11),
+both computed on first use (only DV-Hop reads them), and which nodes are covered under Eq. 18. Coverage is recomputed by replaying the receptions through
 :class:`aoass_env.network.Network`, the same incremental criterion the simulator applies, so a
 log and its episode always agree on it.
 """
@@ -11,12 +11,20 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from aoass_env.beacon_log import BeaconLog, BeaconLogError
 from aoass_env.config import AOASSConfig, ConfigError
-from aoass_env.localization.hops import DEFAULT_FLOOD_LIMIT, HopCounts, hop_counts, hop_size
+from aoass_env.localization.hops import (
+    DEFAULT_FLOOD_LIMIT,
+    HopCounts,
+    check_flood_limit,
+    hop_counts,
+    hop_size,
+    require_beacons,
+)
 from aoass_env.network import Network
 from aoass_env.radio import LineOfSight
 
@@ -30,23 +38,32 @@ class Episode:
     Attributes:
         log: the validated beacon log.
         config: the episode's configuration (from the log's ``config_json``).
-        hops: hop counts from every beacon (virtual anchor).
-        hop_size: (B,) HopSize of each beacon, Eq. 11 [m].
         covered: (N,) nodes that heard >= 3 non-collinear beacons (Eq. 18).
         heard_centroid: (N, 2) mean position of each node's heard beacons [m] (NaN: none).
+        flood_limit: hop-count flooding limit [hops] of :attr:`hops`.
         line_of_sight: exact line-of-sight test against the log's obstacles.
     """
 
     log: BeaconLog
     config: AOASSConfig
-    hops: HopCounts
-    hop_size: np.ndarray
     covered: np.ndarray
     heard_centroid: np.ndarray
+    flood_limit: int = DEFAULT_FLOOD_LIMIT
     line_of_sight: LineOfSight = dataclasses.field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "line_of_sight", LineOfSight(self.log.obstacle_map))
+
+    # hop counts only DV-Hop reads: computed on first use (the consensus never floods)
+    @cached_property
+    def hops(self) -> HopCounts:
+        """Hop counts from every beacon (virtual anchor), up to :attr:`flood_limit` hops."""
+        return hop_counts(self.log, self.flood_limit)
+
+    @cached_property
+    def hop_size(self) -> np.ndarray:
+        """(B,) HopSize of each beacon, Eq. 11 [m]."""
+        return hop_size(self.beacon_xy, self.hops.beacon_beacon)
 
     @property
     def beacon_xy(self) -> np.ndarray:
@@ -106,7 +123,8 @@ def prepare(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> Episode:
     Raises:
         BeaconLogError: the log holds no beacons, or its config or receptions are invalid.
     """
-    hops = hop_counts(log, flood_limit)
+    require_beacons(log)
+    check_flood_limit(flood_limit)
     config = log_config(log)
     xy = log.beacons[:, 1:]
     heard_count = np.bincount(log.receptions[:, 1], minlength=log.n_nodes)
@@ -114,6 +132,5 @@ def prepare(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> Episode:
                                  minlength=log.n_nodes) for i in range(2)], axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         centroid = sums / heard_count[:, None]
-    return Episode(log=log, config=config, hops=hops,
-                   hop_size=hop_size(xy, hops.beacon_beacon),
-                   covered=covered_nodes(log, config), heard_centroid=centroid)
+    return Episode(log=log, config=config, covered=covered_nodes(log, config),
+                   heard_centroid=centroid, flood_limit=int(flood_limit))

@@ -67,6 +67,13 @@ def radio_graph(log: BeaconLog) -> sp.csr_matrix:
     return graph
 
 
+def check_flood_limit(flood_limit: object) -> None:
+    """ValueError naming ``flood_limit`` unless it is an integer >= 1."""
+    if isinstance(flood_limit, bool) or not isinstance(flood_limit, (int, np.integer)) \
+            or flood_limit < 1:
+        raise ValueError(f"flood_limit={flood_limit!r} must be an integer number of hops >= 1")
+
+
 def hop_counts(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> HopCounts:
     """Hop counts from every beacon to every node and beacon, up to ``flood_limit`` hops.
 
@@ -75,9 +82,7 @@ def hop_counts(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> HopCou
         ValueError: ``flood_limit`` is not an integer >= 1.
     """
     require_beacons(log)
-    if isinstance(flood_limit, bool) or not isinstance(flood_limit, (int, np.integer)) \
-            or flood_limit < 1:
-        raise ValueError(f"flood_limit={flood_limit!r} must be an integer number of hops >= 1")
+    check_flood_limit(flood_limit)
     n = log.n_nodes
     dist = csgraph.dijkstra(radio_graph(log), directed=False, unweighted=True,
                             indices=np.arange(n, n + log.n_beacons), limit=float(flood_limit))
