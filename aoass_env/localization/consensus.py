@@ -279,8 +279,14 @@ def _stencil_geometry(episode: Episode, cell: float, bins: int,
             sight[a:z] &= d < np.take(profile, k)
     geo = _Geometry(xy, shape, size, origin, pad, dx, dy, dist, sight, inside)
     if points is None:
-        _LAST_GEOMETRY[:] = [(weakref.ref(episode), cell, bins, geo)]
+        _LAST_GEOMETRY[:] = [(weakref.ref(episode, _forget), cell, bins, geo)]
     return geo
+
+
+def _forget(ref: weakref.ref) -> None:
+    """Drop the shared geometry once its episode is gone (it is large)."""
+    if _LAST_GEOMETRY and _LAST_GEOMETRY[0][0] is ref:
+        _LAST_GEOMETRY.clear()
 
 
 def _inside_cells(polygons: tuple[np.ndarray, ...], shape: tuple[int, int],
