@@ -40,7 +40,13 @@ from aoass_env.planning import AdaptiveConfig
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.safety.fuzzy import FuzzyController
 from aoass_env.safety.kalman import MultiTargetTracker
-from aoass_env.safety.lookahead import Escape, escape_velocity, look_ahead_horizon, position_std
+from aoass_env.safety.lookahead import (
+    Escape,
+    EscapeBudget,
+    escape_velocity,
+    look_ahead_horizon,
+    position_std,
+)
 from aoass_env.safety.orca import OrcaLines, StaticObstacles, orca_lines, solve_velocity
 from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
 from aoass_env.world import wrap_angle
@@ -265,6 +271,15 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         self.action_space = self.agent_action.space
         self._static: StaticObstacles | None = None
         self._static_map: Any = None
+        #: the look-ahead's escape budget and whether it escaped last period (hysteresis)
+        self.escape_budget = EscapeBudget(config.escape_budget)
+        self._escaping = False
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        self.escape_budget.reset()
+        self._escaping = False
+        return super().reset(seed=seed, options=options)
 
     def _static_obstacles(self) -> StaticObstacles:
         """The boundary of free space of the episode's map (built once per map)."""
@@ -310,17 +325,25 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         static = self._static_obstacles()
         radius = c.anchor_radius + cfg.margin
         near = static.edges_near(anchor.position, c.anchor_max_speed * horizon + radius)
+        react = cfg.look_ahead_react or c.dt + c.anchor_max_speed / c.anchor_max_accel
+        yielding = self.escape_budget.yielding
         return escape_velocity(
             v_star, v_pref, anchor.position, anchor.heading, anchor.speed, tracks,
             self._tracker.tracked_covariances, max_speed=c.anchor_max_speed,
             max_accel=c.anchor_max_accel, max_turn_rate=c.anchor_max_turn_rate,
             horizon=horizon, step=0.5 * c.dt, starts=static.point[near],
             ends=static.point[static.next[near]], radius=radius,
-            sigma=cfg.covariance_sigma, maneuver=cfg.maneuver_share,
-            clearance=cfg.look_ahead_clearance, obstacle_radius=c.moving_obstacle_radius)
+            sigma=cfg.covariance_sigma, maneuver=0.0 if yielding else cfg.maneuver_share,
+            clearance=cfg.look_ahead_clearance, obstacle_radius=c.moving_obstacle_radius,
+            react=None if self._escaping else react,
+            progress_weight=cfg.yield_progress_weight if yielding else cfg.progress_weight)
 
     def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         executed, report = self._filter(action)
+        # the look-ahead's memory moves on with the steps taken (not with action() previews)
+        self._escaping = report["escaping"]
+        if self.config.look_ahead:
+            self.escape_budget.update(self._escaping, self._base.config.dt)
         observation, reward, terminated, truncated, info = self.env.step(executed)
         info["safety"] = report
         return observation, reward, terminated, truncated, info
@@ -375,7 +398,8 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                   "active": int(active.sum()),
                   "active_static": int(active[:lines.n_static].sum()),
                   "escaping": bool(escape is not None and escape.escaping),
-                  "look_ahead_shortfall": 0.0 if escape is None else escape.shortfall}
+                  "look_ahead_shortfall": 0.0 if escape is None else escape.shortfall,
+                  "yielding": self.escape_budget.yielding}
         return executed, report
 
 

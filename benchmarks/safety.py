@@ -1,9 +1,11 @@
 """Safety record, Kalman accuracy and speed of the AOASS safety stack (issues 4 and 24).
 
 Five measurements, each printed as a table and saved to ``OUT/results.json``. The stacks
-compared (``--stacks``) run the same seeds: ``stack`` (the defaults: ORCA plus the look-ahead of
-issue 24), ``orca`` (the filter before it, ``SafetyConfig.orca_only()``) and ``bare``
-(AOASS-v0 without a stack).
+compared (``--stacks``, ``--cost-stacks``) run the same seeds: ``stack`` (the defaults: ORCA
+plus the look-ahead of issue 24, which yields to the sweep), ``eager`` (the look-ahead's first
+version: it escapes whenever ORCA's velocity falls short anywhere in its horizon, without a
+price on headway or an escape budget), ``orca`` (the filter before the look-ahead,
+``SafetyConfig.orca_only()``) and ``bare`` (AOASS-v0 without a stack).
 
 1. **contacts**: ``--episodes`` episodes (default 200) on generated 100 m maps of densities
    0.1-0.6 in turn, driven by uniformly random actions (a worst-case agent): anchor contacts
@@ -21,7 +23,8 @@ issue 24), ``orca`` (the filter before it, ``SafetyConfig.orca_only()``) and ``b
    (target: ratio >= 0.5).
 
 Run: ``python3 benchmarks/safety.py [--episodes 200] [--jobs 2] [--parts contacts zero cost
-kalman speed] [--stacks stack orca bare] [--first-seed 10000] [--out out/bench_safety]``.
+kalman speed] [--stacks stack orca bare] [--cost-stacks stack orca] [--first-seed 10000]
+[--cost-first-seed 40000] [--out out/bench_safety]``.
 """
 
 from __future__ import annotations
@@ -46,7 +49,11 @@ DENSITIES = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
 #: The stacks compared, on the same seeds: the defaults (look-ahead, issue 24), the filter
 #: before it (ORCA alone against the moving obstacles, ``SafetyConfig.orca_only()``) and bare
 #: AOASS-v0.
-STACKS = {"stack": SafetyConfig(), "orca": SafetyConfig.orca_only(), "bare": None}
+STACKS = {"stack": SafetyConfig(), "orca": SafetyConfig.orca_only(), "bare": None,
+          # the look-ahead's first version: an escape whenever ORCA's velocity falls short
+          # anywhere in the horizon, no price on the sweep's headway, no escape budget
+          "eager": SafetyConfig(look_ahead_react=60.0, progress_weight=0.0,
+                                escape_budget=1e4)}
 
 
 def episode(task: tuple[str, str, float | str, int]) -> dict:
@@ -174,8 +181,8 @@ def run_cost(n: int, jobs: int, labels: tuple[str, ...] = ("stack", "orca"),
     for r in rows:
         pairs.setdefault((r["where"], r["seed"]), {})[r["label"]] = r
     both = [p for p in pairs.values() if all(p[lab]["complete"] for lab in labels)]
-    if len(labels) == 2 and both:
-        a, b = labels
+    if len(labels) >= 2 and both:
+        a, b = labels[:2]
         path = float(np.mean([p[a]["path_length"] / p[b]["path_length"] for p in both]))
         time_ = float(np.mean([p[a]["time"] / p[b]["time"] for p in both]))
         out["ratio"] = {"episodes_both_complete": len(both), "path": path, "time": time_}
@@ -297,6 +304,9 @@ def main() -> None:
                         help="seed of the contacts part's first episode")
     parser.add_argument("--stacks", nargs="+", default=["stack", "orca", "bare"],
                         choices=list(STACKS), help="what the contacts part compares")
+    parser.add_argument("--cost-stacks", nargs="+", default=["stack", "orca"],
+                        choices=[label for label in STACKS if label != "bare"],
+                        help="what the cost part compares (ratios: the first two)")
     parser.add_argument("--parts", nargs="+",
                         default=["contacts", "zero", "cost", "kalman", "speed"],
                         choices=["contacts", "zero", "cost", "kalman", "speed"])
@@ -310,7 +320,7 @@ def main() -> None:
     if "zero" in args.parts:
         results["zero"] = run_zero(args.zero_seeds, args.jobs)
     if "cost" in args.parts:
-        results["cost"] = run_cost(args.cost_episodes, args.jobs,
+        results["cost"] = run_cost(args.cost_episodes, args.jobs, tuple(args.cost_stacks),
                                    first_seed=args.cost_first_seed)
     if "contacts" in args.parts:
         results["contacts"] = run_contacts(args.episodes, args.jobs, tuple(args.stacks),

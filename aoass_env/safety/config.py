@@ -79,6 +79,24 @@ class SafetyConfig(ValidatedConfig):
         "speed (room for a turn toward the anchor; 1: its whole reachable disc)", low=0.0,
         high=1.0)
 
+    look_ahead_react: float | None = param(
+        None, "the look-ahead starts an escape only when ORCA's velocity falls short of the "
+        "clearance within this time (or touches an obstacle's bare disc within the horizon), "
+        "and keeps escaping until it is clear over the whole horizon; None = one period + a "
+        "full stop from top speed (2.5 s with the defaults)", unit="s", low=0.0, high=60.0,
+        low_open=True, optional=True)
+    progress_weight: float = param(
+        2.0, "price the look-ahead puts on a candidate that makes no headway along the "
+        "sweep's direction against one running at top speed along it for the whole horizon "
+        "(m x steps of clearance shortfall)", low=0.0, high=100.0)
+    escape_budget: float = param(
+        15.0, "seconds of escaping (refilled at half a second per second without) after "
+        "which the look-ahead yields to the sweep until half of it is back: it then escapes "
+        "only from the obstacles' discs grown by their covariance, with the headway priced "
+        "yield_progress_weight", unit="s", low=0.0, high=1e4, low_open=True)
+    yield_progress_weight: float = param(
+        10.0, "progress_weight while yielding to the sweep", low=0.0, high=100.0)
+
     @classmethod
     def orca_only(cls, **kwargs: object) -> SafetyConfig:
         """The filter before the look-ahead (issue 4's stack): ORCA alone against the moving

@@ -20,11 +20,17 @@ and the predicted obstacles:
 * **Score** (:func:`violation`): the summed shortfall of the clearance to every obstacle below a
   required ``clearance`` over the horizon; 0 means safe.
 
-:func:`escape_velocity` keeps the velocity it is given when its rollout is safe; otherwise it
-returns the safe candidate nearest the preferred velocity or, when no candidate is safe, the one
-with the least shortfall: the anchor escapes toward free space instead of braking in place, and
-backs out of a narrow passage while it still can. The horizon (:func:`look_ahead_horizon`) is
-one control period, a full stop from top speed and a half turn: 4.5 s with the defaults.
+:func:`escape_velocity` keeps the velocity it is given unless its rollout's shortfall is
+*imminent* (within a reaction time, by default one period and a full stop, or a contact with a
+bare disc anywhere in the horizon; the wrapper keeps escaping until the given velocity is clear
+over the whole horizon). Otherwise the given velocity and the candidates
+compete on one cost: the shortfall, a price on ending pressed against a wall, on leaving the
+preferred velocity, on turning, and on losing the sweep's headway along the preferred
+direction. The anchor escapes toward free space instead of braking in place, and backs out of
+a narrow passage while it still can. :class:`EscapeBudget` bounds how long escapes may hold
+the anchor off the sweep: past it the look-ahead yields (no room for turns, headway priced
+higher) until half of it is back. The horizon (:func:`look_ahead_horizon`) is one control
+period, a full stop from top speed and a half turn: 4.5 s with the defaults.
 
 All functions are pure (NumPy in, NumPy out); lengths in m, times in s, angles in rad.
 """
@@ -36,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Escape", "candidate_commands", "escape_velocity", "look_ahead_horizon",
+__all__ = ["Escape", "EscapeBudget", "candidate_commands", "escape_velocity", "look_ahead_horizon",
            "obstacle_radii", "position_std", "predict_obstacles", "rollout",
            "segment_distances", "violation"]
 
@@ -129,19 +135,30 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
     moving toward it mirrors its velocity about the segment's normal (at the end of the step,
     a first-order model of the bounce)."""
     states = np.asarray(states, dtype=np.float64).reshape(-1, 4)
+    radii = np.broadcast_to(np.asarray(radii, dtype=np.float64), (len(states),))
     xy, v = states[:, :2].copy(), states[:, 2:].copy()
-    out = np.empty((len(states), n_steps, 2))
+    # straight on: the same additions, step by step, as the loop below makes (cumsum adds in
+    # order); an obstacle that cannot come within its radius of an edge over the horizon
+    # (its travel is shorter than its gap) keeps them
+    steps = np.broadcast_to((step * v)[:, None, :], (len(states), n_steps, 2))
+    out = np.cumsum(np.concatenate([xy[:, None, :], steps], axis=1), axis=1)[:, 1:]
+    if not (len(starts) and len(states)):
+        return out
+    travel = np.hypot(v[:, 0], v[:, 1]) * (step * n_steps)
+    near = np.flatnonzero(segment_distances(xy, starts, ends) - travel <= radii + 1e-9)
+    if len(near) == 0:
+        return out
+    xy, v, radii = xy[near], v[near], radii[near]
     for i in range(n_steps):
         moved = xy + step * v
-        if len(starts) and len(states):
-            gap, offset = _nearest_on_segments(moved, starts, ends)
-            normal = offset / np.maximum(gap, 1e-12)[:, None]
-            along = (v * normal).sum(axis=1)
-            hit = (gap < radii) & (along < 0.0)
-            v = np.where(hit[:, None], v - 2.0 * along[:, None] * normal, v)
-            moved = np.where(hit[:, None], xy + step * v, moved)
+        gap, offset = _nearest_on_segments(moved, starts, ends)
+        normal = offset / np.maximum(gap, 1e-12)[:, None]
+        along = (v * normal).sum(axis=1)
+        hit = (gap < radii) & (along < 0.0)
+        v = np.where(hit[:, None], v - 2.0 * along[:, None] * normal, v)
+        moved = np.where(hit[:, None], xy + step * v, moved)
         xy = moved
-        out[:, i] = xy
+        out[near, i] = xy
     return out
 
 
@@ -231,7 +248,8 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
                     max_turn_rate: float, horizon: float, step: float, starts: np.ndarray,
                     ends: np.ndarray, radius: float, sigma: float, maneuver: float,
                     clearance: float, obstacle_radius: float | None = None,
-                    n_headings: int = 16) -> Escape:
+                    n_headings: int = 16, react: float | None = None,
+                    progress_weight: float = 0.0) -> Escape:
     """The velocity (m/s) to steer for among moving obstacles (see the module docstring).
 
     Args:
@@ -252,6 +270,12 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         obstacle_radius: the obstacles' own radius (m) for their bounces off the static
             edges; None predicts them straight through the edges.
         n_headings: evenly spaced candidate headings.
+        react: seconds (s) within which a shortfall of ``velocity``'s rollout from the grown
+            discs makes an escape (a predicted contact with a bare disc does at any time of
+            the horizon); None: the whole horizon (any shortfall).
+        progress_weight: price (m x steps) of a rollout that makes no headway along
+            ``preferred`` against one that runs at ``max_speed`` straight along it for the
+            whole horizon (the sweep's progress; 0: no price).
     """
     velocity = np.asarray(velocity, dtype=np.float64)
     preferred = np.asarray(preferred, dtype=np.float64)
@@ -272,28 +296,50 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     else:
         centres = predict_obstacles(obs[:, :4], step, n_steps, starts, ends,
                                     np.full(len(obs), obstacle_radius))
-    radii = obstacle_radii(obs[:, 4], obstacle_speed[near],
-                           position_std(np.asarray(covariances)[near], times), times,
-                           sigma, maneuver)
+    std = position_std(np.asarray(covariances)[near], times)
+    radii = obstacle_radii(obs[:, 4], obstacle_speed[near], std, times, sigma, maneuver)
 
     bare = obs[:, 4][:, None] + np.zeros_like(radii)
+    position = np.asarray(position, dtype=np.float64)
+    pref_speed = float(np.hypot(*preferred))
+    along = preferred / pref_speed if pref_speed > 1e-9 else np.zeros(2)
+    # headway is priced per metre against running the whole horizon at top speed
+    headway_price = progress_weight / (max_speed * n_steps * step)
 
-    def score(headings: np.ndarray, speeds: np.ndarray) -> np.ndarray:
+    def score(headings: np.ndarray, speeds: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         paths = rollout(position, heading, speed, headings, speeds, max_turn_rate, max_accel,
                         step, n_steps, starts, ends, radius)
         # a predicted contact with the bare disc weighs CONTACT_WEIGHT times a shortfall of
         # the grown one
-        # free space: a path that ends pressed against a wall leaves no way on
-        walls = np.maximum(OPEN_SPACE - segment_distances(paths[:, -1], starts, ends), 0.0)
-        return (CONTACT_WEIGHT * violation(paths, centres, bare, 0.0)
-                + violation(paths, centres, radii, clearance)), OPEN_SPACE_WEIGHT * walls
+        contact = violation(paths, centres, bare, 0.0)
+        moving = CONTACT_WEIGHT * contact + violation(paths, centres, radii, clearance)
+        # free space: a path that ends pressed against a wall leaves no way on; headway: the
+        # sweep's progress along the preferred direction
+        walls = OPEN_SPACE_WEIGHT * np.maximum(
+            OPEN_SPACE - segment_distances(paths[:, -1], starts, ends), 0.0)
+        headway = headway_price * ((paths[:, -1] - position) @ along)
+        return moving, walls - headway, contact if react is None else paths
 
     wanted = float(np.hypot(*velocity))
     own = math.atan2(velocity[1], velocity[0]) if wanted > 1e-9 else heading
-    base_moving, base_walls = score(np.array([own]), np.array([wanted]))
+    base_moving, base_walls, base_extra = score(np.array([own]), np.array([wanted]))
     base = float(base_moving[0])
     if base <= 0.0:
         return Escape(velocity, False, 0.0, 0.0)
+    if react is not None:
+        # imminent only: a shortfall from the grown discs within ``react`` seconds, or a
+        # contact with a bare disc at any time of the horizon (a contact on the tracks'
+        # estimates; a trigger on the discs grown by the covariance alone escaped more and
+        # completed fewer zero-action sweeps on the tuning seeds, for about the same contacts
+        # under random actions)
+        soon = max(int(math.ceil(react / step - 1e-9)), 1)
+        paths = base_extra
+        imminent = (violation(paths[:, :soon], centres[:, :soon], radii[:, :soon],
+                              clearance)[0] > 0.0
+                    or violation(paths, centres, bare, 0.0)[0] > 0.0)
+        if not imminent:
+            return Escape(velocity, False, base, base)
     extra = [own]
     if np.hypot(*preferred) > 1e-9:
         extra.append(math.atan2(preferred[1], preferred[0]))
@@ -302,7 +348,7 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     # between it and an escape with different rules made the anchor alternate between them
     headings = np.concatenate([[own], headings])
     speeds = np.concatenate([[wanted], speeds])
-    moving, walls = score(headings[1:], speeds[1:])
+    moving, walls, _ = score(headings[1:], speeds[1:])
     shortfall = np.concatenate([[base], moving])
     walls = np.concatenate([base_walls, walls])
     candidates = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=1)
@@ -317,3 +363,36 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     if pick == 0:
         return Escape(velocity, False, base, base)
     return Escape(candidates[pick], True, base, float(shortfall[pick]))
+
+
+@dataclass
+class EscapeBudget:
+    """How long the look-ahead may hold the anchor off the sweep: escaping spends the budget
+    (1 s per s), a period without an escape refills it at ``refill`` s per s. Once ``spent``
+    reaches ``budget`` (s) the anchor *yields* to the sweep until half the budget has come
+    back (hysteresis): the look-ahead then escapes only from predicted contacts with the
+    obstacles' discs grown by their track covariance alone (no room for a turn), and prices
+    the sweep's headway higher; ORCA's lines, the static lines and the braking envelope are
+    unchanged, so the anchor still does not drive into anything. An obstacle bouncing in a
+    pocket beside the spiral can no longer hold the anchor off its way for the rest of the
+    episode.
+    """
+
+    budget: float
+    refill: float = 0.5
+    spent: float = 0.0
+    yielding: bool = False
+
+    def reset(self) -> None:
+        self.spent, self.yielding = 0.0, False
+
+    def update(self, escaping: bool, dt: float) -> None:
+        """Account one period of ``dt`` (s) in which the look-ahead did (not) escape."""
+        if escaping:
+            self.spent += dt
+        else:
+            self.spent = max(self.spent - self.refill * dt, 0.0)
+        if self.spent >= self.budget:
+            self.yielding = True
+        elif self.spent <= 0.5 * self.budget:
+            self.yielding = False

@@ -9,6 +9,7 @@ import pytest
 
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.lookahead import (
+    EscapeBudget,
     candidate_commands,
     escape_velocity,
     look_ahead_horizon,
@@ -153,3 +154,93 @@ def test_escape_avoids_a_dead_end():
     out = _escape([1.0, 0.0], [[-3.0, 1.0, 1.0, 0.0, 1.5]], starts=starts, ends=ends)
     assert out.escaping
     assert out.velocity[1] < 0.0                     # toward the open side (-y)
+
+
+def test_a_late_shortfall_is_left_to_orca_when_a_reaction_time_is_given():
+    """An obstacle crossing 6 m ahead misses the bare disc, but its grown disc reaches the
+    straight rollout late in the horizon. Without a reaction time the look-ahead escapes at
+    once; with 2.5 s it keeps the given velocity (nothing is imminent) and reports the
+    shortfall."""
+    obstacle = [[6.0, -6.5, 0.0, 1.0, 1.5]]
+    eager = _escape([1.0, 0.0], obstacle)
+    assert eager.escaping and eager.shortfall > 0.0
+    calm = _escape([1.0, 0.0], obstacle, react=2.5)
+    assert not calm.escaping and calm.shortfall == eager.shortfall
+    np.testing.assert_array_equal(calm.velocity, [1.0, 0.0])
+    # a predicted contact with the bare disc is imminent whatever the reaction time
+    head_on = _escape([1.0, 0.0], [[8.0, 0.0, -1.0, 0.0, 1.5]], react=0.5)
+    assert head_on.escaping
+
+
+def test_the_sweeps_headway_picks_among_escapes():
+    """An obstacle crossing 4 m ahead of a slow sweep heading +y: without a price on headway
+    the escape stops (the candidate nearest the slow preferred velocity); with it the escape
+    is a safe candidate that keeps going along the sweep."""
+    obstacle = np.array([[3.0, 4.0, -1.0, 0.0, 1.5]])
+    args = dict(max_speed=2.0, max_accel=1.0, max_turn_rate=math.pi / 2, horizon=4.5,
+                step=0.25, starts=np.zeros((0, 2)), ends=np.zeros((0, 2)), radius=0.7,
+                sigma=2.0, maneuver=0.25, clearance=0.5, obstacle_radius=1.0)
+    cov = np.diag([0.04, 0.04, 0.01, 0.01])[None]
+    v = np.array([0.0, 0.5])
+    plain = escape_velocity(v, v, np.zeros(2), math.pi / 2, 0.5, obstacle, cov, **args)
+    keen = escape_velocity(v, v, np.zeros(2), math.pi / 2, 0.5, obstacle, cov,
+                           progress_weight=10.0, **args)
+    assert plain.escaping and keen.escaping
+    assert plain.velocity[1] < 0.5
+    assert keen.velocity[1] > 1.0 and keen.chosen_shortfall == 0.0
+
+
+def test_the_escape_budget_yields_with_hysteresis():
+    budget = EscapeBudget(budget=2.0, refill=0.5)
+    for _ in range(3):
+        budget.update(True, 0.5)
+    assert not budget.yielding and budget.spent == pytest.approx(1.5)
+    budget.update(True, 0.5)
+    assert budget.yielding                                   # 2 s spent
+    budget.update(False, 0.5)
+    assert budget.yielding                                   # 1.75 s: still above half
+    for _ in range(3):
+        budget.update(False, 0.5)
+    assert not budget.yielding and budget.spent == pytest.approx(1.0)
+    budget.update(True, 0.5)
+    budget.reset()
+    assert budget.spent == 0.0 and not budget.yielding
+
+
+def _predict_step_by_step(states, step, n_steps, starts, ends, radii):
+    """predict_obstacles' model with the edge test on every obstacle at every step (the
+    oracle of its shortcut for obstacles too far from the edges to reach them)."""
+    xy, v = states[:, :2].copy(), states[:, 2:].copy()
+    out = np.empty((len(states), n_steps, 2))
+    for i in range(n_steps):
+        moved = xy + step * v
+        for j in range(len(states)):
+            d = segment_distances(moved[j:j + 1], starts, ends)[0]
+            if d >= radii[j]:
+                continue
+            # the nearest segment's normal toward the disc
+            e = ends - starts
+            s = np.clip(((moved[j] - starts) * e).sum(1) / (e * e).sum(1), 0.0, 1.0)
+            g = moved[j] - (starts + s[:, None] * e)
+            k = int(np.argmin((g * g).sum(1)))
+            normal = g[k] / max(np.hypot(*g[k]), 1e-12)
+            along = v[j] @ normal
+            if along < 0.0:
+                v[j] = v[j] - 2.0 * along * normal
+                moved[j] = xy[j] + step * v[j]
+        xy = moved
+        out[:, i] = xy
+    return out
+
+
+def test_prediction_shortcut_matches_the_step_by_step_model():
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        m, e = rng.integers(1, 5), rng.integers(1, 6)
+        states = np.column_stack([rng.uniform(-12, 12, (m, 2)), rng.uniform(-1, 1, (m, 2))])
+        starts = rng.uniform(-12, 12, (e, 2))
+        ends = starts + rng.uniform(-6, 6, (e, 2))
+        radii = np.full(m, 1.0)
+        np.testing.assert_allclose(predict_obstacles(states, 0.25, 18, starts, ends, radii),
+                                   _predict_step_by_step(states, 0.25, 18, starts, ends, radii),
+                                   rtol=0, atol=1e-9)

@@ -90,3 +90,52 @@ def test_the_turning_obstacle_nearly_hits_the_orca_only_filter():
     start, velocity, steps, kw = SCENARIOS["turns_into"]
     separation, _ = _run(start, velocity, steps, safety=SafetyConfig.orca_only(), **kw)
     assert separation < MIN_SEPARATION
+
+
+#: The look-ahead as it was before it yielded to the sweep (issue 24's first version): an
+#: escape whenever ORCA's velocity falls short of the clearance anywhere in the horizon, no
+#: price on headway, no escape budget.
+EAGER = SafetyConfig(look_ahead_react=60.0, progress_weight=0.0, escape_budget=1e4)
+#: A cage beside the first leg (y = 20, 1.5 m from the cage's top wall) holding an obstacle
+#: that bounces up and down at 1 m/s (a 1.6 m slot, too narrow for it, in the bottom wall).
+CAGE = [_wall((24.5, 18.0), (30.5, 18.0), 1.0), _wall((24.5, 12.0), (26.7, 12.0), 1.0),
+        _wall((28.3, 12.0), (30.5, 12.0), 1.0), _wall((25.0, 12.0), (25.0, 18.0), 1.0),
+        _wall((30.0, 12.0), (30.0, 18.0), 1.0)]
+
+
+def _cage_sweep(safety):
+    """The zero-action stack's whole sweep of the 40 m field past the cage (at most 600
+    periods): (periods taken, the last info)."""
+    config = AOASSConfig(field_size=40.0, n_nodes=50, map_clearance=1.0, n_moving_obstacles=1,
+                         moving_obstacle_speed=(0.0, 0.0), moving_obstacle_turn_rate=0.0)
+    env = aoass_env.make_safe_env(config=config, safety=safety)
+    env.reset(seed=0, options={"map": ObstacleMap(40.0, 40.0, tuple(CAGE))})
+    world = env.unwrapped.sim.world
+    world._mpos[0] = (27.5, 14.0)
+    world._mbodies[0].position = (27.5, 14.0)
+    world._mvel[0] = (0.3, 1.0)
+    zero = np.zeros(2, np.float32)
+    steps = 0
+    while steps < 600:
+        _, _, terminated, truncated, info = env.step(zero)
+        steps += 1
+        if terminated or truncated:
+            break
+    env.close()
+    return steps, info
+
+
+def test_an_obstacle_bouncing_in_a_pocket_does_not_hold_up_the_sweep():
+    """The pocket case: an obstacle that never reaches the leg, but whose grown disc does,
+    once per bounce. The eager look-ahead escapes from it until the follower's watchdog gives
+    up and backs out (the sweep loses time and waypoints); the look-ahead that escapes only
+    from imminent shortfalls passes as ORCA alone does, without a contact."""
+    steps, info = _cage_sweep(None)
+    orca_steps, _ = _cage_sweep(SafetyConfig.orca_only())
+    eager_steps, eager = _cage_sweep(EAGER)
+    assert info["progress"] == 1.0 and info["coverage"] >= 0.95
+    assert info["recoveries"] == 0 and info["moving_contacts"] == 0
+    assert info["static_contacts"] == 0 and info["wall_contacts"] == 0
+    assert steps <= 1.05 * orca_steps
+    # the scenario is a real hold-up for the eager look-ahead
+    assert eager["recoveries"] >= 1 and eager_steps > 1.2 * orca_steps
