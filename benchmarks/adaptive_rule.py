@@ -11,7 +11,7 @@ never maps/test. Motion costs ``anchor_motion_energy`` J/m, so the path is the e
 The script prints, per variant, the mean Eq. 18 coverage (share of nodes), the mean path (m),
 the path as a share of the spiral's on the same episodes, and the share of uncovered nodes that
 lie in cells the anchor's coverage map counts as covered, in cells it lacks, and in cells it
-does not keep (inside obstacles).
+does not keep (inside obstacles); then coverage and path share by density.
 
 Run: ``python3 benchmarks/adaptive_rule.py [--split fit] [--densities 0.1 0.2 0.3 0.4]
 [--seeds 2] [--nodes 300] [--variant NAME key=value ...]``, e.g.
@@ -111,6 +111,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
         parser.error(f"no maps/train map of field {args.field:g} m at densities "
                      f"{args.densities} in the {args.split} split")
     episodes = [(name, seed) for name in maps for seed in range(args.seeds)]
+    density = np.array([float(name.rsplit("/d", 1)[1][:4]) for name, _ in episodes])
     spiral = [sweep(n, s, args.nodes, None) for n, s in episodes]
     print(f"{len(maps)} maps of the {args.split} split x {args.seeds} seeds, N = {args.nodes}")
     table = {"plain spiral": spiral}
@@ -127,6 +128,17 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
                  for k in ("in_covered", "in_open", "outside")]
         print(f"| {name} | {cov:.2%} | {path:.0f} | {share:.3f} | "
               f"{where[0]} / {where[1]} / {where[2]} |")
+    levels = sorted(set(density))
+    print("\ncoverage / path share of the spiral's, by density\n")
+    print("| sweep | " + " | ".join(f"d = {d:.1f}" for d in levels) + " |")
+    print("|---|" + "---|" * len(levels))
+    for name, outcomes in table.items():
+        cells = []
+        for d in levels:
+            pick = [(o, s) for o, s, k in zip(outcomes, spiral, density, strict=True) if k == d]
+            cells.append(f"{np.mean([o.coverage for o, _ in pick]):.2%} / "
+                         f"{np.mean([o.path / s.path for o, s in pick]):.3f}")
+        print(f"| {name} | " + " | ".join(cells) + " |")
     return table
 
 
