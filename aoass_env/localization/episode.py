@@ -2,9 +2,10 @@
 
 :func:`prepare` builds an :class:`Episode`: the episode's config, the hop counts of every
 virtual anchor (:mod:`~aoass_env.localization.hops`) and the HopSize of every beacon (Eq. 11),
-both computed on first use (only DV-Hop reads them), and which nodes are covered under Eq. 18. Coverage is recomputed by replaying the receptions through
-:class:`aoass_env.network.Network`, the same incremental criterion the simulator applies, so a
-log and its episode always agree on it.
+both computed on first use (only DV-Hop reads them), and which nodes are covered under Eq. 18.
+Coverage is recomputed by replaying the receptions through :class:`aoass_env.network.Network`,
+the same incremental criterion the simulator applies, so a log and its episode always agree on
+it.
 """
 
 from __future__ import annotations
