@@ -28,6 +28,7 @@ spread = 1 - min(1, residual / collinearity_tol); a cell that heard nothing has 
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 import shapely
@@ -73,6 +74,35 @@ def _free_points(obstacle_map: ObstacleMap, index: np.ndarray, cell: float) -> n
     return out
 
 
+#: The cells of the last maps seen, per map: (cell, reach, line of sight) -> (shape, index,
+#: centres, radio); maps are immutable, so the episodes on one map share them.
+_CELLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _cells(obstacle_map: ObstacleMap, cell: float, reach: float, line_of_sight: bool
+           ) -> tuple[tuple[int, int], np.ndarray, np.ndarray, Radio]:
+    """The map's raster: (nx, ny), the kept cells' (i, j) and virtual nodes (read-only), and
+    the radio of the virtual nodes (:class:`CoverageMap`); built once per map and settings."""
+    per_map = _CELLS.setdefault(obstacle_map, {})
+    key = (float(cell), float(reach), bool(line_of_sight))
+    if key not in per_map:
+        nx = max(1, math.ceil(obstacle_map.width / cell))
+        ny = max(1, math.ceil(obstacle_map.height / cell))
+        gi, gj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+        index = np.stack([gi.ravel(), gj.ravel()], axis=1)
+        centres = (index + 0.5) * cell
+        centres = np.minimum(centres, [obstacle_map.width, obstacle_map.height])
+        free = ~obstacle_map.inside_obstacle(centres)
+        centres[~free] = _free_points(obstacle_map, index[~free], cell)
+        free |= np.isfinite(centres[:, 0])
+        index, centres = index[free], centres[free]
+        index.flags.writeable = False
+        centres.flags.writeable = False
+        per_map[key] = ((nx, ny), index, centres,
+                        Radio(centres, obstacle_map, reach, line_of_sight=line_of_sight))
+    return per_map[key]
+
+
 class CoverageMap:
     """Eq. 18 coverage of the free field as the anchor can know it (module docstring).
 
@@ -94,21 +124,8 @@ class CoverageMap:
     def __init__(self, obstacle_map: ObstacleMap, config: AOASSConfig) -> None:
         self.cell = config.coverage_cell
         self.reach = cell_range(config)
-        nx = max(1, math.ceil(obstacle_map.width / self.cell))
-        ny = max(1, math.ceil(obstacle_map.height / self.cell))
-        self.shape = (nx, ny)
-        gi, gj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
-        index = np.stack([gi.ravel(), gj.ravel()], axis=1)
-        centres = (index + 0.5) * self.cell
-        centres = np.minimum(centres, [obstacle_map.width, obstacle_map.height])
-        free = ~obstacle_map.inside_obstacle(centres)
-        centres[~free] = _free_points(obstacle_map, index[~free], self.cell)
-        free |= np.isfinite(centres[:, 0])
-        self.index = index[free]
-        self.centres = centres[free]
-        self.centres.flags.writeable = False
-        self._radio = Radio(self.centres, obstacle_map, self.reach,
-                            line_of_sight=config.line_of_sight)
+        self.shape, self.index, self.centres, self._radio = _cells(
+            obstacle_map, self.cell, self.reach, config.line_of_sight)
         self._network = Network(max(len(self.centres), 1), config)
         self._tol = config.collinearity_tol
         self._deficit: np.ndarray | None = None      # of every free cell, until a beacon

@@ -139,3 +139,16 @@ def test_sector_deficits_read_by_bearing_from_the_heading():
     assert east[0] == 1.0 and west[0] < east[0]
     np.testing.assert_allclose(west, np.roll(east, 2))
     assert np.all(cov.sector_deficits(np.array([-100.0, -100.0]), 0.0, 4, 5.0) == 0.0)
+
+
+def test_maps_of_one_obstacle_map_share_its_raster_but_not_their_coverage():
+    wall = ObstacleMap(40.0, 40.0, [np.array([[17.9, 0.0], [22.1, 0.0], [22.1, 30.0],
+                                              [17.9, 30.0]])])
+    first, second = CoverageMap(wall, CONFIG), CoverageMap(wall, CONFIG)
+    assert first.centres is second.centres and first.index is second.index
+    assert not first.centres.flags.writeable
+    for b in ([10.0, 10.0], [14.0, 10.0], [12.0, 14.0]):
+        first.add_beacon(np.array(b))
+    assert first.covered.any() and not second.covered.any() and second.heard.sum() == 0
+    other = CoverageMap(wall, AOASSConfig(coverage_cell=2.5))
+    assert other.n_cells != first.n_cells               # another cell size, its own raster
