@@ -76,8 +76,8 @@ def test_stack_ends_the_sweep_by_itself_in_a_trap(trap):
 @pytest.mark.parametrize("trap", REAL_TRAPS)
 def test_without_the_watchdog_the_trap_holds_the_stack(trap):
     # "parked" was built for the ORCA-only filter: the look-ahead (issue 24) backs away from
-    # the parked obstacle by itself and sweeps about two thirds of the field without the
-    # watchdog (still not the whole spiral, and without a contact)
+    # the parked obstacle by itself and covers more of the field without the watchdog (0.56
+    # of the nodes; still not the whole spiral, and without a contact)
     complete, info = _sweep(trap, watchdog_time=1e4, safety=SafetyConfig.orca_only())
     assert not complete and info["coverage"] < 0.5
     complete, info = _sweep(trap, watchdog_time=1e4)
