@@ -183,17 +183,25 @@ def rollout(position: np.ndarray, heading: float, speed: float, headings: np.nda
     v = np.full(k, float(speed))
     gap = np.full(k, float(segment_distances(xy[:1], starts, ends)[0]))
     max_dh, max_dv = max_turn_rate * step, max_accel * step
+    # the speed stays between the current one and the targets: when even that travel for the
+    # whole horizon cannot bring the centre within ``radius`` of an edge, every step is taken
+    # and the edge test is skipped (the same positions)
+    travel = max(abs(float(speed)), float(np.abs(target_speed).max(initial=0.0))) * step * n_steps
+    walls = bool(k) and gap[0] - travel < radius + 1e-9
     out = np.empty((k, n_steps, 2))
     for i in range(n_steps):
         turn = np.remainder(headings - theta + math.pi, 2.0 * math.pi) - math.pi
         theta = theta + np.clip(turn, -max_dh, max_dh)
         v = v + np.clip(target_speed - v, -max_dv, max_dv)
         moved = xy + (v * step)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1)
-        new_gap = segment_distances(moved, starts, ends)
-        ok = (new_gap >= radius) | (new_gap >= gap)
-        xy = np.where(ok[:, None], moved, xy)
-        gap = np.where(ok, new_gap, gap)
-        v = np.where(ok, v, 0.0)
+        if walls:
+            new_gap = segment_distances(moved, starts, ends)
+            ok = (new_gap >= radius) | (new_gap >= gap)
+            xy = np.where(ok[:, None], moved, xy)
+            gap = np.where(ok, new_gap, gap)
+            v = np.where(ok, v, 0.0)
+        else:
+            xy = moved
         out[:, i] = xy
     return out
 

@@ -244,3 +244,43 @@ def test_prediction_shortcut_matches_the_step_by_step_model():
         np.testing.assert_allclose(predict_obstacles(states, 0.25, 18, starts, ends, radii),
                                    _predict_step_by_step(states, 0.25, 18, starts, ends, radii),
                                    rtol=0, atol=1e-9)
+
+
+def _rollout_step_by_step(position, heading, speed, headings, speeds, starts, ends, radius,
+                          step=0.25, n_steps=18, max_turn_rate=math.pi / 2, max_accel=1.0):
+    """rollout's model with the edge test at every step (the oracle of its shortcut for
+    paths that cannot reach an edge)."""
+    k = len(headings)
+    xy = np.tile(position, (k, 1))
+    theta, v = np.full(k, heading), np.full(k, speed)
+    gap = np.full(k, segment_distances(xy[:1], starts, ends)[0])
+    out = np.empty((k, n_steps, 2))
+    for i in range(n_steps):
+        turn = np.remainder(headings - theta + math.pi, 2.0 * math.pi) - math.pi
+        theta = theta + np.clip(turn, -max_turn_rate * step, max_turn_rate * step)
+        v = v + np.clip(speeds - v, -max_accel * step, max_accel * step)
+        moved = xy + (v * step)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1)
+        new_gap = segment_distances(moved, starts, ends)
+        ok = (new_gap >= radius) | (new_gap >= gap)
+        xy = np.where(ok[:, None], moved, xy)
+        gap = np.where(ok, new_gap, gap)
+        v = np.where(ok, v, 0.0)
+        out[:, i] = xy
+    return out
+
+
+def test_rollout_shortcut_matches_the_step_by_step_model():
+    rng = np.random.default_rng(6)
+    for _ in range(200):
+        e, k = rng.integers(1, 6), rng.integers(1, 12)
+        starts = rng.uniform(-15, 15, (e, 2))
+        ends = starts + rng.uniform(-6, 6, (e, 2))
+        position, heading = rng.uniform(-3, 3, 2), rng.uniform(-math.pi, math.pi)
+        speed = rng.uniform(0.0, 2.0)
+        headings = rng.uniform(-math.pi, math.pi, k)
+        speeds = rng.choice([0.0, 0.5, 1.0, 2.0], k)
+        np.testing.assert_array_equal(
+            rollout(position, heading, speed, headings, speeds, math.pi / 2, 1.0, 0.25, 18,
+                    starts, ends, 0.7),
+            _rollout_step_by_step(position, heading, speed, headings, speeds, starts, ends,
+                                  0.7))
