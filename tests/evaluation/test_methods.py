@@ -40,7 +40,8 @@ def test_every_method_plays_a_small_episode_with_finite_metrics(method, small_ke
                      "wall_seconds", "localize_seconds"):
             assert math.isfinite(r[name]) and r[name] > 0, name
         assert r["collisions"] == r["collisions_static"] + r["collisions_moving"]
-        assert r["path_complete"] == 0                 # cut at STEPS: no method sweeps 40 m
+        # cut at STEPS, or ended by itself before (the adaptive policy sweeps 40 m in 128)
+        assert r["path_complete"] == (r["travel_time"] < STEPS * 0.5 - 1e-9)
         assert r["localized"] == pytest.approx(r["coverage"])   # both localize the covered
         assert math.isfinite(r["rmse"]) or r["localized"] == 0.0
         if METHODS[method].kind in ("aoass", "ablation"):
