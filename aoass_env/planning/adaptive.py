@@ -103,6 +103,9 @@ class AdaptiveConfig(ValidatedConfig):
                                 "this are visited, nearest first", low=-1.0, high=1.0)
     cell_need: float = param(0.5, "then, free cells with a deficit above this (0.5: heard at "
                              "most one beacon) are visited, nearest first", low=-1.0, high=1.0)
+    cell_hop: float = param(1e4, "a lacking cell is headed for only when the planner's way "
+                            "to it costs at most this (the cells phase ends when none is that "
+                            "near)", unit="m", low=0.0, high=1e4, low_open=True)
     end_coverage: float = param(0.995, "the sweep ends when the coverage map's covered share "
                                 "of the free field reaches this", low=0.0, high=1.0,
                                 low_open=True)
@@ -416,7 +419,7 @@ class AdaptiveSweep:
         todo = np.flatnonzero(~self._dropped & (cov.deficit > max(threshold, 0.0)))
         cost = self.planner.costs(self._start(position), cov.centres[todo])
         self._dropped[todo[~np.isfinite(cost)]] = True      # out of the anchor's reach
-        if not np.isfinite(cost).any():
+        if not np.isfinite(cost).any() or cost.min() > self.rule.cell_hop:
             self._done = True
             return
         near = int(np.argmin(cost))

@@ -194,3 +194,20 @@ def test_a_cell_behind_a_wall_is_reached_along_the_planners_way_not_by_cutting_t
     # the way's first corner at the wall's open end (x < 20), not the cell above the wall
     assert sweep.target[0] < 21.0 and sweep.target[1] < 29.0
     assert planner.visible(start, sweep.target)
+
+
+def test_cells_farther_than_the_hop_end_the_cells_phase():
+    config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
+    coverage = CoverageMap(WALL, config)
+    for x in np.arange(2.0, 60.0, 4.0):
+        for y in np.arange(2.0, 28.0, 4.0):
+            coverage.add_beacon(np.array([x, y]))
+    planner = DetourPlanner(WALL, config.anchor_radius + 0.5)
+    start = np.array([40.0, 20.0])
+    for hop, done in ((10.0, True), (1e4, False)):     # the lacking cells lie round the wall
+        follower = WaypointFollower.nominal(config, start[None, :], planner=planner,
+                                            recovery=True)
+        sweep = AdaptiveSweep(follower, coverage, planner, config, AdaptiveConfig(cell_hop=hop))
+        speed, _ = sweep.command(start, 0.0, config.dt)
+        assert sweep.done is done and (sweep.target is None) is done
+        assert (speed == 0.0) if done else sweep.densifying
