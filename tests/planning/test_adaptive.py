@@ -177,9 +177,8 @@ def test_a_detour_goes_round_the_side_where_coverage_is_missing(side_rate, round
         np.testing.assert_array_equal(sweep.target, goal)
 
 
-def test_a_cell_behind_a_wall_is_reached_along_the_planners_way_not_by_cutting_toward_it():
-    """Below the wall everything is covered; the cells it lacks lie above, reached round the
-    wall's open end: the sweep steers for the planner's inner points first."""
+def _covered_below_the_wall() -> tuple[AOASSConfig, CoverageMap, DetourPlanner, np.ndarray]:
+    """WALL's field covered below the wall by a grid of beacons; the anchor below it."""
     config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
     coverage = CoverageMap(WALL, config)
     for x in np.arange(2.0, 60.0, 4.0):
@@ -187,6 +186,13 @@ def test_a_cell_behind_a_wall_is_reached_along_the_planners_way_not_by_cutting_t
             coverage.add_beacon(np.array([x, y]))
     planner = DetourPlanner(WALL, config.anchor_radius + 0.5)
     start = np.array([40.0, 20.0])
+    return config, coverage, planner, start
+
+
+def test_a_cell_behind_a_wall_is_reached_along_the_planners_way_not_by_cutting_toward_it():
+    """Below the wall everything is covered; the cells it lacks lie above, reached round the
+    wall's open end: the sweep steers for the planner's inner points first."""
+    config, coverage, planner, start = _covered_below_the_wall()
     follower = WaypointFollower.nominal(config, start[None, :], planner=planner, recovery=True)
     sweep = AdaptiveSweep(follower, coverage, planner, config, AdaptiveConfig())
     sweep.command(start, 0.0, config.dt)
@@ -197,13 +203,7 @@ def test_a_cell_behind_a_wall_is_reached_along_the_planners_way_not_by_cutting_t
 
 
 def test_cells_farther_than_the_hop_end_the_cells_phase():
-    config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
-    coverage = CoverageMap(WALL, config)
-    for x in np.arange(2.0, 60.0, 4.0):
-        for y in np.arange(2.0, 28.0, 4.0):
-            coverage.add_beacon(np.array([x, y]))
-    planner = DetourPlanner(WALL, config.anchor_radius + 0.5)
-    start = np.array([40.0, 20.0])
+    config, coverage, planner, start = _covered_below_the_wall()
     for hop, done in ((10.0, True), (1e4, False)):     # the lacking cells lie round the wall
         follower = WaypointFollower.nominal(config, start[None, :], planner=planner,
                                             recovery=True)
