@@ -82,6 +82,11 @@ class ActionType(ABC):
         """The adaptive sweep's knobs that ``action`` sets; None for a type without them."""
         return None
 
+    def decode(self, action: Any, nominal: Command) -> tuple[Command, SweepKnobs | None]:
+        """(:meth:`command`, :meth:`knobs`) of ``action``, validated once (an environment's
+        step)."""
+        return self.command(action, nominal), self.knobs(action)
+
     @classmethod
     @abstractmethod
     def from_config(cls, config: AOASSConfig) -> ActionType:
@@ -140,7 +145,9 @@ class ResidualAction(ActionType):
         return spaces.Box(-1.0, 1.0, (2,), np.float32)
 
     def command(self, action: Any, nominal: Command) -> Command:
-        dv, dtheta = checked_action(action, self.NAMES)[:2]
+        return self._residual(*checked_action(action, self.NAMES)[:2], nominal)
+
+    def _residual(self, dv: float, dtheta: float, nominal: Command) -> Command:
         speed, heading = nominal
         return (min(max(speed + dv * self.speed_scale, 0.0), self.max_speed),
                 heading + dtheta * self.heading_scale)
@@ -169,6 +176,10 @@ class AdaptiveAction(ResidualAction):
 
     def knobs(self, action: Any) -> SweepKnobs:
         return SweepKnobs(*checked_action(action, self.NAMES)[2:])
+
+    def decode(self, action: Any, nominal: Command) -> tuple[Command, SweepKnobs]:
+        dv, dtheta, *knobs = checked_action(action, self.NAMES)
+        return self._residual(dv, dtheta, nominal), SweepKnobs(*knobs)
 
     def action(self, speed: float, heading: float, nominal: Command,
                knobs: SweepKnobs | None = None) -> np.ndarray:

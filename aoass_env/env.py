@@ -242,8 +242,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         if self._log is not None:
             raise RuntimeError("the episode has ended; call reset() to start a new one")
         c = self.config
-        record = sim.step(*self.action_type.command(action, self._command))
-        knobs = self.action_type.knobs(action)
+        command, knobs = self.action_type.decode(action, self._command)
+        record = sim.step(*command)
         if knobs is not None:
             self._follower.knobs = knobs
         self._steps += 1

@@ -356,7 +356,7 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         c = base.config
         nominal = base.nominal_command          # raises before the first reset
         anchor = base.anchor
-        speed_des, heading_des = self.agent_action.command(action, nominal)
+        (speed_des, heading_des), knobs = self.agent_action.decode(action, nominal)
         v_des = speed_des * np.array([math.cos(heading_des), math.sin(heading_des)])
 
         heading = anchor.heading
@@ -383,8 +383,7 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         speed_cmd, heading_cmd = unicycle_command(
             v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
             lines.direction, heading_pref, self._braking_envelope(anchor.position))
-        executed = base.action_type.action(speed_cmd, heading_cmd, nominal,
-                                           self.agent_action.knobs(action))
+        executed = base.action_type.action(speed_cmd, heading_cmd, nominal, knobs)
 
         # constraints active at v*: on the line (within 1e-6 m/s) or violated
         slack = (lines.direction[:, 0] * (lines.point[:, 1] - v_star[1])

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aoass_env.action import ResidualAction, checked_action
+from aoass_env.action import AdaptiveAction, ResidualAction, checked_action
 from aoass_env.config import AOASSConfig
 from aoass_env.env import AOASSEnv
 from aoass_env.wrappers import make_safe_env
@@ -45,6 +45,21 @@ def test_a_full_range_residual_reaches_every_command(speed, heading, nominal_spe
     got_speed, got_heading = full.command(full.action(speed, heading, nominal), nominal)
     assert got_speed == pytest.approx(speed, abs=1e-6)
     assert math.remainder(got_heading - heading, 2 * math.pi) == pytest.approx(0.0, abs=1e-6)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.floats(-3.0, 3.0), min_size=5, max_size=5), st.floats(0.0, 2.0),
+       st.floats(-4.0, 4.0))
+def test_decode_is_the_command_and_the_knobs_validated_once(action, speed, heading):
+    residual = ResidualAction(1.0, 0.25, 2.0)
+    adaptive = AdaptiveAction(1.0, 0.25, 2.0)
+    nominal = (speed, heading)
+    assert residual.decode(action[:2], nominal) == (residual.command(action[:2], nominal), None)
+    assert adaptive.decode(action, nominal) == (adaptive.command(action, nominal),
+                                                adaptive.knobs(action))
+    assert adaptive.decode(action, nominal)[0] == residual.command(action[:2], nominal)
+    with pytest.raises(ValueError, match=r"shape \(5,\) = \[dv, dtheta, skip, detour"):
+        adaptive.decode(action[:2], nominal)
 
 
 @pytest.mark.parametrize("bad", [[1.0], [0.0, float("nan")], "ab", [1 + 2j, 0.0], None])
