@@ -5,7 +5,10 @@ compared (``--stacks``, ``--cost-stacks``) run the same seeds: ``stack`` (the de
 plus the look-ahead of issue 24, which yields to the sweep), ``eager`` (the look-ahead's first
 version: it escapes whenever ORCA's velocity falls short anywhere in its horizon, without a
 price on headway or an escape budget), ``orca`` (the filter before the look-ahead,
-``SafetyConfig.orca_only()``) and ``bare`` (AOASS-v0 without a stack).
+``SafetyConfig.orca_only()``), ``bare`` (AOASS-v0 without a stack), and two ablations of the
+defaults that tell which of the yielding look-ahead's changes costs contacts: ``early``
+(escapes start whenever ORCA's velocity falls short in the horizon) and ``no-headway`` (no
+price on the sweep's headway).
 
 1. **contacts**: ``--episodes`` episodes (default 200) on generated 100 m maps of densities
    0.1-0.6 in turn, driven by uniformly random actions (a worst-case agent): anchor contacts
@@ -53,7 +56,11 @@ STACKS = {"stack": SafetyConfig(), "orca": SafetyConfig.orca_only(), "bare": Non
           # the look-ahead's first version: an escape whenever ORCA's velocity falls short
           # anywhere in the horizon, no price on the sweep's headway, no escape budget
           "eager": SafetyConfig(look_ahead_react=60.0, progress_weight=0.0,
-                                escape_budget=1e4)}
+                                escape_budget=1e4),
+          # the yielding look-ahead less one of its changes each, to tell which costs contacts:
+          # escapes start whenever ORCA falls short in the horizon; no price on the headway
+          "early": SafetyConfig(look_ahead_react=60.0),
+          "no-headway": SafetyConfig(progress_weight=0.0)}
 
 
 def episode(task: tuple[str, str, float | str, int]) -> dict:
