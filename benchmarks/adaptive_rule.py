@@ -65,10 +65,16 @@ def sweep(name: str, seed: int, nodes: int, rule: AdaptiveConfig | None) -> Outc
                    int(kept.sum()) - in_covered, int((~kept).sum()))
 
 
+#: The reference row's name.
+SPIRAL = "plain spiral"
+
+
 def parse_variants(specs: Sequence[Sequence[str]]) -> dict[str, AdaptiveConfig]:
     """``--variant NAME key=value ...`` groups as rules (the configured rule first)."""
     variants = {"rule": AdaptiveConfig()}
     for name, *fields in specs:
+        if name in variants or name == SPIRAL:
+            raise ConfigError(f"--variant {name!r}: that row name is taken; choose another")
         kwargs = {}
         for item in fields:
             key, sep, value = item.partition("=")
@@ -99,6 +105,10 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
     parser.add_argument("--variant", nargs="+", action="append", default=[],
                         metavar="NAME key=value", help="a rule with these fields changed")
     args = parser.parse_args(argv)
+    for flag in ("seeds", "nodes", "limit"):
+        value = getattr(args, flag)
+        if value is not None and value < 1:
+            parser.error(f"--{flag} must be at least 1, got {value}")
     try:
         variants = parse_variants(args.variant)
     except ConfigError as exc:
@@ -114,7 +124,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
     density = np.array([float(name.rsplit("/d", 1)[1][:4]) for name, _ in episodes])
     spiral = [sweep(n, s, args.nodes, None) for n, s in episodes]
     print(f"{len(maps)} maps of the {args.split} split x {args.seeds} seeds, N = {args.nodes}")
-    table = {"plain spiral": spiral}
+    table = {SPIRAL: spiral}
     print("| sweep | coverage | path [m] | path / spiral's | uncovered nodes: in covered "
           "cells / in open cells / outside the map's cells |")
     print("|---|---|---|---|---|")

@@ -24,6 +24,16 @@ def test_variants_change_the_named_fields_and_refuse_bad_ones(bench):
         bench.parse_variants([["bad", "cell_need=x"]])
     with pytest.raises(bench.ConfigError, match="is not key=value"):
         bench.parse_variants([["bad", "cell_need"]])
+    for taken in ("rule", "plain spiral"):      # a variant must not replace a row silently
+        with pytest.raises(bench.ConfigError, match="that row name is taken"):
+            bench.parse_variants([[taken, "cell_need=0.2"]])
+
+
+@pytest.mark.parametrize("flag", ["--seeds", "--nodes", "--limit"])
+def test_counts_below_one_are_refused(bench, capsys, flag):
+    with pytest.raises(SystemExit):
+        bench.main([flag, "0"])
+    assert f"{flag} must be at least 1, got 0" in capsys.readouterr().err
 
 
 def test_rows_share_episodes_and_account_for_every_uncovered_node(bench, capsys):
