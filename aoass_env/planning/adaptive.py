@@ -417,6 +417,9 @@ class AdaptiveSweep:
         up; done when none is left."""
         cov = self.coverage
         todo = np.flatnonzero(~self._dropped & (cov.deficit > max(threshold, 0.0)))
+        if not len(todo):
+            self._done = True
+            return
         cost = self.planner.costs(self._start(position), cov.centres[todo])
         self._dropped[todo[~np.isfinite(cost)]] = True      # out of the anchor's reach
         if not np.isfinite(cost).any() or cost.min() > self.rule.cell_hop:
