@@ -110,6 +110,56 @@ def segment_distances(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) 
     return np.sqrt((gx * gx + gy * gy).min(axis=1))
 
 
+def _scalar_trig_is_numpys() -> bool:
+    """Whether ``math.cos``/``math.sin`` give NumPy's float64 ``cos``/``sin`` bit for bit on
+    this machine (NumPy may dispatch to its own SIMD code): the one-path rollout below runs in
+    Python floats only then, so that it computes what the array code computes."""
+    probe = np.random.default_rng(0).uniform(-20.0, 20.0, 4096)
+    return (np.array_equal(np.cos(probe), [math.cos(x) for x in probe])
+            and np.array_equal(np.sin(probe), [math.sin(x) for x in probe]))
+
+
+#: see :func:`_scalar_trig_is_numpys`
+SCALAR_TRIG = _scalar_trig_is_numpys()
+#: Slack (m) of a clearance certificate: a point within ``d`` of a point whose exact distance to
+#: the segments is ``g`` is at least ``g - d`` from them; a test is skipped only when that bound
+#: clears its threshold by this much (far above the rounding of either distance).
+CERTIFICATE_SLACK = 1e-9
+
+
+class _Segments:
+    """Segments ``starts`` -> ``ends`` prepared for distance queries of single points, with the
+    same floats as :func:`segment_distances` and :func:`_nearest_on_segments` (which work on
+    a batch of points; per point they are the same elementwise operations and an exact min)."""
+
+    __slots__ = ("ee", "ex", "ey", "sx", "sy")
+
+    def __init__(self, starts: np.ndarray, ends: np.ndarray) -> None:
+        starts = np.asarray(starts, dtype=np.float64)
+        e = np.asarray(ends, dtype=np.float64) - starts
+        self.ee = np.maximum((e * e).sum(axis=1), 1e-300)
+        self.ex, self.ey = e[:, 0].copy(), e[:, 1].copy()
+        self.sx, self.sy = starts[:, 0].copy(), starts[:, 1].copy()
+
+    def _offsets(self, x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
+        wx, wy = x - self.sx, y - self.sy
+        s = np.minimum(np.maximum((wx * self.ex + wy * self.ey) / self.ee, 0.0), 1.0)
+        return wx - s * self.ex, wy - s * self.ey
+
+    def distance(self, x: float, y: float) -> float:
+        """Distance (m) from (x, y) to the nearest segment: ``segment_distances``'s value."""
+        gx, gy = self._offsets(x, y)
+        return math.sqrt(float((gx * gx + gy * gy).min()))
+
+    def nearest(self, x: float, y: float) -> tuple[float, float, float]:
+        """(distance, dx, dy) of (x, y) from the nearest segment's nearest point:
+        ``_nearest_on_segments``'s values."""
+        gx, gy = self._offsets(x, y)
+        d2 = gx * gx + gy * gy
+        j = int(d2.argmin())
+        return math.sqrt(float(d2[j])), float(gx[j]), float(gy[j])
+
+
 def _nearest_on_segments(points: np.ndarray, starts: np.ndarray, ends: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray]:
     """(k,) distance (m) from each point (k, 2) to the nearest segment and (k, 2) the offset
@@ -145,8 +195,15 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
     if not (len(starts) and len(states)):
         return out
     travel = np.hypot(v[:, 0], v[:, 1]) * (step * n_steps)
-    near = np.flatnonzero(segment_distances(xy, starts, ends) - travel <= radii + 1e-9)
+    gaps = segment_distances(xy, starts, ends)
+    near = np.flatnonzero(gaps - travel <= radii + 1e-9)
     if len(near) == 0:
+        return out
+    if SCALAR_TRIG:
+        segments = _Segments(starts, ends)
+        for j, gap in zip(near.tolist(), gaps[near].tolist(), strict=True):
+            out[j] = _predict_one(*xy[j].tolist(), *v[j].tolist(), float(radii[j]), gap, step,
+                                  n_steps, segments)
         return out
     xy, v, radii = xy[near], v[near], radii[near]
     for i in range(n_steps):
@@ -159,6 +216,77 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
         moved = np.where(hit[:, None], xy + step * v, moved)
         xy = moved
         out[near, i] = xy
+    return out
+
+
+def _predict_one(x: float, y: float, vx: float, vy: float, radius: float, gap: float,
+                 step: float, n_steps: int, segments: _Segments) -> list[tuple[float, float]]:
+    """One obstacle of :func:`predict_obstacles`'s step loop in Python floats (the same
+    operations in the same order), starting at (x, y) whose distance to the segments is
+    ``gap``. The edge test of a step is skipped when a clearance certificate (the exact
+    distance of an earlier point, less the way from there) shows the disc clear of every edge:
+    then it cannot bounce."""
+    cx, cy, cg = x, y, gap                      # certificate: point and its exact distance
+    limit = radius + CERTIFICATE_SLACK
+    out = []
+    for _ in range(n_steps):
+        mx, my = x + step * vx, y + step * vy
+        dx, dy = mx - cx, my - cy
+        if cg - math.sqrt(dx * dx + dy * dy) < limit:
+            g, ox, oy = segments.nearest(mx, my)
+            cx, cy, cg = mx, my, g
+            if g < radius:
+                g = max(g, 1e-12)
+                nx, ny = ox / g, oy / g
+                along = vx * nx + vy * ny
+                if along < 0.0:
+                    vx, vy = vx - 2.0 * along * nx, vy - 2.0 * along * ny
+                    mx, my = x + step * vx, y + step * vy
+        x, y = mx, my
+        out.append((x, y))
+    return out
+
+
+def _rollout_one(x: float, y: float, heading: float, speed: float, target_heading: float,
+                 target_speed: float, max_dh: float, max_dv: float, step: float,
+                 n_steps: int, segments: _Segments | None, radius: float, gap: float
+                 ) -> np.ndarray:
+    """One candidate of :func:`rollout` in Python floats: the same operations in the same
+    order (``np.clip`` as a min/max, the remainder as Python's ``%``, which rounds alike).
+    ``segments`` None: no edge test (the rollout cannot reach an edge). The edge test of a
+    step is skipped when a clearance certificate shows the new point ``radius`` clear of every
+    edge (it is taken then); the distance of the current point, which a refused step compares
+    with, is computed when needed."""
+    two_pi = 2.0 * math.pi
+    theta, v = heading, speed
+    out = np.empty((n_steps, 2))
+    cx, cy, cg = x, y, gap                      # certificate: point and its exact distance
+    here = gap                                  # exact distance of (x, y); None: not known
+    limit = radius + CERTIFICATE_SLACK
+    for i in range(n_steps):
+        turn = (target_heading - theta + math.pi) % two_pi - math.pi
+        theta = theta + (-max_dh if turn < -max_dh else max_dh if turn > max_dh else turn)
+        dv = target_speed - v
+        v = v + (-max_dv if dv < -max_dv else max_dv if dv > max_dv else dv)
+        mx = x + (v * step) * math.cos(theta)
+        my = y + (v * step) * math.sin(theta)
+        if segments is not None:
+            dx, dy = mx - cx, my - cy
+            if cg - math.sqrt(dx * dx + dy * dy) >= limit:
+                x, y, here = mx, my, None
+            else:
+                new_gap = segments.distance(mx, my)
+                cx, cy, cg = mx, my, new_gap
+                if here is None:
+                    here = segments.distance(x, y)
+                if new_gap >= radius or new_gap >= here:
+                    x, y, here = mx, my, new_gap
+                else:
+                    v = 0.0
+        else:
+            x, y = mx, my
+        out[i, 0] = x
+        out[i, 1] = y
     return out
 
 
@@ -188,6 +316,12 @@ def rollout(position: np.ndarray, heading: float, speed: float, headings: np.nda
     # and the edge test is skipped (the same positions)
     travel = max(abs(float(speed)), float(np.abs(target_speed).max(initial=0.0))) * step * n_steps
     walls = bool(k) and gap[0] - travel < radius + 1e-9
+    if k == 1 and SCALAR_TRIG:
+        px, py = xy[0].tolist()
+        return _rollout_one(px, py, float(heading), float(speed), float(headings[0]),
+                            float(target_speed[0]), max_dh, max_dv, float(step), n_steps,
+                            _Segments(starts, ends) if walls else None, float(radius),
+                            float(gap[0]))[None]
     out = np.empty((k, n_steps, 2))
     for i in range(n_steps):
         turn = np.remainder(headings - theta + math.pi, 2.0 * math.pi) - math.pi

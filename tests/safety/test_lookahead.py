@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from aoass_env.safety import lookahead
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.lookahead import (
     EscapeBudget,
@@ -284,3 +285,50 @@ def test_rollout_shortcut_matches_the_step_by_step_model():
                     starts, ends, 0.7),
             _rollout_step_by_step(position, heading, speed, headings, speeds, starts, ends,
                                   0.7))
+
+
+def _walls_and_starts(rng, e):
+    starts = rng.uniform(-6, 6, (e, 2))
+    return starts, starts + rng.uniform(-6, 6, (e, 2))
+
+
+@pytest.mark.skipif(not lookahead.SCALAR_TRIG, reason="math's cos/sin differ from NumPy's here")
+def test_one_candidate_rollout_in_floats_is_the_array_code_bit_for_bit(monkeypatch):
+    # the Python-float path (one candidate, clearance certificates) against the array path
+    rng = np.random.default_rng(7)
+    cases = []
+    for _ in range(400):
+        e = int(rng.integers(0, 7))
+        starts, ends = _walls_and_starts(rng, e)
+        args = (rng.uniform(-4, 4, 2), rng.uniform(-math.pi, math.pi), rng.uniform(0.0, 2.0),
+                rng.uniform(-4, 4, 1), rng.choice([0.0, 0.5, 1.0, 2.0], 1), math.pi / 2, 1.0,
+                0.25, 18, starts, ends, float(rng.choice([0.3, 0.7, 1.5])))
+        cases.append((args, rollout(*args)))
+    monkeypatch.setattr(lookahead, "SCALAR_TRIG", False)
+    refused = 0
+    for args, fast in cases:
+        slow = rollout(*args)
+        np.testing.assert_array_equal(fast, slow)
+        refused += bool((np.diff(slow[0], axis=0) == 0.0).all(axis=1).any())
+    assert refused > 20                  # steps held at a wall were exercised
+
+
+@pytest.mark.skipif(not lookahead.SCALAR_TRIG, reason="math's cos/sin differ from NumPy's here")
+def test_obstacle_prediction_in_floats_is_the_array_code_bit_for_bit(monkeypatch):
+    rng = np.random.default_rng(8)
+    cases = []
+    for _ in range(300):
+        m, e = int(rng.integers(1, 5)), int(rng.integers(1, 7))
+        states = np.column_stack([rng.uniform(-8, 8, (m, 2)), rng.uniform(-1.5, 1.5, (m, 2))])
+        starts, ends = _walls_and_starts(rng, e)
+        args = (states, 0.25, 18, starts, ends, np.full(m, float(rng.choice([0.5, 1.0]))))
+        cases.append((args, predict_obstacles(*args)))
+    monkeypatch.setattr(lookahead, "SCALAR_TRIG", False)
+    bounced = 0
+    for args, fast in cases:
+        slow = predict_obstacles(*args)
+        np.testing.assert_array_equal(fast, slow)
+        straight = args[0][:, None, :2] + 0.25 * np.arange(1, 19)[None, :, None] * args[0][
+            :, None, 2:]
+        bounced += bool(np.abs(slow - straight).max() > 1e-6)
+    assert bounced > 20                  # bounces were exercised
