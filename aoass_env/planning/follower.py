@@ -12,7 +12,11 @@ its plan has not shrunk by ``watchdog_progress`` metres for ``watchdog_time`` se
 the spot as a keep-out, backs out along its own track, and re-plans around the keep-outs through
 the known static map. A target that still cannot be reached after :data:`MAX_RECOVERIES` tries,
 or one a stuck follower is already beside, is given up and recorded in ``skipped``, as is a
-target with no path and one past its stall timer.
+target with no path from the field and one past its stall timer. When the planner finds no path
+because the anchor itself stands where it reaches nothing (its grid cell is shut in a pocket,
+e.g. after an escape into a narrow passage), the follower backs out along its track to where the
+field is reachable and plans again (one of the target's tries), rather than give up every
+remaining waypoint at once.
 """
 
 from __future__ import annotations
@@ -236,7 +240,9 @@ class WaypointFollower:
             keepout = self._active_keepouts(position)
             path = self.planner.path(position, target, keepout, KEEPOUT_RADIUS)
             if path is None:
-                self._give_up("no path")    # unreachable from here, as if inside an obstacle
+                if self._rejoin(position):  # shut in where the planner reaches nothing
+                    return self.command(position, heading, 0.0)
+                self._give_up("no path")    # unreachable from the field, as if in an obstacle
                 continue
             self._planned = True
             self._detour = list(path[1:-1])
@@ -303,6 +309,34 @@ class WaypointFollower:
             self._backout = self._retreat(position)
             self.recoveries += 1
         self._reset_watchdog()
+
+    def _rejoin(self, position: np.ndarray) -> bool:
+        """No path to the target from ``position``: when the planner sees ``position`` shut
+        in a pocket (its grid cell lies outside the largest connected free region, e.g. where an
+        escape from a moving obstacle pushed the anchor into a narrow passage), no target can be
+        planned from there, so the target is not to blame: back out along the track to the
+        newest point from which the field is reachable and ``backout_distance`` on (a back-out
+        ends within the capture radius of its last point), as one of the target's tries. False
+        (the target is given up) when ``position`` is in the field (the target is unreachable),
+        no remembered point is, or the tries are spent."""
+        if self._tries >= MAX_RECOVERIES or self.planner.can_start(position, 0.0):
+            return False
+        back: list[np.ndarray] = []
+        field_at = None
+        for point in reversed(self._trail):
+            back.append(point)
+            if field_at is None:
+                if self.planner.can_start(point, 0.0):
+                    field_at = point
+            elif np.hypot(*(point - field_at)) >= self.backout_distance:
+                break
+        if field_at is None:
+            return False
+        self._tries += 1
+        self.recoveries += 1
+        self._backout = back
+        self._reset_watchdog()
+        return True
 
     def _retreat(self, position: np.ndarray) -> list[np.ndarray]:
         """The remembered track back from ``position`` (newest first) up to the first point

@@ -168,6 +168,61 @@ def test_replan_after_backing_out_goes_round_the_stuck_spot():
                         np.array([[10.0, 20.0], [10.0, 10.0]]), 1.5) is not None
 
 
+def _room_planner():
+    """A 4 m room (x 20.5-24.5, y 18-22) whose doorway (y 19.5-20.5 in its west wall) is too
+    narrow for the planner's disc: its inside is a pocket of the planner's grid, cut off from
+    the field."""
+    walls = (np.array([[20.0, 17.5], [20.5, 17.5], [20.5, 19.5], [20.0, 19.5]]),
+             np.array([[20.0, 20.5], [20.5, 20.5], [20.5, 22.5], [20.0, 22.5]]),
+             np.array([[24.5, 17.5], [25.0, 17.5], [25.0, 22.5], [24.5, 22.5]]),
+             np.array([[20.0, 17.5], [25.0, 17.5], [25.0, 18.0], [20.0, 18.0]]),
+             np.array([[20.0, 22.0], [25.0, 22.0], [25.0, 22.5], [20.0, 22.5]]))
+    return DetourPlanner(ObstacleMap(40.0, 40.0, walls), 0.6)
+
+
+def test_shut_in_a_pocket_it_backs_out_to_the_field_instead_of_giving_up_every_target():
+    # the anchor was pushed through the doorway (as an escape from a moving obstacle can): from
+    # inside the room the planner reaches no target, but the targets are not to blame
+    planner = _room_planner()
+    wps = np.array([[30.0, 35.0], [5.0, 35.0], [35.0, 5.0]])
+    f = WaypointFollower(wps, np.zeros(3, dtype=bool), capture_radius=0.5, cruise_speed=1.0,
+                         stall_time=1000.0, planner=planner, watchdog_time=8.0)
+    f._trail.extend(np.array([x, 20.0]) for x in np.arange(10.0, 22.01, 0.5))
+    inside = np.array([22.0, 20.0])
+    assert planner.path(inside, wps[0]) is None and not planner.can_start(inside, 0.0)
+    _, heading = f.command(inside, 0.0, 0.5)
+    assert not f.skipped and f.index == 0 and f.recoveries == 1
+    assert math.isclose(abs(heading), math.pi)          # back out the way it came in
+    # back to the first point of the track in the field (x = 20) and backout_distance on
+    for px in np.arange(22.0, 17.49, -0.5):
+        f.command(np.array([px, 20.0]), math.pi, 0.5)
+    assert not f._backout and not f.skipped and f.index == 0
+    assert f._planned and f._detour, "planned afresh from the field"
+
+
+def test_a_target_shut_in_a_pocket_is_given_up_from_the_field():
+    planner = _room_planner()
+    wps = np.array([[10.0, 20.0], [22.5, 20.0], [10.0, 30.0]])
+    f = WaypointFollower(wps, np.zeros(3, dtype=bool), capture_radius=0.5, cruise_speed=1.0,
+                         stall_time=1000.0, planner=planner, watchdog_time=8.0)
+    f.command(np.array([10.0, 20.0]), 0.0, 0.5)
+    assert [(s.index, s.reason) for s in f.skipped] == [(1, "no path")]
+    assert f.index == 2 and f.recoveries == 0
+
+
+def test_shut_in_with_no_way_back_gives_the_target_up_after_the_tries():
+    planner = _room_planner()
+    wps = np.array([[30.0, 35.0], [5.0, 35.0]])
+    f = WaypointFollower(wps, np.zeros(2, dtype=bool), capture_radius=0.5, cruise_speed=1.0,
+                         stall_time=1000.0, planner=planner, watchdog_time=8.0)
+    f._trail.extend(np.array([x, 20.0]) for x in np.arange(10.0, 22.01, 0.5))
+    inside = np.array([22.0, 20.0])
+    _wait(f, inside, heading=math.pi, calls=200, until=lambda f: f.index > 0)
+    assert [(s.index, s.reason) for s in f.skipped] == [(0, "no path")]
+    # two tries for the first target, then the next one backs out too
+    assert f.recoveries == 3 and f.index == 1 and f._backout
+
+
 def test_float_distance_tests_agree_with_numpy():
     """The follower's plain-float distance tests and path lengths give numpy's answers, ties
     and near-ties included (issue 20: same episodes)."""
