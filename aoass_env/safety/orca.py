@@ -139,6 +139,11 @@ def _moving(value: Any) -> list[list[float]]:
 # static obstacles
 # --------------------------------------------------------------------------------------------
 
+#: Slack (m) of :meth:`_EdgeCache.near`'s local edge lists: a list serves query points up to
+#: this far from where it was made (the anchor moves at most 1 m per period by default).
+LOCAL_PAD = 2.0
+
+
 @dataclass(frozen=True, eq=False)
 class _EdgeCache:
     """What the per-call geometry of :class:`StaticObstacles` reads, built once per obstacle set.
@@ -155,6 +160,8 @@ class _EdgeCache:
         dx, dy: unit edge directions as Python floats.
         next, prev: neighbouring vertex indices as Python ints.
         convex: RVO2's ``isConvex_`` as Python bools.
+        bx_list, by_list, ex_list, ey_list, inv_len2_list: ``bx`` ... ``inv_len2`` as Python
+            floats (:meth:`near`'s local path).
     """
 
     ax: np.ndarray
@@ -172,6 +179,14 @@ class _EdgeCache:
     next: list[int]
     prev: list[int]
     convex: list[bool]
+    bx_list: list[float]
+    by_list: list[float]
+    ex_list: list[float]
+    ey_list: list[float]
+    inv_len2_list: list[float]
+    #: the edges near a recent query point, by reach: reach -> (x, y, cap, indices, edge
+    #: rows), every edge closer than ``cap`` (m) to (x, y) (see :meth:`near`)
+    local: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(cls, point: np.ndarray, direction: np.ndarray, nxt: np.ndarray, prv: np.ndarray,
@@ -185,13 +200,79 @@ class _EdgeCache:
             raise ValueError("StaticObstacles has a zero-length edge (a vertex repeated)")
         lo, hi = ((point.min(axis=0), point.max(axis=0)) if len(point)
                   else (np.zeros(2), np.zeros(2)))
-        return cls(ax, ay, point[nxt, 0], point[nxt, 1], ex, ey, 1.0 / len2,
+        inv_len2 = 1.0 / len2
+        return cls(ax, ay, point[nxt, 0], point[nxt, 1], ex, ey, inv_len2,
                    (*lo.tolist(), *hi.tolist()), ax.tolist(), ay.tolist(),
                    direction[:, 0].tolist(), direction[:, 1].tolist(), nxt.tolist(),
-                   prv.tolist(), convex.tolist())
+                   prv.tolist(), convex.tolist(), point[nxt, 0].tolist(),
+                   point[nxt, 1].tolist(), ex.tolist(), ey.tolist(), inv_len2.tolist())
 
     def near(self, px: float, py: float, reach: float) -> list[int]:
-        """:meth:`StaticObstacles.edges_near` on checked floats (m), as a list."""
+        """:meth:`StaticObstacles.edges_near` on checked floats (m), as a list.
+
+        The anchor queries the same reach from points a fraction of a metre apart, one
+        period after the other: the edges within ``reach + LOCAL_PAD`` of a query point are
+        kept, and while a query point stays within ``LOCAL_PAD`` (less 1 µm) of it, only those
+        are measured, in Python floats with the same operations as the array code below (an
+        edge nearer than ``reach`` to the new point is nearer than ``reach + LOCAL_PAD`` to
+        the old one); the answer is the same list.
+        """
+        x0, y0, x1, y1 = self.bbox
+        if (len(self.x) == 0 or px < x0 - reach or px > x1 + reach or py < y0 - reach
+                or py > y1 + reach):
+            return []
+        entry = self.local.get(reach)
+        if entry is not None:
+            cx, cy, cap, rows = entry
+            dx, dy = px - cx, py - cy
+            if math.sqrt(dx * dx + dy * dy) + reach > cap - 1e-6:
+                entry = None
+        if entry is None:
+            cap = reach + LOCAL_PAD
+            rows = [(i, self.x[i], self.y[i], self.bx_list[i], self.by_list[i],
+                     self.ex_list[i], self.ey_list[i], self.inv_len2_list[i])
+                    for i in self._within(px, py, cap).tolist()]
+            if len(self.local) >= 8:
+                self.local.clear()
+            self.local[reach] = (px, py, cap, rows)
+        reach2 = reach * reach
+        hits = []
+        for i, ax, ay, bx, by, ex, ey, inv_len2 in rows:
+            rx, ry = px - ax, py - ay
+            s = (rx * ex + ry * ey) * inv_len2
+            if s < 0.0:
+                s = 0.0
+            elif s > 1.0:
+                s = 1.0
+            rx, ry = rx - s * ex, ry - s * ey
+            dist2 = rx * rx + ry * ry
+            if dist2 < reach2:
+                hits.append((dist2, i, s, bx, by))
+        if len(hits) > 1:
+            # as below: an edge nearest at its end vertex is measured from that vertex
+            keyed = []
+            for dist2, i, s, bx, by in hits:
+                if s >= 1.0:
+                    qx, qy = px - bx, py - by
+                    dist2 = qx * qx + qy * qy
+                keyed.append((dist2, i))
+            keyed.sort()
+            return [i for _, i in keyed]
+        return [hit[1] for hit in hits]
+
+    def _within(self, px: float, py: float, reach: float) -> np.ndarray:
+        """Indices (ascending) of the edges closer than ``reach`` (m) to (px, py)."""
+        rx = px - self.ax
+        ry = py - self.ay
+        ex, ey = self.ex, self.ey
+        s = (rx * ex + ry * ey) * self.inv_len2
+        np.clip(s, 0.0, 1.0, out=s)
+        rx -= s * ex
+        ry -= s * ey
+        return np.flatnonzero(rx * rx + ry * ry < reach * reach)
+
+    def near_array(self, px: float, py: float, reach: float) -> list[int]:
+        """:meth:`near` on every edge with NumPy (the reference of the local path)."""
         x0, y0, x1, y1 = self.bbox
         if (len(self.x) == 0 or px < x0 - reach or px > x1 + reach or py < y0 - reach
                 or py > y1 + reach):
@@ -352,8 +433,9 @@ class StaticObstacles:
             (m,) int64 edge indices, nearest first (ties in index order).
         """
         px, py = _vec2("position", position, "m")
-        reach = real("reach", reach, "m", low=0.0)
-        return np.asarray(self._cache.near(px, py, reach), dtype=np.int64)
+        if not (type(reach) is float and 0.0 <= reach < math.inf):
+            reach = real("reach", reach, "m", low=0.0)
+        return np.array(self._cache.near(px, py, reach), dtype=np.int64)
 
 
 def _static(value: Any) -> StaticObstacles | None:
