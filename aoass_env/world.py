@@ -538,7 +538,8 @@ class World:
     @property
     def velocity(self) -> np.ndarray:
         """Actual anchor velocity (vx, vy) (m/s) after contacts were solved."""
-        return np.array(self._anchor.velocity)
+        v = _cp.cpBodyGetVelocity(self._c_anchor)      # what pymunk's Body.velocity reads
+        return np.array((v.x, v.y))
 
     @property
     def time(self) -> float:

@@ -49,6 +49,7 @@ from aoass_env.safety.lookahead import (
 )
 from aoass_env.safety.orca import OrcaLines, StaticObstacles, orca_lines, solve_velocity
 from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
+from aoass_env.validators import real
 from aoass_env.world import wrap_angle
 
 __all__ = ["ActionRepeat", "FuzzyORCASafety", "KalmanObstacleTracker",
@@ -157,6 +158,10 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
             np.concatenate([inner.low, np.full(2 * self._slots, -1.0, np.float32)]),
             np.concatenate([inner.high, np.ones(2 * self._slots, np.float32)]),
             dtype=np.float32)
+        self._low, self._high = self.observation_space.low, self.observation_space.high
+        self._horizon = real("horizon", self.horizon, "s", low=0.0)   # as predict_positions
+        self._no_ahead = np.zeros(2 * self._slots)
+        self._no_ahead.flags.writeable = False
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
@@ -183,11 +188,16 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
 
     def observation(self, observation: np.ndarray) -> np.ndarray:
         c = self._base.config
-        anchor = self._base.anchor.position
+        anchor = self._base.sim.world.position
         self.tracker.step(self._base.detections)
 
         states = self.tracker.states()
-        predicted = self.tracker.predict_positions(self.horizon)
+        if len(states) == 0:        # no confirmed track: empty slots (the lines below, in short)
+            out = np.concatenate([observation, self._no_ahead])
+            out[self._moving] = 0.0
+            return np.minimum(np.maximum(out, self._low), self._high).astype(np.float32)
+        # MultiTargetTracker.predict_positions(horizon) of the same states
+        predicted = states[:, :2] + self._horizon * states[:, 2:]
         rel = states[:, :2] - anchor
         order = np.argsort(np.hypot(rel[:, 0], rel[:, 1]), kind="stable")[:self._slots]
         m = len(order)
@@ -199,8 +209,8 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
         ahead[:m] = (predicted[order] - anchor) / c.sensing_range
         out = np.concatenate([observation, ahead.ravel()])
         out[self._moving] = filtered.ravel()
-        return np.clip(out, self.observation_space.low, self.observation_space.high
-                       ).astype(np.float32)
+        # np.clip's values, without its dispatch
+        return np.minimum(np.maximum(out, self._low), self._high).astype(np.float32)
 
 
 class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
