@@ -136,6 +136,11 @@ class Observer:
             return slots
         rel = world.moving_positions - world.position
         noise = self._rng.normal(size=(n, 4))
+        # none in range, the common case, decided on squared distances: only a distance
+        # within a relative 1e-9 of the range could be decided otherwise by np.hypot below
+        r2 = c.sensing_range * c.sensing_range * (1.0 + 1e-9)
+        if all(dx * dx + dy * dy > r2 for dx, dy in rel.tolist()):
+            return slots
         seen = np.flatnonzero(np.hypot(rel[:, 0], rel[:, 1]) <= c.sensing_range)
         if seen.size == 0:
             return slots
@@ -165,12 +170,13 @@ class Observer:
             coverage_map: the anchor's coverage map (read when ``obs_coverage_sectors`` > 0).
         """
         c = self.config
-        (x, y), h = world.position, world.heading
+        position, h = world.position, world.heading
+        x, y = position.tolist()
         self.obstacle_gap = world.nearest_obstacle_distance()
         head = np.array([x / c.field_size, y / c.field_size, world.speed / c.anchor_max_speed,
                          self.obstacle_gap / c.sensing_range,
                          heading_error / math.pi, math.cos(h), math.sin(h)])
-        waypoints = (self.upcoming(follower_index) - (x, y)) / self._wp_scale
+        waypoints = (self.upcoming(follower_index) - position) / self._wp_scale
         parts = [head, waypoints.ravel(), world.ray_distances() / c.sensing_range,
                  self.moving(world).ravel(), (coverage, progress, time_fraction)]
         if c.obs_coverage_sectors:

@@ -177,6 +177,8 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
     def tracked_obstacles(self) -> np.ndarray:
         """(m, 5) confirmed tracks in the world frame: x, y (m), vx, vy (m/s), radius (m)."""
         states = self.tracker.states()
+        if len(states) == 0:
+            return np.zeros((0, 5))
         radius = np.full((len(states), 1), self._base.config.moving_obstacle_radius)
         return np.hstack([states.reshape(-1, 4), radius])
 
@@ -395,17 +397,19 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
             lines.direction, heading_pref, self._braking_envelope(anchor.position))
         executed = base.action_type.action(speed_cmd, heading_cmd, nominal, knobs)
 
-        # constraints active at v*: on the line (within 1e-6 m/s) or violated
-        slack = (lines.direction[:, 0] * (lines.point[:, 1] - v_star[1])
-                 - lines.direction[:, 1] * (lines.point[:, 0] - v_star[0]))
-        active = slack > -1e-6
-        report = {"intervention": float(np.hypot(*(v_star - v_des))),
-                  "orca_correction": float(np.hypot(*(v_star - v_pref))),
+        # constraints active at v*: on the line (within 1e-6 m/s) or violated; the slack
+        # det(d, p - v*) in Python floats, the same operations as on the arrays
+        sx, sy = v_star.tolist()
+        active = [dx * (py - sy) - dy * (px - sx) > -1e-6 for (px, py), (dx, dy) in
+                  zip(lines.point.tolist(), lines.direction.tolist(), strict=True)]
+        (dsx, dsy), (psx, psy) = (v_star - v_des).tolist(), (v_star - v_pref).tolist()
+        report = {"intervention": float(np.hypot(dsx, dsy)),
+                  "orca_correction": float(np.hypot(psx, psy)),
                   "flc_turn": float(turn), "flc_speed": float(slow),
                   "speed_cmd": speed_cmd, "heading_cmd": heading_cmd,
-                  "constraints": len(slack), "static": lines.n_static,
-                  "active": int(active.sum()),
-                  "active_static": int(active[:lines.n_static].sum()),
+                  "constraints": len(active), "static": lines.n_static,
+                  "active": sum(active),
+                  "active_static": sum(active[:lines.n_static]),
                   "escaping": bool(escape is not None and escape.escaping),
                   "look_ahead_shortfall": 0.0 if escape is None else escape.shortfall,
                   "yielding": self.escape_budget.yielding}
