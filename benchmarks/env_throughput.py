@@ -6,8 +6,8 @@ script prints steps per second of each (and per CPU second of the process, stead
 machine), the ratios AOASS-v0 / Pendulum-v1 (issue 20 target:
 >= 0.22) and AOASS-Safe-v0 / AOASS-v0 (target: >= 0.7), the reset time of AOASS-v0 at density
 0.4 on a 100 m field (target: <= 50 ms) with fresh seeds, repeated seeds and a shipped map, and
-where a random-action step of AOASS-v0 goes:
-wall time per step of its parts, measured by timers around them (a part's time includes the
+where a random-action step of AOASS-v0 and of AOASS-Safe-v0's safety stack goes:
+wall time per step of their parts, measured by timers around them (a part's time includes the
 parts it calls; the rest is Gymnasium's wrappers, the action, reward and info).
 
 Run: ``python3 benchmarks/env_throughput.py [--steps N] [--nodes 100 1000] [--field 100]``.
@@ -26,11 +26,13 @@ from typing import Any
 import gymnasium as gym
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
+from aoass_env import wrappers
 from aoass_env.env import AOASSEnv
 from aoass_env.network import Network
 from aoass_env.observation import Observer
 from aoass_env.planning.follower import WaypointFollower
 from aoass_env.radio import Radio
+from aoass_env.safety.fuzzy import FuzzyController
 from aoass_env.simulator import Simulator
 from aoass_env.world import World
 
@@ -49,6 +51,22 @@ PARTS: tuple[tuple[str, type, str], ...] = (
     ("AOASSEnv.reset", AOASSEnv, "reset"),
 )
 
+
+#: (label, owner, attribute) of the parts a step of AOASS-Safe-v0's safety stack is split into:
+#: the wrappers' methods and the functions ``aoass_env.wrappers`` calls (patched where it
+#: looks them up).
+SAFE_PARTS: tuple[tuple[str, Any, str], ...] = (
+    ("FuzzyORCASafety.step", wrappers.FuzzyORCASafety, "step"),
+    ("  AOASSEnv.step (the bare env)", AOASSEnv, "step"),
+    ("  KalmanObstacleTracker.observation", wrappers.KalmanObstacleTracker, "observation"),
+    ("  FuzzyORCASafety._filter", wrappers.FuzzyORCASafety, "_filter"),
+    ("    FuzzyController (fuzzy.py)", FuzzyController, "__call__"),
+    ("    orca_lines", wrappers, "orca_lines"),
+    ("    solve_velocity", wrappers, "solve_velocity"),
+    ("    escape_velocity (look-ahead)", wrappers, "escape_velocity"),
+    ("    _braking_envelope", wrappers.FuzzyORCASafety, "_braking_envelope"),
+    ("    unicycle_command (unicycle.py)", wrappers, "unicycle_command"),
+)
 
 #: A shipped 100 m map of density 0.4, for the reset on a named map.
 NAMED_MAP = "test/d0.40_f100_s509"
@@ -89,9 +107,10 @@ def reset_ms(resets: int, seeds: list[int] | None = None, **kwargs: Any) -> floa
 
 
 @contextmanager
-def part_timers() -> Iterator[dict[str, list[float]]]:
-    """Wraps the methods of :data:`PARTS` in wall-clock timers while the context is open;
-    yields label -> [seconds, calls]."""
+def part_timers(parts: tuple[tuple[str, Any, str], ...] = PARTS
+                ) -> Iterator[dict[str, list[float]]]:
+    """Wraps the methods of ``parts`` (default :data:`PARTS`) in wall-clock timers while the
+    context is open; yields label -> [seconds, calls]."""
     totals: dict[str, list[float]] = {}
     saved = []
 
@@ -108,8 +127,8 @@ def part_timers() -> Iterator[dict[str, list[float]]]:
                 entry[1] += 1
         return wrapper
 
-    for label, cls, name in PARTS:
-        method = cls.__dict__.get(name)
+    for label, cls, name in parts:
+        method = vars(cls).get(name)
         if method is None and name == "advance":     # a tree before World.advance
             name = "step"
             method = cls.__dict__[name]
@@ -122,16 +141,18 @@ def part_timers() -> Iterator[dict[str, list[float]]]:
             setattr(cls, name, method)
 
 
-def profile(steps: int, **kwargs: Any) -> None:
-    """Print the per-part wall time of ``steps`` random steps of AOASS-v0 with ``kwargs``."""
-    env = gym.make("AOASS-v0", **kwargs)
-    with part_timers() as totals:
+def profile(steps: int, env_id: str = "AOASS-v0", **kwargs: Any) -> None:
+    """Print the per-part wall time of ``steps`` random steps of ``env_id`` (AOASS-v0: the
+    parts of :data:`PARTS`; AOASS-Safe-v0: of :data:`SAFE_PARTS`) with ``kwargs``."""
+    parts = SAFE_PARTS if env_id == "AOASS-Safe-v0" else PARTS
+    env = gym.make(env_id, **kwargs)
+    with part_timers(parts) as totals:
         start = time.perf_counter()
         throughput(env, steps)
         total = time.perf_counter() - start
-    print(f"\nwhere a random-action step of AOASS-v0 {kwargs or ''} goes "
+    print(f"\nwhere a random-action step of {env_id} {kwargs or ''} goes "
           f"({1e6 * total / steps:.0f} us/step in all, timers included):")
-    for label, _, _ in PARTS:
+    for label, _, _ in parts:
         seconds, calls = totals.get(label, (0.0, 0))
         print(f"  {label:38s} {1e6 * seconds / steps:7.1f} us/step {100 * seconds / total:5.1f} %"
               f"  ({calls} calls, {1e6 * seconds / max(calls, 1):8.1f} us/call)")
@@ -178,6 +199,7 @@ def main() -> None:
         print(f"reset of AOASS-v0 on the shipped map {NAMED_MAP}: median "
               f"{reset_ms(args.resets, map=NAMED_MAP):.1f} ms over {args.resets} seeds")
     profile(min(args.steps, 10_000), **field)
+    profile(min(args.steps, 10_000), "AOASS-Safe-v0", **field)
     if any(n != 100 for n in args.nodes):
         profile(min(args.steps, 10_000), n_nodes=max(args.nodes), **field)
 
