@@ -306,22 +306,25 @@ def rollout(position: np.ndarray, heading: float, speed: float, headings: np.nda
     headings = np.asarray(headings, dtype=np.float64)
     target_speed = np.asarray(speeds, dtype=np.float64)
     k = len(headings)
+    max_dh, max_dv = max_turn_rate * step, max_accel * step
+    if k == 1 and SCALAR_TRIG:
+        px, py = np.asarray(position, dtype=np.float64).tolist()
+        segments = _Segments(starts, ends) if len(starts) else None
+        gap0 = segments.distance(px, py) if segments is not None else math.inf
+        travel = max(abs(float(speed)), abs(float(target_speed[0]))) * step * n_steps
+        return _rollout_one(px, py, float(heading), float(speed), float(headings[0]),
+                            float(target_speed[0]), max_dh, max_dv, float(step), n_steps,
+                            segments if gap0 - travel < radius + 1e-9 else None,
+                            float(radius), gap0)[None]
     xy = np.tile(np.asarray(position, dtype=np.float64), (k, 1))
     theta = np.full(k, float(heading))
     v = np.full(k, float(speed))
     gap = np.full(k, float(segment_distances(xy[:1], starts, ends)[0]))
-    max_dh, max_dv = max_turn_rate * step, max_accel * step
     # the speed stays between the current one and the targets: when even that travel for the
     # whole horizon cannot bring the centre within ``radius`` of an edge, every step is taken
     # and the edge test is skipped (the same positions)
     travel = max(abs(float(speed)), float(np.abs(target_speed).max(initial=0.0))) * step * n_steps
     walls = bool(k) and gap[0] - travel < radius + 1e-9
-    if k == 1 and SCALAR_TRIG:
-        px, py = xy[0].tolist()
-        return _rollout_one(px, py, float(heading), float(speed), float(headings[0]),
-                            float(target_speed[0]), max_dh, max_dv, float(step), n_steps,
-                            _Segments(starts, ends) if walls else None, float(radius),
-                            float(gap[0]))[None]
     out = np.empty((k, n_steps, 2))
     for i in range(n_steps):
         turn = np.remainder(headings - theta + math.pi, 2.0 * math.pi) - math.pi
@@ -348,8 +351,18 @@ def violation(paths: np.ndarray, centres: np.ndarray, radii: np.ndarray,
     all m; 0 for every path without obstacles."""
     if len(centres) == 0:
         return np.zeros(len(paths))
+    return _shortfall(_distances(paths, centres), radii, clearance)
+
+
+def _distances(paths: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """(k, m, S) distance (m) of each path's centre from each obstacle's, step by step."""
     d = paths[:, None, :, :] - centres[None, :, :, :]                   # (k, m, S, 2)
-    gap = np.sqrt((d * d).sum(axis=3)) - radii[None, :, :]              # (k, m, S)
+    return np.sqrt((d * d).sum(axis=3))
+
+
+def _shortfall(distances: np.ndarray, radii: np.ndarray, clearance: float) -> np.ndarray:
+    """:func:`violation` from the :func:`_distances` of the paths (the same floats)."""
+    gap = distances - radii[None, :, :]                                 # (k, m, S)
     return np.maximum(clearance - gap.min(axis=1), 0.0).sum(axis=1)
 
 
@@ -453,15 +466,16 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         paths = rollout(position, heading, speed, headings, speeds, max_turn_rate, max_accel,
                         step, n_steps, starts, ends, radius)
         # a predicted contact with the bare disc weighs CONTACT_WEIGHT times a shortfall of
-        # the grown one
-        contact = violation(paths, centres, bare, 0.0)
-        moving = CONTACT_WEIGHT * contact + violation(paths, centres, radii, clearance)
+        # the grown one (both violation()s, from one set of distances)
+        distances = _distances(paths, centres)
+        contact = _shortfall(distances, bare, 0.0)
+        moving = CONTACT_WEIGHT * contact + _shortfall(distances, radii, clearance)
         # free space: a path that ends pressed against a wall leaves no way on; headway: the
         # sweep's progress along the preferred direction
         walls = OPEN_SPACE_WEIGHT * np.maximum(
             OPEN_SPACE - segment_distances(paths[:, -1], starts, ends), 0.0)
         headway = headway_price * ((paths[:, -1] - position) @ along)
-        return moving, walls - headway, contact if react is None else paths
+        return moving, walls - headway, (contact, distances)
 
     wanted = float(np.hypot(*velocity))
     own = math.atan2(velocity[1], velocity[0]) if wanted > 1e-9 else heading
@@ -476,10 +490,11 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         # completed fewer zero-action sweeps on the tuning seeds, for about the same contacts
         # under random actions)
         soon = max(int(math.ceil(react / step - 1e-9)), 1)
-        paths = base_extra
-        imminent = (violation(paths[:, :soon], centres[:, :soon], radii[:, :soon],
-                              clearance)[0] > 0.0
-                    or violation(paths, centres, bare, 0.0)[0] > 0.0)
+        # violation(paths[:, :soon], centres[:, :soon], radii[:, :soon], clearance) and
+        # violation(paths, centres, bare, 0.0) of the base path, from its distances
+        contact, distances = base_extra
+        imminent = (_shortfall(distances[:, :, :soon], radii[:, :soon], clearance)[0] > 0.0
+                    or contact[0] > 0.0)
         if not imminent:
             return Escape(velocity, False, base, base)
     extra = [own]

@@ -1,0 +1,143 @@
+"""Speed of the safety stack's look-ahead and ORCA edge queries against a reference commit, in
+one process, on the calls random-action AOASS-Safe-v0 episodes make.
+
+The script records every ``escape_velocity`` call (aoass_env/safety/lookahead.py) and every
+static-edge query (``StaticObstacles.edges_near`` and ORCA's own, ``_EdgeCache.near``) of
+random-action AOASS-Safe-v0 episodes, then replays them through the reference commit's
+functions (loaded from ``git show REF:path``) and the current ones, alternating rounds, checks
+that both give the same answers bit for bit, and prints CPU microseconds per call and per
+Safe step and the speed-up (reference / current) of each round.
+
+Run: ``python3 benchmarks/lookahead_speed.py [--ref ab67c18] [--steps 4000] [--rounds 5]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import importlib.util
+import subprocess
+import sys
+import time
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import aoass_env  # noqa: F401  (registers AOASS-Safe-v0)
+from aoass_env import wrappers
+from aoass_env.safety import lookahead, orca
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: the episodes recorded: (AOASS-Safe-v0 keywords, seed); the default config, and a small field
+#: with many fast moving obstacles (the look-ahead escapes often)
+EPISODES: tuple[tuple[dict[str, Any], int], ...] = (
+    ({}, 0),
+    ({"field_size": 70.0, "obstacle_density": 0.2, "n_moving_obstacles": 8,
+      "moving_obstacle_speed": (0.5, 1.5)}, 13),
+)
+
+
+def reference_module(ref: str, path: str, name: str) -> ModuleType:
+    """The module at ``path`` as of commit ``ref``, imported under ``name``."""
+    source = subprocess.run(["git", "show", f"{ref}:{path}"], cwd=ROOT, check=True,
+                            capture_output=True, text=True).stdout
+    spec = importlib.util.spec_from_loader(name, loader=None)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    exec(compile(source, f"{ref}:{path}", "exec"), module.__dict__)
+    return module
+
+
+def record(steps: int) -> tuple[list[tuple[tuple, dict]], list[tuple[Any, float, float, float]],
+                                int]:
+    """(escape_velocity calls, edge queries (obstacles, x, y, reach), Safe steps taken) over
+    ``steps`` random steps of each of :data:`EPISODES`."""
+    calls: list[tuple[tuple, dict]] = []
+    queries: list[tuple[Any, float, float, float]] = []
+    original = wrappers.escape_velocity
+    near = orca._EdgeCache.near
+
+    def recording(*args: Any, **kwargs: Any) -> Any:
+        calls.append(copy.deepcopy((args, kwargs)))
+        return original(*args, **kwargs)
+
+    def recording_near(self: Any, px: float, py: float, reach: float) -> list[int]:
+        queries.append((self, px, py, reach))
+        return near(self, px, py, reach)
+
+    wrappers.escape_velocity = recording
+    orca._EdgeCache.near = recording_near
+    try:
+        for kwargs, seed in EPISODES:
+            env = gym.make("AOASS-Safe-v0", **kwargs)
+            env.action_space.seed(seed)
+            env.reset(seed=seed)
+            for _ in range(steps):
+                _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+                if terminated or truncated:
+                    env.reset()
+    finally:
+        wrappers.escape_velocity = original
+        orca._EdgeCache.near = near
+    return calls, queries, steps * len(EPISODES)
+
+
+def timed(function: Any, calls: list[tuple[tuple, dict]]) -> tuple[float, list[Any]]:
+    """(CPU seconds, results) of ``function`` over ``calls``."""
+    start = time.process_time()
+    results = [function(*args, **kwargs) for args, kwargs in calls]
+    return time.process_time() - start, results
+
+
+def same_escape(a: Any, b: Any) -> bool:
+    return (np.array_equal(a.velocity, b.velocity) and a.escaping == b.escaping
+            and a.shortfall == b.shortfall and a.chosen_shortfall == b.chosen_shortfall)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--ref", default="ab67c18", help="reference commit")
+    parser.add_argument("--steps", type=int, default=4000, help="random steps per episode")
+    parser.add_argument("--rounds", type=int, default=5, help="alternated timing rounds")
+    args = parser.parse_args()
+    if args.steps < 1 or args.rounds < 1:
+        parser.error("--steps and --rounds must be positive")
+    old_lookahead = reference_module(args.ref, "aoass_env/safety/lookahead.py", "lookahead_ref")
+    old_orca = reference_module(args.ref, "aoass_env/safety/orca.py", "orca_ref")
+    calls, queries, steps = record(args.steps)
+    # the reference's edge queries: its own _EdgeCache built from the same obstacle arrays
+    caches = {}
+    for cache, *_ in queries:
+        if id(cache) not in caches:
+            caches[id(cache)] = old_orca._EdgeCache.build(
+                np.column_stack([cache.ax, cache.ay]), np.column_stack([cache.dx, cache.dy]),
+                np.asarray(cache.next), np.asarray(cache.prev), np.asarray(cache.convex))
+    old_queries = [((caches[id(c)], x, y, r), {}) for c, x, y, r in queries]
+    new_queries = [((c, x, y, r), {}) for c, x, y, r in queries]
+    print(f"recorded {len(calls)} escape_velocity calls and {len(queries)} edge queries in "
+          f"{steps} AOASS-Safe-v0 steps; reference {args.ref}")
+    print(f"{'round':>5s} {'look-ahead ref':>15s} {'now':>8s} {'speed-up':>8s}   "
+          f"{'edge query ref':>15s} {'now':>8s} {'speed-up':>8s}   (CPU us per Safe step)")
+    for i in range(args.rounds):
+        t_old, r_old = timed(old_lookahead.escape_velocity, calls)
+        t_new, r_new = timed(lookahead.escape_velocity, calls)
+        q_old, a_old = timed(old_orca._EdgeCache.near, old_queries)
+        q_new, a_new = timed(orca._EdgeCache.near, new_queries)
+        if not all(same_escape(a, b) for a, b in zip(r_old, r_new, strict=True)):
+            raise SystemExit("escape_velocity differs from the reference")
+        if a_old != a_new:
+            raise SystemExit("edge queries differ from the reference")
+        print(f"{i + 1:5d} {1e6 * t_old / steps:15.1f} {1e6 * t_new / steps:8.1f} "
+              f"{t_old / t_new:8.2f}   {1e6 * q_old / steps:15.1f} {1e6 * q_new / steps:8.1f} "
+              f"{q_old / q_new:8.2f}")
+    print(f"per call: look-ahead {1e6 * t_old / len(calls):.0f} -> {1e6 * t_new / len(calls):.0f}"
+          f" us, edge query {1e6 * q_old / len(queries):.1f} -> "
+          f"{1e6 * q_new / len(queries):.1f} us (last round); answers identical")
+
+
+if __name__ == "__main__":
+    main()
