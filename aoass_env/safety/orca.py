@@ -470,6 +470,11 @@ class OrcaLines:
     point: np.ndarray
     direction: np.ndarray
     n_static: int
+    #: the lines as (px, py, dx, dy) tuples of the floats in ``point`` and ``direction``, kept
+    #: by :func:`orca_lines` (whose arrays are read-only) so that :func:`solve_velocity` need
+    #: not check and convert them again; None: built elsewhere, checked by the solver
+    rows: tuple[tuple[float, float, float, float], ...] | None = field(
+        default=None, repr=False, compare=False)
 
     def __len__(self) -> int:
         return len(self.point)
@@ -809,10 +814,11 @@ def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_spee
                                 responsibility)
     if lines:
         array = np.array(lines, dtype=np.float64)
+        array.flags.writeable = False           # rows below stay the arrays' floats
         point, direction = array[:, :2], array[:, 2:]
     else:
         point, direction = np.zeros((0, 2)), np.zeros((0, 2))
-    return OrcaLines(point, direction, n_static)
+    return OrcaLines(point, direction, n_static, tuple(lines))
 
 
 # --------------------------------------------------------------------------------------------
@@ -941,6 +947,9 @@ def solve_velocity(lines: OrcaLines, preferred_velocity: ArrayLike,
                          f"{type(lines).__name__}")
     ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
     max_speed = _positive("max_speed", max_speed, "m/s")
+    if lines.rows is not None:      # orca_lines' own (checked, read-only): its tuples
+        x, y = _solve(lines.rows, lines.n_static, ox, oy, max_speed)
+        return np.array([x, y])
     point = np.asarray(lines.point, dtype=np.float64)
     direction = np.asarray(lines.direction, dtype=np.float64)
     n = len(point)

@@ -432,6 +432,22 @@ def scenes(draw):
     return loops, border, discs.reshape(-1, 5), state, pref
 
 
+@settings(max_examples=200, deadline=None)
+@given(scenes())
+def test_orca_lines_own_rows_solve_as_the_checked_arrays(scene):
+    """solve_velocity on orca_lines' result (its kept rows, no checks) gives the velocity it
+    gives on the same lines as plain arrays (checked and converted), bit for bit; the arrays
+    are read-only so the rows cannot go stale."""
+    loops, _, discs, state, pref = scene
+    lines = orca_lines(static_obstacles=loops, moving_obstacles=discs, **state)
+    plain = OrcaLines(lines.point.copy(), lines.direction.copy(), lines.n_static)
+    assert plain.rows is None and (len(lines) == 0 or lines.rows is not None)
+    np.testing.assert_array_equal(solve_velocity(lines, pref, state["max_speed"]),
+                                  solve_velocity(plain, pref, state["max_speed"]))
+    if len(lines):
+        assert not lines.point.flags.writeable and not lines.direction.flags.writeable
+
+
 @settings(max_examples=300, deadline=None)
 @given(scenes())
 def test_random_scenes_keep_speed_and_static_lines(scene):
