@@ -390,7 +390,8 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
             if escape.escaping:
                 # the rollouts chose among the moving obstacles: the static lines stay hard
                 lines = OrcaLines(lines.point[:lines.n_static],
-                                  lines.direction[:lines.n_static], lines.n_static)
+                                  lines.direction[:lines.n_static], lines.n_static,
+                                  None if lines.rows is None else lines.rows[:lines.n_static])
                 v_star = solve_velocity(lines, escape.velocity, c.anchor_max_speed)
         speed_cmd, heading_cmd = unicycle_command(
             v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
