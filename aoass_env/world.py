@@ -111,6 +111,11 @@ class World:
         self._rng = rng
         self._sdt = config.substep_dt
         self._skin = 0.5 * _SLOP_FRACTION * config.anchor_radius
+        # _move_moving's constants: a disc's radius, how far it may meet the anchor (skin
+        # inside it), and the centre distance beyond which the two discs cannot meet
+        self._r_moving = r_moving = config.moving_obstacle_radius
+        self._r_meet = max(r_moving - self._skin, 0.0)
+        self._reach_meet = self._r_meet + config.anchor_radius + _SKIP_MARGIN
         self._space = space = pymunk.Space()
         space.collision_slop = _SLOP_FRACTION * config.anchor_radius
         # shape -> (kind, obstacle index); kind is the contact counter the shape belongs to
@@ -373,18 +378,18 @@ class World:
         cannot squeeze it into a static obstacle. Sweeps that provably touch nothing (clearance
         certificates, distance to the anchor) are skipped: they would return no hit.
         """
-        r, sdt = self.config.moving_obstacle_radius, self._sdt
-        r_meet = max(r - self._skin, 0.0)
-        reach = r_meet + self.config.anchor_radius + _SKIP_MARGIN   # farther: the discs miss
+        r, sdt, r_meet = self._r_moving, self._sdt, self._r_meet
+        reach = self._reach_meet                           # farther: the discs miss
         ox, oy = velocity[0] * sdt, velocity[1] * sdt      # the anchor's coming move
         clear, set_velocity = self._clearance.clear, _cp.cpBodySetVelocity
         for i, body in enumerate(self._c_moving):
             x0, y0 = x, y = self._mpos[i]
             vx, vy = self._mvel[i]
             # free flight, the common case: the whole move provably meets nothing (the first
-            # round of the loop below, with neither sweep run)
+            # round of the loop below, with neither sweep run; _apart inline)
             move = math.hypot(vx, vy) * sdt
-            if _apart(x - ox - ax, y - oy - ay, move + reach) and clear(i + 1, x, y, move + r):
+            dx, dy, far = x - ox - ax, y - oy - ay, move + reach
+            if dx * dx + dy * dy > far * far and clear(i + 1, x, y, move + r):
                 set_velocity(body, ((x + vx * sdt - x0) / sdt, (y + vy * sdt - y0) / sdt))
                 continue
             rest = sdt
@@ -462,10 +467,12 @@ class World:
         if length == 0.0:
             return vx, vy
         r = self.config.anchor_radius
-        reach = length + r + self.config.moving_obstacle_radius + _SKIP_MARGIN
+        reach = length + r + self._r_moving + _SKIP_MARGIN
         if self._clearance.clear(0, x, y, length + r):
+            reach2 = reach * reach
             for mx, my in self._mpos:
-                if not _apart(mx - x, my - y, reach):
+                dx, dy = mx - x, my - y
+                if not dx * dx + dy * dy > reach2:         # not _apart(dx, dy, reach)
                     break
             else:
                 return vx, vy
