@@ -294,6 +294,8 @@ class MultiTargetTracker:
             ValueError: wrong shape or non-finite values in ``detections``.
         """
         z = self._detections(detections)
+        if not self._tracks and len(z) == 0:
+            return                  # nothing to predict, associate or start (the steps below)
         for t in self._tracks:
             t.filter.predict()
         free = np.ones(len(z), bool)
