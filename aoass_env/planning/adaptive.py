@@ -55,6 +55,7 @@ from aoass_env.config import AOASSConfig
 from aoass_env.planning.coverage import CoverageMap
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import Skip, WaypointFollower
+from aoass_env.planning.pruning import PrunedPlan, cached_plan, prune_spiral
 from aoass_env.planning.square_spiral import config_spacing
 from aoass_env.validators import ValidatedConfig, param
 
@@ -85,6 +86,14 @@ class AdaptiveConfig(ValidatedConfig):
 
     KEYWORD: ClassVar[str] = "adaptive keyword"
 
+    prune: bool = param(False, "before it moves, leave out the spiral's free waypoints whose "
+                        "surroundings the rest of the spiral covers on the static map "
+                        "(aoass_env.planning.pruning)", kind="bool")
+    prune_beacons: float = param(6.0, "the pruned plan keeps a cell the full spiral covers "
+                                 "with at least this many beacons at this many", low=3.0,
+                                 high=1000.0)
+    prune_spread: float = param(2.0, "... and their spread at least this many times Eq. 18's "
+                                "collinearity_tol", low=1.0, high=100.0)
     wide_passes: bool = param(True, "lay the spiral's passes with the ring count of Eq. 5's "
                               "spacing rounded down, not up (spiral_spacing left unset): wider "
                               "passes, the gaps left to the densify phase", kind="bool")
@@ -152,6 +161,8 @@ class AdaptiveSweep:
             "long detour").
         revisits: the densify runs: (first spiral index, time) of each.
         sides: detours taken round the other side of an obstacle: (spiral index or -1, time).
+        plan: with the rule's ``prune``, the pruned spiral (its left-out waypoints are marked
+            blocked in the follower).
     """
 
     follower: WaypointFollower
@@ -163,6 +174,7 @@ class AdaptiveSweep:
     passed: list[Skip] = field(default_factory=list)
     revisits: list[tuple[int, float]] = field(default_factory=list)
     sides: list[tuple[int, float]] = field(default_factory=list)
+    plan: PrunedPlan | None = None
     _clock: float = 0.0
     _via: WaypointFollower | None = None
     _near: dict[int, np.ndarray] = field(default_factory=dict)
@@ -175,9 +187,28 @@ class AdaptiveSweep:
     _done: bool = False
 
     def __post_init__(self) -> None:
+        if self.rule.prune:
+            self.plan = self._prune()
         self._runner = self.follower
         self._open = np.zeros(len(self.follower.waypoints), dtype=bool)
         self._dropped = np.zeros(self.coverage.n_cells, dtype=bool)
+
+    def _prune(self) -> PrunedPlan:
+        """Prune the spiral ahead (:mod:`aoass_env.planning.pruning`); the follower then skips
+        the waypoints the plan leaves out as it skips blocked ones."""
+        follower, cov, config = self.follower, self.coverage, self.config
+        key = (follower.waypoints.tobytes(), follower.blocked.tobytes(), follower.index,
+               cov.cell, cov.reach, config.line_of_sight, config.beacon_interval,
+               config.collinearity_tol, self.rule.prune_beacons, self.rule.prune_spread)
+        plan = cached_plan(self.planner, key, lambda: prune_spiral(
+            follower.waypoints, follower.blocked, follower.index, self.planner, cov.radio,
+            cov.n_cells, config.beacon_interval, config.collinearity_tol,
+            (self.rule.prune_beacons, self.rule.prune_spread)))
+        left_out = ~plan.kept & ~follower.blocked
+        left_out[:follower.index] = False
+        follower.blocked = follower.blocked | left_out
+        follower.stall_travel = True          # the kept waypoints can lie far apart
+        return plan
 
     # --- the Controller protocol --------------------------------------------------------------
     @property
@@ -416,7 +447,10 @@ class AdaptiveSweep:
         up) that the planner's way reaches at the least cost; cells it cannot reach are given
         up; done when none is left."""
         cov = self.coverage
-        todo = np.flatnonzero(~self._dropped & (cov.deficit > max(threshold, 0.0)))
+        lacking = ~self._dropped & (cov.deficit > max(threshold, 0.0))
+        if self.plan is not None:      # the cells the whole spiral would not cover are not asked
+            lacking &= self.plan.reference
+        todo = np.flatnonzero(lacking)
         if not len(todo):
             self._done = True
             return

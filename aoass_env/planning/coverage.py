@@ -166,6 +166,12 @@ class CoverageMap:
         return self._deficit
 
     @property
+    def radio(self) -> Radio:
+        """The radio of the virtual nodes (guaranteed range, line of sight), shared by the
+        episodes on one map: for planning what beacons would cover."""
+        return self._radio
+
+    @property
     def ratio(self) -> float:
         """Covered share of the free cells (the area coverage ratio), in [0, 1]."""
         return self._network.n_covered / self.n_cells if self.n_cells else 1.0

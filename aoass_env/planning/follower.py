@@ -107,6 +107,9 @@ class WaypointFollower:
         max_accel: the anchor's deceleration limit (m/s^2), used to brake ahead of sharp turns.
         stall_time: a target (spiral or detour point) not reached within this time (s) is
             skipped, so a follower pushed against an obstacle does not wait forever.
+        stall_travel: the time allowed for a waypoint also grows by twice the straight
+            travel time from the previous one (for sparse waypoints, such as a pruned spiral's,
+            whose next one may lie farther than ``stall_time`` allows).
         planner: detour planner used when the straight line to the target is obstructed.
         watchdog_time: seconds without ``watchdog_progress`` metres of progress along the plan
             after which the follower is stuck (inf: no watchdog).
@@ -124,6 +127,7 @@ class WaypointFollower:
     cruise_speed: float
     max_accel: float = math.inf
     stall_time: float = 30.0
+    stall_travel: bool = False
     planner: DetourPlanner | None = None
     watchdog_time: float = math.inf
     watchdog_progress: float = 1.0
@@ -187,8 +191,12 @@ class WaypointFollower:
         return i
 
     def _advance(self) -> None:
+        last = self.index
         self.index = self._next_free(self.index + 1)
         self._budget = self._clock + self.stall_time
+        if self.stall_travel and not self.done:
+            hop = self.waypoints[self.index] - self.waypoints[last]
+            self._budget += 2.0 * math.hypot(hop[0], hop[1]) / self.cruise_speed
         self._planned = False
         self._detour.clear()
         self._tries = 0

@@ -1,0 +1,295 @@
+"""The spiral pruned ahead on the static map: the free waypoints the anchor can leave out while
+every cell the whole spiral would cover stays covered (issue 19).
+
+Sent through every free waypoint in order, the square spiral spends most of its path at
+densities 0.2-0.4 on detours to waypoints beside and behind obstacle clusters, ring after ring
+(on the maps/train fitting split the planner's way through them is 1.3-3x the ideal spiral's
+776 m, and the follower drives it to within 2 %). With the radio range R well above the pass
+spacing, the beacons sent elsewhere already cover most of what those waypoints add. The anchor
+knows its static map, R, the DOI bound and its beacon interval, so it can tell which ones before
+it moves:
+
+1. **The full plan.** The free waypoints from the start on, in spiral order (those the planner
+   cannot reach from the previous one are left out, as the follower gives them up), joined by
+   the planner's ways. Beacons are placed every ``beacon_interval`` metres along each way from
+   its start, and heard by the coverage map's virtual nodes (:mod:`aoass_env.planning.coverage`:
+   guaranteed range and line of sight). The cells this plan covers (Eq. 18) are the
+   *reference*.
+2. **Greedy pruning.** A waypoint is removed when the planner's way from its predecessor to its
+   successor is shorter (by more than :data:`MIN_GAIN`) than the way through it, and every
+   reference cell stays covered with the beacons of the new way instead of the two old ones;
+   the largest gain first. Then runs of 2-12 consecutive waypoints are tried the same way, in
+   spiral order (a stub into a pocket and back, a corner cut across), and the two passes repeat
+   while they remove anything (at most :data:`ROUNDS` times).
+
+The plan is a plan: the beacons the anchor really sends fall at other points of its odometer,
+moving obstacles push it aside, and the follower cuts corners. The adaptive sweep's densify
+phase (:mod:`aoass_env.planning.adaptive`) revisits what the execution leaves uncovered.
+
+A cell's Eq. 18 test needs only its beacons' count, sums and sums of products, so removing a way
+subtracts its beacons' statistics and adding one adds them: a trial costs the cells the ways
+reach. Beacon positions are snapped to a :data:`SNAP` metre lattice for the receivers' lookup
+(which is cached), so ways that cross the same ground share it. Plans are cached per map and
+settings (maps are immutable), so the episodes on one map share them; a fresh 100 m map takes a
+few seconds.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import weakref
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from aoass_env.planning.detour import DetourPlanner
+from aoass_env.radio import Radio
+
+__all__ = ["MIN_GAIN", "PrunedPlan", "cached_plan", "prune_spiral"]
+
+#: A removal must shorten the plan by more than this (m).
+MIN_GAIN = 0.3
+#: Lengths of the runs of consecutive waypoints tried after the single ones.
+RUN_LENGTHS = (2, 3, 4, 6, 8, 12)
+#: Rounds of single and run pruning, at most.
+ROUNDS = 3
+#: Lattice (m) the planned beacons are snapped to for the receivers' lookup.
+SNAP = 0.25
+
+
+@dataclass(frozen=True)
+class PrunedPlan:
+    """A pruned spiral.
+
+    Attributes:
+        kept: (W,) bool: the waypoints the plan visits (free, from the start on, reachable).
+        length: the planner's way through the kept waypoints (m).
+        full_length: the planner's way through every reachable free waypoint (m).
+        reference: (C,) bool: the coverage map's cells the full plan covers; the kept plan
+            covers each of them too (with its planned beacons).
+    """
+
+    kept: np.ndarray
+    length: float
+    full_length: float
+    reference: np.ndarray
+
+
+class _Ways:
+    """The planner's ways between waypoints with their planned beacons' per-cell statistics
+    (count, sum x, sum y, sum xx, sum xy, sum yy), cached per pair."""
+
+    def __init__(self, waypoints: np.ndarray, planner: DetourPlanner, radio: Radio,
+                 n_cells: int, interval: float) -> None:
+        self.waypoints = waypoints
+        self.planner = planner
+        self.radio = radio
+        self.n_cells = n_cells
+        self.interval = interval
+        self._ways: dict[tuple[int, int], tuple[float, np.ndarray, np.ndarray] | None] = {}
+        self._heard: dict[tuple[int, int], np.ndarray] = {}
+
+    def receivers(self, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cells that hear a beacon at ``point`` snapped to the lattice, and that point."""
+        key = (round(point[0] / SNAP), round(point[1] / SNAP))
+        snapped = np.array(key, dtype=np.float64) * SNAP
+        if key not in self._heard:
+            self._heard[key] = self.radio.receivers(snapped)
+        return self._heard[key], snapped
+
+    def get(self, a: int, b: int) -> tuple[float, np.ndarray, np.ndarray] | None:
+        """(length m, cells, their (K, 6) statistics) of the way from waypoint ``a`` to ``b``;
+        None when the planner finds none."""
+        key = (a, b)
+        if key not in self._ways:
+            way = self.planner.path(self.waypoints[a], self.waypoints[b])
+            self._ways[key] = None if way is None else self._measure(way)
+        return self._ways[key]
+
+    def _measure(self, way: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        steps = np.linalg.norm(np.diff(way, axis=0), axis=1)
+        along = np.r_[0.0, np.cumsum(steps)]
+        length = float(along[-1])
+        marks = np.arange(self.interval, length + 1e-9, self.interval)
+        stats = np.zeros((self.n_cells, 6))
+        for s in marks:
+            cells, (x, y) = self.receivers(np.array([np.interp(s, along, way[:, 0]),
+                                                     np.interp(s, along, way[:, 1])]))
+            stats[cells] += (1.0, x, y, x * x, x * y, y * y)
+        touched = np.flatnonzero(stats[:, 0])
+        return length, touched, stats[touched]
+
+
+def _covered(stats: np.ndarray, tol: float, beacons: float = 3) -> np.ndarray:
+    """Eq. 18 from (K, 6) beacon statistics: at least ``beacons`` (3) beacons whose scatter's
+    smallest eigenvalue is at least ``tol`` squared (:class:`~aoass_env.network.Network`'s
+    test)."""
+    n = stats[:, 0]
+    safe = np.maximum(n, 1.0)
+    mx, my = stats[:, 1] / safe, stats[:, 2] / safe
+    sxx = stats[:, 3] - n * mx * mx
+    sxy = stats[:, 4] - n * mx * my
+    syy = stats[:, 5] - n * my * my
+    lam = 0.5 * (sxx + syy) - np.hypot(0.5 * (sxx - syy), sxy)
+    return (n >= beacons) & (lam >= tol * tol * (1.0 - 1e-9))
+
+
+class _Pruner:
+    """The greedy pruning of the module docstring, on a doubly linked list of waypoints."""
+
+    def __init__(self, ways: _Ways, stops: list[int], tol: float, margin: tuple[float, float]
+                 ) -> None:
+        self.ways = ways
+        self.tol = tol
+        self.margin = margin
+        self.next = dict(zip(stops[:-1], stops[1:], strict=True))
+        self.prev = dict(zip(stops[1:], stops[:-1], strict=True))
+        self.first = stops[0]
+        self.total = np.zeros((ways.n_cells, 6))
+        for a, b in zip(stops[:-1], stops[1:], strict=True):
+            _, cells, stats = ways.get(a, b)
+            self.total[cells] += stats
+        self.reference = _covered(self.total, tol)
+        self.robust = self._robust(self.total)
+
+    def _robust(self, stats: np.ndarray) -> np.ndarray:
+        return _covered(stats, self.margin[1] * self.tol, self.margin[0])
+
+    def order(self) -> list[int]:
+        """The kept waypoints in order."""
+        out = [self.first]
+        while out[-1] in self.next:
+            out.append(self.next[out[-1]])
+        return out
+
+    def length(self) -> float:
+        """The way through the kept waypoints (m)."""
+        stops = self.order()
+        return sum(self.ways.get(a, b)[0] for a, b in zip(stops[:-1], stops[1:], strict=True))
+
+    def try_remove(self, run: list[int], min_gain: float) -> bool:
+        """Remove the consecutive kept waypoints ``run`` when that shortens the plan by more
+        than ``min_gain`` (m) and keeps every reference cell covered."""
+        a, b = self.prev.get(run[0]), self.next.get(run[-1])
+        if a is None or b is None:
+            return False
+        shortcut = self.ways.get(a, b)
+        if shortcut is None:
+            return False
+        chain = [a, *run, b]
+        old = [self.ways.get(x, y) for x, y in zip(chain[:-1], chain[1:], strict=True)]
+        if sum(w[0] for w in old) - shortcut[0] <= min_gain:
+            return False
+        cells = np.unique(np.concatenate([w[1] for w in old] + [shortcut[1]]))
+        trial = self.total[cells]
+        for _, touched, stats in old:
+            trial[np.searchsorted(cells, touched)] -= stats
+        trial[np.searchsorted(cells, shortcut[1])] += shortcut[2]
+        if (np.any(self.reference[cells] & ~_covered(trial, self.tol))
+                or np.any(self.robust[cells] & ~self._robust(trial))):
+            return False
+        self.total[cells] = trial
+        for x in run:
+            del self.next[x], self.prev[x]
+        self.next[a], self.prev[b] = b, a
+        return True
+
+    def gain(self, k: int) -> float:
+        """How much shorter (m) the plan gets without waypoint ``k`` (-inf when it cannot)."""
+        a, b = self.prev.get(k), self.next.get(k)
+        if a is None or b is None:
+            return -math.inf
+        shortcut = self.ways.get(a, b)
+        if shortcut is None:
+            return -math.inf
+        return self.ways.get(a, k)[0] + self.ways.get(k, b)[0] - shortcut[0]
+
+    def singles(self, min_gain: float) -> bool:
+        """Remove single waypoints, the largest gain first; whether any went."""
+        heap = [(-g, k) for k in self.order() if (g := self.gain(k)) > min_gain]
+        heapq.heapify(heap)
+        removed = False
+        while heap:
+            neg, k = heapq.heappop(heap)
+            if k not in self.prev:
+                continue
+            g = self.gain(k)
+            if g <= min_gain:
+                continue
+            if g < -neg - 1e-9:               # stale: its neighbours changed
+                heapq.heappush(heap, (-g, k))
+                continue
+            a, b = self.prev[k], self.next[k]
+            if self.try_remove([k], min_gain):
+                removed = True
+                for j in (a, b):
+                    if (gj := self.gain(j)) > min_gain:
+                        heapq.heappush(heap, (-gj, j))
+        return removed
+
+    def runs(self, length: int, min_gain: float) -> bool:
+        """Remove runs of ``length`` consecutive waypoints, in spiral order; whether any went."""
+        removed = False
+        for k in self.order():
+            if k not in self.prev:
+                continue
+            run = [k]
+            while len(run) < length and run[-1] in self.next:
+                run.append(self.next[run[-1]])
+            if len(run) == length and self.try_remove(run, min_gain):
+                removed = True
+        return removed
+
+
+def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,
+                 planner: DetourPlanner, radio: Radio, n_cells: int, beacon_interval: float,
+                 collinearity_tol: float, margin: tuple[float, float] = (3, 1.0),
+                 min_gain: float = MIN_GAIN) -> PrunedPlan:
+    """Prune the spiral ``waypoints`` (W, 2) (m) with ``blocked`` (W,) from waypoint ``start``
+    on (module docstring).
+
+    Args:
+        planner: the detour planner of the map (the ways between waypoints).
+        radio: the coverage map's radio of its ``n_cells`` virtual nodes.
+        beacon_interval: metres between planned beacons.
+        collinearity_tol: Eq. 18's spread (m).
+        margin: (beacons, spread factor): a cell the full plan covers with at least that many
+            beacons spread that many times ``collinearity_tol`` keeps that margin in the
+            pruned plan (the execution's beacons fall elsewhere than the plan's).
+        min_gain: a removal must shorten the plan by more than this (m).
+    """
+    ways = _Ways(np.asarray(waypoints, dtype=np.float64), planner, radio, n_cells,
+                 beacon_interval)
+    free = [int(i) for i in np.flatnonzero(~np.asarray(blocked, dtype=bool)) if i >= start]
+    stops = free[:1]
+    for k in free[1:]:
+        if ways.get(stops[-1], k) is not None:
+            stops.append(k)
+    pruner = _Pruner(ways, stops, collinearity_tol, margin)
+    full = pruner.length()
+    for _ in range(ROUNDS):
+        changed = pruner.singles(min_gain)
+        for length in RUN_LENGTHS:
+            changed = pruner.runs(length, min_gain) or changed
+        if not changed:
+            break
+    kept = np.zeros(len(waypoints), dtype=bool)
+    kept[pruner.order()] = True
+    return PrunedPlan(kept, pruner.length(), full, pruner.reference)
+
+
+#: Plans of the last maps seen, per detour planner (one per map and radius; maps are
+#: immutable) and settings.
+_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def cached_plan(planner: DetourPlanner, key: tuple, make: Callable[[], PrunedPlan]
+                ) -> PrunedPlan:
+    """The plan on ``planner``'s map for the hashable settings ``key`` (everything else the
+    plan depends on), made by ``make()`` on first use."""
+    per_map = _PLANS.setdefault(planner, {})
+    if key not in per_map:
+        per_map[key] = make()
+    return per_map[key]

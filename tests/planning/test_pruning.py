@@ -1,0 +1,109 @@
+"""The spiral pruned ahead on the static map (aoass_env.planning.pruning)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import ObstacleMap
+from aoass_env.network import Network
+from aoass_env.planning import AdaptiveConfig
+from aoass_env.planning.coverage import CoverageMap
+from aoass_env.planning.pruning import SNAP, _covered, cached_plan, prune_spiral
+from aoass_env.simulator import Simulator
+
+CONFIG = AOASSConfig(field_size=60.0, n_nodes=120, obstacle_density=0.0, n_moving_obstacles=0)
+#: two blocks the spiral's passes detour round
+BLOCKS = ObstacleMap(60.0, 60.0, [
+    np.array([[12.0, 12.0], [24.0, 12.0], [24.0, 22.0], [12.0, 22.0]]),
+    np.array([[36.0, 34.0], [47.0, 34.0], [47.0, 48.0], [36.0, 48.0]])])
+
+
+def _plan(obstacle_map: ObstacleMap, margin=(3, 1.0)):
+    sim = Simulator(CONFIG, np.random.default_rng(0), obstacle_map=obstacle_map)
+    cov = sim.coverage_map
+    plan = prune_spiral(sim.path.waypoints, sim.path.blocked, sim.start_index, sim.planner,
+                        cov.radio, cov.n_cells, CONFIG.beacon_interval,
+                        CONFIG.collinearity_tol, margin)
+    return sim, plan
+
+
+def _planned_beacons(sim: Simulator, stops: np.ndarray) -> np.ndarray:
+    """The plan's beacons, laid again from scratch: every beacon_interval metres along the
+    planner's way between consecutive stops, snapped to the lattice."""
+    out = []
+    for a, b in zip(stops[:-1], stops[1:], strict=True):
+        way = sim.planner.path(sim.path.waypoints[a], sim.path.waypoints[b])
+        along = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(way, axis=0), axis=1))]
+        for s in np.arange(CONFIG.beacon_interval, along[-1] + 1e-9, CONFIG.beacon_interval):
+            p = np.array([np.interp(s, along, way[:, 0]), np.interp(s, along, way[:, 1])])
+            out.append(np.round(p / SNAP) * SNAP)
+    return np.array(out)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(0, 60), st.floats(0, 60)), min_size=0, max_size=8))
+def test_the_statistics_test_is_the_networks_eq18_test(points):
+    """Oracle: Eq. 18 from the summed statistics agrees with the network's incremental test."""
+    net = Network(1, CONFIG)
+    stats = np.zeros((1, 6))
+    for x, y in points:
+        net.record_beacon(np.array([x, y]), np.array([0]))
+        stats[0] += (1.0, x, y, x * x, x * y, y * y)
+    lam = net.line_residual[0] ** 2
+    if abs(lam - CONFIG.collinearity_tol ** 2) > 1e-6:    # away from the threshold's rounding
+        assert bool(_covered(stats, CONFIG.collinearity_tol)[0]) == bool(net.covered[0])
+
+
+def test_the_pruned_plan_is_shorter_and_its_beacons_cover_every_reference_cell():
+    sim, plan = _plan(BLOCKS)
+    free = ~sim.path.blocked & (np.arange(len(sim.path.blocked)) >= sim.start_index)
+    assert plan.kept[sim.start_index] and not np.any(plan.kept & ~free)
+    assert plan.length < 0.9 * plan.full_length
+    assert plan.reference.mean() > 0.95
+    # oracle: the coverage map fed the kept plan's beacons one by one, from scratch
+    cov = CoverageMap(BLOCKS, CONFIG)
+    for p in _planned_beacons(sim, np.flatnonzero(plan.kept)):
+        cov.add_beacon(p)
+    assert np.all(cov.covered[plan.reference])
+
+
+def test_a_margin_keeps_more_of_the_spiral():
+    _, bare = _plan(BLOCKS)
+    _, kept = _plan(BLOCKS, margin=(8, 3.0))
+    assert bare.length < kept.length <= kept.full_length
+    assert np.array_equal(bare.reference, kept.reference)
+
+
+def test_plans_are_cached_per_planner_and_settings():
+    sim, _ = _plan(BLOCKS)
+    made = []
+
+    def make():
+        made.append(1)
+        return object()
+
+    first = cached_plan(sim.planner, ("k", 1), make)
+    assert cached_plan(sim.planner, ("k", 1), make) is first and len(made) == 1
+    cached_plan(sim.planner, ("k", 2), make)
+    assert len(made) == 2
+
+
+def test_the_sweep_skips_what_the_plan_leaves_out_without_touching_the_spiral():
+    config = CONFIG
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=BLOCKS)
+    spiral_blocked = sim.path.blocked.copy()
+    sweep = sim.adaptive_sweep(AdaptiveConfig(prune=True, wide_passes=False))
+    assert np.array_equal(sim.path.blocked, spiral_blocked)
+    left_out = ~sweep.plan.kept & ~spiral_blocked
+    left_out[:sim.start_index] = False
+    assert left_out.any()
+    assert np.array_equal(sweep.follower.blocked, spiral_blocked | left_out)
+    sim.run(controller=sweep)
+    assert sweep.done
+    spiral = Simulator(config, np.random.default_rng(0), obstacle_map=BLOCKS)
+    spiral.run(controller=spiral.follower(recovery=True))
+    assert sim.network.distance_travelled < 0.9 * spiral.network.distance_travelled
+    assert sim.network.coverage_ratio >= spiral.network.coverage_ratio
