@@ -198,9 +198,9 @@ class AdaptiveSweep:
         the waypoints the plan leaves out as it skips blocked ones."""
         follower, cov, config = self.follower, self.coverage, self.config
         key = (follower.waypoints.tobytes(), follower.blocked.tobytes(), follower.index,
-               cov.cell, cov.reach, config.line_of_sight, config.beacon_interval,
+               self.planner.radius, self.planner.res, config.beacon_interval,
                config.collinearity_tol, self.rule.prune_beacons, self.rule.prune_spread)
-        plan = cached_plan(self.planner, key, lambda: prune_spiral(
+        plan = cached_plan(cov.radio, key, lambda: prune_spiral(
             follower.waypoints, follower.blocked, follower.index, self.planner, cov.radio,
             cov.n_cells, config.beacon_interval, config.collinearity_tol,
             (self.rule.prune_beacons, self.rule.prune_spread)))

@@ -280,16 +280,16 @@ def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,
     return PrunedPlan(kept, pruner.length(), full, pruner.reference)
 
 
-#: Plans of the last maps seen, per detour planner (one per map and radius; maps are
-#: immutable) and settings.
+#: Plans of the last maps seen, per coverage-map radio (one per map and cell settings, shared
+#: by the episodes on the map; maps are immutable) and settings.
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def cached_plan(planner: DetourPlanner, key: tuple, make: Callable[[], PrunedPlan]
-                ) -> PrunedPlan:
-    """The plan on ``planner``'s map for the hashable settings ``key`` (everything else the
-    plan depends on), made by ``make()`` on first use."""
-    per_map = _PLANS.setdefault(planner, {})
+def cached_plan(radio: Radio, key: tuple, make: Callable[[], PrunedPlan]) -> PrunedPlan:
+    """The plan on the map of the coverage map's ``radio`` for the hashable settings ``key``
+    (everything else the plan depends on: the spiral, its start, the planner's radius, the
+    beacon interval, Eq. 18's tolerance, the margin), made by ``make()`` on first use."""
+    per_map = _PLANS.setdefault(radio, {})
     if key not in per_map:
         per_map[key] = make()
     return per_map[key]

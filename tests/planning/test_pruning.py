@@ -77,17 +77,19 @@ def test_a_margin_keeps_more_of_the_spiral():
     assert np.array_equal(bare.reference, kept.reference)
 
 
-def test_plans_are_cached_per_planner_and_settings():
+def test_plans_are_cached_per_map_and_settings():
     sim, _ = _plan(BLOCKS)
+    again = Simulator(CONFIG, np.random.default_rng(1), obstacle_map=BLOCKS)
+    assert again.coverage_map.radio is sim.coverage_map.radio      # the episodes share it
     made = []
 
     def make():
         made.append(1)
         return object()
 
-    first = cached_plan(sim.planner, ("k", 1), make)
-    assert cached_plan(sim.planner, ("k", 1), make) is first and len(made) == 1
-    cached_plan(sim.planner, ("k", 2), make)
+    first = cached_plan(sim.coverage_map.radio, ("k", 1), make)
+    assert cached_plan(again.coverage_map.radio, ("k", 1), make) is first and len(made) == 1
+    cached_plan(sim.coverage_map.radio, ("k", 2), make)
     assert len(made) == 2
 
 
@@ -96,6 +98,8 @@ def test_the_sweep_skips_what_the_plan_leaves_out_without_touching_the_spiral():
     sim = Simulator(config, np.random.default_rng(0), obstacle_map=BLOCKS)
     spiral_blocked = sim.path.blocked.copy()
     sweep = sim.adaptive_sweep(AdaptiveConfig(prune=True, wide_passes=False))
+    again = Simulator(config, np.random.default_rng(1), obstacle_map=BLOCKS)
+    assert again.adaptive_sweep(AdaptiveConfig(prune=True, wide_passes=False)).plan is sweep.plan
     assert np.array_equal(sim.path.blocked, spiral_blocked)
     left_out = ~sweep.plan.kept & ~spiral_blocked
     left_out[:sim.start_index] = False
