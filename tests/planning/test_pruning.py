@@ -7,6 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig
+from aoass_env.env import AOASSEnv
 from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network
 from aoass_env.planning import AdaptiveConfig
@@ -111,3 +112,19 @@ def test_the_sweep_skips_what_the_plan_leaves_out_without_touching_the_spiral():
     spiral.run(controller=spiral.follower(recovery=True))
     assert sim.network.distance_travelled < 0.9 * spiral.network.distance_travelled
     assert sim.network.coverage_ratio >= spiral.network.coverage_ratio
+
+
+def test_the_observed_waypoints_are_the_ones_the_pruned_sweep_heads_for():
+    env = AOASSEnv(field_size=60.0, n_nodes=120, obstacle_density=0.0, n_moving_obstacles=0,
+                   action_type="adaptive", adaptive=AdaptiveConfig(prune=True, wide_passes=False))
+    obs, _ = env.reset(seed=0, options={"map": BLOCKS})
+    sweep = env._follower
+    ahead = np.flatnonzero(sweep.plan.kept & (np.arange(len(sweep.plan.kept)) >= sweep.index))
+    k = env.config.obs_waypoints
+    upcoming = env.sim.spiral.waypoints[ahead[np.minimum(np.arange(k), len(ahead) - 1)]]
+    scale = k * env.config.path_step
+    expected = np.clip((upcoming - env.sim.world.position) / scale, -1.0, 1.0)
+    assert np.allclose(obs[env.obs_layout["waypoints"]], expected.ravel(), atol=1e-6)
+    index = np.arange(len(sweep.plan.kept))
+    spiral = np.flatnonzero(~env.sim.spiral.blocked & (index >= sweep.index))[:k]
+    assert not np.array_equal(spiral, ahead[:k])      # the spiral's own next ones differ
