@@ -166,7 +166,11 @@ class BrakingEnvelope:
 
     def __call__(self, headings: np.ndarray) -> np.ndarray:
         """(k,) the speed cap on each heading (rad)."""
-        radius = min(self.radius, clearance(self.starts, self.ends, self.position) - _HELD)
+        return self._caps(headings, clearance(self.starts, self.ends, self.position))
+
+    def _caps(self, headings: np.ndarray, gap: float) -> np.ndarray:
+        """(k,) the speed cap on each heading (rad), the anchor's clearance being ``gap`` (m)."""
+        radius = min(self.radius, gap - _HELD)
         travel = free_travel(self.starts, self.ends, self.position, headings, max(radius, 0.0))
         return braking_speed(travel, self.max_accel, self.dt)
 
@@ -197,9 +201,202 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
     vx, vy = float(v_star[0]), float(v_star[1])
     wanted = math.hypot(vx, vy)
     target = math.atan2(vy, vx) if wanted > _STILL else fallback_heading
+    floor = max(speed - max_dv, 0.0)
+    if not SCALAR_TRIG:
+        return _command_on_arrays(wanted, target, heading, max_turn, floor, points, directions,
+                                  envelope)
+    gap = math.inf
+    if envelope is not None and len(envelope.starts):
+        gap = _clearance_floats(envelope.starts.tolist(), envelope.ends.tolist(),
+                                float(envelope.position[0]), float(envelope.position[1]))
+    if envelope is None or _envelope_floor(envelope, gap) >= max(wanted, floor, _TINY):
+        # no cap of the envelope can bind (notes below): the ORCA lines alone decide
+        command = _command_on_lines(wanted, target, heading, max_turn, floor, points,
+                                    directions)
+        if command is not None:
+            return command
+    return _command_with_caps(wanted, target, heading, max_turn, floor, points, directions,
+                              envelope, gap)
+
+
+# --- the same command in Python floats -----------------------------------------------------
+# `unicycle_command` computes on float lists what `_command_on_arrays` computes on arrays:
+# the same operations in the same order (tests/safety/test_unicycle.py checks them equal bit
+# for bit against the array code). Two shortcuts keep the answer:
+#
+# - The safe speed is non-increasing along the arc (a running minimum), so the headings past
+#   the first one whose safe speed falls short of the floor are never looked at: the command
+#   stops at the heading before it.
+# - The braking envelope caps every heading at no less than `_envelope_floor`: the disc moves at
+#   least (clearance - its radius) before it touches an edge (triangle inequality), less
+#   `_CERTIFICATE_SLACK` for round-off. When that floor is at least both |v*| and the speed
+#   floor, a cap changes neither which branch is taken, nor the heading (every cap clears the
+#   floor), nor the speed (min(|v*|, cap) = |v*|), so it is not computed. Otherwise, and when
+#   the anchor must brake (the braking branch reads the caps themselves), the caps come from
+#   the envelope's arrays (`_command_with_caps`): `free_travel` keeps NumPy's matrix products,
+#   which BLAS computes with fused multiply-adds (an order that depends on the shapes and the
+#   CPU) that Python floats cannot reproduce.
+
+#: How far (m) the computed free travel may fall short of (clearance - radius) by round-off.
+#: The worst case is a disc of radius 0 heading straight at an end point W metres away, where
+#: the square root of a discriminant near 0 turns its rounding into about 3e-8 W: 3e-7 m at
+#: 10 m, 3e-5 m at 1 km (the envelope's edges lie within a few metres of the anchor).
+_CERTIFICATE_SLACK = 1e-4
+#: An envelope floor must be positive to skip the caps (no signed zeros to account for).
+_TINY = 1e-300
+#: The arc's fractions: `np.linspace(0, 1, 9)`, exactly i / 8.
+_FRACTIONS = tuple(np.linspace(0.0, 1.0, 9).tolist())
+
+
+def _scalar_trig_is_numpys() -> bool:
+    """Whether ``math.cos``/``math.sin`` give NumPy's float64 ``cos``/``sin`` bit for bit on
+    this machine (NumPy may dispatch to its own SIMD code): the float path of
+    :func:`unicycle_command` runs only then (as the look-ahead's one-path rollout)."""
+    probe = np.random.default_rng(0).uniform(-20.0, 20.0, 4096)
+    arc = np.linspace(-7.0, 7.0, 9)
+    return (np.array_equal(np.cos(probe), [math.cos(x) for x in probe])
+            and np.array_equal(np.sin(probe), [math.sin(x) for x in probe])
+            and np.array_equal(np.cos(arc), [math.cos(x) for x in arc])
+            and np.array_equal(np.sin(arc), [math.sin(x) for x in arc]))
+
+
+#: see :func:`_scalar_trig_is_numpys`
+SCALAR_TRIG = _scalar_trig_is_numpys()
+
+
+def _clearance_floats(starts: list, ends: list, px: float, py: float) -> float:
+    """:func:`clearance` of the point (px, py) to float lists of segments (the same float)."""
+    best = math.inf
+    for (ax, ay), (bx, by) in zip(starts, ends, strict=True):
+        ex, ey = bx - ax, by - ay
+        wx, wy = px - ax, py - ay
+        s = min(max((wx * ex + wy * ey) / (ex * ex + ey * ey), 0.0), 1.0)
+        gx, gy = wx - s * ex, wy - s * ey
+        d2 = gx * gx + gy * gy
+        if d2 < best:
+            best = d2
+    return math.sqrt(best)     # the square root is monotone: sqrt of the min = min of sqrts
+
+
+def _envelope_floor(envelope: BrakingEnvelope, gap: float) -> float:
+    """A speed (m/s) no cap of ``envelope`` falls below on any heading (notes above), the
+    anchor's clearance being ``gap`` (m)."""
+    if math.isinf(gap):
+        return math.inf
+    radius = max(min(envelope.radius, gap - _HELD), 0.0)
+    travel = gap - radius - _CERTIFICATE_SLACK
+    if not travel > 0.0:
+        return 0.0
+    a, dt = envelope.max_accel, envelope.dt
+    return a * (math.sqrt(dt * dt + 2.0 * travel / a) - dt)
+
+
+def _arc(heading: float, target: float, max_turn: float) -> list[float]:
+    """:func:`turn_headings` with ``n=8`` as a list of floats (the same floats)."""
+    turn = math.remainder(target - heading, 2.0 * math.pi)
+    turn = min(max(turn, -max_turn), max_turn)
+    return [heading + turn * f for f in _FRACTIONS]
+
+
+def _lines(points: np.ndarray, directions: np.ndarray) -> list[tuple[float, float, float]]:
+    """(det(d, p), d_x, d_y) of each ORCA line, as :func:`speed_bounds` computes det(d, p)."""
+    return [(dx * py - dy * px, dx, dy) for (px, py), (dx, dy) in
+            zip(points.tolist(), directions.tolist(), strict=True)]
+
+
+def _bound(lines: list[tuple[float, float, float]], ch: float, sh: float) -> float:
+    """:func:`speed_bounds` on the heading (cos, sin) = (ch, sh), in floats."""
+    bound = math.inf
+    for c, dx, dy in lines:
+        along = dx * sh - dy * ch
+        if along < 0.0:
+            b = (c - _LINE_SLACK) / along if c <= 0.0 else 0.0
+            if b < bound:
+                bound = b
+    return bound          # never negative: np.maximum(bound, 0.0) keeps it
+
+
+def _accumulate(values: list[float]) -> list[float]:
+    """``np.minimum.accumulate`` of non-NaN floats (np.minimum(a, b) is ``a if a < b else
+    b``)."""
+    out = []
+    for v in values:
+        if out and out[-1] < v:
+            v = out[-1]
+        out.append(v)
+    return out
+
+
+def _argmax(values: list[float]) -> int:
+    """``np.argmax`` of non-NaN floats: the first of the largest."""
+    best = 0
+    for i, v in enumerate(values):
+        if v > values[best]:
+            best = i
+    return best
+
+
+def _command_on_lines(wanted: float, target: float, heading: float, max_turn: float,
+                      floor: float, points: np.ndarray, directions: np.ndarray
+                      ) -> tuple[float, float] | None:
+    """:func:`unicycle_command` without an envelope, in floats (``math.cos``/``sin`` must be
+    NumPy's), looking only at the headings up to the first that falls short (notes above);
+    None when the anchor must brake (the caller decides on all headings)."""
+    arc = _arc(heading, target, max_turn)
+    lines = _lines(points, directions)
+    reach = math.inf
+    k = -1
+    for h in arc:
+        bound = _bound(lines, math.cos(h), math.sin(h))
+        if not reach < bound:
+            reach = bound
+        if reach + 1e-9 < floor:
+            break
+        k += 1
+        last = reach
+    if k < 0:
+        return None
+    command = target if k == len(arc) - 1 else arc[k]
+    if abs(math.remainder(target - heading, 2.0 * math.pi)) > math.pi - _OPPOSITE:
+        command = arc[k]      # see _command_on_arrays
+    return float(min(wanted, last)), float(command)
+
+
+def _command_with_caps(wanted: float, target: float, heading: float, max_turn: float,
+                       floor: float, points: np.ndarray, directions: np.ndarray,
+                       envelope: BrakingEnvelope | None, gap: float) -> tuple[float, float]:
+    """:func:`_command_on_arrays` with the ORCA lines' bounds and the decisions in floats; the
+    envelope's caps from its arrays (``gap``: the anchor's clearance to its edges, m)."""
+    arc = _arc(heading, target, max_turn)
+    lines = _lines(points, directions)
+    bounds = [_bound(lines, math.cos(h), math.sin(h)) for h in arc]
+    if envelope is not None:
+        caps = envelope._caps(np.array(arc), gap).tolist()
+        bounds = [b if b < c else c for b, c in zip(bounds, caps, strict=True)]
+    reach = _accumulate(bounds)
+    if reach[0] + 1e-9 < floor:
+        if envelope is None:
+            return 0.0, float(arc[_argmax(bounds)])
+        # the braking of _command_on_arrays
+        stop = _accumulate(caps)
+        stoppable = [c + 1e-9 >= floor for c in stop]
+        if not any(stoppable):
+            return 0.0, float(arc[_argmax(stop)])
+        return 0.0, float(arc[_argmax([b if ok else -math.inf
+                                       for b, ok in zip(bounds, stoppable, strict=True)])])
+    k = max(i for i, r in enumerate(reach) if r + 1e-9 >= floor)
+    command = target if k == len(arc) - 1 else float(arc[k])
+    if abs(math.remainder(target - heading, 2.0 * math.pi)) > math.pi - _OPPOSITE:
+        command = float(arc[k])      # see _command_on_arrays
+    return float(min(wanted, reach[k])), command
+
+
+def _command_on_arrays(wanted: float, target: float, heading: float, max_turn: float,
+                       floor: float, points: np.ndarray, directions: np.ndarray,
+                       envelope: BrakingEnvelope | None) -> tuple[float, float]:
+    """:func:`unicycle_command` on NumPy arrays (the reference the float path reproduces)."""
     arc = turn_headings(heading, target, max_turn, n=8)
     bounds = speed_bounds(points, directions, arc)
-    floor = max(speed - max_dv, 0.0)
     if envelope is not None:
         caps = envelope(arc)
         bounds = np.minimum(bounds, caps)

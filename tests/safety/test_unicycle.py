@@ -253,3 +253,113 @@ def test_an_opposite_target_is_commanded_as_the_checked_arc():
         # a quarter of a half turn away: the drive turns to it one way only
         turn = math.remainder(command - heading, 2.0 * math.pi)
         assert abs(turn) == pytest.approx(math.pi / 4)
+
+
+# --- the float path against the array code (issue 20) -------------------------------------
+def _reference_command(v_star, heading, speed, max_turn, max_dv, points, directions,
+                       fallback_heading, envelope=None):
+    """unicycle_command as it was before its float path (commit 3fdd7e9), on the arrays."""
+    vx, vy = float(v_star[0]), float(v_star[1])
+    wanted = math.hypot(vx, vy)
+    target = math.atan2(vy, vx) if wanted > 1e-9 else fallback_heading
+    arc = turn_headings(heading, target, max_turn, n=8)
+    bounds = speed_bounds(points, directions, arc)
+    floor = max(speed - max_dv, 0.0)
+    if envelope is not None:
+        caps = envelope(arc)
+        bounds = np.minimum(bounds, caps)
+    reach = np.minimum.accumulate(bounds)
+    if reach[0] + 1e-9 < floor:
+        if envelope is None:
+            return 0.0, float(arc[int(np.argmax(bounds))])
+        stoppable = np.minimum.accumulate(caps) + 1e-9 >= floor
+        if not stoppable.any():
+            return 0.0, float(arc[int(np.argmax(np.minimum.accumulate(caps)))])
+        return 0.0, float(arc[int(np.argmax(np.where(stoppable, bounds, -np.inf)))])
+    k = int(np.flatnonzero(reach + 1e-9 >= floor)[-1])
+    command = target if k == len(arc) - 1 else float(arc[k])
+    if abs(math.remainder(target - heading, 2.0 * math.pi)) > math.pi - 1e-3:
+        command = float(arc[k])
+    return float(min(wanted, reach[k])), command
+
+
+def _random_case(rng):
+    """Random arguments of unicycle_command near what the safety filter passes: ORCA lines
+    (some through the origin, some violated), edges within a few metres of the anchor (some
+    inside its radius), speeds up to and past the floor."""
+    n = int(rng.integers(0, 7))
+    angles = rng.uniform(-math.pi, math.pi, n)
+    directions = np.column_stack([np.cos(angles), np.sin(angles)])
+    points = rng.normal(0.0, 1.0, (n, 2))
+    through = rng.random(n) < 0.3
+    points[through] = directions[through] * rng.normal(0.0, 1.0, (int(through.sum()), 1))
+    m = int(rng.integers(0, 8))
+    position = rng.uniform(-50.0, 50.0, 2)
+    starts = position + rng.uniform(-4.0, 4.0, (m, 2))
+    ends = starts + rng.uniform(-6.0, 6.0, (m, 2))
+    envelope = None if rng.random() < 0.15 else BrakingEnvelope(
+        starts, ends, position, 0.7, float(rng.choice([1.0, 2.5])), 0.5)
+    heading = float(rng.uniform(-4.0, 4.0))
+    if rng.random() < 0.1:                         # a target opposite the heading
+        v_star = 0.8 * np.array([math.cos(heading + math.pi), math.sin(heading + math.pi)])
+    elif rng.random() < 0.1:
+        v_star = np.zeros(2)
+    else:
+        v_star = rng.uniform(-2.0, 2.0, 2)
+    return (v_star, heading, float(rng.uniform(0.0, 2.2)), float(rng.choice([0.3, math.pi / 4])),
+            0.5, points, directions, float(rng.uniform(-math.pi, math.pi)), envelope)
+
+
+@pytest.mark.parametrize("scalar_trig", [True, False])
+def test_the_float_path_commands_what_the_array_code_commands(monkeypatch, scalar_trig):
+    """Bit for bit, over random cases that take every path: the ORCA lines alone (envelope
+    floor clear of the speeds), the caps from the arrays, and braking with and without them."""
+    import aoass_env.safety.unicycle as unicycle
+    if not scalar_trig:
+        monkeypatch.setattr(unicycle, "SCALAR_TRIG", False)
+    rng = np.random.default_rng(20)
+    paths = {"lines": 0, "caps": 0, "braking": 0}
+    lines_only, with_caps = unicycle._command_on_lines, unicycle._command_with_caps
+
+    def counted(name, function):
+        def wrapper(*args):
+            result = function(*args)
+            if result is not None:
+                paths[name] += 1
+                paths["braking"] += result[0] == 0.0
+            return result
+        return wrapper
+
+    monkeypatch.setattr(unicycle, "_command_on_lines", counted("lines", lines_only))
+    monkeypatch.setattr(unicycle, "_command_with_caps", counted("caps", with_caps))
+    for _ in range(3000):
+        args = _random_case(rng)
+        got = unicycle.unicycle_command(*args)
+        want = _reference_command(*args)
+        assert got == want and all(type(x) is float for x in got), args
+        assert [math.copysign(1.0, x) for x in got] == [math.copysign(1.0, x) for x in want]
+    if scalar_trig and unicycle.SCALAR_TRIG:
+        assert min(paths.values()) > 100, paths
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(-5, 5),
+                          st.floats(-5, 5)), min_size=1, max_size=6),
+       st.floats(-100, 100), st.floats(-100, 100), st.floats(0.0, 1.0),
+       st.floats(-4.0, 4.0), st.floats(0.0, 1.0))
+def test_the_envelope_floor_is_below_every_cap(segments, x, y, radius, heading, skew):
+    """The clearance in floats is clearance()'s float; the envelope's floor lies below its cap
+    on any heading, straight at an end point (where the round-off of free_travel is largest)
+    included."""
+    import aoass_env.safety.unicycle as unicycle
+    position = np.array([x, y])
+    starts = position + np.array([s[:2] for s in segments])
+    ends = position + np.array([s[2:] for s in segments])
+    if np.any(np.hypot(*(ends - starts).T) < 1e-6):
+        return
+    gap = clearance(starts, ends, position)
+    assert unicycle._clearance_floats(starts.tolist(), ends.tolist(), x, y) == gap
+    envelope = BrakingEnvelope(starts, ends, position, radius, 1.0, 0.5)
+    vertex = starts[0] - position
+    headings = np.array([heading, math.atan2(vertex[1], vertex[0]) + 1e-9 * skew])
+    assert np.all(unicycle._envelope_floor(envelope, gap) <= envelope(headings))
