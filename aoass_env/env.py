@@ -7,7 +7,6 @@ The maths lives elsewhere: the simulation core in :mod:`aoass_env.simulator`, th
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from collections.abc import Mapping
@@ -224,10 +223,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         self._follower: WaypointFollower | AdaptiveSweep = (
             self.sim.adaptive_sweep(self.adaptive) if self._sweeps
             else self.sim.follower(recovery=True))
-        route = self.sim.spiral
-        if self._sweeps:     # the waypoints observed are those the sweep heads for (a pruned
-            # spiral's left-out ones are blocked for its follower)
-            route = dataclasses.replace(route, blocked=self._follower.follower.blocked)
+        # the waypoints observed are those the follower walks (a pruned spiral's, with the sweep)
+        route = self._follower.follower if self._sweeps else self.sim.spiral
         self._observe = Observer(config, route, noise_rng)
         self._steps = 0
         self._log = None

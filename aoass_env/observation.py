@@ -36,12 +36,13 @@ and the anchor's maximum speed.
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import numpy as np
 from gymnasium import spaces
 
 from aoass_env.config import AOASSConfig
-from aoass_env.planning import CoverageMap, SquareSpiral
+from aoass_env.planning import CoverageMap
 from aoass_env.world import World
 
 __all__ = ["MOVING_FIELDS", "Observer", "observation_layout", "observation_space",
@@ -83,16 +84,24 @@ def observation_space(config: AOASSConfig) -> spaces.Box:
     return spaces.Box(low, np.ones_like(low), dtype=np.float32)
 
 
+class Route(Protocol):
+    """The waypoints an episode's follower walks: the spiral's, or an adaptive sweep's."""
+
+    waypoints: np.ndarray
+    blocked: np.ndarray
+
+
 class Observer:
     """Reads the observation of one episode off the world and the follower.
 
     Args:
         config: the episode's configuration.
-        spiral: the episode's spiral (waypoints and blocked marks).
+        spiral: the waypoints the follower walks and their blocked marks: the episode's spiral,
+            or the adaptive sweep's pruned plan.
         noise_rng: source of the moving-obstacle measurement noise.
     """
 
-    def __init__(self, config: AOASSConfig, spiral: SquareSpiral,
+    def __init__(self, config: AOASSConfig, spiral: Route,
                  noise_rng: np.random.Generator) -> None:
         self.config = config
         self._low = observation_space(config).low.astype(np.float64)

@@ -94,6 +94,8 @@ class AdaptiveConfig(ValidatedConfig):
                                  high=1000.0)
     prune_spread: float = param(2.0, "... and their spread at least this many times Eq. 18's "
                                 "collinearity_tol", low=1.0, high=100.0)
+    reorder: bool = param(False, "with prune, also reorder the kept waypoints (2-opt on the "
+                          "planner's ways, every reference cell still covered)", kind="bool")
     wide_passes: bool = param(True, "lay the spiral's passes with the ring count of Eq. 5's "
                               "spacing rounded down, not up (spiral_spacing left unset): wider "
                               "passes, the gaps left to the densify phase", kind="bool")
@@ -161,8 +163,8 @@ class AdaptiveSweep:
             "long detour").
         revisits: the densify runs: (first spiral index, time) of each.
         sides: detours taken round the other side of an obstacle: (spiral index or -1, time).
-        plan: with the rule's ``prune``, the pruned spiral (its left-out waypoints are marked
-            blocked in the follower).
+        plan: with the rule's ``prune``, the pruned spiral; the follower then walks its
+            waypoints (``plan.order``), and every index above is one of them.
     """
 
     follower: WaypointFollower
@@ -194,20 +196,19 @@ class AdaptiveSweep:
         self._dropped = np.zeros(self.coverage.n_cells, dtype=bool)
 
     def _prune(self) -> PrunedPlan:
-        """Prune the spiral ahead (:mod:`aoass_env.planning.pruning`); the follower then skips
-        the waypoints the plan leaves out as it skips blocked ones."""
-        follower, cov, config = self.follower, self.coverage, self.config
+        """Prune the spiral ahead (:mod:`aoass_env.planning.pruning`); the sweep's follower then
+        walks the plan's waypoints in the plan's order (its indices are the plan's)."""
+        follower, cov, config, rule = self.follower, self.coverage, self.config, self.rule
         key = (follower.waypoints.tobytes(), follower.blocked.tobytes(), follower.index,
                self.planner.radius, self.planner.res, config.beacon_interval,
-               config.collinearity_tol, self.rule.prune_beacons, self.rule.prune_spread)
+               config.collinearity_tol, rule.prune_beacons, rule.prune_spread, rule.reorder)
         plan = cached_plan(cov.radio, key, lambda: prune_spiral(
             follower.waypoints, follower.blocked, follower.index, self.planner, cov.radio,
             cov.n_cells, config.beacon_interval, config.collinearity_tol,
-            (self.rule.prune_beacons, self.rule.prune_spread)))
-        left_out = ~plan.kept & ~follower.blocked
-        left_out[:follower.index] = False
-        follower.blocked = follower.blocked | left_out
-        follower.stall_travel = True          # the kept waypoints can lie far apart
+            (rule.prune_beacons, rule.prune_spread), rule.reorder))
+        self.follower = WaypointFollower.nominal(config, follower.waypoints[plan.order],
+                                                 planner=self.planner, recovery=True)
+        self.follower.stall_travel = True          # the kept waypoints can lie far apart
         return plan
 
     # --- the Controller protocol --------------------------------------------------------------

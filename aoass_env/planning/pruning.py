@@ -55,6 +55,8 @@ MIN_GAIN = 0.3
 RUN_LENGTHS = (2, 3, 4, 6, 8, 12)
 #: Rounds of single and run pruning, at most.
 ROUNDS = 3
+#: Passes of 2-opt over the visiting order, at most.
+REORDER_PASSES = 10
 #: Lattice (m) the planned beacons are snapped to for the receivers' lookup.
 SNAP = 0.25
 
@@ -65,6 +67,7 @@ class PrunedPlan:
 
     Attributes:
         kept: (W,) bool: the waypoints the plan visits (free, from the start on, reachable).
+        order: the kept waypoints' indices in visiting order (spiral order unless reordered).
         length: the planner's way through the kept waypoints (m).
         full_length: the planner's way through every reachable free waypoint (m).
         reference: (C,) bool: the coverage map's cells the full plan covers; the kept plan
@@ -72,6 +75,7 @@ class PrunedPlan:
     """
 
     kept: np.ndarray
+    order: np.ndarray
     length: float
     full_length: float
     reference: np.ndarray
@@ -100,11 +104,12 @@ class _Ways:
         return self._heard[key], snapped
 
     def get(self, a: int, b: int) -> tuple[float, np.ndarray, np.ndarray] | None:
-        """(length m, cells, their (K, 6) statistics) of the way from waypoint ``a`` to ``b``;
-        None when the planner finds none."""
-        key = (a, b)
+        """(length m, cells, their (K, 6) statistics) of the way between waypoints ``a`` and
+        ``b`` (the planner's from the lower index to the higher, either way round); None when
+        the planner finds none."""
+        key = (min(a, b), max(a, b))
         if key not in self._ways:
-            way = self.planner.path(self.waypoints[a], self.waypoints[b])
+            way = self.planner.path(self.waypoints[key[0]], self.waypoints[key[1]])
             self._ways[key] = None if way is None else self._measure(way)
         return self._ways[key]
 
@@ -229,6 +234,61 @@ class _Pruner:
                         heapq.heappush(heap, (-gj, j))
         return removed
 
+    def reorder(self, min_gain: float) -> bool:
+        """2-opt on the visiting order: reverse a stretch of kept waypoints when joining its ends
+        the other way round shortens the plan by more than ``min_gain`` (m) and keeps every
+        reference cell covered (the stretch's own ways are the same ways driven backwards).
+        Moves are proposed on the planner's costs between every two kept waypoints, checked on
+        the ways' lengths. Whether the order changed."""
+        order = self.order()
+        n = len(order)
+        if n < 4:
+            return False
+        points = self.ways.waypoints[order]
+        cost = np.array([self.ways.planner.costs(p, points) for p in points])
+        cost = np.minimum(cost, cost.T)
+        row = {k: r for r, k in enumerate(order)}
+        changed, improved, passes = False, True, 0
+        while improved and passes < REORDER_PASSES:
+            improved, passes = False, passes + 1
+            for i in range(1, n - 1):
+                for j in range(i + 1, n):
+                    a, b, c = row[order[i - 1]], row[order[i]], row[order[j]]
+                    d = row[order[j + 1]] if j + 1 < n else None
+                    delta = cost[a, c] - cost[a, b]
+                    if d is not None:
+                        delta += cost[b, d] - cost[c, d]
+                    if delta < -min_gain and self._swap(order, i, j, min_gain):
+                        changed = improved = True
+        if changed:
+            self.next = dict(zip(order[:-1], order[1:], strict=True))
+            self.prev = dict(zip(order[1:], order[:-1], strict=True))
+        return changed
+
+    def _swap(self, order: list[int], i: int, j: int, min_gain: float) -> bool:
+        """Reverse ``order[i:j + 1]`` in place when that shortens the plan by more than
+        ``min_gain`` and keeps every reference cell covered."""
+        a, b, c = order[i - 1], order[i], order[j]
+        d = order[j + 1] if j + 1 < len(order) else None
+        old = [self.ways.get(a, b)] + ([self.ways.get(c, d)] if d is not None else [])
+        new = [self.ways.get(a, c)] + ([self.ways.get(b, d)] if d is not None else [])
+        if any(w is None for w in new):
+            return False
+        if sum(w[0] for w in old) - sum(w[0] for w in new) <= min_gain:
+            return False
+        cells = np.unique(np.concatenate([w[1] for w in old + new]))
+        trial = self.total[cells]
+        for _, touched, stats in old:
+            trial[np.searchsorted(cells, touched)] -= stats
+        for _, touched, stats in new:
+            trial[np.searchsorted(cells, touched)] += stats
+        if (np.any(self.reference[cells] & ~_covered(trial, self.tol))
+                or np.any(self.robust[cells] & ~self._robust(trial))):
+            return False
+        self.total[cells] = trial
+        order[i:j + 1] = order[i:j + 1][::-1]
+        return True
+
     def runs(self, length: int, min_gain: float) -> bool:
         """Remove runs of ``length`` consecutive waypoints, in spiral order; whether any went."""
         removed = False
@@ -246,7 +306,7 @@ class _Pruner:
 def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,
                  planner: DetourPlanner, radio: Radio, n_cells: int, beacon_interval: float,
                  collinearity_tol: float, margin: tuple[float, float] = (3, 1.0),
-                 min_gain: float = MIN_GAIN) -> PrunedPlan:
+                 reorder: bool = False, min_gain: float = MIN_GAIN) -> PrunedPlan:
     """Prune the spiral ``waypoints`` (W, 2) (m) with ``blocked`` (W,) from waypoint ``start``
     on (module docstring).
 
@@ -273,11 +333,14 @@ def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,
         changed = pruner.singles(min_gain)
         for length in RUN_LENGTHS:
             changed = pruner.runs(length, min_gain) or changed
+        if reorder:
+            changed = pruner.reorder(min_gain) or changed
         if not changed:
             break
+    order = np.array(pruner.order(), dtype=np.int64)
     kept = np.zeros(len(waypoints), dtype=bool)
-    kept[pruner.order()] = True
-    return PrunedPlan(kept, pruner.length(), full, pruner.reference)
+    kept[order] = True
+    return PrunedPlan(kept, order, pruner.length(), full, pruner.reference)
 
 
 #: Plans of the last maps seen, per coverage-map radio (one per map and cell settings, shared

@@ -33,10 +33,11 @@ def _plan(obstacle_map: ObstacleMap, margin=(3, 1.0)):
 
 def _planned_beacons(sim: Simulator, stops: np.ndarray) -> np.ndarray:
     """The plan's beacons, laid again from scratch: every beacon_interval metres along the
-    planner's way between consecutive stops, snapped to the lattice."""
+    planner's way between consecutive stops (from the lower index to the higher, whichever
+    is visited first), snapped to the lattice."""
     out = []
     for a, b in zip(stops[:-1], stops[1:], strict=True):
-        way = sim.planner.path(sim.path.waypoints[a], sim.path.waypoints[b])
+        way = sim.planner.path(sim.path.waypoints[min(a, b)], sim.path.waypoints[max(a, b)])
         along = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(way, axis=0), axis=1))]
         for s in np.arange(CONFIG.beacon_interval, along[-1] + 1e-9, CONFIG.beacon_interval):
             p = np.array([np.interp(s, along, way[:, 0]), np.interp(s, along, way[:, 1])])
@@ -71,6 +72,46 @@ def test_the_pruned_plan_is_shorter_and_its_beacons_cover_every_reference_cell()
     assert np.all(cov.covered[plan.reference])
 
 
+def test_reordering_keeps_every_reference_cell_covered_and_shortens_the_plan():
+    sim, plan = _plan(BLOCKS, margin=(6, 2.0))
+    cov = sim.coverage_map
+    again = prune_spiral(sim.path.waypoints, sim.path.blocked, sim.start_index, sim.planner,
+                         cov.radio, cov.n_cells, CONFIG.beacon_interval, CONFIG.collinearity_tol,
+                         (6, 2.0), reorder=True)
+    assert again.length <= plan.length
+    assert again.order[0] == sim.start_index
+    fresh = CoverageMap(BLOCKS, CONFIG)
+    for p in _planned_beacons(sim, again.order):
+        fresh.add_beacon(p)
+    assert np.all(fresh.covered[again.reference])
+
+
+def _pruner(points: list[list[float]], order: list[int]):
+    from aoass_env.planning.detour import DetourPlanner
+    from aoass_env.planning.pruning import _Pruner, _Ways
+
+    field = ObstacleMap(60.0, 60.0, [])
+    cov = CoverageMap(field, CONFIG)
+    ways = _Ways(np.array(points), DetourPlanner.for_map(field, 1.0), cov.radio, cov.n_cells,
+                 CONFIG.beacon_interval)
+    return _Pruner(ways, order, CONFIG.collinearity_tol, (3, 1.0))
+
+
+def test_two_opt_untangles_a_back_and_forth_order():
+    pruner = _pruner([[10.0, 30.0], [20.0, 30.0], [30.0, 30.0], [40.0, 30.0]], [0, 2, 1, 3])
+    assert pruner.length() == 50.0
+    assert pruner.reorder(0.3)
+    assert pruner.order() == [0, 1, 2, 3] and pruner.length() == 30.0
+
+
+def test_two_opt_keeps_a_crossing_that_covers_what_the_square_would_not():
+    # a square's corners visited crosswise (0 -> 2 -> 1 -> 3): the straight order is 33 m
+    # shorter, but it leaves the undriven side's cells with collinear beacons
+    pruner = _pruner([[10.0, 10.0], [50.0, 10.0], [50.0, 50.0], [10.0, 50.0]], [0, 2, 1, 3])
+    assert not pruner.reorder(0.3)
+    assert pruner.order() == [0, 2, 1, 3]
+
+
 def test_a_margin_keeps_more_of_the_spiral():
     _, bare = _plan(BLOCKS)
     _, kept = _plan(BLOCKS, margin=(8, 3.0))
@@ -94,7 +135,7 @@ def test_plans_are_cached_per_map_and_settings():
     assert len(made) == 2
 
 
-def test_the_sweep_skips_what_the_plan_leaves_out_without_touching_the_spiral():
+def test_the_sweep_walks_the_plan_without_touching_the_spiral():
     config = CONFIG
     sim = Simulator(config, np.random.default_rng(0), obstacle_map=BLOCKS)
     spiral_blocked = sim.path.blocked.copy()
@@ -102,10 +143,9 @@ def test_the_sweep_skips_what_the_plan_leaves_out_without_touching_the_spiral():
     again = Simulator(config, np.random.default_rng(1), obstacle_map=BLOCKS)
     assert again.adaptive_sweep(AdaptiveConfig(prune=True, wide_passes=False)).plan is sweep.plan
     assert np.array_equal(sim.path.blocked, spiral_blocked)
-    left_out = ~sweep.plan.kept & ~spiral_blocked
-    left_out[:sim.start_index] = False
-    assert left_out.any()
-    assert np.array_equal(sweep.follower.blocked, spiral_blocked | left_out)
+    assert np.array_equal(sweep.follower.waypoints, sim.path.waypoints[sweep.plan.order])
+    assert sweep.follower.stall_travel and not sweep.follower.blocked.any()
+    assert np.array_equal(np.sort(sweep.plan.order), np.flatnonzero(sweep.plan.kept))
     sim.run(controller=sweep)
     assert sweep.done
     spiral = Simulator(config, np.random.default_rng(0), obstacle_map=BLOCKS)
@@ -119,12 +159,12 @@ def test_the_observed_waypoints_are_the_ones_the_pruned_sweep_heads_for():
                    action_type="adaptive", adaptive=AdaptiveConfig(prune=True, wide_passes=False))
     obs, _ = env.reset(seed=0, options={"map": BLOCKS})
     sweep = env._follower
-    ahead = np.flatnonzero(sweep.plan.kept & (np.arange(len(sweep.plan.kept)) >= sweep.index))
     k = env.config.obs_waypoints
-    upcoming = env.sim.spiral.waypoints[ahead[np.minimum(np.arange(k), len(ahead) - 1)]]
+    ahead = sweep.follower.waypoints[sweep.index:]
+    upcoming = ahead[np.minimum(np.arange(k), len(ahead) - 1)]
     scale = k * env.config.path_step
     expected = np.clip((upcoming - env.sim.world.position) / scale, -1.0, 1.0)
     assert np.allclose(obs[env.obs_layout["waypoints"]], expected.ravel(), atol=1e-6)
-    index = np.arange(len(sweep.plan.kept))
-    spiral = np.flatnonzero(~env.sim.spiral.blocked & (index >= sweep.index))[:k]
-    assert not np.array_equal(spiral, ahead[:k])      # the spiral's own next ones differ
+    free = env.sim.spiral.waypoints[~env.sim.spiral.blocked]
+    spiral = np.clip((free[:k] - env.sim.world.position) / scale, -1.0, 1.0)
+    assert not np.allclose(spiral.ravel(), expected.ravel())   # the spiral's next ones differ
