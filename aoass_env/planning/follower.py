@@ -70,17 +70,69 @@ def _reaches(dx: float, dy: float, radius: float) -> bool:
     return bool(np.hypot(dx, dy) >= radius)
 
 
+def _pairwise_sum(values: list[float], lo: int, n: int) -> float:
+    """NumPy's sum of the float64 ``values[lo:lo + n]`` (its pairwise summation: in order
+    below 8 numbers, 8 accumulators up to 128, halves above), the same float."""
+    if n < 8:
+        total = 0.0
+        for i in range(lo, lo + n):
+            total += values[i]
+        return total
+    if n <= 128:
+        r0, r1, r2, r3, r4, r5, r6, r7 = values[lo:lo + 8]
+        i, stop = lo + 8, lo + n - n % 8
+        while i < stop:
+            r0 += values[i]
+            r1 += values[i + 1]
+            r2 += values[i + 2]
+            r3 += values[i + 3]
+            r4 += values[i + 4]
+            r5 += values[i + 5]
+            r6 += values[i + 6]
+            r7 += values[i + 7]
+            i += 8
+        total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        for j in range(i, lo + n):
+            total += values[j]
+        return total
+    half = n // 2
+    half -= half % 8
+    return _pairwise_sum(values, lo, half) + _pairwise_sum(values, lo + half, n - half)
+
+
+def _numpy_sums_pairwise() -> bool:
+    """Whether :func:`_pairwise_sum` gives ``np.sum``'s floats on this machine (probed at
+    import on random lengths; the follower's path lengths use NumPy otherwise)."""
+    rng = np.random.default_rng(20)
+    for n in (*range(1, 41), 63, 64, 127, 128, 129, 200, 300):
+        for _ in range(4):
+            x = rng.exponential(1.0, n) * 10.0 ** rng.uniform(-3.0, 3.0, n)
+            if _pairwise_sum(x.tolist(), 0, n) != float(x.sum()):
+                return False
+    return True
+
+
+#: see :func:`_numpy_sums_pairwise`
+PAIRWISE_SUM = _numpy_sums_pairwise()
+
+
 def _polyline_length(points: list) -> float:
     """``float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())`` for a list of (2,)
-    points: plain floats for up to seven legs (the same float: each leg is sqrt(dx*dx + dy*dy)
-    and numpy sums fewer than eight numbers in order), numpy for more (its pairwise
-    summation)."""
-    if len(points) <= 8:
-        total = 0.0
-        for (x0, y0), (x1, y1) in zip(points, points[1:], strict=False):
-            dx, dy = float(x1) - float(x0), float(y1) - float(y0)
-            total += math.sqrt(dx * dx + dy * dy)
-        return total
+    points, in plain floats (the same float: each leg is sqrt(dx*dx + dy*dy), and the legs are
+    summed as NumPy sums them, :func:`_pairwise_sum`); NumPy's own code for more than seven
+    legs when the import-time probe finds the sums differ."""
+    if len(points) <= 8 or PAIRWISE_SUM:
+        if len(points) > 4:
+            coords = np.array(points, dtype=np.float64).tolist()
+        else:
+            coords = [(float(x), float(y)) for x, y in points]
+        legs = []
+        (x0, y0), sqrt = coords[0], math.sqrt
+        for x1, y1 in coords[1:]:
+            dx, dy = x1 - x0, y1 - y0
+            legs.append(sqrt(dx * dx + dy * dy))
+            x0, y0 = x1, y1
+        return _pairwise_sum(legs, 0, len(legs))
     return float(np.linalg.norm(np.diff(np.array(points), axis=0), axis=1).sum())
 
 
@@ -139,7 +191,7 @@ class WaypointFollower:
     _budget: float = 0.0
     _planned: bool = False
     _detour: list[np.ndarray] = field(default_factory=list)
-    _way_on: tuple[tuple[bytes, bytes] | None, bool] = (None, True)
+    _way_on: tuple[tuple[float, float, float, float] | None, bool] = (None, True)
     _trail: deque[np.ndarray] = field(default_factory=lambda: deque(maxlen=TRAIL_POINTS))
     _keepout: list[tuple[np.ndarray, float]] = field(default_factory=list)
     _backout: list[np.ndarray] = field(default_factory=list)
@@ -232,9 +284,11 @@ class WaypointFollower:
             if self._backing_out(position):
                 return self._steer(position, heading, self._backout[0], None)
         capture = self.capture_radius
-        while not self.done:
-            target = self.waypoints[self.index]
-            if _within(float(target[0]) - px, float(target[1]) - py, capture):
+        waypoints, count = self.waypoints, len(self.waypoints)
+        while self.index < count:
+            target = waypoints[self.index]
+            tx, ty = target.tolist()
+            if _within(tx - px, ty - py, capture):
                 self._advance()
                 continue
             if self._clock > self._budget:
@@ -258,9 +312,14 @@ class WaypointFollower:
             self._budget = self._clock + self.stall_time + 2.0 * length / self.cruise_speed
             self._reset_watchdog()
             break
-        if self.done:
+        if self.index >= count:
             return 0.0, 0.0
-        if self._stalled(self._to_go(position)):
+        if self._detour:
+            to_go = self._to_go(position)
+        else:   # _to_go's one leg (0.0 + the leg: the same float)
+            dx, dy = tx - px, ty - py
+            to_go = math.sqrt(dx * dx + dy * dy)
+        if self._stalled(to_go):
             self._stuck(position)
             return self.command(position, heading, 0.0)
         aim, after = self._aim_points()
@@ -270,15 +329,17 @@ class WaypointFollower:
                after: np.ndarray | None) -> tuple[float, float]:
         """Cruise toward ``aim``, slowed by the heading error and braked so that the speed at
         ``aim`` suits the turn toward ``after`` (a stop when that leg is obstructed)."""
-        dx, dy = float(aim[0]) - float(position[0]), float(aim[1]) - float(position[1])
+        ax, ay = aim.tolist()
+        dx, dy = ax - float(position[0]), ay - float(position[1])
         bearing = math.atan2(dy, dx)
         speed = self.cruise_speed * max(0.0, math.cos(bearing - heading))
         if after is not None:
             # brake so that the speed at the aim point suits the turn there
-            ox, oy = float(after[0]) - float(aim[0]), float(after[1]) - float(aim[1])
+            bx, by = after.tolist()
+            ox, oy = bx - ax, by - ay
             turn = math.atan2(oy, ox) - bearing
             corner_speed = self.cruise_speed * max(0.0, math.cos(turn))
-            if not self._way_on_open(aim, after):
+            if not self._way_on_open(aim, after, (ax, ay, bx, by)):
                 corner_speed = 0.0      # the way on is obstructed: stop there to replan
             room = max(0.0, math.hypot(dx, dy) - self.capture_radius)
             speed = min(speed, math.sqrt(corner_speed**2 + 2.0 * self.max_accel * room))
@@ -395,11 +456,12 @@ class WaypointFollower:
         gaps = np.hypot(*(a + t[:, None] * ab - keepout).T)
         return bool(np.all(gaps > KEEPOUT_RADIUS))
 
-    def _way_on_open(self, aim: np.ndarray, after: np.ndarray) -> bool:
-        """Whether the leg aim -> after is free; one planner query per leg, not per step."""
+    def _way_on_open(self, aim: np.ndarray, after: np.ndarray,
+                     key: tuple[float, float, float, float]) -> bool:
+        """Whether the leg aim -> after is free; one planner query per leg (``key``: its end
+        points' coordinates), not per step."""
         if self.planner is None:
             return True
-        key = (aim.tobytes(), after.tobytes())
         if self._way_on[0] != key:
             self._way_on = (key, self.planner.visible(aim, after))
         return self._way_on[1]

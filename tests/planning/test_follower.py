@@ -236,8 +236,22 @@ def test_float_distance_tests_agree_with_numpy():
         assert _within(dx, dy, r) == bool(np.hypot(dx, dy) <= r)
         assert _reaches(dx, dy, r) == bool(np.hypot(dx, dy) >= r)
     assert _within(0.0, 0.0, 0.0) and _reaches(0.0, 0.0, 0.0)
-    for n in range(1, 11):
-        for _ in range(2000):
+    for n in (*range(1, 11), 16, 17, 40, 129, 130, 201, 300):
+        for _ in range(2000 if n <= 10 else 100):
             pts = list(rng.uniform(-100.0, 100.0, (n, 2)) * rng.choice([1e-6, 1.0, 1e3]))
             assert _polyline_length(pts) == float(
                 np.linalg.norm(np.diff(np.array(pts), axis=0), axis=1).sum())
+
+
+def test_the_pairwise_sum_is_numpys():
+    """_pairwise_sum adds floats as np.sum does (8 accumulators, halves past 128), on every
+    length up to 300 and on sums that cancel (issue 20: the follower's path lengths)."""
+    from aoass_env.planning.follower import PAIRWISE_SUM, _pairwise_sum
+
+    if not PAIRWISE_SUM:
+        pytest.skip("NumPy sums differently on this machine: the follower uses np.sum there")
+    rng = np.random.default_rng(8)
+    for n in range(0, 301):
+        for _ in range(10):
+            x = rng.normal(0.0, 1.0, n) * 10.0 ** rng.uniform(-8.0, 8.0, n)
+            assert _pairwise_sum(x.tolist(), 0, n) == float(x.sum())
