@@ -1,0 +1,225 @@
+"""Speed of ``unicycle_command`` (aoass_env/safety/unicycle.py) and of the waypoint follower's
+``command`` (aoass_env/planning/follower.py) against a reference commit, in one process, on the
+calls random-action episodes make.
+
+The script records every ``unicycle_command`` call of random-action AOASS-Safe-v0 episodes (the
+default config and a 70 m field with 8 fast moving obstacles) and, for the follower, each
+episode's follower as it is at its first command together with the (position, heading, dt) of
+every call of random-action AOASS-v0 episodes (the default 100 m field and 200 m fields at
+densities 0.2 and 0.4). It replays them through the reference commit's modules (loaded from
+``git show REF:path``) and the current ones, alternating rounds, checks that both give the same
+answers bit for bit (the follower: every command, and its index, clock, budget, recoveries and
+skips at the end), and prints CPU microseconds per call and the speed-up (reference / current).
+The follower is timed twice: with its planner's searches (``DetourPlanner.path``, the same code
+in both) and without them (their answers recorded once and handed back), which isolates the
+follower's own per-step path.
+
+Run: ``python3 benchmarks/unicycle_follower_speed.py [--ref 3fdd7e9] [--steps 3000]
+[--rounds 3]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import aoass_env  # noqa: F401  (registers the envs)
+from aoass_env import wrappers
+from aoass_env.planning import detour
+from aoass_env.planning.follower import WaypointFollower
+from aoass_env.safety import unicycle
+
+try:
+    from benchmarks.lookahead_speed import reference_module
+except ImportError:         # run as a script from benchmarks/
+    from lookahead_speed import reference_module  # type: ignore[no-redef]
+
+#: AOASS-Safe-v0 episodes whose unicycle_command calls are recorded: (keywords, seed)
+SAFE_EPISODES: tuple[tuple[dict[str, Any], int], ...] = (
+    ({}, 0),
+    ({"field_size": 70.0, "obstacle_density": 0.2, "n_moving_obstacles": 8,
+      "moving_obstacle_speed": (0.5, 1.5)}, 13),
+)
+#: AOASS-v0 cases whose follower calls are recorded: (label, keywords, seed)
+FOLLOWER_CASES: tuple[tuple[str, dict[str, Any], int], ...] = (
+    ("100 m", {}, 3),
+    ("200 m d0.2", {"field_size": 200.0}, 3),
+    ("200 m d0.4", {"field_size": 200.0, "obstacle_density": 0.4}, 5),
+)
+
+
+def random_steps(env_id: str, kwargs: dict[str, Any], seed: int, steps: int) -> None:
+    env = gym.make(env_id, **kwargs)
+    env.action_space.seed(seed)
+    env.reset(seed=seed)
+    for _ in range(steps):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+
+
+def record_unicycle(steps: int) -> list[tuple[tuple, dict]]:
+    """The arguments of every unicycle_command call of :data:`SAFE_EPISODES`."""
+    calls: list[tuple[tuple, dict]] = []
+    original = wrappers.unicycle_command
+
+    def recording(*args: Any, **kwargs: Any) -> Any:
+        calls.append(copy.deepcopy((args, kwargs)))
+        return original(*args, **kwargs)
+
+    wrappers.unicycle_command = recording
+    try:
+        for kwargs, seed in SAFE_EPISODES:
+            random_steps("AOASS-Safe-v0", kwargs, seed, steps)
+    finally:
+        wrappers.unicycle_command = original
+    return calls
+
+
+def record_follower(steps: int) -> dict[str, list[tuple[WaypointFollower, list]]]:
+    """label -> [(the follower before its first command, [(position, heading, dt), ...])]."""
+    cases: dict[str, list[tuple[WaypointFollower, list]]] = {}
+    original = WaypointFollower.command
+    episodes: dict[int, tuple[WaypointFollower, list]] = {}
+
+    def recording(self: WaypointFollower, position: np.ndarray, heading: float,
+                  dt: float) -> Any:
+        if id(self) not in episodes:
+            episodes[id(self)] = (copy.deepcopy(self), [])
+            current.append(episodes[id(self)])
+        episodes[id(self)][1].append((np.array(position, dtype=np.float64), heading, dt))
+        return original(self, position, heading, dt)
+
+    WaypointFollower.command = recording
+    try:
+        for label, kwargs, seed in FOLLOWER_CASES:
+            current: list[tuple[WaypointFollower, list]] = []
+            random_steps("AOASS-v0", kwargs, seed, steps)
+            cases[label] = current
+            episodes.clear()
+    finally:
+        WaypointFollower.command = original
+    return cases
+
+
+def as_class(follower: WaypointFollower, cls: type) -> Any:
+    """A copy of ``follower``'s state as an instance of ``cls`` (the reference's class)."""
+    out = cls.__new__(cls)
+    out.__dict__.update(copy.deepcopy(follower.__dict__))
+    return out
+
+
+def replay(followers: list[Any], episodes: list[tuple[WaypointFollower, list]]
+           ) -> tuple[float, list]:
+    """(CPU seconds, [(commands, end state)]) of ``followers`` (fresh copies, one per
+    episode) fed the recorded calls."""
+    seconds, results = 0.0, []
+    for follower, (_, calls) in zip(followers, episodes, strict=True):
+        start = time.process_time()
+        commands = [follower.command(p, h, dt) for p, h, dt in calls]
+        seconds += time.process_time() - start
+        state = (follower.index, follower._clock, follower._budget, follower.recoveries,
+                 [(s.index, s.time, s.reason) for s in follower.skipped])
+        results.append((commands, state))
+    return seconds, results
+
+
+class _Answers:
+    """DetourPlanner.path recorded once (``record``), then handed back in order (``play``)."""
+
+    def __init__(self) -> None:
+        self.original = detour.DetourPlanner.path
+        self.answers: list[Any] = []
+        self.it: Iterator[Any] = iter(())
+
+    def record(self) -> None:
+        answers, original = self.answers, self.original
+
+        def recording(planner: Any, *args: Any, **kwargs: Any) -> Any:
+            answers.append(original(planner, *args, **kwargs))
+            return answers[-1]
+        detour.DetourPlanner.path = recording
+
+    def play(self) -> None:
+        self.it = iter(self.answers)
+        detour.DetourPlanner.path = lambda planner, *args, **kwargs: next(self.it)
+
+    def restore(self) -> None:
+        detour.DetourPlanner.path = self.original
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--ref", default="3fdd7e9", help="reference commit")
+    parser.add_argument("--steps", type=int, default=3000, help="random steps per episode")
+    parser.add_argument("--rounds", type=int, default=3, help="alternated timing rounds")
+    args = parser.parse_args()
+    if args.steps < 1 or args.rounds < 1:
+        parser.error("--steps and --rounds must be positive")
+    old_unicycle = reference_module(args.ref, "aoass_env/safety/unicycle.py", "unicycle_ref")
+    old_follower = reference_module(args.ref, "aoass_env/planning/follower.py", "follower_ref")
+
+    calls = record_unicycle(args.steps)
+    old_calls = [(a[:8] + ((None if a[8] is None else old_unicycle.BrakingEnvelope(
+        a[8].starts, a[8].ends, a[8].position, a[8].radius, a[8].max_accel, a[8].dt)),), k)
+        for a, k in calls]
+    print(f"unicycle_command: {len(calls)} calls recorded in {len(SAFE_EPISODES)} x "
+          f"{args.steps} AOASS-Safe-v0 steps; reference {args.ref}")
+    print(f"{'round':>5s} {'reference':>10s} {'now':>8s} {'speed-up':>8s}   (CPU us per call)")
+    for i in range(args.rounds):
+        start = time.process_time()
+        r_old = [old_unicycle.unicycle_command(*a, **k) for a, k in old_calls]
+        t_old = time.process_time() - start
+        start = time.process_time()
+        r_new = [unicycle.unicycle_command(*a, **k) for a, k in calls]
+        t_new = time.process_time() - start
+        if r_old != r_new:
+            raise SystemExit("unicycle_command differs from the reference")
+        print(f"{i + 1:5d} {1e6 * t_old / len(calls):10.1f} {1e6 * t_new / len(calls):8.1f} "
+              f"{t_old / t_new:8.2f}")
+
+    cases = record_follower(args.steps)
+    answers = _Answers()
+    print(f"\nWaypointFollower.command: {args.steps} AOASS-v0 steps per case; reference "
+          f"{args.ref} (CPU us per call; 'searches': with the planner's searches, "
+          f"'own': their answers handed back)")
+    print(f"{'round':>5s} {'case':>11s} {'searches ref':>12s} {'now':>7s} {'speed-up':>8s}   "
+          f"{'own ref':>8s} {'now':>7s} {'speed-up':>8s}")
+    for i in range(args.rounds):
+        for label, episodes in cases.items():
+            n = sum(len(c) for _, c in episodes)
+            row = []
+            for own in (False, True):
+                if own:         # the searches' answers, recorded once, then handed back
+                    answers.record()
+                    try:
+                        replay([copy.deepcopy(f) for f, _ in episodes], episodes)
+                    finally:
+                        answers.restore()
+                try:
+                    if own:
+                        answers.play()
+                    t_old, a_old = replay([as_class(f, old_follower.WaypointFollower)
+                                           for f, _ in episodes], episodes)
+                    if own:
+                        answers.play()
+                    t_new, a_new = replay([copy.deepcopy(f) for f, _ in episodes], episodes)
+                finally:
+                    answers.restore()
+                if a_old != a_new:
+                    raise SystemExit(f"the follower differs from the reference ({label})")
+                row.append((t_old, t_new))
+            answers.answers.clear()
+            print(f"{i + 1:5d} {label:>11s} " + "   ".join(
+                f"{1e6 * a / n:12.1f} {1e6 * b / n:7.1f} {a / b:8.2f}" for a, b in row))
+    print("answers identical")
+
+
+if __name__ == "__main__":
+    main()
