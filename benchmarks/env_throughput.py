@@ -30,6 +30,7 @@ from aoass_env import wrappers
 from aoass_env.env import AOASSEnv
 from aoass_env.network import Network
 from aoass_env.observation import Observer
+from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import WaypointFollower
 from aoass_env.radio import Radio
 from aoass_env.safety.fuzzy import FuzzyController
@@ -45,6 +46,7 @@ PARTS: tuple[tuple[str, type, str], ...] = (
     ("      Radio.receivers", Radio, "receivers"),
     ("      Network.record_beacon", Network, "record_beacon"),
     ("  WaypointFollower.command", WaypointFollower, "command"),
+    ("    DetourPlanner.path (its searches)", DetourPlanner, "path"),
     ("  Observer.__call__", Observer, "__call__"),
     ("    World.ray_distances", World, "ray_distances"),
     ("    World.nearest_obstacle_distance", World, "nearest_obstacle_distance"),
