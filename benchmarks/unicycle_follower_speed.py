@@ -88,13 +88,21 @@ def record_follower(steps: int) -> dict[str, list[tuple[WaypointFollower, list]]
     original = WaypointFollower.command
     episodes: dict[int, tuple[WaypointFollower, list]] = {}
 
+    depth = [0]
+
     def recording(self: WaypointFollower, position: np.ndarray, heading: float,
                   dt: float) -> Any:
+        if depth[0]:        # the follower's own re-entry (after a back-out): not a call
+            return original(self, position, heading, dt)
         if id(self) not in episodes:
             episodes[id(self)] = (copy.deepcopy(self), [])
             current.append(episodes[id(self)])
         episodes[id(self)][1].append((np.array(position, dtype=np.float64), heading, dt))
-        return original(self, position, heading, dt)
+        depth[0] += 1
+        try:
+            return original(self, position, heading, dt)
+        finally:
+            depth[0] -= 1
 
     WaypointFollower.command = recording
     try:
