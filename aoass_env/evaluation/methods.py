@@ -7,9 +7,12 @@ interval) and returns the finished :class:`~aoass_env.simulator.Simulator` with 
   fuzzy-ORCA) driven by the shipped TD3-LSTM policy;
 * ``aoass-scripted``: the same stack with the zero action (the ablation without the policy);
 * ``aoass-rule``: the stack with the adaptive action type and the zero action: the hand-written
-  coverage-aware rule (:mod:`aoass_env.planning.adaptive`), the strong baseline;
+  coverage-aware rule at :class:`~aoass_env.planning.AdaptiveConfig`'s defaults (the spiral
+  pruned ahead on the static map, :mod:`aoass_env.planning.pruning`, then densified), the
+  strong baseline;
 * ``aoass-adaptive``: the same stack driven by the adaptive TD3-LSTM policy
-  (``checkpoints/aoass_adaptive/best.zip``), when it is shipped;
+  (``checkpoints/aoass_adaptive/best.zip``), when it is shipped, with the rule its run record
+  names (the shipped one was trained on the wide-pass rule without a pruned plan);
 * ``spiral``: the plain square spiral with the nominal follower, no safety stack;
 * every :class:`~aoass_env.planning.PlannedMethod` of
   :data:`~aoass_env.planning.classical.CLASSICAL_METHODS` and
@@ -163,6 +166,8 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
     if adaptive:
         path, algo, record = options.adaptive_policy, POLICY_ALGO, None
         stack = {"action_type": "adaptive", **policy_stack(path)}
+        if not learned:   # the rule at AdaptiveConfig's defaults, not the one the policy knew
+            stack.pop("adaptive", None)
     else:
         path, algo, record = options.policy, options.algo, options.policy_run
         stack = policy_stack(path, record)

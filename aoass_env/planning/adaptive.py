@@ -86,7 +86,7 @@ class AdaptiveConfig(ValidatedConfig):
 
     KEYWORD: ClassVar[str] = "adaptive keyword"
 
-    prune: bool = param(False, "before it moves, leave out the spiral's free waypoints whose "
+    prune: bool = param(True, "before it moves, leave out the spiral's free waypoints whose "
                         "surroundings the rest of the spiral covers on the static map "
                         "(aoass_env.planning.pruning)", kind="bool")
     prune_beacons: float = param(6.0, "the pruned plan keeps a cell the full spiral covers "
@@ -94,9 +94,9 @@ class AdaptiveConfig(ValidatedConfig):
                                  high=1000.0)
     prune_spread: float = param(2.0, "... and their spread at least this many times Eq. 18's "
                                 "collinearity_tol", low=1.0, high=100.0)
-    reorder: bool = param(False, "with prune, also reorder the kept waypoints (2-opt on the "
+    reorder: bool = param(True, "with prune, also reorder the kept waypoints (2-opt on the "
                           "planner's ways, every reference cell still covered)", kind="bool")
-    wide_passes: bool = param(True, "lay the spiral's passes with the ring count of Eq. 5's "
+    wide_passes: bool = param(False, "lay the spiral's passes with the ring count of Eq. 5's "
                               "spacing rounded down, not up (spiral_spacing left unset): wider "
                               "passes, the gaps left to the densify phase", kind="bool")
     skip_radius: float = param(8.0, "a spiral waypoint's surroundings: the free cells within "
@@ -112,8 +112,10 @@ class AdaptiveConfig(ValidatedConfig):
                                  "leaves)", unit="m", low=0.0, high=1e4)
     densify_need: float = param(0.0, "after the spiral, uncovered cells with a deficit above "
                                 "this are visited, nearest first", low=-1.0, high=1.0)
-    cell_need: float = param(0.5, "then, free cells with a deficit above this (0.5: heard at "
-                             "most one beacon) are visited, nearest first", low=-1.0, high=1.0)
+    cell_need: float = param(0.0, "then, free cells with a deficit above this (0: every cell "
+                             "not covered; 0.5: heard at most one beacon) are visited, the "
+                             "cheapest first (with prune, only the cells the whole spiral "
+                             "would cover)", low=-1.0, high=1.0)
     cell_hop: float = param(1e4, "a lacking cell is headed for only when the planner's way "
                             "to it costs at most this (the cells phase ends when none is that "
                             "near)", unit="m", low=0.0, high=1e4, low_open=True)

@@ -38,16 +38,16 @@ def test_counts_below_one_are_refused(bench, capsys, flag):
 
 def test_rows_share_episodes_and_account_for_every_uncovered_node(bench, capsys):
     table = bench.main(["--densities", "0.1", "--seeds", "1", "--nodes", "40", "--limit", "1",
-                        "--variant", "no wide passes", "wide_passes=false"])
-    assert list(table) == ["plain spiral", "rule", "no wide passes"]
+                        "--variant", "no plan", "prune=false"])
+    assert list(table) == ["plain spiral", "rule", "no plan"]
     out = capsys.readouterr().out
     assert "| plain spiral |" in out and "| 1.000 |" in out
     for outcomes in table.values():
         (o,) = outcomes
         assert 0.0 < o.coverage <= 1.0 and o.path > 0.0
         assert o.in_covered + o.in_open + o.outside == round((1.0 - o.coverage) * 40)
-    # the wide passes make the spiral part of the rule shorter
-    assert table["rule"][0].path < table["no wide passes"][0].path
+    # the pruned plan makes the rule's spiral shorter
+    assert table["rule"][0].path < table["no plan"][0].path
 
 
 def test_a_split_without_maps_of_the_density_is_refused(bench, capsys):

@@ -135,12 +135,14 @@ def test_wide_passes_round_the_ring_count_down_and_keep_the_spirals_time_limit()
     assert default_spacing(100.0, 100.0, 25.0, 2.0, 1.5, wide=True) == pytest.approx(48.5 / 2)
     assert default_spacing(30.0, 30.0, 25.0, 2.0, 1.5, wide=True) == pytest.approx(13.5)
     residual = AOASSEnv()
-    adaptive = AOASSEnv(action_type="adaptive")
+    wide = {"wide_passes": True, "prune": False}
+    adaptive = AOASSEnv(action_type="adaptive", adaptive=wide)
     assert residual.config.spiral_spacing is None
     assert adaptive.config.spiral_spacing == pytest.approx(24.25)
     assert adaptive.max_episode_steps == residual.max_episode_steps     # the same time allowed
-    assert AOASSEnv(action_type="adaptive", spiral_spacing=10.0).config.spiral_spacing == 10.0
-    narrow = AOASSEnv(action_type="adaptive", adaptive={"wide_passes": False})
+    assert AOASSEnv(action_type="adaptive", adaptive=wide,
+                    spiral_spacing=10.0).config.spiral_spacing == 10.0
+    narrow = AOASSEnv(action_type="adaptive")     # the default rule prunes Eq. 5's spiral
     assert narrow.config.spiral_spacing is None
     adaptive.reset(seed=0, options={"map": ObstacleMap(200.0, 200.0)})
     assert adaptive.episode_config.spiral_spacing == pytest.approx(
@@ -167,7 +169,7 @@ def test_a_detour_goes_round_the_side_where_coverage_is_missing(side_rate, round
     follower = WaypointFollower.nominal(config, np.array([start, goal]), planner=planner,
                                         start=1, recovery=True)
     sweep = AdaptiveSweep(follower, coverage, planner, config,
-                          AdaptiveConfig(side_rate=side_rate))
+                          AdaptiveConfig(side_rate=side_rate, prune=False))
     sweep.command(start, 0.0, config.dt)
     if round_below:
         assert sweep.sides == [(1, config.dt)]
@@ -194,7 +196,7 @@ def test_a_cell_behind_a_wall_is_reached_along_the_planners_way_not_by_cutting_t
     wall's open end: the sweep steers for the planner's inner points first."""
     config, coverage, planner, start = _covered_below_the_wall()
     follower = WaypointFollower.nominal(config, start[None, :], planner=planner, recovery=True)
-    sweep = AdaptiveSweep(follower, coverage, planner, config, AdaptiveConfig())
+    sweep = AdaptiveSweep(follower, coverage, planner, config, AdaptiveConfig(prune=False))
     sweep.command(start, 0.0, config.dt)
     assert sweep.densifying and not sweep.done and sweep.revisits == [(-1, config.dt)]
     # the way's first corner at the wall's open end (x < 20), not the cell above the wall
@@ -207,7 +209,8 @@ def test_cells_farther_than_the_hop_end_the_cells_phase():
     for hop, done in ((10.0, True), (1e4, False)):     # the lacking cells lie round the wall
         follower = WaypointFollower.nominal(config, start[None, :], planner=planner,
                                             recovery=True)
-        sweep = AdaptiveSweep(follower, coverage, planner, config, AdaptiveConfig(cell_hop=hop))
+        sweep = AdaptiveSweep(follower, coverage, planner, config,
+                              AdaptiveConfig(cell_hop=hop, prune=False))
         speed, _ = sweep.command(start, 0.0, config.dt)
         assert sweep.done is done and (sweep.target is None) is done
         assert (speed == 0.0) if done else sweep.densifying
