@@ -22,16 +22,20 @@ WaypointFollower`, with its detours and its recovery from traps) and reads the a
    per extra metre (Section 3.2's "detour direction"), heading first for that way's widest
    point. Off by default (``side_rate`` = ``SIDE_OFF``): on training maps it cost more path
    for no reliable coverage gain (docs/planning.md).
-The spiral's passes are wider than Eq. 5's (``wide_passes``, :func:`sweep_config`): the ring
-count of Eq. 5's spacing is rounded down instead of up (2 rings instead of 3 on the default
-100 m field), and the gaps they leave are the densify phase's.
+0. **Plan.** Before it moves (``prune``, ``reorder``), the sweep prunes Eq. 5's spiral on the
+   static map (:mod:`aoass_env.planning.pruning`): it leaves out the free waypoints whose
+   surroundings the rest of the spiral's beacons cover, reorders the kept ones where that is
+   shorter, and its follower walks the plan. Without a plan, ``wide_passes`` lays wider passes
+   than Eq. 5's (:func:`sweep_config`: the ring count rounded down instead of up, 2 rings
+   instead of 3 on the default 100 m field) and leaves the gaps to the densify phase.
 
 2. **Densify.** When the spiral is done, the sweep revisits the open waypoints whose need is
    still above ``densify_need``: each run starts at the open waypoint the anchor reaches by the
    shortest way and follows the spiral while its waypoints stay open (the skip rule still
    passing over those the run's own beacons have covered). When no open waypoint is left, it
-   heads for the free cells that heard at most one beacon (deficit above ``cell_need``),
-   nearest first, each until the cell is covered, reached within two cells, or given up.
+   heads for the free cells the map lacks (deficit above ``cell_need``; with a plan, only the
+   cells the whole spiral would cover), the cheapest first, each until the cell is covered,
+   reached within two cells, or given up.
 3. **End.** The sweep ends when the map's covered share of the free field reaches
    ``end_coverage``, or when no open waypoint needs a visit. Visiting every spiral waypoint is
    no longer the only ending.
