@@ -120,6 +120,12 @@ class AdaptiveConfig(ValidatedConfig):
                              "not covered; 0.5: heard at most one beacon) are visited, the "
                              "cheapest first (with prune, only the cells the whole spiral "
                              "would cover)", low=-1.0, high=1.0)
+    beyond_below: float = param(0.92, "with prune, on a map where the whole spiral would cover "
+                                "less than this share of the free cells (a dense map), the "
+                                "cells phase also visits the others (beyond_need)", low=0.0,
+                                high=1.0)
+    beyond_need: float = param(0.5, "... those of them with a deficit above this (0.5: heard at "
+                               "most one beacon)", low=-1.0, high=1.0)
     cell_hop: float = param(1e4, "a lacking cell is headed for only when the planner's way "
                             "to it costs at most this (the cells phase ends when none is that "
                             "near)", unit="m", low=0.0, high=1e4, low_open=True)
@@ -455,8 +461,12 @@ class AdaptiveSweep:
         up; done when none is left."""
         cov = self.coverage
         lacking = ~self._dropped & (cov.deficit > max(threshold, 0.0))
-        if self.plan is not None:      # the cells the whole spiral would not cover are not asked
-            lacking &= self.plan.reference
+        if self.plan is not None:      # the cells the whole spiral would cover, and on a
+            lacking &= self.plan.reference     # dense map the others that heard little
+            if self.plan.reference.mean() < self.rule.beyond_below:
+                beyond = self._threshold(self.rule.beyond_need, self.knobs.densify)
+                lacking |= ~self._dropped & ~self.plan.reference & (cov.deficit
+                                                                    > max(beyond, 0.0))
         todo = np.flatnonzero(lacking)
         if not len(todo):
             self._done = True
