@@ -194,7 +194,8 @@ class Simulator:
         """The adaptive sweep (:mod:`aoass_env.planning.adaptive`) of this episode's spiral, on
         the episode's coverage map, with the recovering follower."""
         return AdaptiveSweep(self.follower(recovery=True), self.coverage_map, self.planner,
-                             self.config, rule if rule is not None else AdaptiveConfig())
+                             self.config, rule if rule is not None else AdaptiveConfig(),
+                             time_limit=self.step_limit() * self.config.dt)
 
     def nominal_steps(self) -> int:
         """Control periods the ideal path takes at nominal speed."""

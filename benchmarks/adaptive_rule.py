@@ -9,7 +9,8 @@ chosen split (``fit`` or ``validation``, :func:`~aoass_env.maps.registry.validat
 never maps/test. Motion costs ``anchor_motion_energy`` J/m, so the path is the energy.
 
 The script prints, per variant, the mean Eq. 18 coverage (share of nodes), the mean path (m),
-the path as a share of the spiral's on the same episodes, and the share of uncovered nodes that
+the path as a share of the spiral's on the same episodes, the share of sweeps that ended by
+themselves (before the time limit), and the share of uncovered nodes that
 lie in cells the anchor's coverage map counts as covered, in cells it lacks, and in cells it
 does not keep (inside obstacles); then coverage and path share by density.
 
@@ -36,10 +37,12 @@ from aoass_env.simulator import Simulator
 
 @dataclass(frozen=True)
 class Outcome:
-    """One sweep: Eq. 18 coverage, path (m), and where its uncovered nodes lie on the map."""
+    """One sweep: Eq. 18 coverage, path (m), whether it ended by itself (before the time
+    limit), and where its uncovered nodes lie on the map."""
 
     coverage: float
     path: float
+    ended: bool
     in_covered: int
     in_open: int
     outside: int
@@ -53,7 +56,8 @@ def sweep(name: str, seed: int, nodes: int, rule: AdaptiveConfig | None) -> Outc
     if rule is not None:
         config = sweep_config(config, rule, obstacle_map.width)
     sim = Simulator(config, np.random.default_rng(seed), obstacle_map=obstacle_map, seed=seed)
-    sim.run(controller=None if rule is None else sim.adaptive_sweep(rule))
+    controller = sim.follower() if rule is None else sim.adaptive_sweep(rule)
+    sim.run(controller=controller)
     cov = sim.coverage_map
     lookup = -np.ones(cov.shape, dtype=np.int64)
     lookup[cov.index[:, 0], cov.index[:, 1]] = np.arange(cov.n_cells)
@@ -61,7 +65,8 @@ def sweep(name: str, seed: int, nodes: int, rule: AdaptiveConfig | None) -> Outc
     cell = lookup[ij[:, 0], ij[:, 1]][~sim.network.covered]
     kept = cell >= 0
     in_covered = int(cov.covered[cell[kept]].sum())
-    return Outcome(sim.network.coverage_ratio, sim.network.distance_travelled, in_covered,
+    return Outcome(sim.network.coverage_ratio, sim.network.distance_travelled, controller.done,
+                   in_covered,
                    int(kept.sum()) - in_covered, int((~kept).sum()))
 
 
@@ -125,9 +130,9 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
     spiral = [sweep(n, s, args.nodes, None) for n, s in episodes]
     print(f"{len(maps)} maps of the {args.split} split x {args.seeds} seeds, N = {args.nodes}")
     table = {SPIRAL: spiral}
-    print("| sweep | coverage | path [m] | path / spiral's | uncovered nodes: in covered "
-          "cells / in open cells / outside the map's cells |")
-    print("|---|---|---|---|---|")
+    print("| sweep | coverage | path [m] | path / spiral's | ended by itself | uncovered nodes: "
+          "in covered cells / in open cells / outside the map's cells |")
+    print("|---|---|---|---|---|---|")
     table.update({name: [sweep(n, s, args.nodes, rule) for n, s in episodes]
                   for name, rule in variants.items()})
     for name, outcomes in table.items():
@@ -136,7 +141,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
         share = np.mean([o.path / s.path for o, s in zip(outcomes, spiral, strict=True)])
         where = [sum(getattr(o, k) for o in outcomes)
                  for k in ("in_covered", "in_open", "outside")]
-        print(f"| {name} | {cov:.2%} | {path:.0f} | {share:.3f} | "
+        ended = np.mean([o.ended for o in outcomes])
+        print(f"| {name} | {cov:.2%} | {path:.0f} | {share:.3f} | {ended:.0%} | "
               f"{where[0]} / {where[1]} / {where[2]} |")
     levels = sorted(set(density))
     print("\ncoverage / path share of the spiral's, by density\n")

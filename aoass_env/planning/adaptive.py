@@ -126,6 +126,8 @@ class AdaptiveConfig(ValidatedConfig):
                                 high=1.0)
     beyond_need: float = param(0.5, "... those of them with a deficit above this (0.5: heard at "
                                "most one beacon)", low=-1.0, high=1.0)
+    beyond_time: float = param(0.8, "... until this share of the episode's time limit has "
+                               "passed", low=0.0, high=1.0)
     cell_hop: float = param(1e4, "a lacking cell is headed for only when the planner's way "
                             "to it costs at most this (the cells phase ends when none is that "
                             "near)", unit="m", low=0.0, high=1e4, low_open=True)
@@ -168,6 +170,7 @@ class AdaptiveSweep:
         planner: the detour planner of the episode's map.
         config: the episode's configuration (the densify followers are built from it).
         rule: the rule's thresholds.
+        time_limit: the episode's time limit (s), for ``beyond_time``.
 
     Attributes:
         knobs: the knobs in force (the environment sets them from the action).
@@ -184,6 +187,7 @@ class AdaptiveSweep:
     planner: DetourPlanner
     config: AOASSConfig
     rule: AdaptiveConfig = field(default_factory=AdaptiveConfig)
+    time_limit: float = math.inf
     knobs: SweepKnobs = field(default_factory=SweepKnobs)
     passed: list[Skip] = field(default_factory=list)
     revisits: list[tuple[int, float]] = field(default_factory=list)
@@ -463,7 +467,8 @@ class AdaptiveSweep:
         lacking = ~self._dropped & (cov.deficit > max(threshold, 0.0))
         if self.plan is not None:      # the cells the whole spiral would cover, and on a
             lacking &= self.plan.reference     # dense map the others that heard little
-            if self.plan.reference.mean() < self.rule.beyond_below:
+            if (self.plan.reference.mean() < self.rule.beyond_below
+                    and self._clock < self.rule.beyond_time * self.time_limit):
                 beyond = self._threshold(self.rule.beyond_need, self.knobs.densify)
                 lacking |= ~self._dropped & ~self.plan.reference & (cov.deficit
                                                                     > max(beyond, 0.0))

@@ -173,18 +173,23 @@ def test_the_observed_waypoints_are_the_ones_the_pruned_sweep_heads_for():
     assert not np.allclose(spiral.ravel(), expected.ravel())   # the spiral's next ones differ
 
 
-@pytest.mark.parametrize("below", [0.0, 1.0])
-def test_only_on_a_dense_map_the_cells_phase_goes_beyond_the_reference(below):
+@pytest.mark.parametrize(("below", "late", "beyond"), [(0.0, False, False), (1.0, False, True),
+                                                      (1.0, True, False)])
+def test_only_on_a_dense_map_the_cells_phase_goes_beyond_the_reference(below, late, beyond):
     """The cells the whole spiral would not cover are visited only when the reference is a
-    smaller share of the free cells than beyond_below (a dense map)."""
+    smaller share of the free cells than beyond_below (a dense map), and only until
+    beyond_time of the episode's time limit."""
     sim = Simulator(CONFIG, np.random.default_rng(0), obstacle_map=BLOCKS)
     sweep = sim.adaptive_sweep(AdaptiveConfig(beyond_below=below))
+    assert sweep.time_limit == sim.step_limit() * CONFIG.dt
+    if late:
+        sweep._clock = 0.81 * sweep.time_limit
     # a reference without the east half of the field, as on a dense map
     east = sim.coverage_map.centres[:, 0] > 30.0
     sweep.plan = dataclasses.replace(sweep.plan, reference=sweep.plan.reference & ~east)
     sweep._dropped[sweep.plan.reference] = True       # every reference cell done with
     sweep._next_cell(sim.world.position, 0.0)
-    if below == 0.0:
+    if not beyond:
         assert sweep.done and sweep._cell < 0
     else:
         assert not sweep.done and not sweep.plan.reference[sweep._cell]
