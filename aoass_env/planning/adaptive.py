@@ -120,10 +120,11 @@ class AdaptiveConfig(ValidatedConfig):
                              "not covered; 0.5: heard at most one beacon) are visited, the "
                              "cheapest first (with prune, only the cells the whole spiral "
                              "would cover)", low=-1.0, high=1.0)
-    beyond_below: float = param(0.92, "with prune, on a map where the whole spiral would cover "
+    beyond_below: float = param(0.0, "with prune, on a map where the whole spiral would cover "
                                 "less than this share of the free cells (a dense map), the "
-                                "cells phase also visits the others (beyond_need)", low=0.0,
-                                high=1.0)
+                                "cells phase also visits the others (beyond_need); 0: never (on "
+                                "fresh dense maps it cost the sweeps their completion, "
+                                "docs/adaptive.md)", low=0.0, high=1.0)
     beyond_need: float = param(0.5, "... those of them with a deficit above this (0.5: heard at "
                                "most one beacon)", low=-1.0, high=1.0)
     beyond_time: float = param(0.8, "... until this share of the episode's time limit has "
