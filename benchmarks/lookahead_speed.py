@@ -52,6 +52,18 @@ def reference_module(ref: str, path: str, name: str) -> ModuleType:
     return module
 
 
+def random_steps(env_id: str, kwargs: dict[str, Any], seed: int, steps: int) -> None:
+    """``steps`` random actions in ``env_id`` made with ``kwargs``, seeded with ``seed``
+    (reset whenever an episode ends)."""
+    env = gym.make(env_id, **kwargs)
+    env.action_space.seed(seed)
+    env.reset(seed=seed)
+    for _ in range(steps):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+
+
 def record(steps: int) -> tuple[list[tuple[tuple, dict]], list[tuple[Any, float, float, float]],
                                 int]:
     """(escape_velocity calls, edge queries (obstacles, x, y, reach), Safe steps taken) over
@@ -73,13 +85,7 @@ def record(steps: int) -> tuple[list[tuple[tuple, dict]], list[tuple[Any, float,
     orca._EdgeCache.near = recording_near
     try:
         for kwargs, seed in EPISODES:
-            env = gym.make("AOASS-Safe-v0", **kwargs)
-            env.action_space.seed(seed)
-            env.reset(seed=seed)
-            for _ in range(steps):
-                _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-                if terminated or truncated:
-                    env.reset()
+            random_steps("AOASS-Safe-v0", kwargs, seed, steps)
     finally:
         wrappers.escape_velocity = original
         orca._EdgeCache.near = near
@@ -98,14 +104,21 @@ def same_escape(a: Any, b: Any) -> bool:
             and a.shortfall == b.shortfall and a.chosen_shortfall == b.chosen_shortfall)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--ref", default="ab67c18", help="reference commit")
-    parser.add_argument("--steps", type=int, default=4000, help="random steps per episode")
-    parser.add_argument("--rounds", type=int, default=5, help="alternated timing rounds")
+def replay_arguments(doc: str, ref: str, steps: int, rounds: int) -> argparse.Namespace:
+    """The validated ``--ref``, ``--steps`` and ``--rounds`` of a replay benchmark (described
+    by the first line of ``doc``), with these defaults."""
+    parser = argparse.ArgumentParser(description=doc.split("\n")[0])
+    parser.add_argument("--ref", default=ref, help="reference commit")
+    parser.add_argument("--steps", type=int, default=steps, help="random steps per episode")
+    parser.add_argument("--rounds", type=int, default=rounds, help="alternated timing rounds")
     args = parser.parse_args()
     if args.steps < 1 or args.rounds < 1:
         parser.error("--steps and --rounds must be positive")
+    return args
+
+
+def main() -> None:
+    args = replay_arguments(__doc__, "ab67c18", 4000, 5)
     old_lookahead = reference_module(args.ref, "aoass_env/safety/lookahead.py", "lookahead_ref")
     old_orca = reference_module(args.ref, "aoass_env/safety/orca.py", "orca_ref")
     calls, queries, steps = record(args.steps)

@@ -20,13 +20,11 @@ Run: ``python3 benchmarks/unicycle_follower_speed.py [--ref 3fdd7e9] [--steps 30
 
 from __future__ import annotations
 
-import argparse
 import copy
 import time
 from collections.abc import Iterator
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
 import aoass_env  # noqa: F401  (registers the envs)
@@ -36,9 +34,9 @@ from aoass_env.planning.follower import WaypointFollower
 from aoass_env.safety import unicycle
 
 try:
-    from benchmarks.lookahead_speed import reference_module
+    from benchmarks.lookahead_speed import random_steps, reference_module, replay_arguments
 except ImportError:         # run as a script from benchmarks/
-    from lookahead_speed import reference_module  # type: ignore[no-redef]
+    from lookahead_speed import random_steps, reference_module, replay_arguments  # type: ignore[no-redef]
 
 #: AOASS-Safe-v0 episodes whose unicycle_command calls are recorded: (keywords, seed)
 SAFE_EPISODES: tuple[tuple[dict[str, Any], int], ...] = (
@@ -52,16 +50,6 @@ FOLLOWER_CASES: tuple[tuple[str, dict[str, Any], int], ...] = (
     ("200 m d0.2", {"field_size": 200.0}, 3),
     ("200 m d0.4", {"field_size": 200.0, "obstacle_density": 0.4}, 5),
 )
-
-
-def random_steps(env_id: str, kwargs: dict[str, Any], seed: int, steps: int) -> None:
-    env = gym.make(env_id, **kwargs)
-    env.action_space.seed(seed)
-    env.reset(seed=seed)
-    for _ in range(steps):
-        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-        if terminated or truncated:
-            env.reset()
 
 
 def record_unicycle(steps: int) -> list[tuple[tuple, dict]]:
@@ -163,13 +151,7 @@ class _Answers:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--ref", default="3fdd7e9", help="reference commit")
-    parser.add_argument("--steps", type=int, default=3000, help="random steps per episode")
-    parser.add_argument("--rounds", type=int, default=3, help="alternated timing rounds")
-    args = parser.parse_args()
-    if args.steps < 1 or args.rounds < 1:
-        parser.error("--steps and --rounds must be positive")
+    args = replay_arguments(__doc__, "3fdd7e9", 3000, 3)
     old_unicycle = reference_module(args.ref, "aoass_env/safety/unicycle.py", "unicycle_ref")
     old_follower = reference_module(args.ref, "aoass_env/planning/follower.py", "follower_ref")
 

@@ -260,8 +260,9 @@ class _EdgeCache:
             return [i for _, i in keyed]
         return [hit[1] for hit in hits]
 
-    def _within(self, px: float, py: float, reach: float) -> np.ndarray:
-        """Indices (ascending) of the edges closer than ``reach`` (m) to (px, py)."""
+    def _projection(self, px: float, py: float) -> tuple[np.ndarray, np.ndarray]:
+        """Each edge's parameter of the point nearest to (px, py), clipped to [0, 1], and the
+        squared distance (m^2) to it."""
         rx = px - self.ax
         ry = py - self.ay
         ex, ey = self.ex, self.ey
@@ -269,7 +270,11 @@ class _EdgeCache:
         np.clip(s, 0.0, 1.0, out=s)
         rx -= s * ex
         ry -= s * ey
-        return np.flatnonzero(rx * rx + ry * ry < reach * reach)
+        return s, rx * rx + ry * ry
+
+    def _within(self, px: float, py: float, reach: float) -> np.ndarray:
+        """Indices (ascending) of the edges closer than ``reach`` (m) to (px, py)."""
+        return np.flatnonzero(self._projection(px, py)[1] < reach * reach)
 
     def near_array(self, px: float, py: float, reach: float) -> list[int]:
         """:meth:`near` on every edge with NumPy (the reference of the local path)."""
@@ -277,14 +282,7 @@ class _EdgeCache:
         if (len(self.x) == 0 or px < x0 - reach or px > x1 + reach or py < y0 - reach
                 or py > y1 + reach):
             return []
-        rx = px - self.ax
-        ry = py - self.ay
-        ex, ey = self.ex, self.ey
-        s = (rx * ex + ry * ey) * self.inv_len2
-        np.clip(s, 0.0, 1.0, out=s)
-        rx -= s * ex
-        ry -= s * ey
-        dist2 = rx * rx + ry * ry
+        s, dist2 = self._projection(px, py)
         hits = np.flatnonzero(dist2 < reach * reach)
         if len(hits) > 1:
             # nearest at the end vertex: measure from that vertex itself, so that two edges
