@@ -25,7 +25,7 @@ import numpy as np
 from aoass_env.config import AOASSConfig
 from aoass_env.validators import integer, real
 
-__all__ = ["Network"]
+__all__ = ["Network", "lambda_min"]
 
 #: Columns of d_old and d_new whose products update Sxx, Sxy, Syy (Welford's recurrence).
 _OLD_COLS, _NEW_COLS = np.array([0, 0, 1]), np.array([0, 1, 1])
@@ -35,6 +35,14 @@ def _read_only(array: np.ndarray) -> np.ndarray:
     view = array.view()
     view.flags.writeable = False
     return view
+
+
+def lambda_min(scatter: np.ndarray) -> np.ndarray:
+    """Smallest eigenvalue [m^2] of symmetric 2x2 matrices given as (K, 3) Sxx, Sxy, Syy (the
+    spread of a node's heard beacons, module docstring)."""
+    sxx, sxy, syy = scatter[:, 0], scatter[:, 1], scatter[:, 2]
+    lam = 0.5 * (sxx + syy) - np.hypot(0.5 * (sxx - syy), sxy)
+    return np.maximum(lam, 0.0)
 
 
 class Network:
@@ -108,7 +116,7 @@ class Network:
         self._heard[idx] = n
         fresh = idx[~self._covered[idx] & (n >= 3)]
         if fresh.size:
-            fresh = fresh[self._lambda_min(self._scatter[fresh]) >= self._min_scatter]
+            fresh = fresh[lambda_min(self._scatter[fresh]) >= self._min_scatter]
             self._covered[fresh] = True
             self._n_covered += fresh.size
         return int(fresh.size)
@@ -119,13 +127,6 @@ class Network:
             self._distance += distance
         else:
             self._distance += real("distance", distance, "m", low=0.0)
-
-    @staticmethod
-    def _lambda_min(scatter: np.ndarray) -> np.ndarray:
-        """Smallest eigenvalue [m^2] of symmetric 2x2 matrices given as (K, 3) Sxx, Sxy, Syy."""
-        sxx, sxy, syy = scatter[:, 0], scatter[:, 1], scatter[:, 2]
-        lam = 0.5 * (sxx + syy) - np.hypot(0.5 * (sxx - syy), sxy)
-        return np.maximum(lam, 0.0)
 
     # --- coverage -------------------------------------------------------------------------
     @property
@@ -147,7 +148,7 @@ class Network:
     @property
     def line_residual(self) -> np.ndarray:
         """Root-sum-square distance [m] (N,) of each node's heard beacons to their best line."""
-        return np.sqrt(self._lambda_min(self._scatter))
+        return np.sqrt(lambda_min(self._scatter))
 
     @property
     def n_covered(self) -> int:

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aoass_env.network import lambda_min
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.radio import Radio
 
@@ -134,11 +135,9 @@ def _covered(stats: np.ndarray, tol: float, beacons: float = 3) -> np.ndarray:
     n = stats[:, 0]
     safe = np.maximum(n, 1.0)
     mx, my = stats[:, 1] / safe, stats[:, 2] / safe
-    sxx = stats[:, 3] - n * mx * mx
-    sxy = stats[:, 4] - n * mx * my
-    syy = stats[:, 5] - n * my * my
-    lam = 0.5 * (sxx + syy) - np.hypot(0.5 * (sxx - syy), sxy)
-    return (n >= beacons) & (lam >= tol * tol * (1.0 - 1e-9))
+    scatter = np.stack([stats[:, 3] - n * mx * mx, stats[:, 4] - n * mx * my,
+                        stats[:, 5] - n * my * my], axis=1)
+    return (n >= beacons) & (lambda_min(scatter) >= tol * tol * (1.0 - 1e-9))
 
 
 class _Pruner:
