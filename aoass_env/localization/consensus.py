@@ -12,12 +12,12 @@ cells, the consensus estimate of k is the mean of the cells with the fewest viol
 cells inside obstacles excluded. Violations are counted, not forbidden: moving obstacles (not in
 the map) block some beacons, and cell centres are up to ``cell / sqrt 2`` from the node.
 
-**Neighbour stage.** A node whose best cells spread over more than ``RELIABLE_SPREAD`` (RMS
-distance from their mean) is scored a second time with the *reliable* nodes (spread at most
-that) as further transmitters at their first-stage estimates: its neighbours (``node_links``)
-count like heard beacons, the reliable nodes it does not hear like unheard ones. Node links obey
-the same range and line-of-sight rules as beacons (within R (1 + DOI) and in sight; certain
-within R (1 - DOI)).
+**Neighbour stage.** Every node is scored a second time with the *reliable* nodes (best cells
+spread at most ``RELIABLE_SPREAD``, RMS distance from their mean) as further transmitters at
+their first-stage estimates: its neighbours (``node_links``) count like heard beacons, the
+reliable nodes it does not hear like unheard ones; a reliable node is no transmitter to itself.
+Node links obey the same range and line-of-sight rules as beacons (within R (1 + DOI) and in
+sight; certain within R (1 - DOI)).
 
 Speed comes from three restrictions (docs/localization.md):
 
@@ -39,6 +39,7 @@ from __future__ import annotations
 import itertools
 import weakref
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import shapely
@@ -47,13 +48,15 @@ from scipy.spatial import cKDTree
 from aoass_env.localization.episode import Episode
 from aoass_env.localization.ragged import pad_rows
 
-__all__ = ["ANGLE_BINS", "DEFAULT_CELL", "RELIABLE_SPREAD", "Consensus", "VisibilityRaster",
-           "consensus", "node_consensus", "visibility_raster"]
+__all__ = ["ANGLE_BINS", "DEFAULT_CELL", "NEIGHBOUR_ROUNDS", "RELIABLE_SPREAD", "Consensus",
+           "VisibilityRaster", "consensus", "node_consensus", "visibility_raster"]
 
 #: Grid cell size [m].
 DEFAULT_CELL = 0.5
 #: Nodes whose best cells spread over more than this [m] are scored again with their neighbours.
 RELIABLE_SPREAD = 1.0
+#: Neighbour stages after the beacons-only stage (chosen on maps/train logs: 1 and 3 did worse).
+NEIGHBOUR_ROUNDS = 2
 #: Directions of a beacon's visibility profile.
 ANGLE_BINS = 1024
 _CHUNK_LOOKUPS = 2_000_000  # (cell, beacon) lookups per chunk of nodes
@@ -321,14 +324,22 @@ class Consensus:
     violations: np.ndarray
 
 
-def _boxes(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray]],
-           reach: float) -> tuple[np.ndarray, np.ndarray]:
+class _Part(NamedTuple):
+    """Transmitters of one raster as a group of nodes sees them."""
+
+    raster: VisibilityRaster
+    points: np.ndarray        # (M, 2) transmitter positions [m]
+    heard: np.ndarray         # (S, H) transmitters each node heard, padded with -1
+    own: np.ndarray | None    # (S,) each node's own transmitter (-1: none), None: no node is one
+
+
+def _boxes(parts: list[_Part], reach: float) -> tuple[np.ndarray, np.ndarray]:
     """Grid index ranges [i0, i1] (S, 2) of the bounding boxes of the intersections of the
-    discs of radius ``reach`` [m] around every heard transmitter of every part (raster,
-    positions (M, 2), heard (S, H) padded with -1); i1 < i0: empty."""
-    raster = parts[0][0]
-    xy = np.concatenate([np.where((heard >= 0)[..., None], points[heard], np.nan)
-                         for _, points, heard in parts], axis=1)
+    discs of radius ``reach`` [m] around every heard transmitter of every part; i1 < i0:
+    empty."""
+    raster = parts[0].raster
+    xy = np.concatenate([np.where((part.heard >= 0)[..., None], part.points[part.heard], np.nan)
+                         for part in parts], axis=1)
     top = np.array(raster.shape) - 1
     with np.errstate(invalid="ignore"):
         lo = np.nanmax(xy, axis=1) - reach
@@ -338,11 +349,25 @@ def _boxes(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray]],
     return i0, i1
 
 
-def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray]], i0: np.ndarray,
-           i1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+class _Scores(NamedTuple):
+    """Violations of the cells of every node's box against the first part (the beacons), kept
+    from the beacons-only stage for the neighbour stages (their boxes lie inside it)."""
+
+    i0: np.ndarray      # (S, 2) first cell of each box
+    wy: np.ndarray      # (S,) box height [cells]
+    start: np.ndarray   # (S,) where each box's cells begin in ``viol`` (x-major)
+    viol: np.ndarray    # violations per cell
+
+
+def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray | None]], i0: np.ndarray,
+           i1: np.ndarray, kept: _Scores | None = None
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Estimate (S, 2), spread (S,) and fewest violations (S,) of S nodes with non-empty boxes
-    [i0, i1]; ``parts``: (raster, heard transmitters (S, H) padded with -1), rasters on one
-    grid."""
+    [i0, i1], and the violations against the first part per box cell (x-major, nodes in
+    order); ``parts``: (raster, heard transmitters (S, H) padded with -1, each node's own
+    transmitter (S,) or -1, or None), rasters on one grid. A node is not unheard by its own
+    transmitter: its certain range adds no violation. ``kept``: the first part's violations of
+    these S nodes on boxes holding [i0, i1], in place of scoring the first part again."""
     grid = parts[0][0]
     wx, wy = i1[:, 0] - i0[:, 0] + 1, i1[:, 1] - i0[:, 1] + 1
     n_cells = wx * wy
@@ -352,13 +377,25 @@ def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray]], i0: np.ndarray,
     ix = i0[owner, 0] + local // wy[owner]
     iy = i0[owner, 1] + local % wy[owner]
     viol = np.zeros(len(owner))
-    for raster, heard in parts:
+    first = viol
+    for k, (raster, heard, own) in enumerate(parts):
+        if k == 0 and kept is not None:
+            at = kept.start[owner] + (ix - kept.i0[owner, 0]) * kept.wy[owner] \
+                + iy - kept.i0[owner, 1]
+            viol += np.take(kept.viol, at)
+            continue
         # #heard - #heard in sight and reach + #in sight within R (1 - DOI) - #heard among
         # those; every box cell lies on every heard transmitter's stencil
+        cells = ix * raster.size + iy
         entries = raster.key[heard][owner]
-        entries += (ix * raster.size + iy)[:, None]
+        entries += cells[:, None]
         fit = np.take(raster.weight, entries).sum(axis=1, dtype=np.int32)   # <= 2 per entry
         viol += (heard >= 0).sum(axis=1)[owner] + raster.certain[ix, iy] - fit
+        if own is not None:
+            # key[-1] (no own transmitter) lands on the all-zero padding
+            viol -= np.take(raster.weight, raster.key[own][owner] + cells) == 2
+        if k == 0:
+            first = viol.astype(np.int32)
     viol[grid.inside[ix, iy]] = np.inf
     best = np.minimum.reduceat(viol, np.cumsum(n_cells) - n_cells)
     win = viol == best[owner]
@@ -369,31 +406,43 @@ def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray]], i0: np.ndarray,
     est /= n_win[:, None]
     var = np.bincount(owner, weights=(px - est[owner, 0]) ** 2 + (py - est[owner, 1]) ** 2,
                       minlength=s) / n_win
-    return est, np.sqrt(var), best
+    return est, np.sqrt(var), best, first
 
 
-def _solve(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray]], reach: float,
-           result: tuple[np.ndarray, np.ndarray, np.ndarray], rows: np.ndarray) -> None:
+def _solve(parts: list[_Part], reach: float,
+           result: tuple[np.ndarray, np.ndarray, np.ndarray], rows: np.ndarray,
+           kept: _Scores | None = None) -> _Scores:
     """Score the nodes ``rows`` of ``result`` (estimate, spread, violations), in place; the
-    heard arrays of ``parts`` (see :func:`_boxes`) have one row per entry of ``rows``. Nodes
-    with an empty box keep their values."""
+    heard (and own) arrays of ``parts`` have one row per entry of ``rows``. Nodes with an empty
+    box keep their values. ``kept``: the first part's violations from an earlier call on the
+    same rows with the first part alone (every box now lies inside that call's); returns
+    this call's."""
     i0, i1 = _boxes(parts, reach)
-    n_heard = sum((heard >= 0).sum(axis=1) for _, _, heard in parts)
+    wy = i1[:, 1] - i0[:, 1] + 1
+    n_heard = sum((part.heard >= 0).sum(axis=1) for part in parts)
     ok = np.flatnonzero(np.all(i1 >= i0, axis=1))
     # chunks of nodes with similar heard counts (little padding), bounded lookups per chunk
     ok = ok[np.argsort(n_heard[ok], kind="stable")]
-    work = np.cumsum(np.prod(i1[ok] - i0[ok] + 1, axis=1) * n_heard[ok])
+    size = np.prod(i1[ok] - i0[ok] + 1, axis=1)
+    start = np.zeros(len(rows), dtype=np.int64)
+    start[ok] = np.cumsum(size) - size
+    work = np.cumsum(size * n_heard[ok])
     bounds = np.unique(np.r_[np.searchsorted(work, np.arange(0, work[-1], _CHUNK_LOOKUPS)),
                              len(ok)]) if len(ok) else np.zeros(1, np.int64)
+    first = []
     for a, b in itertools.pairwise(bounds):
         idx = ok[a:b]
         chunk = []
-        for raster, _, heard in parts:
+        for raster, _, heard, own in parts:
             width = max(int((heard[idx] >= 0).sum(axis=1).max()), 1)
-            chunk.append((raster, heard[idx, :width]))
-        est, spread, viol = _chunk(chunk, i0[idx], i1[idx])
+            chunk.append((raster, heard[idx, :width], None if own is None else own[idx]))
+        part_kept = None if kept is None else _Scores(kept.i0[idx], kept.wy[idx],
+                                                      kept.start[idx], kept.viol)
+        est, spread, viol, first_viol = _chunk(chunk, i0[idx], i1[idx], part_kept)
+        first.append(first_viol)
         for out, value in zip(result, (est, spread, viol), strict=True):
             out[rows[idx]] = value
+    return _Scores(i0, wy, start, np.concatenate(first) if first else np.zeros(0, np.int32))
 
 
 def _lists(rows: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
@@ -410,12 +459,12 @@ def node_consensus(episode: Episode, nodes: np.ndarray | None = None, *,
                    band: tuple[np.ndarray, np.ndarray] | None = None) -> Consensus:
     """Visibility-consensus estimates of ``nodes`` (default: the Eq. 18 covered nodes).
 
-    Two stages: every node from the beacons; then every node whose best cells spread over more
-    than ``RELIABLE_SPREAD`` again, with its reliable neighbour nodes (``node_links``) as extra
-    heard transmitters at their estimates and the reliable nodes it does not hear as unheard
-    ones. A node whose heard discs (radius R (1 + DOI)) do not intersect on the field, which a
-    log of this simulator never holds, keeps the centroid of its heard beacons, with NaN spread
-    and violations.
+    Two stages: every node from the beacons; then every node again, with its reliable neighbour
+    nodes (best cells spread at most ``RELIABLE_SPREAD`` in the first stage; ``node_links``) as
+    extra heard transmitters at their first-stage estimates and the reliable nodes it does not
+    hear as unheard ones (a reliable node is no transmitter to itself). A node whose heard discs
+    (radius R (1 + DOI)) do not intersect on the field, which a log of this simulator never
+    holds, keeps the centroid of its heard beacons, with NaN spread and violations.
 
     Args:
         episode: the prepared log.
@@ -441,24 +490,23 @@ def node_consensus(episode: Episode, nodes: np.ndarray | None = None, *,
     result = Consensus(nodes=nodes, estimate=episode.heard_centroid[nodes].copy(),
                        spread=np.full(len(nodes), np.nan), violations=np.full(len(nodes), np.nan))
     fields = (result.estimate, result.spread, result.violations)
-    _solve([(beacon_raster, episode.beacon_xy, heard)], reach, fields, np.arange(len(nodes)))
-    reliable = result.spread <= RELIABLE_SPREAD  # NaN: not reliable
-    targets = np.flatnonzero(~reliable)
-    if len(targets) == 0 or not reliable.any():
-        return result
-    # reliable nodes become transmitters at their estimates
-    anchor_of = np.full(len(nodes), -1, dtype=np.int64)
-    anchor_of[reliable] = np.arange(int(reliable.sum()))
-    points = result.estimate[reliable]
-    node_raster = visibility_raster(episode, cell, points=points)
-    target_of = np.full(len(nodes), -1, dtype=np.int64)
-    target_of[targets] = np.arange(len(targets))
+    every = np.arange(len(nodes))
+    kept = _solve([_Part(beacon_raster, episode.beacon_xy, heard, None)], reach, fields, every)
     links = seq_of[episode.log.node_links]
     links = np.concatenate([links, links[:, ::-1]])
     links = links[np.all(links >= 0, axis=1)]
-    neighbours = _lists(target_of[links[:, 0]], anchor_of[links[:, 1]], len(targets))
-    _solve([(beacon_raster, episode.beacon_xy, heard[targets]),
-            (node_raster, points, neighbours)], reach, fields, targets)
+    for _ in range(NEIGHBOUR_ROUNDS):
+        reliable = result.spread <= RELIABLE_SPREAD  # NaN: not reliable
+        if not reliable.any():
+            return result
+        # reliable nodes become transmitters at their estimates of the stage before
+        anchor_of = np.full(len(nodes), -1, dtype=np.int64)
+        anchor_of[reliable] = np.arange(int(reliable.sum()))
+        points = result.estimate[reliable]
+        node_raster = visibility_raster(episode, cell, points=points)
+        neighbours = _lists(links[:, 0], anchor_of[links[:, 1]], len(nodes))
+        _solve([_Part(beacon_raster, episode.beacon_xy, heard, None),
+                _Part(node_raster, points, neighbours, anchor_of)], reach, fields, every, kept)
     return result
 
 

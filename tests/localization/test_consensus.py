@@ -192,3 +192,57 @@ def test_float32_floor_keeps_float64_comparisons_exact():
                         rng.uniform(20.0, 30.0, 5000).astype(np.float32)])
     idx = np.concatenate([np.arange(360)] * 3 + [rng.integers(0, 360, 5000)])
     np.testing.assert_array_equal(d <= floor[idx], d <= t[idx])
+
+
+def _consistent_log(nodes: np.ndarray, beacons: np.ndarray, radio_range: float = 25.0):
+    """A prepared log whose receptions and node links are exactly the unit-disk ones."""
+    d = np.hypot(*(beacons[:, None, :] - nodes[None, :, :]).transpose(2, 0, 1))
+    receptions = np.argwhere(d <= radio_range)
+    i, j = np.triu_indices(len(nodes), 1)
+    links = np.column_stack([i, j])[np.hypot(*(nodes[i] - nodes[j]).T) <= radio_range]
+    return prepare(make_log(nodes, beacons, receptions, links, radio_range=radio_range))
+
+
+def test_a_reliable_node_is_no_transmitter_to_itself() -> None:
+    # heard just inside the range, unheard just beyond: a region of about 0.5 m (reliable);
+    # in the neighbour stage the node transmits, but its own certain range is no violation
+    episode = record(ring(24.5, n=24), ring(25.5, n=24, phase=7.5))
+    result = node_consensus(episode, np.array([0]))
+    assert result.spread[0] <= 1.0 and result.violations[0] == 0
+    np.testing.assert_allclose(result.estimate[0], CENTRE, atol=1e-9)
+
+
+def test_the_neighbour_stage_refines_reliable_nodes_too(monkeypatch) -> None:
+    """Node 0 is pinned to about 0.5 m by its beacons (reliable); node 1, 25.2 m to its west
+    and not linked to it, rules out the western part of that region."""
+    from aoass_env.localization import consensus as module
+
+    true = np.array([CENTRE + [0.3, 0.0], CENTRE - [24.9, 0.0]])
+    beacons = np.concatenate([ring(24.5, n=24), ring(25.5, n=24, phase=7.5),
+                              true[1] + ring(24.5, n=24) - CENTRE,
+                              true[1] + ring(25.5, n=24, phase=7.5) - CENTRE])
+    episode = _consistent_log(true, beacons)
+    assert len(episode.log.node_links) == 0
+    refined = node_consensus(episode, np.array([0, 1]))
+    monkeypatch.setattr(module, "NEIGHBOUR_ROUNDS", 0)
+    beacons_only = node_consensus(episode, np.array([0, 1]))
+    assert beacons_only.spread[0] <= 1.0                     # reliable after the first stage
+    err = np.hypot(*(refined.estimate[0] - true[0]))
+    err0 = np.hypot(*(beacons_only.estimate[0] - true[0]))
+    assert refined.estimate[0, 0] > beacons_only.estimate[0, 0] and err < err0
+
+
+def test_neighbour_stages_reuse_the_beacon_scores_exactly(doi_sim, monkeypatch) -> None:
+    """The neighbour stages read the beacons' violations kept from the first stage; scoring
+    the beacons again gives the same estimates, spreads and violations."""
+    from aoass_env.localization import consensus as module
+
+    episode = prepare(doi_sim.finish())
+    kept = node_consensus(episode)
+    solve = module._solve
+    monkeypatch.setattr(module, "_solve",
+                        lambda parts, reach, result, rows, kept=None:
+                        solve(parts, reach, result, rows))
+    again = node_consensus(episode)
+    for name in ("estimate", "spread", "violations"):
+        np.testing.assert_array_equal(getattr(kept, name), getattr(again, name))
