@@ -37,6 +37,8 @@ _MIN_GAIN = 0.25
 # the progress of the last window, kept up, would not reach the target within the budget.
 _CANDIDATE_BUDGET = 60
 _WINDOW = 500
+# Slack of the room's lower bound per accepted shape, as a fraction of the field area (_Room).
+_ROOM_SLACK = 1e-6
 # Whole-map draws before giving up when a finished draw fails the final verification.
 _MAX_DRAWS = 5
 
@@ -142,6 +144,8 @@ class _BlockedSet:
     def encloses(self, members: np.ndarray, pieces: np.ndarray) -> bool:
         """Would a shape meeting ``members`` in ``pieces`` enclose a new free region?"""
         parts, owner = shapely.get_parts(pieces, return_index=True)
+        if len(parts) < 2:
+            return False         # one piece cannot close a loop
         roots = np.array([self._root(int(members[j])) for j in owner])
         for root in np.unique(roots):
             group = parts[roots == root]
@@ -157,6 +161,47 @@ class _BlockedSet:
         self._parent.append(new)
         for i in members:
             self._parent[self._root(int(i))] = new
+
+
+def _room_left(room: float, grown_area: float, pieces: np.ndarray) -> float:
+    """The eroded free area (m^2) left after adding a grown shape of area ``grown_area`` (m^2)
+    that meets the eroded set in ``pieces``, from ``room`` (m^2) before it."""
+    return room - grown_area + (shapely.union_all(pieces).area if len(pieces) else 0.0)
+
+
+class _Room:
+    """The area (m^2) of the eroded free region, :func:`_room_left` chained over the accepted
+    shapes, summed only when a test needs it.
+
+    Its one use is the test ``room_left >= minimum``. Each term lowers the room by at most
+    the grown shape's area (the union of its pieces has an area >= 0), so a lower bound
+    decides the test while it stays clear of ``minimum``; ``slack`` (m^2, far above the
+    rounding of these sums) keeps the bound below the exact sums. Only when the bound
+    cannot decide are the pending terms summed, in order, as the eager sum would be: the
+    same room, the same answers, without a union per candidate.
+    """
+
+    def __init__(self, room: float, minimum: float, slack: float) -> None:
+        self._exact = room
+        self._pending: list[tuple[float, np.ndarray]] = []  # terms of accepted shapes not summed
+        self._floor = room     # lower bound of the room with the pending terms
+        self._minimum = minimum
+        self._slack = slack
+
+    def fits(self, grown_area: float, pieces: np.ndarray) -> bool:
+        """Is ``_room_left(room, grown_area, pieces) >= minimum``?"""
+        if self._floor - grown_area - self._slack >= self._minimum:
+            return True
+        for term in self._pending:
+            self._exact = _room_left(self._exact, *term)
+        self._pending.clear()
+        self._floor = self._exact
+        return _room_left(self._exact, grown_area, pieces) >= self._minimum
+
+    def take(self, grown_area: float, pieces: np.ndarray) -> None:
+        """Add an accepted shape's term."""
+        self._pending.append((grown_area, pieces))
+        self._floor -= grown_area + self._slack
 
 
 def _draw_obstacles(width: float, height: float, density: float, rng: np.random.Generator,
@@ -176,7 +221,8 @@ def _draw_obstacles(width: float, height: float, density: float, rng: np.random.
     raw = _BlockedSet(shapely.difference(outer, field_box))
     eroded_box = shapely.box(half, half, width - half, height - half)
     eroded = _BlockedSet(shapely.difference(outer, eroded_box))
-    room = eroded_box.area  # area of the eroded free region (m^2); kept >= clearance^2
+    # area of the eroded free region (m^2); kept >= clearance^2
+    room = _Room(eroded_box.area, clearance**2, _ROOM_SLACK * width * height)
     target = density * width * height
     tol = DENSITY_TOL * width * height
     lo, hi = (f * min(width, height) for f in _SIZE_RANGE)
@@ -210,12 +256,12 @@ def _draw_obstacles(width: float, height: float, density: float, rng: np.random.
             continue
         grown = shapely.buffer(shape, half)
         grown_members, grown_pieces = eroded.contacts(grown)
-        room_left = room - grown.area + (shapely.union_all(grown_pieces).area
-                                         if len(grown_pieces) else 0.0)
-        if room_left < clearance**2 or eroded.encloses(grown_members, grown_pieces):
+        grown_area = grown.area
+        if (not room.fits(grown_area, grown_pieces)
+                or eroded.encloses(grown_members, grown_pieces)):
             continue  # no room left for the anchor, or a pocket cut off
         covered += gain
-        room = room_left
+        room.take(grown_area, grown_pieces)
         raw.add(shape, members)
         eroded.add(grown, grown_members)
         accepted.append(shape)
