@@ -116,9 +116,13 @@ class _BlockedSet:
     """
 
     def __init__(self, frame: BaseGeometry) -> None:
-        self._geoms: list[BaseGeometry] = [frame]
-        self._bounds = np.array([frame.bounds])
-        self._parent = [0]
+        # members and their bounds (x0, y0, x1, y1 rows), in arrays grown by doubling: the
+        # first ``_size`` columns are in use
+        self._geoms = np.empty(64, dtype=object)
+        self._bounds = np.empty((4, 64))
+        self._size = 0
+        self._parent: list[int] = []
+        self.add(frame, np.empty(0, dtype=np.intp))
 
     def _root(self, i: int) -> int:
         while self._parent[i] != i:
@@ -128,12 +132,10 @@ class _BlockedSet:
 
     def contacts(self, shape: BaseGeometry) -> tuple[np.ndarray, np.ndarray]:
         """Indices of the members ``shape`` meets and the (non-empty) intersections."""
-        x0, y0, x1, y1 = shape.bounds
-        b = self._bounds
-        near = np.flatnonzero((b[:, 0] <= x1) & (b[:, 2] >= x0) & (b[:, 1] <= y1)
-                              & (b[:, 3] >= y0))
-        geoms = np.empty(len(near), dtype=object)
-        geoms[:] = [self._geoms[i] for i in near]
+        x0, y0, x1, y1 = shapely.bounds(shape)
+        b = self._bounds[:, :self._size]
+        near = np.flatnonzero((b[0] <= x1) & (b[2] >= x0) & (b[1] <= y1) & (b[3] >= y0))
+        geoms = self._geoms[near]
         # the exact predicate first: overlays only of the members the shape really meets
         meets = shapely.intersects(geoms, shape)
         near, geoms = near[meets], geoms[meets]
@@ -155,9 +157,14 @@ class _BlockedSet:
         return False
 
     def add(self, shape: BaseGeometry, members: np.ndarray) -> None:
-        new = len(self._geoms)
-        self._geoms.append(shape)
-        self._bounds = np.vstack([self._bounds, shape.bounds])
+        """Make ``shape``, which meets ``members``, a member."""
+        new = self._size
+        if new == len(self._geoms):
+            self._geoms = np.concatenate([self._geoms, np.empty(new, dtype=object)])
+            self._bounds = np.concatenate([self._bounds, np.empty((4, new))], axis=1)
+        self._geoms[new] = shape
+        self._bounds[:, new] = shapely.bounds(shape)
+        self._size = new + 1
         self._parent.append(new)
         for i in members:
             self._parent[self._root(int(i))] = new
@@ -174,11 +181,12 @@ class _Room:
     shapes, summed only when a test needs it.
 
     Its one use is the test ``room_left >= minimum``. Each term lowers the room by at most
-    the grown shape's area (the union of its pieces has an area >= 0), so a lower bound
-    decides the test while it stays clear of ``minimum``; ``slack`` (m^2, far above the
-    rounding of these sums) keeps the bound below the exact sums. Only when the bound
-    cannot decide are the pending terms summed, in order, as the eager sum would be: the
-    same room, the same answers, without a union per candidate.
+    the grown shape's area less its largest piece's (the union of the pieces covers each
+    piece), so a lower bound decides the test while it stays clear of ``minimum``; ``slack``
+    (m^2, orders of magnitude above the rounding of these areas and sums) keeps the bound
+    below the exact sums. Only when the bound cannot decide are the pending terms summed, in
+    order, as the eager sum would be: the same room, the same answers, without a union per
+    candidate.
     """
 
     def __init__(self, room: float, minimum: float, slack: float) -> None:
@@ -201,7 +209,8 @@ class _Room:
     def take(self, grown_area: float, pieces: np.ndarray) -> None:
         """Add an accepted shape's term."""
         self._pending.append((grown_area, pieces))
-        self._floor -= grown_area + self._slack
+        largest = shapely.area(pieces).max() if len(pieces) else 0.0
+        self._floor -= grown_area - largest + self._slack
 
 
 def _draw_obstacles(width: float, height: float, density: float, rng: np.random.Generator,
