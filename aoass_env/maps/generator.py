@@ -81,8 +81,8 @@ _SHAPE_CDF /= _SHAPE_CDF[-1]
 def _unit_shape(rng: np.random.Generator) -> np.ndarray:
     """Random obstacle outline of area 1 m^2, centroid at the origin, random orientation."""
     v = _SHAPES[int(_SHAPE_CDF.searchsorted(rng.random(), side="right"))][1](rng)
-    poly = shapely.Polygon(v)
-    v = (v - shapely.get_coordinates(poly.centroid)) / math.sqrt(poly.area)
+    poly = shapely.polygons(v)
+    v = (v - shapely.get_coordinates(shapely.centroid(poly))) / math.sqrt(shapely.area(poly))
     t = rng.uniform(0.0, math.pi)
     c, s = math.cos(t), math.sin(t)
     return v @ np.array([[c, s], [-s, c]])
@@ -148,11 +148,13 @@ class _BlockedSet:
         parts, owner = shapely.get_parts(pieces, return_index=True)
         if len(parts) < 2:
             return False         # one piece cannot close a loop
-        roots = np.array([self._root(int(members[j])) for j in owner])
-        for root in np.unique(roots):
-            group = parts[roots == root]
+        groups: dict[int, list[int]] = {}  # the parts of each component met
+        for k, j in enumerate(owner.tolist()):
+            groups.setdefault(self._root(int(members[j])), []).append(k)
+        for group in groups.values():
             if len(group) > 1:
-                if not _connected(shapely.intersects(group[:, None], group[None, :])):
+                grouped = parts[group]
+                if not _connected(shapely.intersects(grouped[:, None], grouped[None, :])):
                     return True
         return False
 
@@ -254,7 +256,7 @@ def _draw_obstacles(width: float, height: float, density: float, rng: np.random.
         shape_area = min(side * side, target - covered)  # never overshoot the target
         centre = rng.uniform((0.0, 0.0), (width, height))
         outline = _unit_shape(rng) * math.sqrt(shape_area) + centre
-        shape = shapely.intersection(shapely.Polygon(outline), field_box)
+        shape = shapely.intersection(shapely.polygons(outline), field_box)
         if shape.geom_type != "Polygon" or shape.is_empty:
             continue  # an L-shape cut in two by the border
         members, pieces = raw.contacts(shape)
