@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from aoass_env.maps import DENSITY_TOL, MapError, generate_map
 from aoass_env.maps import generator as generator_module
-from aoass_env.maps.generator import _SHAPE_CDF, _SHAPE_P, _BlockedSet
+from aoass_env.maps.generator import _SHAPE_CDF, _SHAPE_P, _BlockedSet, _Room, _room_left
 from tests.maps.conftest import CLEARANCE, assert_same_polygons, rng
 
 GENERATED = [(size, density, seed)
@@ -152,6 +152,29 @@ def test_blocked_set_flags_exactly_the_shapes_that_cut_off_free_space(rects):
             blocked.add(shape, members)
             accepted.append(shape)
 
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(1, 9), st.lists(cells, max_size=4), st.booleans()),
+                min_size=1, max_size=30),
+       st.floats(0.0, 300.0))
+def test_lazy_room_answers_as_the_eager_sum(terms, minimum):
+    """_Room.fits answers what chaining _room_left over the accepted terms answers (issue 20:
+    the room is summed only when its lower bound cannot decide), near the minimum too. Each
+    term is a grown square and its overlaps with a few rectangles, as in the generator."""
+    lazy = _Room(300.0, minimum, 1e-6 * 100.0)
+    eager = 300.0
+    for side, rects, accept in terms:
+        grown = shapely.box(0, 0, side, side)
+        pieces = shapely.intersection(
+            np.array([shapely.box(x, y, x + w, y + h) for x, y, w, h in rects], dtype=object),
+            grown)
+        pieces = pieces[~shapely.is_empty(pieces)]
+        room_left = _room_left(eager, grown.area, pieces)
+        assert lazy.fits(grown.area, pieces) == (room_left >= minimum)
+        if accept:
+            lazy.take(grown.area, pieces)
+            eager = room_left
 
 # =========================================================================================
 # check_traversable, sample_free_points, inside_obstacle, convex_parts
