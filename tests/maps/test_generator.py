@@ -50,6 +50,12 @@ PINNED = [
      2869186627131305152),
     (((80.0, 50.0), 0.2, 1), 46,
      "40f46d234fef9f69477c1a1d46556377d39f1d824ae09ab5dc6dce83240638bf", 8770192532678057744),
+    # issue 20 (recorded with the generator of 086f580, before its speed-ups): the reset's
+    # case, and a map whose room is summed four times (the lazy room's slow path)
+    ((100.0, 0.4, 11), 31, "1f7c1fab1dcb0cf1afbf648a82a2842ac6a17c687695ac27575075c84c4a92d1",
+     2971468913879839602),
+    (((60.0, 120.0), 0.6, 2), 34,
+     "3340a0f53ef6d8b618017fa3d2b8eaa1a5fa1f7d349d35e084defdced9d0c9b2", 4970061382958719394),
 ]
 
 
