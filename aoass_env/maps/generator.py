@@ -254,8 +254,12 @@ def _draw_obstacles(width: float, height: float, density: float, rng: np.random.
         drawn += 1
         side = math.exp(rng.uniform(math.log(lo), math.log(hi)))
         shape_area = min(side * side, target - covered)  # never overshoot the target
-        centre = rng.uniform((0.0, 0.0), (width, height))
-        outline = _unit_shape(rng) * math.sqrt(shape_area) + centre
+        # the centre as rng.uniform((0, 0), (width, height)) draws it: x, then y, each
+        # 0 + side * next double (the scalar calls skip the broadcasting machinery)
+        x, y = rng.uniform(0.0, width), rng.uniform(0.0, height)
+        outline = _unit_shape(rng) * math.sqrt(shape_area)
+        outline[:, 0] += x
+        outline[:, 1] += y
         shape = shapely.intersection(shapely.polygons(outline), field_box)
         if shape.geom_type != "Polygon" or shape.is_empty:
             continue  # an L-shape cut in two by the border

@@ -198,6 +198,17 @@ def test_shape_kind_lookup_draws_what_rng_choice_draws():
         assert a.random() == b.random()
 
 
+
+def test_scalar_centre_draws_are_the_pair_draw():
+    """The generator draws a centre's x and y with two scalar rng.uniform calls: the same
+    numbers, from the same stream, as one rng.uniform((0, 0), (width, height)) (issue 20)."""
+    for seed in range(20):
+        a, b = np.random.default_rng(seed), np.random.default_rng(seed)
+        for width, height in ((100.0, 100.0), (60.0, 120.0), (7.3, 1e3)):
+            x, y = a.uniform((0.0, 0.0), (width, height))
+            assert (x, y) == (b.uniform(0.0, width), b.uniform(0.0, height))
+        assert a.random() == b.random()
+
 def test_a_draw_from_the_same_generator_state_is_reused(monkeypatch):
     """A generator in a state that drew a map before gets that map (the same object) and ends
     in the state the draw would leave it in (issue 20: resets with a repeated seed)."""
