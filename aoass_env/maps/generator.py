@@ -37,6 +37,8 @@ _MIN_GAIN = 0.25
 # the progress of the last window, kept up, would not reach the target within the budget.
 _CANDIDATE_BUDGET = 60
 _WINDOW = 500
+# Slack of the room's lower bound per accepted shape, as a fraction of the field area (_Room).
+_ROOM_SLACK = 1e-6
 # Whole-map draws before giving up when a finished draw fails the final verification.
 _MAX_DRAWS = 5
 
@@ -79,8 +81,8 @@ _SHAPE_CDF /= _SHAPE_CDF[-1]
 def _unit_shape(rng: np.random.Generator) -> np.ndarray:
     """Random obstacle outline of area 1 m^2, centroid at the origin, random orientation."""
     v = _SHAPES[int(_SHAPE_CDF.searchsorted(rng.random(), side="right"))][1](rng)
-    poly = shapely.Polygon(v)
-    v = (v - shapely.get_coordinates(poly.centroid)) / math.sqrt(poly.area)
+    poly = shapely.polygons(v)
+    v = (v - shapely.get_coordinates(shapely.centroid(poly))) / math.sqrt(shapely.area(poly))
     t = rng.uniform(0.0, math.pi)
     c, s = math.cos(t), math.sin(t)
     return v @ np.array([[c, s], [-s, c]])
@@ -114,9 +116,13 @@ class _BlockedSet:
     """
 
     def __init__(self, frame: BaseGeometry) -> None:
-        self._geoms: list[BaseGeometry] = [frame]
-        self._bounds = np.array([frame.bounds])
-        self._parent = [0]
+        # members and their bounds (x0, y0, x1, y1 rows), in arrays grown by doubling: the
+        # first ``_size`` columns are in use
+        self._geoms = np.empty(64, dtype=object)
+        self._bounds = np.empty((4, 64))
+        self._size = 0
+        self._parent: list[int] = []
+        self.add(frame, np.empty(0, dtype=np.intp))
 
     def _root(self, i: int) -> int:
         while self._parent[i] != i:
@@ -126,12 +132,10 @@ class _BlockedSet:
 
     def contacts(self, shape: BaseGeometry) -> tuple[np.ndarray, np.ndarray]:
         """Indices of the members ``shape`` meets and the (non-empty) intersections."""
-        x0, y0, x1, y1 = shape.bounds
-        b = self._bounds
-        near = np.flatnonzero((b[:, 0] <= x1) & (b[:, 2] >= x0) & (b[:, 1] <= y1)
-                              & (b[:, 3] >= y0))
-        geoms = np.empty(len(near), dtype=object)
-        geoms[:] = [self._geoms[i] for i in near]
+        x0, y0, x1, y1 = shapely.bounds(shape)
+        b = self._bounds[:, :self._size]
+        near = np.flatnonzero((b[0] <= x1) & (b[2] >= x0) & (b[1] <= y1) & (b[3] >= y0))
+        geoms = self._geoms[near]
         # the exact predicate first: overlays only of the members the shape really meets
         meets = shapely.intersects(geoms, shape)
         near, geoms = near[meets], geoms[meets]
@@ -142,21 +146,73 @@ class _BlockedSet:
     def encloses(self, members: np.ndarray, pieces: np.ndarray) -> bool:
         """Would a shape meeting ``members`` in ``pieces`` enclose a new free region?"""
         parts, owner = shapely.get_parts(pieces, return_index=True)
-        roots = np.array([self._root(int(members[j])) for j in owner])
-        for root in np.unique(roots):
-            group = parts[roots == root]
+        if len(parts) < 2:
+            return False         # one piece cannot close a loop
+        groups: dict[int, list[int]] = {}  # the parts of each component met
+        for k, j in enumerate(owner.tolist()):
+            groups.setdefault(self._root(int(members[j])), []).append(k)
+        for group in groups.values():
             if len(group) > 1:
-                if not _connected(shapely.intersects(group[:, None], group[None, :])):
+                grouped = parts[group]
+                if not _connected(shapely.intersects(grouped[:, None], grouped[None, :])):
                     return True
         return False
 
     def add(self, shape: BaseGeometry, members: np.ndarray) -> None:
-        new = len(self._geoms)
-        self._geoms.append(shape)
-        self._bounds = np.vstack([self._bounds, shape.bounds])
+        """Make ``shape``, which meets ``members``, a member."""
+        new = self._size
+        if new == len(self._geoms):
+            self._geoms = np.concatenate([self._geoms, np.empty(new, dtype=object)])
+            self._bounds = np.concatenate([self._bounds, np.empty((4, new))], axis=1)
+        self._geoms[new] = shape
+        self._bounds[:, new] = shapely.bounds(shape)
+        self._size = new + 1
         self._parent.append(new)
         for i in members:
             self._parent[self._root(int(i))] = new
+
+
+def _room_left(room: float, grown_area: float, pieces: np.ndarray) -> float:
+    """The eroded free area (m^2) left after adding a grown shape of area ``grown_area`` (m^2)
+    that meets the eroded set in ``pieces``, from ``room`` (m^2) before it."""
+    return room - grown_area + (shapely.union_all(pieces).area if len(pieces) else 0.0)
+
+
+class _Room:
+    """The area (m^2) of the eroded free region, :func:`_room_left` chained over the accepted
+    shapes, summed only when a test needs it.
+
+    Its one use is the test ``room_left >= minimum``. Each term lowers the room by at most
+    the grown shape's area less its largest piece's (the union of the pieces covers each
+    piece), so a lower bound decides the test while it stays clear of ``minimum``; ``slack``
+    (m^2, orders of magnitude above the rounding of these areas and sums) keeps the bound
+    below the exact sums. Only when the bound cannot decide are the pending terms summed, in
+    order, as the eager sum would be: the same room, the same answers, without a union per
+    candidate.
+    """
+
+    def __init__(self, room: float, minimum: float, slack: float) -> None:
+        self._exact = room
+        self._pending: list[tuple[float, np.ndarray]] = []  # terms of accepted shapes not summed
+        self._floor = room     # lower bound of the room with the pending terms
+        self._minimum = minimum
+        self._slack = slack
+
+    def fits(self, grown_area: float, pieces: np.ndarray) -> bool:
+        """Is ``_room_left(room, grown_area, pieces) >= minimum``?"""
+        if self._floor - grown_area - self._slack >= self._minimum:
+            return True
+        for term in self._pending:
+            self._exact = _room_left(self._exact, *term)
+        self._pending.clear()
+        self._floor = self._exact
+        return _room_left(self._exact, grown_area, pieces) >= self._minimum
+
+    def take(self, grown_area: float, pieces: np.ndarray) -> None:
+        """Add an accepted shape's term."""
+        self._pending.append((grown_area, pieces))
+        largest = shapely.area(pieces).max() if len(pieces) else 0.0
+        self._floor -= grown_area - largest + self._slack
 
 
 def _draw_obstacles(width: float, height: float, density: float, rng: np.random.Generator,
@@ -176,7 +232,8 @@ def _draw_obstacles(width: float, height: float, density: float, rng: np.random.
     raw = _BlockedSet(shapely.difference(outer, field_box))
     eroded_box = shapely.box(half, half, width - half, height - half)
     eroded = _BlockedSet(shapely.difference(outer, eroded_box))
-    room = eroded_box.area  # area of the eroded free region (m^2); kept >= clearance^2
+    # area of the eroded free region (m^2); kept >= clearance^2
+    room = _Room(eroded_box.area, clearance**2, _ROOM_SLACK * width * height)
     target = density * width * height
     tol = DENSITY_TOL * width * height
     lo, hi = (f * min(width, height) for f in _SIZE_RANGE)
@@ -197,9 +254,13 @@ def _draw_obstacles(width: float, height: float, density: float, rng: np.random.
         drawn += 1
         side = math.exp(rng.uniform(math.log(lo), math.log(hi)))
         shape_area = min(side * side, target - covered)  # never overshoot the target
-        centre = rng.uniform((0.0, 0.0), (width, height))
-        outline = _unit_shape(rng) * math.sqrt(shape_area) + centre
-        shape = shapely.intersection(shapely.Polygon(outline), field_box)
+        # the centre as rng.uniform((0, 0), (width, height)) draws it: x, then y, each
+        # 0 + side * next double (the scalar calls skip the broadcasting machinery)
+        x, y = rng.uniform(0.0, width), rng.uniform(0.0, height)
+        outline = _unit_shape(rng) * math.sqrt(shape_area)
+        outline[:, 0] += x
+        outline[:, 1] += y
+        shape = shapely.intersection(shapely.polygons(outline), field_box)
         if shape.geom_type != "Polygon" or shape.is_empty:
             continue  # an L-shape cut in two by the border
         members, pieces = raw.contacts(shape)
@@ -210,12 +271,12 @@ def _draw_obstacles(width: float, height: float, density: float, rng: np.random.
             continue
         grown = shapely.buffer(shape, half)
         grown_members, grown_pieces = eroded.contacts(grown)
-        room_left = room - grown.area + (shapely.union_all(grown_pieces).area
-                                         if len(grown_pieces) else 0.0)
-        if room_left < clearance**2 or eroded.encloses(grown_members, grown_pieces):
+        grown_area = grown.area
+        if (not room.fits(grown_area, grown_pieces)
+                or eroded.encloses(grown_members, grown_pieces)):
             continue  # no room left for the anchor, or a pocket cut off
         covered += gain
-        room = room_left
+        room.take(grown_area, grown_pieces)
         raw.add(shape, members)
         eroded.add(grown, grown_members)
         accepted.append(shape)

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from aoass_env.maps import DENSITY_TOL, MapError, generate_map
 from aoass_env.maps import generator as generator_module
-from aoass_env.maps.generator import _SHAPE_CDF, _SHAPE_P, _BlockedSet
+from aoass_env.maps.generator import _SHAPE_CDF, _SHAPE_P, _BlockedSet, _Room, _room_left
 from tests.maps.conftest import CLEARANCE, assert_same_polygons, rng
 
 GENERATED = [(size, density, seed)
@@ -50,6 +50,12 @@ PINNED = [
      2869186627131305152),
     (((80.0, 50.0), 0.2, 1), 46,
      "40f46d234fef9f69477c1a1d46556377d39f1d824ae09ab5dc6dce83240638bf", 8770192532678057744),
+    # issue 20 (recorded with the generator of 086f580, before its speed-ups): the reset's
+    # case, and a map whose room is summed four times (the lazy room's slow path)
+    ((100.0, 0.4, 11), 31, "1f7c1fab1dcb0cf1afbf648a82a2842ac6a17c687695ac27575075c84c4a92d1",
+     2971468913879839602),
+    (((60.0, 120.0), 0.6, 2), 34,
+     "3340a0f53ef6d8b618017fa3d2b8eaa1a5fa1f7d349d35e084defdced9d0c9b2", 4970061382958719394),
 ]
 
 
@@ -153,6 +159,29 @@ def test_blocked_set_flags_exactly_the_shapes_that_cut_off_free_space(rects):
             accepted.append(shape)
 
 
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(1, 9), st.lists(cells, max_size=4), st.booleans()),
+                min_size=1, max_size=30),
+       st.floats(0.0, 300.0))
+def test_lazy_room_answers_as_the_eager_sum(terms, minimum):
+    """_Room.fits answers what chaining _room_left over the accepted terms answers (issue 20:
+    the room is summed only when its lower bound cannot decide), near the minimum too. Each
+    term is a grown square and its overlaps with a few rectangles, as in the generator."""
+    lazy = _Room(300.0, minimum, 1e-6 * 100.0)
+    eager = 300.0
+    for side, rects, accept in terms:
+        grown = shapely.box(0, 0, side, side)
+        pieces = shapely.intersection(
+            np.array([shapely.box(x, y, x + w, y + h) for x, y, w, h in rects], dtype=object),
+            grown)
+        pieces = pieces[~shapely.is_empty(pieces)]
+        room_left = _room_left(eager, grown.area, pieces)
+        assert lazy.fits(grown.area, pieces) == (room_left >= minimum)
+        if accept:
+            lazy.take(grown.area, pieces)
+            eager = room_left
+
 # =========================================================================================
 # check_traversable, sample_free_points, inside_obstacle, convex_parts
 # =========================================================================================
@@ -168,6 +197,17 @@ def test_shape_kind_lookup_draws_what_rng_choice_draws():
                 int(_SHAPE_CDF.searchsorted(b.random(), side="right"))
         assert a.random() == b.random()
 
+
+
+def test_scalar_centre_draws_are_the_pair_draw():
+    """The generator draws a centre's x and y with two scalar rng.uniform calls: the same
+    numbers, from the same stream, as one rng.uniform((0, 0), (width, height)) (issue 20)."""
+    for seed in range(20):
+        a, b = np.random.default_rng(seed), np.random.default_rng(seed)
+        for width, height in ((100.0, 100.0), (60.0, 120.0), (7.3, 1e3)):
+            x, y = a.uniform((0.0, 0.0), (width, height))
+            assert (x, y) == (b.uniform(0.0, width), b.uniform(0.0, height))
+        assert a.random() == b.random()
 
 def test_a_draw_from_the_same_generator_state_is_reused(monkeypatch):
     """A generator in a state that drew a map before gets that map (the same object) and ends

@@ -6,13 +6,14 @@ import math
 
 import numpy as np
 import pytest
+import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig, ConfigError
-from aoass_env.maps import ObstacleMap
+from aoass_env.maps import ObstacleMap, generate_map
 from aoass_env.network import Network
-from aoass_env.planning.coverage import PARTIAL_CELL_SHARE, CoverageMap, cell_range
+from aoass_env.planning.coverage import PARTIAL_CELL_SHARE, CoverageMap, _free_points, cell_range
 from aoass_env.radio import Radio
 
 EMPTY = ObstacleMap(40.0, 40.0)
@@ -152,3 +153,24 @@ def test_maps_of_one_obstacle_map_share_its_raster_but_not_their_coverage():
     assert first.covered.any() and not second.covered.any() and second.heard.sum() == 0
     other = CoverageMap(wall, AOASSConfig(coverage_cell=2.5))
     assert other.n_cells != first.n_cells               # another cell size, its own raster
+
+
+def test_free_points_of_cells_inside_obstacles_follow_their_definition():
+    """Each cell whose centre lies in an obstacle keeps the point on the surface of its free
+    part exactly when at least PARTIAL_CELL_SHARE of it is free (issue 20: cells the obstacles
+    cover skip the overlay, with the same virtual nodes)."""
+    obstacle_map = generate_map(60.0, 0.5, np.random.default_rng(4))
+    cell = 2.5
+    n = math.ceil(60.0 / cell)
+    index = np.stack(np.meshgrid(np.arange(n), np.arange(n), indexing="ij"), axis=-1)
+    index = index.reshape(-1, 2)
+    index = index[obstacle_map.inside_obstacle((index + 0.5) * cell)]
+    expected = np.full((len(index), 2), np.nan)
+    for k, (i, j) in enumerate(index):
+        free = shapely.difference(shapely.box(i * cell, j * cell, (i + 1) * cell,
+                                              (j + 1) * cell), obstacle_map.union)
+        if free.area >= PARTIAL_CELL_SHARE * cell * cell:
+            expected[k] = shapely.get_coordinates(shapely.point_on_surface(free))[0]
+    got = _free_points(obstacle_map, index, cell)
+    assert np.isnan(got).any() and np.isfinite(got).any()
+    np.testing.assert_array_equal(got, expected)
