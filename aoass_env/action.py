@@ -39,10 +39,21 @@ __all__ = ["ACTION_TYPES", "ActionType", "AdaptiveAction", "ResidualAction", "ac
 #: A command: (speed [m/s], heading [rad], world frame).
 Command = tuple[float, float]
 
+#: the dtypes :func:`checked_action` reads without conversion
+_FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
+
 
 def checked_action(action: Any, names: tuple[str, ...] = ("dv", "dtheta")) -> list[float]:
     """The entries of an action with one entry per name, clipped to [-1, 1]; ValueError for a
     wrong shape, non-numbers (strings, complex numbers, ...), NaN or infinite values."""
+    if (type(action) is np.ndarray and action.shape == (len(names),)
+            and action.dtype in _FLOAT_DTYPES):
+        # a float array, as a Gymnasium Box samples it: the checks and the clip below in
+        # Python floats (a float32 converts to float64 exactly; min/max clip as np.clip,
+        # signed zeros included); NaN and infinities go on to the checked path's error
+        values = action.tolist()
+        if all(-math.inf < x < math.inf for x in values):
+            return [-1.0 if x < -1.0 else 1.0 if x > 1.0 else x for x in values]
     layout = f"[{', '.join(names)}]"
     try:
         if np.iscomplexobj(action) or np.asarray(action).dtype.kind in "SUMmV":
@@ -155,9 +166,12 @@ class ResidualAction(ActionType):
     def action(self, speed: float, heading: float, nominal: Command,
                knobs: SweepKnobs | None = None) -> np.ndarray:
         speed_nom, heading_nom = nominal
-        return np.clip([(speed - speed_nom) / self.speed_scale,
-                        wrap_angle(heading - heading_nom) / self.heading_scale],
-                       -1.0, 1.0).astype(np.float32)
+        # np.clip's float64 values in Python floats (min/max as np.clip, NaN kept), cast once
+        dv = (speed - speed_nom) / self.speed_scale
+        dtheta = wrap_angle(heading - heading_nom) / self.heading_scale
+        return np.array([-1.0 if dv < -1.0 else 1.0 if dv > 1.0 else dv,
+                         -1.0 if dtheta < -1.0 else 1.0 if dtheta > 1.0 else dtheta],
+                        dtype=np.float32)
 
 
 @dataclass(frozen=True)

@@ -107,3 +107,62 @@ def test_the_agent_action_means_the_same_inside_the_safety_stack():
     speed_des, heading_des = safety.agent_action.command([1.0, -1.0], nominal)
     assert (speed_des, heading_des) == pytest.approx(
         (min(nominal[0] + 0.5, base.config.anchor_max_speed), nominal[1] - 0.3))
+
+
+# --- oracles: the array code that checked_action and ResidualAction.action replaced -----------
+
+def _checked_action_arrays(action, names=("dv", "dtheta")):
+    """checked_action before its float fast path (issue 20, fifth round): every check on
+    arrays, np.clip."""
+    a = np.asarray(action, dtype=np.float64)
+    assert a.shape == (len(names),) and np.all(np.isfinite(a))
+    return np.clip(a, -1.0, 1.0).tolist()
+
+
+def _residual_action_arrays(act, speed, heading, nominal):
+    """ResidualAction.action before it clipped in Python floats."""
+    from aoass_env.world import wrap_angle
+    speed_nom, heading_nom = nominal
+    return np.clip([(speed - speed_nom) / act.speed_scale,
+                    wrap_angle(heading - heading_nom) / act.heading_scale],
+                   -1.0, 1.0).astype(np.float32)
+
+
+def _same_floats(a, b):
+    """Equal lists of floats, signs of zeros included."""
+    return len(a) == len(b) and all(x == y and math.copysign(1.0, x) == math.copysign(1.0, y)
+                                    for x, y in zip(a, b, strict=True))
+
+
+def test_checked_action_fast_path_is_the_array_code():
+    rng = np.random.default_rng(20)
+    specials = [0.0, -0.0, 1.0, -1.0, 1.0 + 1e-16, np.nextafter(1.0, 2.0), -3.0, 1e30,
+                np.float32(1.0000001), 5e-324]
+    for n, names in ((2, ResidualAction.NAMES), (5, AdaptiveAction.NAMES)):
+        for i in range(3000):
+            a = rng.uniform(-2.5, 2.5, n) if i % 3 else rng.choice(specials, n)
+            for dtype in (np.float64, np.float32):
+                action = np.asarray(a, dtype=dtype)
+                assert _same_floats(checked_action(action, names),
+                                    _checked_action_arrays(action, names))
+    # NaN, infinities and wrong shapes still fail on the checked path
+    for bad in (np.array([np.nan, 0.0]), np.array([np.inf, 0.0], np.float32), np.zeros(3)):
+        with pytest.raises(ValueError, match="action"):
+            checked_action(bad)
+
+
+def test_residual_action_in_floats_is_the_array_code():
+    rng = np.random.default_rng(21)
+    acts = [ResidualAction(1.0, 0.25, 2.0), ResidualAction.full_range(AOASSConfig())]
+    for i in range(5000):
+        act = acts[i % 2]
+        speed, nominal_speed = rng.uniform(-1.0, 3.0, 2)
+        heading, nominal_heading = rng.uniform(-10.0, 10.0, 2)
+        if i % 7 == 0:
+            speed = nominal_speed                       # a zero residual
+        if i % 11 == 0:
+            heading = nominal_heading + math.pi         # the wrap's end
+        got = act.action(speed, heading, (nominal_speed, nominal_heading))
+        want = _residual_action_arrays(act, speed, heading, (nominal_speed, nominal_heading))
+        assert got.dtype == np.float32 and got.shape == (2,)
+        assert _same_floats(got.tolist(), want.tolist())
