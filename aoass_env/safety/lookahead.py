@@ -101,13 +101,7 @@ def segment_distances(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) 
     points = np.asarray(points, dtype=np.float64)
     if len(starts) == 0:
         return np.full(len(points), np.inf)
-    e = ends - starts                                                   # (e, 2)
-    ee = np.maximum((e * e).sum(axis=1), 1e-300)
-    wx = points[:, 0, None] - starts[None, :, 0]                        # (k, e)
-    wy = points[:, 1, None] - starts[None, :, 1]
-    s = np.clip((wx * e[:, 0] + wy * e[:, 1]) / ee, 0.0, 1.0)
-    gx, gy = wx - s * e[:, 0], wy - s * e[:, 1]
-    return np.sqrt((gx * gx + gy * gy).min(axis=1))
+    return _Segments(starts, ends).distances(points)
 
 
 def _scalar_trig_is_numpys() -> bool:
@@ -128,9 +122,10 @@ CERTIFICATE_SLACK = 1e-9
 
 
 class _Segments:
-    """Segments ``starts`` -> ``ends`` prepared for distance queries of single points, with the
-    same floats as :func:`segment_distances` and :func:`_nearest_on_segments` (which work on
-    a batch of points; per point they are the same elementwise operations and an exact min)."""
+    """Segments ``starts`` -> ``ends`` prepared for distance queries of batches of points
+    (:meth:`distances`, what :func:`segment_distances` computes) and of single points, with the
+    same floats as :meth:`distances` and :func:`_nearest_on_segments` (per point they are the
+    same elementwise operations and an exact min)."""
 
     __slots__ = ("ee", "ex", "ey", "sx", "sy")
 
@@ -140,6 +135,16 @@ class _Segments:
         self.ee = np.maximum((e * e).sum(axis=1), 1e-300)
         self.ex, self.ey = e[:, 0].copy(), e[:, 1].copy()
         self.sx, self.sy = starts[:, 0].copy(), starts[:, 1].copy()
+
+    def distances(self, points: np.ndarray) -> np.ndarray:
+        """(k,) distance (m) from each of ``points`` (k, 2) (m) to the nearest segment."""
+        wx = points[:, 0, None] - self.sx                                 # (k, e)
+        wy = points[:, 1, None] - self.sy
+        # np.clip(., 0, 1)'s values but for the sign of a zero s, which no distance sees
+        # (g = w - s e, and (w - 0.0)^2 == (w + 0.0)^2); without np.clip's Python wrappers
+        s = np.minimum(np.maximum((wx * self.ex + wy * self.ey) / self.ee, 0.0), 1.0)
+        gx, gy = wx - s * self.ex, wy - s * self.ey
+        return np.sqrt((gx * gx + gy * gy).min(axis=1))
 
     def _offsets(self, x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
         wx, wy = x - self.sx, y - self.sy
@@ -195,12 +200,12 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
     if not (len(starts) and len(states)):
         return out
     travel = np.hypot(v[:, 0], v[:, 1]) * (step * n_steps)
-    gaps = segment_distances(xy, starts, ends)
+    segments = _Segments(starts, ends)
+    gaps = segments.distances(xy)
     near = np.flatnonzero(gaps - travel <= radii + 1e-9)
     if len(near) == 0:
         return out
     if SCALAR_TRIG:
-        segments = _Segments(starts, ends)
         for j, gap in zip(near.tolist(), gaps[near].tolist(), strict=True):
             out[j] = _predict_one(*xy[j].tolist(), *v[j].tolist(), float(radii[j]), gap, step,
                                   n_steps, segments)
@@ -325,14 +330,15 @@ def rollout(position: np.ndarray, heading: float, speed: float, headings: np.nda
     # and the edge test is skipped (the same positions)
     travel = max(abs(float(speed)), float(np.abs(target_speed).max(initial=0.0))) * step * n_steps
     walls = bool(k) and gap[0] - travel < radius + 1e-9
+    segments = _Segments(starts, ends) if walls else None
     out = np.empty((k, n_steps, 2))
     for i in range(n_steps):
         turn = np.remainder(headings - theta + math.pi, 2.0 * math.pi) - math.pi
         theta = theta + np.clip(turn, -max_dh, max_dh)
         v = v + np.clip(target_speed - v, -max_dv, max_dv)
         moved = xy + (v * step)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1)
-        if walls:
-            new_gap = segment_distances(moved, starts, ends)
+        if segments is not None:
+            new_gap = segments.distances(moved)
             ok = (new_gap >= radius) | (new_gap >= gap)
             xy = np.where(ok[:, None], moved, xy)
             gap = np.where(ok, new_gap, gap)
@@ -456,13 +462,10 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
 
     bare = obs[:, 4][:, None] + np.zeros_like(radii)
     position = np.asarray(position, dtype=np.float64)
-    pref_speed = float(np.hypot(*preferred))
-    along = preferred / pref_speed if pref_speed > 1e-9 else np.zeros(2)
-    # headway is priced per metre against running the whole horizon at top speed
-    headway_price = progress_weight / (max_speed * n_steps * step)
 
     def score(headings: np.ndarray, speeds: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(moving-obstacle cost (k,), paths, contact (k,), distances) of the candidates."""
         paths = rollout(position, heading, speed, headings, speeds, max_turn_rate, max_accel,
                         step, n_steps, starts, ends, radius)
         # a predicted contact with the bare disc weighs CONTACT_WEIGHT times a shortfall of
@@ -470,16 +473,19 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         distances = _distances(paths, centres)
         contact = _shortfall(distances, bare, 0.0)
         moving = CONTACT_WEIGHT * contact + _shortfall(distances, radii, clearance)
-        # free space: a path that ends pressed against a wall leaves no way on; headway: the
-        # sweep's progress along the preferred direction
+        return moving, paths, contact, distances
+
+    def open_space(paths: np.ndarray) -> np.ndarray:
+        """(k,) the price of the paths' ends: pressed against a wall (no way on), less the
+        sweep's headway along the preferred direction; only a contest of candidates reads it."""
         walls = OPEN_SPACE_WEIGHT * np.maximum(
             OPEN_SPACE - segment_distances(paths[:, -1], starts, ends), 0.0)
         headway = headway_price * ((paths[:, -1] - position) @ along)
-        return moving, walls - headway, (contact, distances)
+        return walls - headway
 
     wanted = float(np.hypot(*velocity))
     own = math.atan2(velocity[1], velocity[0]) if wanted > 1e-9 else heading
-    base_moving, base_walls, base_extra = score(np.array([own]), np.array([wanted]))
+    base_moving, base_paths, contact, distances = score(np.array([own]), np.array([wanted]))
     base = float(base_moving[0])
     if base <= 0.0:
         return Escape(velocity, False, 0.0, 0.0)
@@ -492,11 +498,15 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         soon = max(int(math.ceil(react / step - 1e-9)), 1)
         # violation(paths[:, :soon], centres[:, :soon], radii[:, :soon], clearance) and
         # violation(paths, centres, bare, 0.0) of the base path, from its distances
-        contact, distances = base_extra
         imminent = (_shortfall(distances[:, :, :soon], radii[:, :soon], clearance)[0] > 0.0
                     or contact[0] > 0.0)
         if not imminent:
             return Escape(velocity, False, base, base)
+    # a contest of candidates: what open_space() reads
+    pref_speed = float(np.hypot(*preferred))
+    along = preferred / pref_speed if pref_speed > 1e-9 else np.zeros(2)
+    # headway is priced per metre against running the whole horizon at top speed
+    headway_price = progress_weight / (max_speed * n_steps * step)
     extra = [own]
     if np.hypot(*preferred) > 1e-9:
         extra.append(math.atan2(preferred[1], preferred[0]))
@@ -505,9 +515,9 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     # between it and an escape with different rules made the anchor alternate between them
     headings = np.concatenate([[own], headings])
     speeds = np.concatenate([[wanted], speeds])
-    moving, walls, _ = score(headings[1:], speeds[1:])
+    moving, paths, _, _ = score(headings[1:], speeds[1:])
     shortfall = np.concatenate([[base], moving])
-    walls = np.concatenate([base_walls, walls])
+    walls = np.concatenate([open_space(base_paths), open_space(paths)])
     candidates = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=1)
     candidates[0] = velocity
     # the least shortfall, then (priced well below any real shortfall) the nearest to the

@@ -247,6 +247,43 @@ def test_prediction_shortcut_matches_the_step_by_step_model():
                                    rtol=0, atol=1e-9)
 
 
+def _segment_distances_clip(points, starts, ends):
+    """segment_distances before issue 20's fifth round (np.clip, the edge vectors per call):
+    the exact-equality oracle of the prepared segments' distances."""
+    points = np.asarray(points, dtype=np.float64)
+    if len(starts) == 0:
+        return np.full(len(points), np.inf)
+    e = ends - starts
+    ee = np.maximum((e * e).sum(axis=1), 1e-300)
+    wx = points[:, 0, None] - starts[None, :, 0]
+    wy = points[:, 1, None] - starts[None, :, 1]
+    s = np.clip((wx * e[:, 0] + wy * e[:, 1]) / ee, 0.0, 1.0)
+    gx, gy = wx - s * e[:, 0], wy - s * e[:, 1]
+    return np.sqrt((gx * gx + gy * gy).min(axis=1))
+
+
+def test_segment_distances_are_the_clipped_array_code_bit_for_bit():
+    rng = np.random.default_rng(20)
+    for i in range(2000):
+        e, k = int(rng.integers(0, 9)), int(rng.integers(1, 60))
+        starts = rng.uniform(-10, 10, (e, 2))
+        ends = starts + rng.uniform(-6, 6, (e, 2))
+        if i % 4 == 0 and e:
+            ends[0] = starts[0]                         # a zero-length segment
+        points = rng.uniform(-12, 12, (k, 2))
+        if e and i % 3 == 0:
+            # points on segment ends, on the segments' lines and their extensions: zero
+            # projections (either sign) and s clipped to exactly 0 or 1
+            j = rng.integers(0, e, k)
+            t = rng.choice([-1.0, -0.0, 0.0, 0.5, 1.0, 2.0], k)
+            points = starts[j] + t[:, None] * (ends[j] - starts[j])
+        want = _segment_distances_clip(points, starts, ends)
+        np.testing.assert_array_equal(segment_distances(points, starts, ends), want)
+        if e:
+            np.testing.assert_array_equal(lookahead._Segments(starts, ends).distances(points),
+                                          want)
+
+
 def _rollout_step_by_step(position, heading, speed, headings, speeds, starts, ends, radius,
                           step=0.25, n_steps=18, max_turn_rate=math.pi / 2, max_accel=1.0):
     """rollout's model with the edge test at every step (the oracle of its shortcut for
@@ -254,14 +291,14 @@ def _rollout_step_by_step(position, heading, speed, headings, speeds, starts, en
     k = len(headings)
     xy = np.tile(position, (k, 1))
     theta, v = np.full(k, heading), np.full(k, speed)
-    gap = np.full(k, segment_distances(xy[:1], starts, ends)[0])
+    gap = np.full(k, _segment_distances_clip(xy[:1], starts, ends)[0])
     out = np.empty((k, n_steps, 2))
     for i in range(n_steps):
         turn = np.remainder(headings - theta + math.pi, 2.0 * math.pi) - math.pi
         theta = theta + np.clip(turn, -max_turn_rate * step, max_turn_rate * step)
         v = v + np.clip(speeds - v, -max_accel * step, max_accel * step)
         moved = xy + (v * step)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1)
-        new_gap = segment_distances(moved, starts, ends)
+        new_gap = _segment_distances_clip(moved, starts, ends)
         ok = (new_gap >= radius) | (new_gap >= gap)
         xy = np.where(ok[:, None], moved, xy)
         gap = np.where(ok, new_gap, gap)
