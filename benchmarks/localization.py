@@ -13,6 +13,9 @@ training maps, never the test maps), the consensus alone, with the OLSTM's band,
 non-learned counting band, with the true pattern, and without the map (range only) with the DOI
 bound and with the OLSTM.
 
+Neighbour stages (``--neighbour-rounds LOG_DIR``): on logs of ``train.py localizer`` (training
+maps only), the consensus alone and OLSTM-DV-Hop with 0-3 neighbour stages.
+
 Speed: one episode with N = 1000 on a 200 x 200 m test map, with DOI 0 and with DOI 0.1,
 localized from the saved log (hop counts, HopSize, coverage, consensus passes and model
 included) on one core; the median of ``--repeats`` runs per method.
@@ -227,6 +230,44 @@ def ablation(folder: Path, model: OLSTM) -> str:
     return out.getvalue()
 
 
+def neighbour_rounds(folder: Path, model: OLSTM, rounds: tuple[int, ...] = (0, 1, 2, 3)) -> str:
+    """Pooled RMSE [m] per DOI of the consensus alone and of OLSTM-DV-Hop over the logs of
+    ``folder`` with each number of neighbour stages (0: the beacons alone)."""
+    from aoass_env.localization import consensus as module
+
+    default = module.NEIGHBOUR_ROUNDS
+    sq: dict[tuple[int, float, str], float] = {}
+    count: dict[float, int] = {}
+    try:
+        for path in sorted(folder.glob("*.npz")):
+            episode = prepare(BeaconLog.load(path))
+            doi = episode.config.doi
+            nodes = np.flatnonzero(episode.covered)
+            true = episode.log.nodes[nodes]
+            count[doi] = count.get(doi, 0) + len(nodes)
+            for k in rounds:
+                module.NEIGHBOUR_ROUNDS = k
+                first = node_consensus(episode, nodes)
+                for name, est in (("consensus", first.estimate),
+                                  ("olstm-dvhop", olstm_dvhop(episode, model, first)[nodes])):
+                    key = (k, doi, name)
+                    sq[key] = sq.get(key, 0.0) + float(np.sum((est - true) ** 2))
+    finally:
+        module.NEIGHBOUR_ROUNDS = default
+    out = io.StringIO()
+    out.write(f"Neighbour stages on {folder}: RMSE [m] pooled per DOI, consensus alone / "
+              f"OLSTM-DV-Hop (default {default})\n\n| DOI | "
+              + " | ".join(f"{k} stage{'s' if k != 1 else ''}" for k in rounds)
+              + " |\n" + "|---" * (len(rounds) + 1) + "|\n")
+    for doi in sorted(count):
+        cells = []
+        for k in rounds:
+            c, o = (np.sqrt(sq[(k, doi, m)] / count[doi]) for m in ("consensus", "olstm-dvhop"))
+            cells.append(f"{c:.3f}" if doi == 0 else f"{c:.3f} / {o:.3f}")
+        out.write(f"| {doi} | {' | '.join(cells)} |\n")
+    return out.getvalue()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=30, help="episodes per cell (default 30)")
@@ -241,11 +282,19 @@ def main() -> None:
     parser.add_argument("--logs", type=Path, default=None,
                         help="folder of the simulated logs (default OUT/logs)")
     parser.add_argument("--no-speed", action="store_true", help="skip the speed table")
+    parser.add_argument("--neighbour-rounds", type=Path, default=None, metavar="LOG_DIR",
+                        help="only the table of neighbour stages (0-3), on the logs of `train.py "
+                             "localizer` (e.g. out/localizer_logs/val)")
     parser.add_argument("--ablation", type=Path, default=None, metavar="VAL_DIR",
                         help="only the ablation table, on the validation logs of `train.py "
                              "localizer` (e.g. out/localizer_logs/val)")
     args = parser.parse_args()
     torch.set_num_threads(1)
+    if args.neighbour_rounds is not None:
+        report = neighbour_rounds(args.neighbour_rounds, load_checkpoint(args.checkpoint))
+        print(report)
+        write_text_atomic(args.out / "neighbour_rounds.md", report)
+        return
     if args.ablation is not None:
         report = ablation(args.ablation, load_checkpoint(args.checkpoint))
         print(report)

@@ -163,7 +163,7 @@ class TrainConfig:
 
     data_dir: Path = Path("out/localizer_logs")
     checkpoint: Path = DEFAULT_CHECKPOINT
-    n_train_logs: int = 72
+    n_train_logs: int = 240
     n_val_logs: int = 30
     hidden: int = 32
     epochs: int = 25
