@@ -148,8 +148,7 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
     Raises:
         ValueError: ``cell`` is not a positive number or ``bins`` not a power of two >= 8.
     """
-    if not (isinstance(cell, (int, float)) and np.isfinite(cell) and cell > 0):
-        raise ValueError(f"cell={cell!r} must be a positive number of metres")
+    _check_cell(cell)
     if not (isinstance(bins, int) and bins >= 8 and bins & (bins - 1) == 0):
         raise ValueError(f"bins={bins!r} must be a power of two >= 8")
     geo = _stencil_geometry(episode, cell, bins, points)
@@ -185,6 +184,12 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
     key = np.r_[np.arange(n) * stencil - origin[:, 0] * size - origin[:, 1], n * stencil]
     return VisibilityRaster(cell=float(cell), shape=shape, size=size, key=key,
                             weight=weight, certain=certain, inside=geo.inside)
+
+
+def _check_cell(cell: float) -> None:
+    """Raise ValueError unless ``cell`` is a positive number of metres."""
+    if not (isinstance(cell, (int, float)) and np.isfinite(cell) and cell > 0):
+        raise ValueError(f"cell={cell!r} must be a positive number of metres")
 
 
 @dataclass(frozen=True)
@@ -479,6 +484,11 @@ def node_consensus(episode: Episode, nodes: np.ndarray | None = None, *,
     """
     nodes = np.flatnonzero(episode.covered) if nodes is None \
         else np.asarray(nodes, dtype=np.int64).reshape(-1)
+    _check_cell(cell)
+    if len(nodes) == 0:
+        empty = np.zeros(0)
+        return Consensus(nodes=nodes, estimate=np.zeros((0, 2)), spread=empty,
+                         violations=empty.copy())
     beacon_raster = visibility_raster(episode, cell, band=band)
     seq_of = np.full(episode.log.n_nodes, -1, dtype=np.int64)
     seq_of[nodes] = np.arange(len(nodes))

@@ -101,6 +101,14 @@ def test_bad_cell_and_silent_node() -> None:
         node_consensus(silent, np.array([1]))
 
 
+def test_no_nodes_give_an_empty_result() -> None:
+    result = node_consensus(record(ring(20.0), np.zeros((0, 2))), np.array([], dtype=int))
+    assert result.nodes.shape == (0,) and result.estimate.shape == (0, 2)
+    assert result.spread.shape == result.violations.shape == (0,)
+    with pytest.raises(ValueError, match="cell"):
+        node_consensus(record(ring(20.0), np.zeros((0, 2))), np.array([], dtype=int), cell=-1.0)
+
+
 def test_band_of_the_doi_bound_is_the_default_and_a_narrow_band_changes_the_estimates(
         doi_sim) -> None:
     episode = prepare(doi_sim.finish())
