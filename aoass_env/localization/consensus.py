@@ -12,12 +12,14 @@ cells, the consensus estimate of k is the mean of the cells with the fewest viol
 cells inside obstacles excluded. Violations are counted, not forbidden: moving obstacles (not in
 the map) block some beacons, and cell centres are up to ``cell / sqrt 2`` from the node.
 
-**Neighbour stage.** Every node is scored a second time with the *reliable* nodes (best cells
-spread at most ``RELIABLE_SPREAD``, RMS distance from their mean) as further transmitters at
-their first-stage estimates: its neighbours (``node_links``) count like heard beacons, the
-reliable nodes it does not hear like unheard ones; a reliable node is no transmitter to itself.
-Node links obey the same range and line-of-sight rules as beacons (within R (1 + DOI) and in
-sight; certain within R (1 - DOI)).
+**Neighbour stages.** Every node is then scored again, ``NEIGHBOUR_ROUNDS`` times, with the
+*reliable* nodes (best cells spread at most ``RELIABLE_SPREAD``, RMS distance from their mean, at
+the stage before) as further transmitters at their estimates of the stage before: its neighbours
+(``node_links``) count like heard beacons, the reliable nodes it does not hear like unheard
+ones; a reliable node is no transmitter to itself. Node links obey the same range and
+line-of-sight rules as beacons (within R (1 + DOI) and in sight; certain within R (1 - DOI)).
+The neighbour stages read the beacons' violations of every box cell kept from the first stage
+(a neighbour stage's box lies inside the first stage's).
 
 Speed comes from three restrictions (docs/localization.md):
 
@@ -53,7 +55,8 @@ __all__ = ["ANGLE_BINS", "DEFAULT_CELL", "NEIGHBOUR_ROUNDS", "RELIABLE_SPREAD", 
 
 #: Grid cell size [m].
 DEFAULT_CELL = 0.5
-#: Nodes whose best cells spread over more than this [m] are scored again with their neighbours.
+#: Nodes whose best cells spread at most this [m] are reliable: transmitters in the neighbour
+#: stages (and the OLSTM's record).
 RELIABLE_SPREAD = 1.0
 #: Neighbour stages after the beacons-only stage (chosen on maps/train logs, docs/localization.md:
 #: 1 did worse; 3 gains at most 0.05 m at most DOIs but takes the N = 1000 log past 2 s).
@@ -383,12 +386,12 @@ def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray | None]], 
     ix = i0[owner, 0] + local // wy[owner]
     iy = i0[owner, 1] + local % wy[owner]
     viol = np.zeros(len(owner))
-    first = viol
     for k, (raster, heard, own) in enumerate(parts):
         if k == 0 and kept is not None:
             at = kept.start[owner] + (ix - kept.i0[owner, 0]) * kept.wy[owner] \
                 + iy - kept.i0[owner, 1]
-            viol += np.take(kept.viol, at)
+            first = np.take(kept.viol, at)
+            viol += first
             continue
         # #heard - #heard in sight and reach + #in sight within R (1 - DOI) - #heard among
         # those; every box cell lies on every heard transmitter's stencil
@@ -465,12 +468,13 @@ def node_consensus(episode: Episode, nodes: np.ndarray | None = None, *,
                    band: tuple[np.ndarray, np.ndarray] | None = None) -> Consensus:
     """Visibility-consensus estimates of ``nodes`` (default: the Eq. 18 covered nodes).
 
-    Two stages: every node from the beacons; then every node again, with its reliable neighbour
-    nodes (best cells spread at most ``RELIABLE_SPREAD`` in the first stage; ``node_links``) as
-    extra heard transmitters at their first-stage estimates and the reliable nodes it does not
-    hear as unheard ones (a reliable node is no transmitter to itself). A node whose heard discs
-    (radius R (1 + DOI)) do not intersect on the field, which a log of this simulator never
-    holds, keeps the centroid of its heard beacons, with NaN spread and violations.
+    Every node from the beacons; then every node again, ``NEIGHBOUR_ROUNDS`` times, with its
+    reliable neighbour nodes (best cells spread at most ``RELIABLE_SPREAD`` at the stage before;
+    ``node_links``) as extra heard transmitters at their estimates of the stage before and the
+    reliable nodes it does not hear as unheard ones (a reliable node is no transmitter to
+    itself). A node whose heard discs (radius R (1 + DOI)) do not intersect on the field, which
+    a log of this simulator never holds, keeps the centroid of its heard beacons, with NaN
+    spread and violations.
 
     Args:
         episode: the prepared log.
