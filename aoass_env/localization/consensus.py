@@ -370,13 +370,14 @@ class _Scores(NamedTuple):
 
 def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray | None]], i0: np.ndarray,
            i1: np.ndarray, kept: _Scores | None = None
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """Estimate (S, 2), spread (S,) and fewest violations (S,) of S nodes with non-empty boxes
-    [i0, i1], and the violations against the first part per box cell (x-major, nodes in
-    order); ``parts``: (raster, heard transmitters (S, H) padded with -1, each node's own
-    transmitter (S,) or -1, or None), rasters on one grid. A node is not unheard by its own
-    transmitter: its certain range adds no violation. ``kept``: the first part's violations of
-    these S nodes on boxes holding [i0, i1], in place of scoring the first part again."""
+    [i0, i1], and, unless ``kept`` holds them, the violations against the first part per box
+    cell (x-major, nodes in order); ``parts``: (raster, heard transmitters (S, H) padded with
+    -1, each node's own transmitter (S,) or -1, or None), rasters on one grid. A node is not
+    unheard by its own transmitter: its certain range adds no violation. ``kept``: the first
+    part's violations of these S nodes on boxes holding [i0, i1], in place of scoring the first
+    part again."""
     grid = parts[0][0]
     wx, wy = i1[:, 0] - i0[:, 0] + 1, i1[:, 1] - i0[:, 1] + 1
     n_cells = wx * wy
@@ -386,12 +387,12 @@ def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray | None]], 
     ix = i0[owner, 0] + local // wy[owner]
     iy = i0[owner, 1] + local % wy[owner]
     viol = np.zeros(len(owner))
+    first = None
     for k, (raster, heard, own) in enumerate(parts):
         if k == 0 and kept is not None:
             at = kept.start[owner] + (ix - kept.i0[owner, 0]) * kept.wy[owner] \
                 + iy - kept.i0[owner, 1]
-            first = np.take(kept.viol, at)
-            viol += first
+            viol += np.take(kept.viol, at)
             continue
         # #heard - #heard in sight and reach + #in sight within R (1 - DOI) - #heard among
         # those; every box cell lies on every heard transmitter's stencil
@@ -420,12 +421,12 @@ def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray | None]], 
 
 def _solve(parts: list[_Part], reach: float,
            result: tuple[np.ndarray, np.ndarray, np.ndarray], rows: np.ndarray,
-           kept: _Scores | None = None) -> _Scores:
+           kept: _Scores | None = None) -> _Scores | None:
     """Score the nodes ``rows`` of ``result`` (estimate, spread, violations), in place; the
     heard (and own) arrays of ``parts`` have one row per entry of ``rows``. Nodes with an empty
     box keep their values. ``kept``: the first part's violations from an earlier call on the
-    same rows with the first part alone (every box now lies inside that call's); returns
-    this call's."""
+    same rows with the first part alone (every box now lies inside that call's); returns, when
+    ``kept`` is None, this call's (None otherwise)."""
     i0, i1 = _boxes(parts, reach)
     wy = i1[:, 1] - i0[:, 1] + 1
     n_heard = sum((part.heard >= 0).sum(axis=1) for part in parts)
@@ -448,9 +449,12 @@ def _solve(parts: list[_Part], reach: float,
         part_kept = None if kept is None else _Scores(kept.i0[idx], kept.wy[idx],
                                                       kept.start[idx], kept.viol)
         est, spread, viol, first_viol = _chunk(chunk, i0[idx], i1[idx], part_kept)
-        first.append(first_viol)
+        if kept is None:
+            first.append(first_viol)
         for out, value in zip(result, (est, spread, viol), strict=True):
             out[rows[idx]] = value
+    if kept is not None:
+        return None
     return _Scores(i0, wy, start, np.concatenate(first) if first else np.zeros(0, np.int32))
 
 
