@@ -43,6 +43,11 @@ Command = tuple[float, float]
 _FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 
 
+def _unit_clip(x: float) -> float:
+    """``x`` clipped to [-1, 1] as ``np.clip`` clips a float (signed zeros and NaN kept)."""
+    return -1.0 if x < -1.0 else 1.0 if x > 1.0 else x
+
+
 def checked_action(action: Any, names: tuple[str, ...] = ("dv", "dtheta")) -> list[float]:
     """The entries of an action with one entry per name, clipped to [-1, 1]; ValueError for a
     wrong shape, non-numbers (strings, complex numbers, ...), NaN or infinite values."""
@@ -53,7 +58,7 @@ def checked_action(action: Any, names: tuple[str, ...] = ("dv", "dtheta")) -> li
         # signed zeros included); NaN and infinities go on to the checked path's error
         values = action.tolist()
         if all(-math.inf < x < math.inf for x in values):
-            return [-1.0 if x < -1.0 else 1.0 if x > 1.0 else x for x in values]
+            return [_unit_clip(x) for x in values]
     layout = f"[{', '.join(names)}]"
     try:
         if np.iscomplexobj(action) or np.asarray(action).dtype.kind in "SUMmV":
@@ -169,9 +174,7 @@ class ResidualAction(ActionType):
         # np.clip's float64 values in Python floats (min/max as np.clip, NaN kept), cast once
         dv = (speed - speed_nom) / self.speed_scale
         dtheta = wrap_angle(heading - heading_nom) / self.heading_scale
-        return np.array([-1.0 if dv < -1.0 else 1.0 if dv > 1.0 else dv,
-                         -1.0 if dtheta < -1.0 else 1.0 if dtheta > 1.0 else dtheta],
-                        dtype=np.float32)
+        return np.array([_unit_clip(dv), _unit_clip(dtheta)], dtype=np.float32)
 
 
 @dataclass(frozen=True)
