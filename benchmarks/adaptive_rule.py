@@ -12,10 +12,12 @@ The script prints, per variant, the mean Eq. 18 coverage (share of nodes), the m
 the path as a share of the spiral's on the same episodes, the share of sweeps that ended by
 themselves (before the time limit), and the share of uncovered nodes that
 lie in cells the anchor's coverage map counts as covered, in cells it lacks, and in cells it
-does not keep (inside obstacles); then coverage and path share by density.
+does not keep (inside obstacles); then coverage and path share by density. With
+``--localizer``, every sweep's beacon log is also localized and the Eq. 15 RMSE (m, over the
+localized nodes) is printed beside the coverage, overall and by density.
 
 Run: ``python3 benchmarks/adaptive_rule.py [--split fit] [--densities 0.1 0.2 0.3 0.4]
-[--seeds 2] [--nodes 300] [--variant NAME key=value ...]``, e.g.
+[--seeds 2] [--nodes 300] [--localizer olstm-dvhop] [--variant NAME key=value ...]``, e.g.
 ``--variant "cells 0.2" cell_need=0.2 --variant "sides 0.5" side_rate=0.5``.
 """
 
@@ -28,8 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from aoass_env.config import AOASSConfig, ConfigError, config_for_map
+from aoass_env.localization import METHODS, localize
 from aoass_env.maps import load_map
 from aoass_env.maps.registry import list_maps, validation_split
+from aoass_env.metrics import localization_rmse
 from aoass_env.planning import AdaptiveConfig
 from aoass_env.planning.adaptive import sweep_config
 from aoass_env.simulator import Simulator
@@ -38,7 +42,8 @@ from aoass_env.simulator import Simulator
 @dataclass(frozen=True)
 class Outcome:
     """One sweep: Eq. 18 coverage, path (m), whether it ended by itself (before the time
-    limit), and where its uncovered nodes lie on the map."""
+    limit), where its uncovered nodes lie on the map, and the Eq. 15 RMSE (m) of its log's
+    localization (None when not localized)."""
 
     coverage: float
     path: float
@@ -46,11 +51,13 @@ class Outcome:
     in_covered: int
     in_open: int
     outside: int
+    rmse: float | None = None
 
 
-def sweep(name: str, seed: int, nodes: int, rule: AdaptiveConfig | None) -> Outcome:
+def sweep(name: str, seed: int, nodes: int, rule: AdaptiveConfig | None,
+          localizer: str | None = None) -> Outcome:
     """Sweep map ``name`` with ``nodes`` nodes and ``seed``: the plain spiral (``rule`` None)
-    or the adaptive sweep with ``rule``."""
+    or the adaptive sweep with ``rule``; localize its beacon log with ``localizer`` if given."""
     obstacle_map = load_map(name)
     config = config_for_map(AOASSConfig(n_nodes=nodes), obstacle_map)
     if rule is not None:
@@ -65,9 +72,16 @@ def sweep(name: str, seed: int, nodes: int, rule: AdaptiveConfig | None) -> Outc
     cell = lookup[ij[:, 0], ij[:, 1]][~sim.network.covered]
     kept = cell >= 0
     in_covered = int(cov.covered[cell[kept]].sum())
+    rmse = None
+    if localizer is not None:
+        rmse, _ = localization_rmse(sim.nodes, localize(sim.finish(), localizer))
     return Outcome(sim.network.coverage_ratio, sim.network.distance_travelled, controller.done,
-                   in_covered,
-                   int(kept.sum()) - in_covered, int((~kept).sum()))
+                   in_covered, int(kept.sum()) - in_covered, int((~kept).sum()), rmse)
+
+
+def _mean_rmse(outcomes: Sequence[Outcome]) -> float:
+    """Mean RMSE (m) of localized sweeps (a sweep that localized no node has a NaN RMSE)."""
+    return float(np.nanmean([o.rmse for o in outcomes]))
 
 
 #: The reference row's name.
@@ -107,6 +121,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
     parser.add_argument("--seeds", type=int, default=2, help="seeds (nodes, obstacles) per map")
     parser.add_argument("--nodes", type=int, default=300, help="N")
     parser.add_argument("--limit", type=int, help="only the first LIMIT maps of the split")
+    parser.add_argument("--localizer", choices=METHODS,
+                        help="also localize every sweep's log and print its RMSE")
     parser.add_argument("--variant", nargs="+", action="append", default=[],
                         metavar="NAME key=value", help="a rule with these fields changed")
     args = parser.parse_args(argv)
@@ -127,13 +143,14 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
                      f"{args.densities} in the {args.split} split")
     episodes = [(name, seed) for name in maps for seed in range(args.seeds)]
     density = np.array([float(name.rsplit("/d", 1)[1][:4]) for name, _ in episodes])
-    spiral = [sweep(n, s, args.nodes, None) for n, s in episodes]
+    spiral = [sweep(n, s, args.nodes, None, args.localizer) for n, s in episodes]
     print(f"{len(maps)} maps of the {args.split} split x {args.seeds} seeds, N = {args.nodes}")
     table = {SPIRAL: spiral}
-    print("| sweep | coverage | path [m] | path / spiral's | ended by itself | uncovered nodes: "
-          "in covered cells / in open cells / outside the map's cells |")
-    print("|---|---|---|---|---|---|")
-    table.update({name: [sweep(n, s, args.nodes, rule) for n, s in episodes]
+    rmse_head = f" RMSE {args.localizer} [m] |" if args.localizer else ""
+    print("| sweep | coverage |" + rmse_head + " path [m] | path / spiral's | ended by itself | "
+          "uncovered nodes: in covered cells / in open cells / outside the map's cells |")
+    print("|---|---|" + "---|" * bool(rmse_head) + "---|---|---|---|")
+    table.update({name: [sweep(n, s, args.nodes, rule, args.localizer) for n, s in episodes]
                   for name, rule in variants.items()})
     for name, outcomes in table.items():
         cov = np.mean([o.coverage for o in outcomes])
@@ -142,18 +159,21 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
         where = [sum(getattr(o, k) for o in outcomes)
                  for k in ("in_covered", "in_open", "outside")]
         ended = np.mean([o.ended for o in outcomes])
-        print(f"| {name} | {cov:.2%} | {path:.0f} | {share:.3f} | {ended:.0%} | "
+        rmse = f" {_mean_rmse(outcomes):.3f} |" if rmse_head else ""
+        print(f"| {name} | {cov:.2%} |{rmse} {path:.0f} | {share:.3f} | {ended:.0%} | "
               f"{where[0]} / {where[1]} / {where[2]} |")
     levels = sorted(set(density))
-    print("\ncoverage / path share of the spiral's, by density\n")
+    print(f"\ncoverage / path share of the spiral's{' / RMSE (m)' * bool(rmse_head)}, "
+          "by density\n")
     print("| sweep | " + " | ".join(f"d = {d:.1f}" for d in levels) + " |")
     print("|---|" + "---|" * len(levels))
     for name, outcomes in table.items():
         cells = []
         for d in levels:
             pick = [(o, s) for o, s, k in zip(outcomes, spiral, density, strict=True) if k == d]
+            rmse = f" / {_mean_rmse([o for o, _ in pick]):.2f}" if rmse_head else ""
             cells.append(f"{np.mean([o.coverage for o, _ in pick]):.2%} / "
-                         f"{np.mean([o.path / s.path for o, s in pick]):.3f}")
+                         f"{np.mean([o.path / s.path for o, s in pick]):.3f}{rmse}")
         print(f"| {name} | " + " | ".join(cells) + " |")
     return table
 

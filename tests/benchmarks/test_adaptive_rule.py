@@ -54,3 +54,15 @@ def test_a_split_without_maps_of_the_density_is_refused(bench, capsys):
     with pytest.raises(SystemExit):
         bench.main(["--densities", "0.05"])
     assert "no maps/train map of field 100 m at densities [0.05]" in capsys.readouterr().err
+
+
+def test_localizer_adds_each_sweeps_rmse_of_its_own_log(bench, capsys):
+    outcome = bench.sweep("train/d0.10_f100_s000", 0, 40, None, "consensus")
+    assert outcome.rmse is not None and 0.0 < outcome.rmse < 5.0
+    assert bench.sweep("train/d0.10_f100_s000", 0, 40, None).rmse is None
+    table = bench.main(["--densities", "0.1", "--seeds", "1", "--nodes", "40", "--limit", "1",
+                        "--localizer", "consensus"])
+    out = capsys.readouterr().out
+    assert "RMSE consensus [m]" in out
+    assert all(o.rmse is not None for outcomes in table.values() for o in outcomes)
+    assert f"| {table['rule'][0].rmse:.3f} |" in out
