@@ -98,6 +98,11 @@ class AdaptiveConfig(ValidatedConfig):
                                  high=1000.0)
     prune_spread: float = param(2.0, "... and their spread at least this many times Eq. 18's "
                                 "collinearity_tol", low=1.0, high=100.0)
+    prune_error: float = param(0.0, "... and, above 0, a cell's class error (the distance "
+                               "from its centre to the mean of the cells hearing the same "
+                               "planned beacons, pruning.class_error) at most the larger of "
+                               "this and the full spiral's (0: not checked)", unit="m",
+                               low=0.0, high=1000.0)
     reorder: bool = param(True, "with prune, also reorder the kept waypoints (2-opt on the "
                           "planner's ways, every reference cell still covered)", kind="bool")
     wide_passes: bool = param(False, "lay the spiral's passes with the ring count of Eq. 5's "
@@ -218,11 +223,13 @@ class AdaptiveSweep:
         follower, cov, config, rule = self.follower, self.coverage, self.config, self.rule
         key = (follower.waypoints.tobytes(), follower.blocked.tobytes(), follower.index,
                self.planner.radius, self.planner.res, config.beacon_interval,
-               config.collinearity_tol, rule.prune_beacons, rule.prune_spread, rule.reorder)
+               config.collinearity_tol, rule.prune_beacons, rule.prune_spread, rule.reorder,
+               rule.prune_error)
         plan = cached_plan(cov.radio, key, lambda: prune_spiral(
             follower.waypoints, follower.blocked, follower.index, self.planner, cov.radio,
             cov.n_cells, config.beacon_interval, config.collinearity_tol,
-            (rule.prune_beacons, rule.prune_spread), rule.reorder))
+            (rule.prune_beacons, rule.prune_spread), rule.reorder,
+            error_limit=rule.prune_error or None))
         self.follower = WaypointFollower.nominal(config, follower.waypoints[plan.order],
                                                  planner=self.planner, recovery=True)
         self.follower.stall_travel = True          # the kept waypoints can lie far apart

@@ -41,6 +41,7 @@ import math
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -48,7 +49,8 @@ from aoass_env.network import lambda_min
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.radio import Radio
 
-__all__ = ["MIN_GAIN", "PrunedPlan", "cached_plan", "prune_spiral"]
+__all__ = ["MIN_GAIN", "PrunedPlan", "beacon_weight", "cached_plan", "class_error",
+           "prune_spiral"]
 
 #: A removal must shorten the plan by more than this (m).
 MIN_GAIN = 0.3
@@ -82,9 +84,42 @@ class PrunedPlan:
     reference: np.ndarray
 
 
+_MASK = (1 << 64) - 1
+
+
+class _Way(NamedTuple):
+    """A planner's way between two waypoints and what its planned beacons give the cells."""
+
+    length: float            # m
+    cells: np.ndarray        # (K,) the cells that hear at least one of its beacons
+    stats: np.ndarray        # (K, 6) their beacons' count, sums and sums of products
+    signature: np.ndarray    # (K,) uint64: their beacons' summed weights
+
+
+def beacon_weight(key: tuple[int, int]) -> int:
+    """A pseudo-random 64-bit weight of the beacon point with lattice ``key`` (splitmix64 of
+    it): the wrapped sum of the weights of the beacons a cell hears names its heard set (two
+    different sets share a sum with probability 2^-64)."""
+    z = (key[0] * 0x9E3779B97F4A7C15 + key[1] * 0xD1B54A32D192ED03) & _MASK
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK
+    return z ^ (z >> 31)
+
+
+def class_error(signature: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """Squared distance (m^2) of every cell's centre to the mean centre of the cells that hear
+    the same beacons (the same ``signature``): a range-free localizer cannot tell the cells of
+    one class apart, so this is the error of a node placed at its class's centre."""
+    _, inverse, counts = np.unique(signature, return_inverse=True, return_counts=True)
+    cx = np.bincount(inverse, centres[:, 0]) / counts
+    cy = np.bincount(inverse, centres[:, 1]) / counts
+    return (centres[:, 0] - cx[inverse]) ** 2 + (centres[:, 1] - cy[inverse]) ** 2
+
+
 class _Ways:
     """The planner's ways between waypoints with their planned beacons' per-cell statistics
-    (count, sum x, sum y, sum xx, sum xy, sum yy), cached per pair."""
+    (count, sum x, sum y, sum xx, sum xy, sum yy) and heard-set signatures (the wrapped sums of
+    :func:`beacon_weight`), cached per pair."""
 
     def __init__(self, waypoints: np.ndarray, planner: DetourPlanner, radio: Radio,
                  n_cells: int, interval: float) -> None:
@@ -93,39 +128,42 @@ class _Ways:
         self.radio = radio
         self.n_cells = n_cells
         self.interval = interval
-        self._ways: dict[tuple[int, int], tuple[float, np.ndarray, np.ndarray] | None] = {}
+        self._ways: dict[tuple[int, int], _Way | None] = {}
         self._heard: dict[tuple[int, int], np.ndarray] = {}
 
-    def receivers(self, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The cells that hear a beacon at ``point`` snapped to the lattice, and that point."""
+    def receivers(self, point: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.uint64]:
+        """The cells that hear a beacon at ``point`` snapped to the lattice, that point, and
+        its :func:`beacon_weight`."""
         key = (round(point[0] / SNAP), round(point[1] / SNAP))
         snapped = np.array(key, dtype=np.float64) * SNAP
         if key not in self._heard:
             self._heard[key] = self.radio.receivers(snapped)
-        return self._heard[key], snapped
+        return self._heard[key], snapped, np.uint64(beacon_weight(key))
 
-    def get(self, a: int, b: int) -> tuple[float, np.ndarray, np.ndarray] | None:
-        """(length m, cells, their (K, 6) statistics) of the way between waypoints ``a`` and
-        ``b`` (the planner's from the lower index to the higher, either way round); None when
-        the planner finds none."""
+    def get(self, a: int, b: int) -> _Way | None:
+        """(length m, cells, their (K, 6) statistics, their (K,) signature sums) of the way
+        between waypoints ``a`` and ``b`` (the planner's from the lower index to the higher,
+        either way round); None when the planner finds none."""
         key = (min(a, b), max(a, b))
         if key not in self._ways:
             way = self.planner.path(self.waypoints[key[0]], self.waypoints[key[1]])
             self._ways[key] = None if way is None else self._measure(way)
         return self._ways[key]
 
-    def _measure(self, way: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    def _measure(self, way: np.ndarray) -> _Way:
         steps = np.linalg.norm(np.diff(way, axis=0), axis=1)
         along = np.r_[0.0, np.cumsum(steps)]
         length = float(along[-1])
         marks = np.arange(self.interval, length + 1e-9, self.interval)
         stats = np.zeros((self.n_cells, 6))
+        signature = np.zeros(self.n_cells, dtype=np.uint64)
         for s in marks:
-            cells, (x, y) = self.receivers(np.array([np.interp(s, along, way[:, 0]),
-                                                     np.interp(s, along, way[:, 1])]))
+            cells, (x, y), weight = self.receivers(np.array([np.interp(s, along, way[:, 0]),
+                                                             np.interp(s, along, way[:, 1])]))
             stats[cells] += (1.0, x, y, x * x, x * y, y * y)
+            signature[cells] += weight
         touched = np.flatnonzero(stats[:, 0])
-        return length, touched, stats[touched]
+        return _Way(length, touched, stats[touched], signature[touched])
 
 
 def _covered(stats: np.ndarray, tol: float, beacons: float = 3) -> np.ndarray:
@@ -143,8 +181,8 @@ def _covered(stats: np.ndarray, tol: float, beacons: float = 3) -> np.ndarray:
 class _Pruner:
     """The greedy pruning of the module docstring, on a doubly linked list of waypoints."""
 
-    def __init__(self, ways: _Ways, stops: list[int], tol: float, margin: tuple[float, float]
-                 ) -> None:
+    def __init__(self, ways: _Ways, stops: list[int], tol: float, margin: tuple[float, float],
+                 error_limit: float | None = None) -> None:
         self.ways = ways
         self.tol = tol
         self.margin = margin
@@ -152,11 +190,17 @@ class _Pruner:
         self.prev = dict(zip(stops[1:], stops[:-1], strict=True))
         self.first = stops[0]
         self.total = np.zeros((ways.n_cells, 6))
+        self.signature = np.zeros(ways.n_cells, dtype=np.uint64)
         for a, b in zip(stops[:-1], stops[1:], strict=True):
-            _, cells, stats = ways.get(a, b)
-            self.total[cells] += stats
+            way = ways.get(a, b)
+            self.total[way.cells] += way.stats
+            self.signature[way.cells] += way.signature
         self.reference = _covered(self.total, tol)
         self.robust = self._robust(self.total)
+        self.cap = None
+        if error_limit is not None:
+            full = class_error(self.signature, ways.radio.nodes)
+            self.cap = np.where(self.reference, np.maximum(full, error_limit**2), np.inf)
 
     def _robust(self, stats: np.ndarray) -> np.ndarray:
         return _covered(stats, self.margin[1] * self.tol, self.margin[0])
@@ -186,18 +230,38 @@ class _Pruner:
         old = [self.ways.get(x, y) for x, y in zip(chain[:-1], chain[1:], strict=True)]
         if sum(w[0] for w in old) - shortcut[0] <= min_gain:
             return False
-        cells = np.unique(np.concatenate([w[1] for w in old] + [shortcut[1]]))
-        trial = self.total[cells]
-        for _, touched, stats in old:
-            trial[np.searchsorted(cells, touched)] -= stats
-        trial[np.searchsorted(cells, shortcut[1])] += shortcut[2]
-        if (np.any(self.reference[cells] & ~_covered(trial, self.tol))
-                or np.any(self.robust[cells] & ~self._robust(trial))):
+        if not self._exchange(old, [shortcut]):
             return False
-        self.total[cells] = trial
         for x in run:
             del self.next[x], self.prev[x]
         self.next[a], self.prev[b] = b, a
+        return True
+
+    def _exchange(self, old: list[_Way], new: list[_Way]) -> bool:
+        """Drive the ways ``new`` instead of ``old`` when every reference cell stays covered,
+        keeps its margin and (with an error limit) its class error under its cap; whether it
+        did."""
+        cells = np.unique(np.concatenate([w.cells for w in old + new]))
+        trial = self.total[cells]
+        signature = self.signature[cells]
+        for sign, ways in ((-1.0, old), (1.0, new)):
+            for way in ways:
+                at = np.searchsorted(cells, way.cells)
+                trial[at] += sign * way.stats
+                if sign < 0:
+                    signature[at] -= way.signature
+                else:
+                    signature[at] += way.signature
+        if (np.any(self.reference[cells] & ~_covered(trial, self.tol))
+                or np.any(self.robust[cells] & ~self._robust(trial))):
+            return False
+        if self.cap is not None:
+            whole = self.signature.copy()
+            whole[cells] = signature
+            if np.any(class_error(whole, self.ways.radio.nodes) > self.cap):
+                return False
+        self.total[cells] = trial
+        self.signature[cells] = signature
         return True
 
     def gain(self, k: int) -> float:
@@ -275,16 +339,8 @@ class _Pruner:
             return False
         if sum(w[0] for w in old) - sum(w[0] for w in new) <= min_gain:
             return False
-        cells = np.unique(np.concatenate([w[1] for w in old + new]))
-        trial = self.total[cells]
-        for _, touched, stats in old:
-            trial[np.searchsorted(cells, touched)] -= stats
-        for _, touched, stats in new:
-            trial[np.searchsorted(cells, touched)] += stats
-        if (np.any(self.reference[cells] & ~_covered(trial, self.tol))
-                or np.any(self.robust[cells] & ~self._robust(trial))):
+        if not self._exchange(old, new):
             return False
-        self.total[cells] = trial
         order[i:j + 1] = order[i:j + 1][::-1]
         return True
 
@@ -305,7 +361,8 @@ class _Pruner:
 def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,
                  planner: DetourPlanner, radio: Radio, n_cells: int, beacon_interval: float,
                  collinearity_tol: float, margin: tuple[float, float] = (3, 1.0),
-                 reorder: bool = False, min_gain: float = MIN_GAIN) -> PrunedPlan:
+                 reorder: bool = False, min_gain: float = MIN_GAIN,
+                 error_limit: float | None = None) -> PrunedPlan:
     """Prune the spiral ``waypoints`` (W, 2) (m) with ``blocked`` (W,) from waypoint ``start``
     on (module docstring).
 
@@ -318,6 +375,9 @@ def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,
             beacons spread that many times ``collinearity_tol`` keeps that margin in the
             pruned plan (the execution's beacons fall elsewhere than the plan's).
         min_gain: a removal must shorten the plan by more than this (m).
+        error_limit: when given (m), a reference cell's :func:`class_error` under the kept
+            plan's beacons must stay at most the larger of its square and the full plan's (the
+            kept plan must not make the cells harder to tell apart than that).
     """
     ways = _Ways(np.asarray(waypoints, dtype=np.float64), planner, radio, n_cells,
                  beacon_interval)
@@ -326,7 +386,7 @@ def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,
     for k in free[1:]:
         if ways.get(stops[-1], k) is not None:
             stops.append(k)
-    pruner = _Pruner(ways, stops, collinearity_tol, margin)
+    pruner = _Pruner(ways, stops, collinearity_tol, margin, error_limit)
     full = pruner.length()
     for _ in range(ROUNDS):
         changed = pruner.singles(min_gain)

@@ -15,7 +15,14 @@ from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network
 from aoass_env.planning import AdaptiveConfig
 from aoass_env.planning.coverage import CoverageMap
-from aoass_env.planning.pruning import SNAP, _covered, cached_plan, prune_spiral
+from aoass_env.planning.pruning import (
+    SNAP,
+    _covered,
+    beacon_weight,
+    cached_plan,
+    class_error,
+    prune_spiral,
+)
 from aoass_env.simulator import Simulator
 
 CONFIG = AOASSConfig(field_size=60.0, n_nodes=120, obstacle_density=0.0, n_moving_obstacles=0)
@@ -25,12 +32,12 @@ BLOCKS = ObstacleMap(60.0, 60.0, [
     np.array([[36.0, 34.0], [47.0, 34.0], [47.0, 48.0], [36.0, 48.0]])])
 
 
-def _plan(obstacle_map: ObstacleMap, margin=(3, 1.0)):
+def _plan(obstacle_map: ObstacleMap, margin=(3, 1.0), **options):
     sim = Simulator(CONFIG, np.random.default_rng(0), obstacle_map=obstacle_map)
     cov = sim.coverage_map
     plan = prune_spiral(sim.path.waypoints, sim.path.blocked, sim.start_index, sim.planner,
                         cov.radio, cov.n_cells, CONFIG.beacon_interval,
-                        CONFIG.collinearity_tol, margin)
+                        CONFIG.collinearity_tol, margin, **options)
     return sim, plan
 
 
@@ -87,6 +94,54 @@ def test_reordering_keeps_every_reference_cell_covered_and_shortens_the_plan():
     for p in _planned_beacons(sim, again.order):
         fresh.add_beacon(p)
     assert np.all(fresh.covered[again.reference])
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.lists(st.tuples(st.integers(-3, 3), st.integers(0, 3)), max_size=5),
+                min_size=1, max_size=12),
+       st.integers(0, 2**32 - 1))
+def test_class_error_groups_the_cells_that_hear_the_same_beacons(heard, seed):
+    """Oracle: cells grouped by their heard multisets of beacon keys, means taken directly."""
+    centres = np.random.default_rng(seed).uniform(0.0, 50.0, (len(heard), 2))
+    signature = np.array([sum(beacon_weight(k) for k in keys) & (2**64 - 1) for keys in heard],
+                         dtype=np.uint64)
+    groups: dict[tuple, list[int]] = {}
+    for i, keys in enumerate(heard):
+        groups.setdefault(tuple(sorted(keys)), []).append(i)
+    expected = np.empty(len(heard))
+    for members in groups.values():
+        mean = centres[members].mean(axis=0)
+        expected[members] = ((centres[members] - mean) ** 2).sum(axis=1)
+    np.testing.assert_allclose(class_error(signature, centres), expected, atol=1e-9)
+
+
+def _oracle_class_error(sim: Simulator, stops: np.ndarray) -> np.ndarray:
+    """Every cell's class error under the plan through ``stops``, from its beacons laid again
+    and grouped by the cells' heard multisets of beacon points."""
+    cov = sim.coverage_map
+    heard: list[list[tuple[float, float]]] = [[] for _ in range(cov.n_cells)]
+    for p in _planned_beacons(sim, stops):
+        for cell in cov.radio.receivers(p):
+            heard[cell].append((p[0], p[1]))
+    groups: dict[tuple, list[int]] = {}
+    for i, points in enumerate(heard):
+        groups.setdefault(tuple(sorted(points)), []).append(i)
+    centres, error = cov.radio.nodes, np.empty(cov.n_cells)
+    for members in groups.values():
+        mean = centres[members].mean(axis=0)
+        error[members] = ((centres[members] - mean) ** 2).sum(axis=1)
+    return error
+
+
+def test_an_error_limit_keeps_every_reference_cells_class_error_under_its_cap():
+    limit = 1.5
+    sim, full = _plan(BLOCKS, margin=(6, 2.0), min_gain=1e9)       # nothing removed
+    _, free = _plan(BLOCKS, margin=(6, 2.0))
+    _, plan = _plan(BLOCKS, margin=(6, 2.0), error_limit=limit)
+    cap = np.maximum(_oracle_class_error(sim, full.order), limit**2)[full.reference]
+    assert np.any(_oracle_class_error(sim, free.order)[full.reference] > cap + 1e-9)
+    assert np.all(_oracle_class_error(sim, plan.order)[full.reference] <= cap + 1e-9)
+    assert free.length < plan.length < 0.95 * full.length
 
 
 def _pruner(points: list[list[float]], order: list[int]):
