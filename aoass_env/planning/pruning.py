@@ -98,9 +98,10 @@ class _Way(NamedTuple):
 
 def beacon_weight(key: tuple[int, int]) -> int:
     """A pseudo-random 64-bit weight of the beacon point with lattice ``key`` (splitmix64 of
-    it): the wrapped sum of the weights of the beacons a cell hears names its heard set (two
-    different sets share a sum with probability 2^-64)."""
-    z = (key[0] * 0x9E3779B97F4A7C15 + key[1] * 0xD1B54A32D192ED03) & _MASK
+    it, offset so that no key weighs 0): the wrapped sum of the weights of the beacons a cell
+    hears names its heard multiset (two different ones share a sum with a chance of about
+    2^-64)."""
+    z = (key[0] * 0xD1B54A32D192ED03 + key[1] * 0xABC98388FB8FAC03 + 0x9E3779B97F4A7C15) & _MASK
     z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK
     z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK
     return z ^ (z >> 31)
