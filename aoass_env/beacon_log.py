@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import zipfile
 from collections.abc import Mapping
@@ -379,6 +380,14 @@ class BeaconLogRecorder:
     @staticmethod
     def _row(key: str, t: float, position: np.ndarray,
              rows: list[tuple[float, float, float]]) -> tuple[float, float, float]:
+        """(t [s], x [m], y [m]) as Python floats, checked: finite, not before the last row."""
+        if type(position) is tuple and len(position) == 2:
+            # the simulator's (x, y) of Python floats, the common case: no array (a finite sum
+            # means three finite floats; anything else goes on to the checks below)
+            x, y = position
+            if type(x) is float and type(y) is float and type(t) is float \
+                    and math.isfinite(t + x + y) and not (rows and t < rows[-1][0]):
+                return t, x, y
         p = np.asarray(position, dtype=np.float64)
         if p.shape != (2,) or not (np.all(np.isfinite(p)) and np.isfinite(t)):
             raise BeaconLogError(f"need a finite time and (2,) position, got t={t!r}, "

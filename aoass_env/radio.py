@@ -21,6 +21,8 @@ at 1 degree resolution, a closed random walk with ``|K_i - K_{i-1}| <= doi`` (al
 
 from __future__ import annotations
 
+import weakref
+from collections.abc import Sequence
 from functools import cached_property
 
 import numpy as np
@@ -31,7 +33,7 @@ from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.validators import integer, positive, real
 
-__all__ = ["LineOfSight", "Radio", "doi_pattern", "range_factor"]
+__all__ = ["LineOfSight", "Radio", "doi_pattern", "range_factor", "receivers_at"]
 
 _UNIT_ROUNDOFF = np.finfo(np.float64).eps / 2
 #: Shewchuk's static error bound for the 2D orientation determinant (ccwerrboundA): when
@@ -40,6 +42,9 @@ _ORIENT_ERRBOUND = (3.0 + 16.0 * _UNIT_ROUNDOFF) * _UNIT_ROUNDOFF
 
 #: Relative slack of kd-tree queries; candidates are then filtered with the exact criterion.
 _QUERY_SLACK = 1e-9
+
+#: map -> its LineOfSight (:meth:`LineOfSight.for_map`), kept while the map lives
+_LINES_OF_SIGHT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _points(value: object, name: str, *, single: bool = False) -> np.ndarray:
@@ -87,6 +92,15 @@ class LineOfSight:
         self._polygons = obstacle_map.shapes
         self._polygon_tree = shapely.STRtree(self._polygons)
 
+    @classmethod
+    def for_map(cls, obstacle_map: ObstacleMap) -> LineOfSight:
+        """The line-of-sight test of ``obstacle_map``, built once per map (maps are immutable):
+        the radios on one map share it, so :func:`receivers_at` can test their links at once."""
+        los = _LINES_OF_SIGHT.get(obstacle_map)
+        if los is None:
+            los = _LINES_OF_SIGHT[obstacle_map] = cls(obstacle_map)
+        return los
+
     def inside(self, points: np.ndarray) -> np.ndarray:
         """Mask of points (M, 2) [m] strictly inside some obstacle polygon.
 
@@ -124,6 +138,7 @@ class LineOfSight:
         return self._blocked(a, b, start_inside)
 
     def _blocked(self, a: np.ndarray, b: np.ndarray, a_inside: np.ndarray) -> np.ndarray:
+        """:meth:`blocked` of checked arrays; each segment's answer depends on it alone."""
         m = len(a)
         if m == 0 or len(self._polygons) == 0:
             return np.zeros(m, dtype=bool)
@@ -236,7 +251,7 @@ class Radio:
             if pattern is not None:
                 pattern.flags.writeable = False
         self._tree = cKDTree(pts)
-        self._los = LineOfSight(obstacle_map) if self.line_of_sight else None
+        self._los = LineOfSight.for_map(obstacle_map) if self.line_of_sight else None
         self._node_inside = self._los.inside(pts) if self._los is not None else None
 
     @classmethod
@@ -255,6 +270,11 @@ class Radio:
         """Sorted int64 indices of the nodes that hear a beacon broadcast at ``point`` (2,) [m];
         with ``among`` (N,) bool, only of the nodes it marks (the others are not tested)."""
         p = _points(point, "point", single=True)
+        return self._in_sight(p, self._in_range(p, among))
+
+    def _in_range(self, p: np.ndarray, among: np.ndarray | None) -> np.ndarray:
+        """Sorted int64 indices of the nodes (of ``among``) within the anchor's range
+        R K(theta) of the checked point ``p`` (2,) [m], line of sight not yet tested."""
         cand = np.array(self._tree.query_ball_point(p, self.max_range * (1 + _QUERY_SLACK),
                                                     return_sorted=True), dtype=np.int64)
         if among is not None:
@@ -264,7 +284,10 @@ class Radio:
         reach = self.radio_range
         if self.doi > 0:
             reach = reach * range_factor(self.anchor_pattern, dx, dy)
-        cand = cand[dx * dx + dy * dy <= reach * reach]
+        return cand[dx * dx + dy * dy <= reach * reach]
+
+    def _in_sight(self, p: np.ndarray, cand: np.ndarray) -> np.ndarray:
+        """The nodes of ``cand`` with line of sight to the checked point ``p`` (2,) [m]."""
         if self._los is not None and len(cand):
             start = self.nodes[cand]
             cand = cand[~self._los._blocked(start, np.broadcast_to(p, start.shape),
@@ -297,3 +320,25 @@ class Radio:
         pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
         pairs.flags.writeable = False
         return pairs
+
+
+def receivers_at(point: np.ndarray,
+                 queries: Sequence[tuple[Radio, np.ndarray | None]]) -> list[np.ndarray]:
+    """:meth:`Radio.receivers` ``(point, among)`` of each ``(radio, among)`` of ``queries``: the
+    receivers of one beacon at ``point`` (2,) [m] in several radios (the nodes' and the
+    coverage map's). When the radios test line of sight with one map's
+    :class:`LineOfSight`, their links are tested in one call (a segment's answer does not
+    depend on the others tested with it), which saves that call's fixed cost per radio."""
+    p = _points(point, "point", single=True)
+    found = [radio._in_range(p, among) for radio, among in queries]
+    los = queries[0][0]._los if queries else None
+    if los is None or any(radio._los is not los for radio, _ in queries):
+        return [radio._in_sight(p, cand) for (radio, _), cand in zip(queries, found,
+                                                                     strict=True)]
+    start = np.concatenate([radio.nodes[cand] for (radio, _), cand in zip(queries, found,
+                                                                        strict=True)])
+    inside = np.concatenate([radio._node_inside[cand] for (radio, _), cand in zip(
+        queries, found, strict=True)])
+    heard = ~los._blocked(start, np.broadcast_to(p, start.shape), inside)
+    ends = np.cumsum([len(cand) for cand in found])
+    return [cand[part] for cand, part in zip(found, np.split(heard, ends[:-1]), strict=True)]

@@ -34,7 +34,7 @@ from aoass_env.planning import (
 from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
 from aoass_env.planning.square_spiral import config_spacing, episode_spiral
 from aoass_env.planning.sweep import Controller
-from aoass_env.radio import Radio
+from aoass_env.radio import Radio, receivers_at
 from aoass_env.trajectory import _SHORT_PATH, beacons_along
 from aoass_env.world import World
 
@@ -153,9 +153,11 @@ class Simulator:
         newly = 0
         for t, x, y in beacons:
             pos = np.array([x, y])
-            receivers = self.radio.receivers(pos)
+            # the nodes' and the coverage map's links in one line-of-sight test
+            receivers, cells = receivers_at(pos, [(self.radio, None),
+                                                  self.coverage_map.listeners()])
             newly += self.network.record_beacon(pos, receivers)
-            self.coverage_map.add_beacon(pos)
+            self.coverage_map.add_beacon(pos, cells)
             self.recorder.add_beacon(t, pos, receivers)
         return newly
 

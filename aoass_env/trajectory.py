@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import bisect
 import math
 
 import numpy as np
 
 from aoass_env.validators import positive
 
-#: Paths of at most this many samples get the pure-Python odometer of :func:`beacons_along`
-#: (one control period has ``physics_substeps + 1``); numpy is faster on longer ones.
+#: Paths of at most this many samples get the pure-Python odometer and beacons of
+#: :func:`beacons_along` (one control period has ``physics_substeps + 1``); numpy is faster
+#: on longer ones.
 _SHORT_PATH = 64
 
 def _xy_length(rows: list[list[float]]) -> float:
@@ -43,9 +45,11 @@ def beacons_along(path: np.ndarray, start_distance: float,
     interval = positive("interval", interval, "m")
     p = np.asarray(path, dtype=np.float64).reshape(-1, 3)
     if len(p) <= _SHORT_PATH:   # fast path: most control periods pass no beacon mark
-        end = start_distance + _xy_length(p.tolist())
+        rows = p.tolist()
+        end = start_distance + _xy_length(rows)
         if math.floor(end / interval + 1e-9) <= math.floor(start_distance / interval + 1e-9):
             return np.zeros((0, 3)), end
+        return _short_beacons(rows, start_distance, interval), end
     seg = np.linalg.norm(np.diff(p[:, 1:], axis=0), axis=1)
     odo = start_distance + np.r_[0.0, np.cumsum(seg)]
     end = float(odo[-1])
@@ -59,3 +63,28 @@ def beacons_along(path: np.ndarray, start_distance: float,
     frac = np.clip((marks - odo[k]) / np.where(seg[k] > 0, seg[k], 1.0), 0.0, 1.0)
     out = p[k] + frac[:, None] * (p[k + 1] - p[k])
     return out, end
+
+
+def _short_beacons(rows: list[list[float]], start_distance: float,
+                   interval: float) -> np.ndarray:
+    """The beacons of :func:`beacons_along` on a short path of rows (t, x, y) (plain floats)
+    that passes a mark: its NumPy steps in floats, element by element (the odometer as
+    ``start + cumsum``, ``searchsorted`` as ``bisect_left``, ``clip`` as min/max)."""
+    odo, total = [start_distance + 0.0], 0.0
+    seg = []
+    for (_, x0, y0), (_, x1, y1) in zip(rows, rows[1:], strict=False):
+        dx, dy = x1 - x0, y1 - y0
+        seg.append(math.sqrt(dx * dx + dy * dy))
+        total += seg[-1]
+        odo.append(start_distance + total)
+    first = math.floor(start_distance / interval + 1e-9) + 1
+    last = math.floor(odo[-1] / interval + 1e-9)
+    out = []
+    for mark in range(first, last + 1):
+        mark = float(mark) * interval
+        k = min(max(bisect.bisect_left(odo, mark), 1), len(rows) - 1) - 1
+        frac = min(max((mark - odo[k]) / (seg[k] if seg[k] > 0 else 1.0), 0.0), 1.0)
+        a, b = rows[k], rows[k + 1]
+        out.append((a[0] + frac * (b[0] - a[0]), a[1] + frac * (b[1] - a[1]),
+                    a[2] + frac * (b[2] - a[2])))
+    return np.array(out, dtype=np.float64).reshape(-1, 3)

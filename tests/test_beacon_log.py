@@ -349,3 +349,30 @@ def test_damaged_files_fail_with_beacon_log_error(tmp_path_factory, data):
     except BeaconLogError:
         return
     assert log.n_beacons >= 0
+
+
+_SPECIAL = (0.0, -0.0, 1e-300, -1e-300, 1.5, -2.5, 1e308, -1e308, float("inf"), float("-inf"),
+            float("nan"))
+
+
+@settings(max_examples=300, deadline=None)
+@given(t=st.one_of(st.sampled_from(_SPECIAL), st.floats(allow_nan=True, allow_infinity=True)),
+       x=st.one_of(st.sampled_from(_SPECIAL), st.floats(allow_nan=True, allow_infinity=True)),
+       y=st.one_of(st.sampled_from(_SPECIAL), st.floats(allow_nan=True, allow_infinity=True)),
+       last=st.one_of(st.none(), st.floats(allow_nan=False, allow_infinity=True)))
+def test_a_path_point_of_python_floats_is_recorded_as_the_array_path_records_it(t, x, y, last):
+    # the tuple of Python floats takes a path without arrays: the same row, or the same error
+    def record(position):
+        rec = BeaconLogRecorder(config_json="{}", obstacle_map=ObstacleMap(10, 10),
+                                nodes=np.zeros((1, 2)), radio_range=5.0)
+        if last is not None:
+            rec._path.append((last, 0.0, 0.0))
+        try:
+            rec.add_path_point(t, position)
+        except BeaconLogError as exc:      # the message up to the position's own repr
+            return str(exc).split("position=")[0], exc.key
+        row = rec._path[-1]
+        assert all(type(v) is float for v in row)
+        return [v.hex() for v in row]
+
+    assert record((x, y)) == record(np.array([x, y]))

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import MapError, ObstacleMap
-from aoass_env.radio import LineOfSight, Radio, doi_pattern, range_factor
+from aoass_env.radio import LineOfSight, Radio, doi_pattern, range_factor, receivers_at
 
 SQUARE = [(2, 2), (4, 2), (4, 4), (2, 4)]
 # A "U" opening upwards: the pocket is 2 < x < 4, y > 2.
@@ -382,3 +382,37 @@ def test_receivers_among_a_subset_are_the_receivers_it_marks(doi):
     for point in rng.uniform(0.0, 50.0, (20, 2)):
         full = radio.receivers(point)
         np.testing.assert_array_equal(radio.receivers(point, among), full[among[full]])
+
+
+#: squares on a 3 m lattice and nodes on its points: links through vertices and along edges
+LATTICE_MAP = ObstacleMap(60, 60, [[(x, y), (x + 3, y), (x + 3, y + 3), (x, y + 3)]
+                                   for x, y in ((6, 6), (21, 9), (30, 30), (45, 12), (12, 42))])
+LATTICE = np.array([(x, y) for x in range(0, 61, 3) for y in range(0, 61, 3)], dtype=float)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), doi=st.sampled_from([0.0, 0.3]),
+       counts=st.tuples(st.integers(0, 60), st.integers(0, 200), st.integers(0, 40)))
+def test_receivers_at_one_point_are_each_radios_receivers(seed, doi, counts):
+    # radios on one map test their links together; on another map, or without line of sight,
+    # apart: each answer is the radio's own, node for node
+    rng = np.random.default_rng(seed)
+    lattice = counts[1] % 2 == 1
+    obstacle_map = LATTICE_MAP if lattice else random_map(rng)
+    cells = LATTICE if lattice else rng.uniform(0, 60, (counts[1], 2))
+    radios = [Radio(rng.uniform(0, 60, (counts[0], 2)), obstacle_map, 15.0, doi=doi, rng=rng),
+              Radio(cells, obstacle_map, 12.0),
+              Radio(rng.uniform(0, 60, (counts[2], 2)), obstacle_map, 9.0,
+                    line_of_sight=counts[2] % 2 == 0),
+              Radio(rng.uniform(0, 60, (30, 2)), random_map(rng), 15.0)]
+    assert radios[0]._los is radios[1]._los is LineOfSight.for_map(obstacle_map)
+    points = np.vstack([rng.uniform(0, 60, (6, 2)), LATTICE[rng.integers(len(LATTICE), size=4)]])
+    for point in points:
+        among = [None, rng.random(len(cells)) < 0.5, None, None]
+        for group in ([0, 1], [1, 0, 1], [0, 2], [0, 1, 2], [3, 0], [1]):
+            queries = [(radios[k], among[k]) for k in group]
+            got = receivers_at(point, queries)
+            assert len(got) == len(queries)
+            for (radio, mask), heard in zip(queries, got, strict=True):
+                assert heard.dtype == np.int64
+                np.testing.assert_array_equal(heard, radio.receivers(point, mask))

@@ -3,6 +3,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from aoass_env import trajectory
 from aoass_env.trajectory import beacons_along
 
 
@@ -52,3 +53,23 @@ def test_fast_paths_match_numpy(points, start, interval):
     slow, slow_end = beacons_along(long, start, interval)     # repeated samples: same path
     assert fast_end == slow_end == start + float(np.r_[0.0, np.cumsum(seg)][-1])
     np.testing.assert_array_equal(fast, slow)
+
+
+COORD = st.one_of(st.integers(-6, 6).map(float), st.floats(-50, 50))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(COORD, COORD), min_size=1, max_size=12),
+       st.one_of(st.integers(0, 9).map(float), st.floats(0.0, 30.0)),
+       st.one_of(st.sampled_from([0.5, 1.0, 2.0]), st.floats(0.3, 5.0)))
+def test_short_path_beacons_are_numpys_bit_for_bit(points, start, interval):
+    """The plain-float beacons of a short path (whole-metre points and intervals put marks on
+    samples and repeat points) against the NumPy code on the same path."""
+    xy = np.array(points)
+    path = np.c_[np.arange(len(xy), dtype=float) * 0.1, xy]
+    fast, fast_end = beacons_along(path, start, interval)
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(trajectory, "_SHORT_PATH", 0)
+        slow, slow_end = beacons_along(path, start, interval)
+    assert fast_end == slow_end and fast.shape == slow.shape and fast.dtype == slow.dtype
+    assert fast.tobytes() == slow.tobytes()

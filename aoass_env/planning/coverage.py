@@ -133,15 +133,23 @@ class CoverageMap:
         self._tol = config.collinearity_tol
         self._deficit: np.ndarray | None = None      # of every free cell, until a beacon
 
-    def add_beacon(self, position: np.ndarray) -> int:
+    def listeners(self) -> tuple[Radio, np.ndarray]:
+        """(radio, among) for :func:`~aoass_env.radio.receivers_at`: the cells' radio and the
+        cells a beacon is tested for now. Covered cells stay covered: only the others are
+        tested (their counts then freeze)."""
+        return self._radio, ~self._network.covered
+
+    def add_beacon(self, position: np.ndarray, cells: np.ndarray | None = None) -> int:
         """Record a beacon broadcast at ``position`` (2,) (m); the number of cells it made
-        covered."""
+        covered. ``cells``: its receivers among :meth:`listeners` when the caller has them
+        (the simulator tests them with the nodes' links), else they are found here."""
         if not len(self.centres):
             return 0
         self._deficit = None
-        # covered cells stay covered: only the others are tested (their counts then freeze)
-        open_cells = ~self._network.covered
-        return self._network.record_beacon(position, self._radio.receivers(position, open_cells))
+        if cells is None:
+            radio, among = self.listeners()
+            cells = radio.receivers(position, among)
+        return self._network.record_beacon(position, cells)
 
     # --- what the map says --------------------------------------------------------------------
     @property

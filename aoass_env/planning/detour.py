@@ -6,6 +6,17 @@ field is rasterised, scipy's Euclidean distance transform gives each cell its cl
 with too little clearance are removed, and Dijkstra (scipy.sparse.csgraph) on the 8-connected
 grid, with a cost that prefers open space, finds the path. The path is then shortened by string
 pulling (keep only the points needed for straight, obstacle-free legs).
+
+**Same paths from smaller searches.** Dijkstra's distances do not depend on how far it searches
+or how its heap breaks ties: in floats, a cell's distance is the least left-to-right sum over the
+grid paths to it (adding a weight is monotone and never decreases a sum), and a search bounded
+by a limit finds every cell whose distance is within it. Its predecessor of a cell is the first
+scanned neighbour through which that distance is reached. When exactly one neighbour reaches it,
+for every cell of the path, every search that reaches the goal traces the same path, whatever
+its heap does with ties. A search therefore first explores a small neighbourhood
+(:data:`QUICK_FACTOR`, growing while the goal lies beyond); when that path is forced at every
+cell it is the answer, and otherwise (a tie on the path, or the goal beyond the bounded search)
+the planner runs the searches it ran before, whose heap settles the ties.
 """
 
 from __future__ import annotations
@@ -28,6 +39,12 @@ from aoass_env.maps import ObstacleMap
 #: searches the whole grid only when the goal lies beyond.
 SEARCH_FACTOR = 4.0
 SEARCH_SLACK = 40.0
+#: The quick first search explores paths of cost up to QUICK_FACTOR x the straight distance +
+#: QUICK_SLACK (m; most hops of the follower cost under 2.5 x their straight distance), the next
+#: ones QUICK_GROWTH times further each while below the bounded search's limit.
+QUICK_FACTOR = 2.5
+QUICK_SLACK = 3.0
+QUICK_GROWTH = 2.0
 #: Cost factor of grid moves inside a keep-out (:meth:`DetourPlanner.path`).
 KEEPOUT_COST = 25.0
 #: Extra clearance (m) the nominal follower's detours keep from obstacles beyond the anchor
@@ -75,7 +92,11 @@ class DetourPlanner:
         self._obstacles = obstacle_map.union if obstacle_map.polygons else shapely.Polygon()
         self._blocker = shapely.buffer(self._obstacles, radius)
         shapely.prepare(self._blocker)
-        self._tree: tuple[int, float, np.ndarray, np.ndarray] | None = None
+        self._degree = int(np.diff(self._graph.indptr).max(initial=0))   # at most 8
+        # (start cell, limit) of the kept shortest-path tree, and its (dist, pred) arrays once a
+        # search has needed them (a forced quick path needs no tree)
+        self._tree: tuple[int, float] | None = None
+        self._arrays: tuple[np.ndarray, np.ndarray] | None = None
         self._nearest_main: np.ndarray | None = None     # built on first use (main_point)
         self._rows: np.ndarray | None = None     # row of every graph entry (keep-out searches)
 
@@ -92,7 +113,7 @@ class DetourPlanner:
         if template is None:
             template = per_map[key] = cls(obstacle_map, radius, resolution)
         planner = copy.copy(template)
-        planner._tree = None
+        planner._tree = planner._arrays = None
         return planner
 
     def _build_graph(self, cost: np.ndarray) -> csr_matrix:
@@ -180,20 +201,35 @@ class DetourPlanner:
             return self._path_avoiding(start, goal, np.asarray(keepout, float), keepout_radius)
         s, g = self._cell(start), self._cell(goal)
         straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
-        dist, pred = self._tree_from(s, SEARCH_FACTOR * straight + SEARCH_SLACK)
-        if not np.isfinite(dist[g]):
-            dist, pred = self._tree_from(s, math.inf)
-        if not np.isfinite(dist[g]):
-            return None
-        return self._pull(self._trace(start, goal, s, g, pred))
+        limit = SEARCH_FACTOR * straight + SEARCH_SLACK
+        kept = self._tree is not None and self._tree[0] == s and self._tree[1] >= limit
+        cells = None
+        if not (kept and self._arrays is not None):
+            cells = self._quick(self._graph, s, g, QUICK_FACTOR * straight + QUICK_SLACK, limit)
+        if cells is not None:
+            if not kept:     # the tree the bounded search would have kept (it reaches g)
+                self._tree, self._arrays = (s, limit), None
+        else:
+            dist, pred = self._tree_from(s, limit)
+            if not np.isfinite(dist[g]):
+                dist, pred = self._tree_from(s, math.inf)
+            if not np.isfinite(dist[g]):
+                return None
+            cells = self._cells(s, g, pred)
+        return self._pull(self._trace(start, goal, cells))
 
-    def _trace(self, start: np.ndarray, goal: np.ndarray, s: int, g: int,
-               pred: np.ndarray) -> np.ndarray:
-        """The grid path from cell ``s`` to cell ``g`` of a shortest-path tree, with the exact
-        start and goal at its ends."""
+    @staticmethod
+    def _cells(s: int, g: int, pred: np.ndarray) -> list[int]:
+        """The cells of the path from cell ``s`` to cell ``g`` of a shortest-path tree
+        (predecessors ``pred``), ``g`` first."""
         cells = [g]
         while cells[-1] != s:
             cells.append(int(pred[cells[-1]]))
+        return cells
+
+    def _trace(self, start: np.ndarray, goal: np.ndarray, cells: list[int]) -> np.ndarray:
+        """The grid path of ``cells`` (goal's cell first) with the exact start and goal at its
+        ends."""
         return np.vstack([start, self.centres[cells[::-1]], goal])
 
     def _path_avoiding(self, start: np.ndarray, goal: np.ndarray, keepout: np.ndarray,
@@ -204,14 +240,18 @@ class DetourPlanner:
         path does."""
         graph = self._reweighted(self._near(keepout, radius), math.sqrt(KEEPOUT_COST))
         s, g = self._cell(start), self._cell(goal)
-        # bounded first, as in path(): within the limit the search settles the same cells
-        limit = SEARCH_FACTOR * math.hypot(goal[0] - start[0], goal[1] - start[1]) + SEARCH_SLACK
-        dist, pred = dijkstra(graph, indices=s, return_predecessors=True, limit=limit)
-        if not np.isfinite(dist[g]):
-            dist, pred = dijkstra(graph, indices=s, return_predecessors=True)
-        if not np.isfinite(dist[g]):
-            return None
-        pts = self._trace(start, goal, s, g, pred)
+        # quick and bounded first, as in path()
+        straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
+        limit = SEARCH_FACTOR * straight + SEARCH_SLACK
+        cells = self._quick(graph, s, g, QUICK_FACTOR * straight + QUICK_SLACK, limit)
+        if cells is None:
+            dist, pred = dijkstra(graph, indices=s, return_predecessors=True, limit=limit)
+            if not np.isfinite(dist[g]):
+                dist, pred = dijkstra(graph, indices=s, return_predecessors=True)
+            if not np.isfinite(dist[g]):
+                return None
+            cells = self._cells(s, g, pred)
+        pts = self._trace(start, goal, cells)
         zones = shapely.buffer(shapely.multipoints(keepout), radius)
         return self._pull(pts, lambda a, b: self.visible(a, b) and not shapely.intersects(
             zones, shapely.LineString([a, b])))
@@ -255,9 +295,40 @@ class DetourPlanner:
         in the same order as an unlimited search, so the paths it finds are the same; the tree
         of the last start is kept and reused while its limit suffices."""
         if self._tree is None or self._tree[0] != s or self._tree[1] < limit:
-            dist, pred = dijkstra(self._graph, indices=s, return_predecessors=True, limit=limit)
-            self._tree = (s, limit, dist, pred)
-        return self._tree[2], self._tree[3]
+            self._tree, self._arrays = (s, limit), None
+        if self._arrays is None:
+            self._arrays = dijkstra(self._graph, indices=s, return_predecessors=True,
+                                    limit=self._tree[1])
+        return self._arrays
+
+    def _quick(self, graph: csr_matrix, s: int, g: int, quick: float,
+               limit: float) -> list[int] | None:
+        """The cells (``g`` first) of a search of ``graph`` from cell ``s`` whose path to cell
+        ``g`` is forced (:meth:`_forced`), so every search that reaches ``g`` traces it;
+        searched up to path cost ``quick`` (m), then :data:`QUICK_GROWTH` times more while
+        below ``limit``, until a search reaches ``g``. None when a tie is on the path or ``g``
+        lies beyond."""
+        while quick < limit:
+            dist, pred = dijkstra(graph, indices=s, return_predecessors=True, limit=quick)
+            if np.isfinite(dist[g]):
+                cells = self._cells(s, g, pred)
+                return cells if self._forced(graph, dist, cells) else None
+            quick *= QUICK_GROWTH
+        return None
+
+    def _forced(self, graph: csr_matrix, dist: np.ndarray, cells: list[int]) -> bool:
+        """Whether every cell v but the start of a searched path ``cells`` (the start last) has
+        exactly one neighbour u with ``dist[u] + w(u, v) == dist[v]`` in the search's
+        distances ``dist``: the sum Dijkstra compares (module docstring)."""
+        v = np.array(cells[:-1], dtype=np.int64)
+        lo = graph.indptr[v][:, None]
+        j = lo + np.arange(self._degree)
+        ok = j < graph.indptr[v + 1][:, None]
+        j = np.where(ok, j, 0)
+        # w(u, v) == w(v, u) bit for bit (both directions get the same weight, and a keep-out
+        # multiplies both by the same factor or by 1), so row v gives every edge into v
+        reach = ok & (dist[graph.indices[j]] + graph.data[j] == dist[v][:, None])
+        return bool(np.all(np.count_nonzero(reach, axis=1) == 1))
 
     def _pull(self, pts: np.ndarray,
               clear: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> np.ndarray:

@@ -1,7 +1,12 @@
+from collections import Counter
+
 import numpy as np
 import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.sparse.csgraph import dijkstra
 
-from aoass_env.maps import ObstacleMap
+from aoass_env.maps import ObstacleMap, generate_map
 from aoass_env.planning.detour import DetourPlanner
 
 WALL = [(40, 10), (45, 10), (45, 90), (40, 90)]
@@ -145,3 +150,99 @@ def test_main_point_leads_out_of_a_pocket_and_stays_put_on_the_field():
     assert np.hypot(*(out - inside)) < 12.0           # just outside the C
     on_field = np.array([20.0, 20.0])
     assert np.hypot(*(p.main_point(on_field) - on_field)) <= p.res
+
+
+class _SearchesOnly(DetourPlanner):
+    """The planner before its quick searches (the oracle): with no forced quick path, path()
+    and the keep-out searches run the bounded search, the kept tree and the whole-grid search
+    as they did."""
+
+    def _quick(self, graph, s, g, quick, limit):
+        return None
+
+
+def _spy_outcomes(monkeypatch) -> Counter:
+    """Counts of the quick searches' outcomes: forced (taken), tie (goal reached, path not
+    forced), beyond (goal past the quick limit)."""
+    seen: Counter = Counter()
+    forced = DetourPlanner._forced
+
+    def spy(self, graph, dist, cells):
+        seen["forced" if (answer := forced(self, graph, dist, cells)) else "tie"] += 1
+        return answer
+
+    quick = DetourPlanner._quick
+
+    def beyond(self, graph, s, g, first, limit):
+        before = seen.total()
+        cells = quick(self, graph, s, g, first, limit)
+        seen["beyond"] += seen.total() == before
+        return cells
+
+    monkeypatch.setattr(DetourPlanner, "_forced", spy)
+    monkeypatch.setattr(DetourPlanner, "_quick", beyond)
+    return seen
+
+
+def _same(got, want):
+    assert (got is None) == (want is None)
+    if want is not None:
+        np.testing.assert_array_equal(got, want)
+
+
+def test_quick_searches_give_the_paths_of_the_bounded_and_full_searches(monkeypatch):
+    # a follower's pattern on a dense map: short hops from a moving start, repeated starts
+    # (the kept tree), long ways, costs() between, keep-outs; ties occur on the long ways
+    seen = _spy_outcomes(monkeypatch)
+    m = generate_map(100.0, 0.4, np.random.default_rng(7))
+    rng = np.random.default_rng(8)
+    quick, oracle = DetourPlanner(m, 0.8), _SearchesOnly(m, 0.8)
+    start = m.sample_free_points(1, rng)[0]
+    for k in range(120):
+        if k % 4:
+            start = np.clip(start + rng.normal(scale=1.5, size=2), 0.5, 99.5)
+        near = start + rng.normal(scale=[2.0, 6.0, 30.0][k % 3], size=2)
+        goal = np.clip(near, 0.5, 99.5) if k % 5 else m.sample_free_points(1, rng)[0]
+        if k % 7 == 0:
+            goals = m.sample_free_points(3, rng)
+            np.testing.assert_array_equal(quick.costs(start, goals), oracle.costs(start, goals))
+        if k % 9 == 0:
+            keep = (start + goal) / 2 + rng.normal(scale=1.0, size=(2, 2))
+            _same(quick.path(start, goal, keep, 2.0), oracle.path(start, goal, keep, 2.0))
+        _same(quick.path(start, goal), oracle.path(start, goal))
+    assert seen["forced"] > 40 and seen["tie"] > 0 and seen["beyond"] > 0
+
+
+@settings(max_examples=30, deadline=None)
+@given(boxes=st.lists(st.tuples(st.integers(1, 16), st.integers(1, 16), st.integers(1, 3),
+                                 st.integers(1, 3)), max_size=5),
+       ends=st.lists(st.tuples(st.floats(0.5, 19.5), st.floats(0.5, 19.5)), min_size=2,
+                     max_size=8))
+def test_quick_searches_on_symmetric_grids_with_many_ties(boxes, ends):
+    # axis-aligned boxes on whole metres: equal clearances everywhere, equal-cost paths
+    polys = [[(x, y), (x + w, y), (x + w, y + h), (x, y + h)] for x, y, w, h in boxes]
+    m = ObstacleMap(20, 20, polys)
+    quick, oracle = DetourPlanner(m, 0.5), _SearchesOnly(m, 0.5)
+    pts = np.array(ends)
+    for a, b in zip(pts[:-1], pts[1:], strict=True):
+        _same(quick.path(a, b), oracle.path(a, b))
+        _same(quick.path(a, b, pts[:1], 1.0), oracle.path(a, b, pts[:1], 1.0))
+
+
+def test_a_forced_path_is_the_path_of_every_search_limit():
+    m = generate_map(60.0, 0.4, np.random.default_rng(4))
+    p = DetourPlanner(m, radius=0.8)
+    rng = np.random.default_rng(6)
+    forced = 0
+    for a, b in (m.sample_free_points(2, rng) for _ in range(30)):
+        s, g = p._cell(a), p._cell(b)
+        dist, pred = dijkstra(p._graph, indices=s, return_predecessors=True)
+        if not (np.isfinite(dist[g]) and p._forced(p._graph, dist, p._cells(s, g, pred))):
+            continue
+        forced += 1
+        for limit in (1.0 + dist[g], np.nextafter(dist[g], np.inf)):   # the tightest too
+            _, other = dijkstra(p._graph, indices=s, return_predecessors=True, limit=limit)
+            assert p._cells(s, g, other) == p._cells(s, g, pred)
+    assert forced > 10
+    a, b = m.sample_free_points(2, rng)
+    assert p._quick(p._graph, p._cell(a), p._cell(b), 0.1, 1.0) is None    # beyond the limit
