@@ -410,7 +410,8 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
                     ends: np.ndarray, radius: float, sigma: float, maneuver: float,
                     clearance: float, obstacle_radius: float | None = None,
                     n_headings: int = 16, react: float | None = None,
-                    progress_weight: float = 0.0) -> Escape:
+                    progress_weight: float = 0.0,
+                    tolerance: float | None = None) -> Escape:
     """The velocity (m/s) to steer for among moving obstacles (see the module docstring).
 
     Args:
@@ -526,7 +527,10 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     # speed the heading is the only memory of the direction taken)
     distance = np.hypot(*(candidates - preferred).T) / max_speed
     turn = np.abs(np.remainder(headings - heading + math.pi, 2.0 * math.pi) - math.pi) / math.pi
-    pick = int(np.argmin(shortfall + walls + PREFERENCE_WEIGHT * distance + TURN_WEIGHT * turn))
+    cost = shortfall + walls + PREFERENCE_WEIGHT * distance + TURN_WEIGHT * turn
+    if tolerance is not None:
+        cost = np.where(shortfall <= shortfall.min() + tolerance, cost, np.inf)
+    pick = int(np.argmin(cost))
     if pick == 0:
         return Escape(velocity, False, base, base)
     return Escape(candidates[pick], True, base, float(shortfall[pick]))
