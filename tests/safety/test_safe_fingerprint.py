@@ -32,10 +32,10 @@ REPORT_KEYS = ("intervention", "orca_correction", "flc_turn", "flc_speed", "spee
                "look_ahead_shortfall", "yielding")
 
 EXPECTED: dict[str, dict[str, str]] = {
-    'f50_moving12': {'observation': 'ddea2dd01b7f2f22', 'reward': '1a41306b61de5672',
-                     'safety': '020db3407d8015d4', 'world': 'f8765b87abd9da66'},
-    'f70_d0.2_moving8': {'observation': '46ab498955195adb', 'reward': '39679edb79379257',
-                         'safety': '1aaa85847f008fd8', 'world': 'ef608c2cdd6965cf'},
+    'f50_moving12': {'observation': 'ada9debca1e9c14c', 'reward': '46e4738850f15bfe',
+                     'safety': 'c054a23da6bf4b3a', 'world': 'cae8d559ee5bd6d3'},
+    'f70_d0.2_moving8': {'observation': '672bb70049685343', 'reward': '3c4183e47d9d24c7',
+                         'safety': '28f785b0848f2390', 'world': 'bde015e0e0b3e696'},
 }
 
 
