@@ -96,6 +96,10 @@ class SafetyConfig(ValidatedConfig):
         "yield_progress_weight", unit="s", low=0.0, high=1e4, low_open=True)
     yield_progress_weight: float = param(
         10.0, "progress_weight while yielding to the sweep", low=0.0, high=100.0)
+    shortfall_tolerance: float | None = param(
+        None, "the look-ahead's prices on walls, headway, preference and turning choose only "
+        "among candidates whose clearance shortfall is within this of the least (None: they "
+        "compete with the shortfall on one cost)", low=0.0, high=1e4, optional=True)
 
     @classmethod
     def orca_only(cls, **kwargs: object) -> SafetyConfig:

@@ -23,14 +23,16 @@ and the predicted obstacles:
 :func:`escape_velocity` keeps the velocity it is given unless its rollout's shortfall is
 *imminent* (within a reaction time, by default one period and a full stop, or a contact with a
 bare disc anywhere in the horizon; the wrapper keeps escaping until the given velocity is clear
-over the whole horizon). Otherwise the given velocity and the candidates
-compete on one cost: the shortfall, a price on ending pressed against a wall, on leaving the
-preferred velocity, on turning, and on losing the sweep's headway along the preferred
-direction. The anchor escapes toward free space instead of braking in place, and backs out of
-a narrow passage while it still can. :class:`EscapeBudget` bounds how long escapes may hold
-the anchor off the sweep: past it the look-ahead yields (no room for turns, headway priced
-higher) until half of it is back. The horizon (:func:`look_ahead_horizon`) is one control
-period, a full stop from top speed and a half turn: 4.5 s with the defaults.
+over the whole horizon). Otherwise the given velocity and the candidates compete: the
+shortfall first (with a ``tolerance``, only the candidates within it of the least take part),
+then a price on ending pressed against a wall, on leaving the preferred velocity, on turning,
+and on losing the sweep's headway along the preferred direction (without a tolerance all of
+it is one cost, and these prices can buy shortfall). The anchor escapes toward free space
+instead of braking in place, and backs out of a narrow passage while it still can.
+:class:`EscapeBudget` bounds how long escapes may hold the anchor off the sweep: past it the
+look-ahead yields (no room for turns, headway priced higher) until half of it is back. The
+horizon (:func:`look_ahead_horizon`) is one control period, a full stop from top speed and a
+half turn: 4.5 s with the defaults.
 
 All functions are pure (NumPy in, NumPy out); lengths in m, times in s, angles in rad.
 """
@@ -410,7 +412,8 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
                     ends: np.ndarray, radius: float, sigma: float, maneuver: float,
                     clearance: float, obstacle_radius: float | None = None,
                     n_headings: int = 16, react: float | None = None,
-                    progress_weight: float = 0.0) -> Escape:
+                    progress_weight: float = 0.0,
+                    tolerance: float | None = None) -> Escape:
     """The velocity (m/s) to steer for among moving obstacles (see the module docstring).
 
     Args:
@@ -437,6 +440,9 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         progress_weight: price (m x steps) of a rollout that makes no headway along
             ``preferred`` against one that runs at ``max_speed`` straight along it for the
             whole horizon (the sweep's progress; 0: no price).
+        tolerance: the prices (walls, headway, preference, turn) choose only among the
+            candidates whose shortfall is within this (m x steps) of the least; None: they
+            compete with the shortfall on one cost.
     """
     velocity = np.asarray(velocity, dtype=np.float64)
     preferred = np.asarray(preferred, dtype=np.float64)
@@ -526,7 +532,10 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     # speed the heading is the only memory of the direction taken)
     distance = np.hypot(*(candidates - preferred).T) / max_speed
     turn = np.abs(np.remainder(headings - heading + math.pi, 2.0 * math.pi) - math.pi) / math.pi
-    pick = int(np.argmin(shortfall + walls + PREFERENCE_WEIGHT * distance + TURN_WEIGHT * turn))
+    cost = shortfall + walls + PREFERENCE_WEIGHT * distance + TURN_WEIGHT * turn
+    if tolerance is not None:
+        cost = np.where(shortfall <= shortfall.min() + tolerance, cost, np.inf)
+    pick = int(np.argmin(cost))
     if pick == 0:
         return Escape(velocity, False, base, base)
     return Escape(candidates[pick], True, base, float(shortfall[pick]))

@@ -191,6 +191,34 @@ def test_the_sweeps_headway_picks_among_escapes():
     assert keen.velocity[1] > 1.0 and keen.chosen_shortfall == 0.0
 
 
+def _passage(tolerance):
+    """The anchor 1 m inside a 3.2 m passage (walls x = +-1.6 from y = -1 on, heading -y out
+    of it, standing); an obstacle 6 m ahead drives into the mouth at 1 m/s."""
+    starts = np.array([[-1.6, -1.0], [1.6, 20.0]])
+    ends = np.array([[-1.6, 20.0], [1.6, -1.0]])
+    v = np.array([0.0, -1.0])
+    return escape_velocity(v, v, np.zeros(2), -math.pi / 2, 0.0,
+                           np.array([[0.0, -6.0, 0.0, 1.0, 1.5]]),
+                           np.diag([0.01, 0.01, 0.01, 0.01])[None], max_speed=2.0,
+                           max_accel=1.0, max_turn_rate=math.pi / 2, horizon=4.5, step=0.25,
+                           starts=starts, ends=ends, radius=0.7, sigma=2.0, maneuver=0.5,
+                           clearance=0.2, obstacle_radius=1.0, react=2.5, progress_weight=2.0,
+                           tolerance=tolerance)
+
+
+def test_free_space_does_not_buy_clearance_in_a_passage():
+    """Issue 24, the contacts left: backing up the passage keeps clear of the obstacle, but
+    ends between its walls; dashing past the obstacle ends in the open. On one cost the price
+    on ending near a wall outweighed the shortfall and the anchor dashed at the obstacle;
+    with the tolerance, the prices choose only among the (nearly) safest candidates."""
+    one_cost = _passage(None)
+    assert one_cost.escaping and one_cost.velocity[1] < -1.0     # toward the obstacle
+    assert one_cost.chosen_shortfall > 10.0
+    out = _passage(1.0)
+    assert out.escaping and out.velocity[1] > 0.5                # backs up the passage
+    assert out.chosen_shortfall <= 1.0
+
+
 def test_the_escape_budget_yields_with_hysteresis():
     budget = EscapeBudget(budget=2.0, refill=0.5)
     for _ in range(3):

@@ -3,8 +3,9 @@
 Each scenario is a 40 m field whose first spiral leg runs from the centre (20, 20) toward +x,
 driven by the zero action inside the full stack (Kalman tracks, fuzzy + ORCA, look-ahead), with
 one moving obstacle (radius 1 m) placed and steered by the test: head-on, crossing,
-overtaking, an obstacle that turns into the anchor at close range, and an obstacle that drives
-into a corridor the anchor is in. Each asserts no contact and the minimum separation achieved
+overtaking, an obstacle that turns into the anchor at close range, an obstacle that drives
+into a corridor the anchor is in, and one that drives at the mouth of a passage the anchor is
+in. Each asserts no contact and the minimum separation achieved
 (surface to surface, m). Deterministic (seeded noise, no random turns) and short (40 s of
 simulated time or less).
 """
@@ -71,6 +72,16 @@ SCENARIOS = {
     "corridor": ((38.5, 20.0), (-0.6, 0.0), 80,
                  {"walls": [_wall((22.0, 17.5), (38.0, 17.5), 2.0),
                             _wall((22.0, 22.5), (38.0, 22.5), 2.0)]}),
+    # the anchor starts inside a 4 m passage (x 14-23) whose mouth opens on the field; an
+    # obstacle drives at the mouth head-on: backing up keeps clear, dashing past it out of
+    # the passage toward free space does not. The clearance-first contest (the look-ahead's
+    # prices choose only among the candidates within shortfall_tolerance of the least) backs
+    # up; the defaults' one cost, whose price on ending near a wall can buy shortfall, come
+    # within 0.05 m (test below)
+    "passage_mouth": ((28.0, 20.0), (-1.0, 0.0), 60,
+                      {"walls": [_wall((14.0, 17.0), (23.0, 17.0), 2.0),
+                                 _wall((14.0, 23.0), (23.0, 23.0), 2.0)],
+                       "safety": SafetyConfig(shortfall_tolerance=1.0)}),
 }
 #: Minimum separation (m) each scenario must keep: no contact, and then some.
 MIN_SEPARATION = 0.5
@@ -92,10 +103,20 @@ def test_the_turning_obstacle_nearly_hits_the_orca_only_filter():
     assert separation < MIN_SEPARATION
 
 
+def test_the_passage_mouth_nearly_hits_the_one_cost_contest():
+    """The defaults (the look-ahead's prices and its shortfall on one cost) dash past the
+    obstacle at the passage's mouth: the scenario is a real threat (issue 24's contacts left
+    were mostly such escapes, benchmarks/safety_contacts.py)."""
+    start, velocity, steps, kw = SCENARIOS["passage_mouth"]
+    separation, _ = _run(start, velocity, steps, walls=kw["walls"])
+    assert separation < MIN_SEPARATION
+
+
 #: The look-ahead as it was before it yielded to the sweep (issue 24's first version): an
 #: escape whenever ORCA's velocity falls short of the clearance anywhere in the horizon, no
 #: price on headway, no escape budget.
-EAGER = SafetyConfig(look_ahead_react=60.0, progress_weight=0.0, escape_budget=1e4)
+EAGER = SafetyConfig(look_ahead_react=60.0, progress_weight=0.0, escape_budget=1e4,
+                     shortfall_tolerance=None)
 #: A cage beside the first leg (y = 20, 1.5 m from the cage's top wall) holding an obstacle
 #: that bounces up and down at 1 m/s (a 1.6 m slot, too narrow for it, in the bottom wall).
 CAGE = [_wall((24.5, 18.0), (30.5, 18.0), 1.0), _wall((24.5, 12.0), (26.7, 12.0), 1.0),

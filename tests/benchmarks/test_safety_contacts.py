@@ -1,0 +1,41 @@
+"""benchmarks/safety_contacts.py: the contact log's summary and the stacks it runs."""
+
+from __future__ import annotations
+
+import math
+
+from tests.benchmarks.conftest import load_benchmark
+
+
+def _period(speed, escaping=True, yielding=False, static_active=0, error=0.2, std=0.15):
+    return {"escaping": escaping, "yielding": yielding, "speed": speed,
+            "static_active": static_active,
+            "track": {"error": error, "std": std, "velocity_error": 0.1}}
+
+
+def test_summary_counts_contacts_and_their_situations():
+    bench = load_benchmark("safety_contacts")
+    dash = [_period(0.0, escaping=False)] * 8 + [_period(2.0)] * 8
+    # the track's std is read in the three periods before the contact's
+    pinned = ([_period(0.0, escaping=False)] * 14 + [_period(0.0, escaping=False, std=0.17)]
+              + [_period(0.05, escaping=False, static_active=2, yielding=True)])
+    rows = [{"density": 0.5, "moving_contacts": 2, "static_contacts": 0, "complete": False,
+             "coverage": 0.8, "min_separation": -0.01,
+             "contacts": [{"period": 10, "history": dash}, {"period": 99, "history": pinned}]},
+            {"density": 0.1, "moving_contacts": 0, "static_contacts": 0, "complete": True,
+             "coverage": 1.0, "min_separation": 2.0, "contacts": []}]
+    out = bench.summary(rows)
+    assert out["episodes"] == 2 and out["moving_contacts"] == 2
+    assert math.isclose(out["moving_per_100"], 100.0)
+    assert out["escaping_in_last_8"] == 1          # the pinned one had not escaped lately
+    assert out["at_speed"] == 1 and out["pinned"] == 1 and out["yielding"] == 1
+    assert out["by_density"]["0.5"] == [1, 2] and out["by_density"]["0.1"] == [1, 0]
+    assert math.isclose(out["track_std_max"], 0.17)
+    assert out["complete"] == 1
+
+
+def test_the_stacks_are_benchmarks_safety_pys():
+    bench = load_benchmark("safety_contacts")
+    assert bench.STACKS["clearance-first"].shortfall_tolerance == 1.0
+    assert bench.STACKS["one-cost"].shortfall_tolerance is None
+    assert bench.STACKS["stack"].shortfall_tolerance is None      # the defaults
