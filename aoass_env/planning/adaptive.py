@@ -13,7 +13,10 @@ WaypointFollower`, with its detours and its recovery from traps) and reads the a
    A target the anchor cannot reach straight is passed over when its need is at most
    ``detour_need``, and also when the detour is longer than the straight way by more than
    ``detour_excess`` metres: the spiral's later passes often cover what lies behind the
-   obstacle; such a waypoint stays *open*.
+   obstacle; such a waypoint stays *open*. By default none of this happens (``skip_need`` and
+   ``detour_need`` -0.25, below any need, ``detour_excess`` 1e4 m): the pruned plan has
+   already left out what the rest covers, and passing its far waypoints over broke its order
+   (docs/adaptive.md). The agent's knobs at +1 raise the two needs to 0 (skip what is covered).
    **Side of a detour.** When the sweep does detour to a target, it can weigh the planner's
    shortest way against the shortest way round the other side of the obstacle (a keep-out
    fence on the perpendicular through the first way's widest point, out to the field's
@@ -111,14 +114,19 @@ class AdaptiveConfig(ValidatedConfig):
     skip_radius: float = param(8.0, "a spiral waypoint's surroundings: the free cells within "
                                "this distance that it sees", unit="m", low=0.0, high=1000.0,
                                low_open=True)
-    skip_need: float = param(0.0, "a target whose surroundings' mean coverage deficit is at "
-                             "most this is passed over", low=-1.0, high=1.0)
-    detour_need: float = param(0.0, "the same for a target the anchor cannot reach straight "
-                               "(it would detour round an obstacle)", low=-1.0, high=1.0)
-    detour_excess: float = param(20.0, "a target whose detour is longer than the straight way "
+    skip_need: float = param(-0.25, "a target whose surroundings' mean coverage deficit (in "
+                             "[0, 1]) is at most this is passed over (below 0: never, unless "
+                             "the agent's knob raises it; the pruned plan has already left out "
+                             "what the rest covers, docs/adaptive.md; the rule without a plan "
+                             "used 0)", low=-1.0, high=1.0)
+    detour_need: float = param(-0.25, "the same for a target the anchor cannot reach straight "
+                               "(it would detour round an obstacle; the rule without a plan used "
+                               "0)", low=-1.0, high=1.0)
+    detour_excess: float = param(1e4, "a target whose detour is longer than the straight way "
                                  "by more than this is passed over whatever its need (the "
                                  "spiral's later passes and the densify phase cover what it "
-                                 "leaves)", unit="m", low=0.0, high=1e4)
+                                 "leaves; 1e4: never, the plan's order stands; the rule without "
+                                 "a plan used 20)", unit="m", low=0.0, high=1e4)
     densify_need: float = param(0.0, "after the spiral, uncovered cells with a deficit above "
                                 "this are visited, nearest first", low=-1.0, high=1.0)
     cell_need: float = param(0.0, "then, free cells with a deficit above this (0: every cell "

@@ -18,6 +18,9 @@ from aoass_env.simulator import Simulator
 from aoass_env.wrappers import make_safe_env
 
 OPEN = dict(field_size=60.0, n_nodes=120, obstacle_density=0.0, n_moving_obstacles=0)
+#: The online skips of the rule before the defaults left them to the plan (the rule without a
+#: plan, and the shipped adaptive policy's).
+ONLINE = dict(skip_need=0.0, detour_need=0.0, detour_excess=20.0)
 #: a wall across most of the field: the spiral's passes detour round its end
 WALL = ObstacleMap(60.0, 60.0, [np.array([[20.0, 29.0], [60.0, 29.0], [60.0, 31.0],
                                           [20.0, 31.0]])])
@@ -42,16 +45,25 @@ def test_on_an_open_field_the_rule_covers_everything_with_a_shorter_path():
     assert adaptive.network.coverage_ratio == spiral.network.coverage_ratio == 1.0
     assert adaptive.coverage_map.ratio >= AdaptiveConfig().end_coverage
     assert adaptive.network.distance_travelled < 0.9 * spiral.network.distance_travelled
-    assert {p.reason for p in ctl.passed} == {"covered"}
+    assert not ctl.passed          # the plan left out what is covered; no online skips
 
 
 def test_the_skip_knob_at_minus_one_passes_nothing_over_as_covered():
     config = AOASSConfig(**OPEN)
-    strict, ctl = _sweep(config, 0, AdaptiveConfig(), knobs=SweepKnobs(skip=-1.0))
+    strict, ctl = _sweep(config, 0, AdaptiveConfig(**ONLINE), knobs=SweepKnobs(skip=-1.0))
     assert ctl.done and not [p for p in ctl.passed if p.reason == "covered"]
-    rule, ctl = _sweep(config, 0, AdaptiveConfig())
-    assert [p for p in ctl.passed if p.reason == "covered"]
+    rule, ctl = _sweep(config, 0, AdaptiveConfig(**ONLINE))
+    assert {p.reason for p in ctl.passed} == {"covered"}
     assert strict.network.distance_travelled > rule.network.distance_travelled
+
+
+def test_by_default_only_the_skip_knob_passes_covered_targets_over():
+    """The defaults leave skipping to the plan; the agent's knob at +1 still reaches it."""
+    config = AOASSConfig(**OPEN)
+    _, ctl = _sweep(config, 0, AdaptiveConfig())
+    assert ctl.done and not ctl.passed
+    _, ctl = _sweep(config, 0, AdaptiveConfig(), knobs=SweepKnobs(skip=1.0))
+    assert ctl.done and {p.reason for p in ctl.passed} == {"covered"}
 
 
 def test_a_long_detour_is_left_open_and_revisited_after_the_spiral():
@@ -92,14 +104,14 @@ def test_a_rule_without_the_adaptive_action_type_is_refused_not_ignored():
 
 
 def test_the_zero_adaptive_action_reproduces_the_rule_in_the_simulator():
-    env = AOASSEnv(**OPEN, action_type="adaptive")
+    env = AOASSEnv(**OPEN, action_type="adaptive", adaptive=ONLINE)
     assert isinstance(env.action_type, AdaptiveAction) and env.action_space.shape == (5,)
     env.reset(seed=4)
     terminated = truncated = False
     while not (terminated or truncated):
         _, _, terminated, truncated, info = env.step(np.zeros(5, np.float32))
     assert terminated
-    ref, _ = _sweep(env.config, 4, AdaptiveConfig())
+    ref, _ = _sweep(env.config, 4, AdaptiveConfig(**ONLINE))
     np.testing.assert_array_equal(env.beacon_log.anchor_path, ref.finish().anchor_path)
     assert info["episode_metrics"]["passed_waypoints"] > 0
     assert info["area_coverage"] == ref.coverage_map.ratio
@@ -196,7 +208,8 @@ def test_a_cell_behind_a_wall_is_reached_along_the_planners_way_not_by_cutting_t
     wall's open end: the sweep steers for the planner's inner points first."""
     config, coverage, planner, start = _covered_below_the_wall()
     follower = WaypointFollower.nominal(config, start[None, :], planner=planner, recovery=True)
-    sweep = AdaptiveSweep(follower, coverage, planner, config, AdaptiveConfig(prune=False))
+    sweep = AdaptiveSweep(follower, coverage, planner, config,
+                          AdaptiveConfig(prune=False, **ONLINE))
     sweep.command(start, 0.0, config.dt)
     assert sweep.densifying and not sweep.done and sweep.revisits == [(-1, config.dt)]
     # the way's first corner at the wall's open end (x < 20), not the cell above the wall
@@ -210,7 +223,7 @@ def test_cells_farther_than_the_hop_end_the_cells_phase():
         follower = WaypointFollower.nominal(config, start[None, :], planner=planner,
                                             recovery=True)
         sweep = AdaptiveSweep(follower, coverage, planner, config,
-                              AdaptiveConfig(cell_hop=hop, prune=False))
+                              AdaptiveConfig(cell_hop=hop, prune=False, **ONLINE))
         speed, _ = sweep.command(start, 0.0, config.dt)
         assert sweep.done is done and (sweep.target is None) is done
         assert (speed == 0.0) if done else sweep.densifying
