@@ -13,7 +13,8 @@
   the zero action is the hand-written rule.
 * ``AOASS-Adaptive-Train-v0`` (:func:`aoass_env.wrappers.make_training_env`): the adaptive
   policy's training setup (configs/aoass_adaptive.yml): ``AOASS-Adaptive-v0`` with the
-  training setup's decisions, scales and maps.
+  training setup's decisions, scales and maps, and the sweep's rule the shipped adaptive
+  policy trained on (not ``AdaptiveConfig``'s defaults).
 
 None has a ``reward_threshold``: Eq. 14 has no level at which the task counts as solved
 (docs/env.md gives the reference returns instead).
@@ -57,6 +58,11 @@ ADAPTIVE_TRAIN_ENV_ID = "AOASS-Adaptive-Train-v0"
 _AGENT = {"action_repeat": 16, "action_heading_scale": round(math.pi / 12, 4), "n_nodes": 100}
 #: What makes a setup adaptive (configs/aoass_adaptive.yml).
 _ADAPTIVE = {"action_type": "adaptive", "obs_coverage_sectors": 8}
+#: The sweep's rule the shipped adaptive policy trained on (configs/aoass_adaptive.yml's
+#: ``adaptive``: wide passes, no pruned plan, online skips), not AdaptiveConfig's defaults.
+_ADAPTIVE_POLICY_RULE = {"prune": False, "reorder": False, "wide_passes": True,
+                         "cell_need": 0.5, "skip_need": 0.0, "detour_need": 0.0,
+                         "detour_excess": 20.0}
 
 #: id -> (entry point, default keywords)
 _IDS: dict[str, tuple[str, dict]] = {
@@ -69,7 +75,7 @@ _IDS: dict[str, tuple[str, dict]] = {
     ADAPTIVE_ENV_ID: ("aoass_env.wrappers:make_safe_env", dict(_ADAPTIVE)),
     ADAPTIVE_TRAIN_ENV_ID: ("aoass_env.wrappers:make_training_env",
                             {"split": "train", "field_size": 100.0, "densities": [0.1, 0.4],
-                             **_AGENT, **_ADAPTIVE}),
+                             **_AGENT, **_ADAPTIVE, "adaptive": dict(_ADAPTIVE_POLICY_RULE)}),
 }
 #: Every registered id.
 ENV_IDS = tuple(_IDS)

@@ -18,7 +18,14 @@ from agents.sections import read_yaml
 from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.env import COST_KEYS, max_episode_steps
 from aoass_env.maps import list_maps, load_map, validation_split
-from aoass_env.registration import ENV_IDS, QUICK_ENV_ID, SAFE_ENV_ID, TRAIN_ENV_ID
+from aoass_env.planning import AdaptiveConfig
+from aoass_env.registration import (
+    ADAPTIVE_TRAIN_ENV_ID,
+    ENV_IDS,
+    QUICK_ENV_ID,
+    SAFE_ENV_ID,
+    TRAIN_ENV_ID,
+)
 from aoass_env.wrappers import ActionRepeat, MapSampler
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -159,6 +166,18 @@ def test_the_training_id_is_the_shipped_policys_setup():
     assert fit and all(name.startswith("train/") for name in fit)
     sampled = wrapper(env, MapSampler).maps
     assert [m.name for m in sampled] == [load_map(name).name for name in fit]
+
+
+def test_the_adaptive_training_id_is_the_shipped_adaptive_policys_setup():
+    env = gym.make(ADAPTIVE_TRAIN_ENV_ID)
+    shipped = read_yaml(ROOT / "configs" / "aoass_adaptive.yml")["td3-lstm"]["env"]
+    run = read_yaml(ROOT / "checkpoints" / "aoass_adaptive" / "run.yml")
+    base = env.unwrapped
+    assert base.adaptive == AdaptiveConfig(**shipped["adaptive"]) != AdaptiveConfig()
+    assert shipped["adaptive"] == run["hyperparameters"]["env"]["adaptive"]
+    assert wrapper(env, ActionRepeat).repeat == shipped["action_repeat"]
+    assert base.config.obs_coverage_sectors == shipped["obs_coverage_sectors"]
+    assert base.config.action_heading_scale == shipped["action_heading_scale"]
 
 
 def test_the_quick_id_is_a_50_m_field_of_the_same_agent():
