@@ -190,7 +190,7 @@ def check_inputs(store: EpisodeStore, inputs: dict[str, str]) -> None:
             raise EvaluationError(f"{record_path} is unreadable ({exc}); delete it and "
                                   f"{store.path}, or choose another --out folder") from None
     if store.rows:
-        changed = [name for name, value in inputs.items()
+        changed = [name.removesuffix(" checkpoint") for name, value in inputs.items()
                    if recorded.get(name, value) != value]
         if changed:
             raise EvaluationError(

@@ -126,6 +126,11 @@ def test_resuming_with_another_checkpoint_is_refused_and_nothing_is_lost(tmp_pat
             check_inputs(store, {"policy": "ccc", "olstm-dvhop": "bbb"})
     assert "episodes.csv" in str(exc.value) and "--out" in str(exc.value)
     assert (tmp_path / INPUTS_FILE).read_text() == record   # the record is kept as it was
+    with EpisodeStore(tmp_path / "episodes.csv") as store:  # a method's own checkpoint
+        check_inputs(store, {"aoass-adaptive checkpoint": "ddd"})
+        with pytest.raises(EvaluationError) as exc:
+            check_inputs(store, {"aoass-adaptive checkpoint": "eee"})
+    assert "another aoass-adaptive checkpoint than this run's" in str(exc.value)
     assert (tmp_path / "episodes.csv").read_text() == csv_text
 
 
