@@ -130,7 +130,7 @@ class _Ways:
         self.n_cells = n_cells
         self.interval = interval
         self._ways: dict[tuple[int, int], _Way | None] = {}
-        self._heard: dict[tuple[int, int], np.ndarray] = {}
+        self._heard: dict[tuple[int, int], tuple[np.ndarray, np.uint64]] = {}
 
     def receivers(self, point: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.uint64]:
         """The cells that hear a beacon at ``point`` snapped to the lattice, that point, and
@@ -138,8 +138,9 @@ class _Ways:
         key = (round(point[0] / SNAP), round(point[1] / SNAP))
         snapped = np.array(key, dtype=np.float64) * SNAP
         if key not in self._heard:
-            self._heard[key] = self.radio.receivers(snapped)
-        return self._heard[key], snapped, np.uint64(beacon_weight(key))
+            self._heard[key] = (self.radio.receivers(snapped), np.uint64(beacon_weight(key)))
+        cells, weight = self._heard[key]
+        return cells, snapped, weight
 
     def get(self, a: int, b: int) -> _Way | None:
         """(length m, cells, their (K, 6) statistics, their (K,) signature sums) of the way
@@ -191,11 +192,12 @@ class _Pruner:
         self.prev = dict(zip(stops[1:], stops[:-1], strict=True))
         self.first = stops[0]
         self.total = np.zeros((ways.n_cells, 6))
-        self.signature = np.zeros(ways.n_cells, dtype=np.uint64)
+        self.signature = np.zeros(ways.n_cells, dtype=np.uint64)    # used by an error limit
         for a, b in zip(stops[:-1], stops[1:], strict=True):
             way = ways.get(a, b)
             self.total[way.cells] += way.stats
-            self.signature[way.cells] += way.signature
+            if error_limit is not None:
+                self.signature[way.cells] += way.signature
         self.reference = _covered(self.total, tol)
         self.robust = self._robust(self.total)
         self.cap = None
@@ -216,7 +218,8 @@ class _Pruner:
     def length(self) -> float:
         """The way through the kept waypoints (m)."""
         stops = self.order()
-        return sum(self.ways.get(a, b)[0] for a, b in zip(stops[:-1], stops[1:], strict=True))
+        return sum(self.ways.get(a, b).length
+                   for a, b in zip(stops[:-1], stops[1:], strict=True))
 
     def try_remove(self, run: list[int], min_gain: float) -> bool:
         """Remove the consecutive kept waypoints ``run`` when that shortens the plan by more
@@ -229,7 +232,7 @@ class _Pruner:
             return False
         chain = [a, *run, b]
         old = [self.ways.get(x, y) for x, y in zip(chain[:-1], chain[1:], strict=True)]
-        if sum(w[0] for w in old) - shortcut[0] <= min_gain:
+        if sum(w.length for w in old) - shortcut.length <= min_gain:
             return False
         if not self._exchange(old, [shortcut]):
             return False
@@ -244,25 +247,23 @@ class _Pruner:
         did."""
         cells = np.unique(np.concatenate([w.cells for w in old + new]))
         trial = self.total[cells]
-        signature = self.signature[cells]
-        for sign, ways in ((-1.0, old), (1.0, new)):
-            for way in ways:
-                at = np.searchsorted(cells, way.cells)
-                trial[at] += sign * way.stats
-                if sign < 0:
-                    signature[at] -= way.signature
-                else:
-                    signature[at] += way.signature
+        for way in old:
+            trial[np.searchsorted(cells, way.cells)] -= way.stats
+        for way in new:
+            trial[np.searchsorted(cells, way.cells)] += way.stats
         if (np.any(self.reference[cells] & ~_covered(trial, self.tol))
                 or np.any(self.robust[cells] & ~self._robust(trial))):
             return False
-        if self.cap is not None:
+        if self.cap is not None:        # the signatures matter only under an error limit
             whole = self.signature.copy()
-            whole[cells] = signature
+            for way in old:
+                whole[way.cells] -= way.signature
+            for way in new:
+                whole[way.cells] += way.signature
             if np.any(class_error(whole, self.ways.radio.nodes) > self.cap):
                 return False
+            self.signature = whole
         self.total[cells] = trial
-        self.signature[cells] = signature
         return True
 
     def gain(self, k: int) -> float:
@@ -273,7 +274,7 @@ class _Pruner:
         shortcut = self.ways.get(a, b)
         if shortcut is None:
             return -math.inf
-        return self.ways.get(a, k)[0] + self.ways.get(k, b)[0] - shortcut[0]
+        return self.ways.get(a, k).length + self.ways.get(k, b).length - shortcut.length
 
     def singles(self, min_gain: float) -> bool:
         """Remove single waypoints, the largest gain first; whether any went."""
@@ -338,7 +339,7 @@ class _Pruner:
         new = [self.ways.get(a, c)] + ([self.ways.get(b, d)] if d is not None else [])
         if any(w is None for w in new):
             return False
-        if sum(w[0] for w in old) - sum(w[0] for w in new) <= min_gain:
+        if sum(w.length for w in old) - sum(w.length for w in new) <= min_gain:
             return False
         if not self._exchange(old, new):
             return False
