@@ -62,7 +62,7 @@ _ADAPTIVE = {"action_type": "adaptive", "obs_coverage_sectors": 8}
 #: ``adaptive``: wide passes, no pruned plan, online skips), not AdaptiveConfig's defaults.
 _ADAPTIVE_POLICY_RULE = {"prune": False, "reorder": False, "wide_passes": True,
                          "cell_need": 0.5, "skip_need": 0.0, "detour_need": 0.0,
-                         "detour_excess": 20.0}
+                         "detour_excess": 20.0, "dense_above": 1.0}
 
 #: id -> (entry point, default keywords)
 _IDS: dict[str, tuple[str, dict]] = {

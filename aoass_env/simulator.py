@@ -197,7 +197,8 @@ class Simulator:
         the episode's coverage map, with the recovering follower."""
         return AdaptiveSweep(self.follower(recovery=True), self.coverage_map, self.planner,
                              self.config, rule if rule is not None else AdaptiveConfig(),
-                             time_limit=self.step_limit() * self.config.dt)
+                             time_limit=self.step_limit() * self.config.dt,
+                             density=self.map.density)
 
     def nominal_steps(self) -> int:
         """Control periods the ideal path takes at nominal speed."""

@@ -6,7 +6,9 @@ no safety stack, so the sweeps are cheap and deterministic): the plain spiral wi
 follower (evaluate.py's ``spiral``), and the adaptive sweep with the rule as configured and
 with each ``--variant``'s fields changed. The maps are the shipped ``maps/train`` maps of the
 chosen split (``fit`` or ``validation``, :func:`~aoass_env.maps.registry.validation_split`),
-never maps/test. Motion costs ``anchor_motion_energy`` J/m, so the path is the energy.
+never maps/test, or with ``--fresh SEED`` ``--maps`` freshly generated maps per density (map k of
+density d from ``default_rng([SEED, round(100 d), k])``: seeds used nowhere else check a choice
+made on the training maps). Motion costs ``anchor_motion_energy`` J/m, so the path is the energy.
 
 The script prints, per variant, the mean Eq. 18 coverage (share of nodes), the mean path (m),
 the path as a share of the spiral's on the same episodes, the share of sweeps that ended by
@@ -16,8 +18,9 @@ does not keep (inside obstacles); then coverage and path share by density. With
 ``--localizer``, every sweep's beacon log is also localized and the Eq. 15 RMSE (m, over the
 localized nodes) is printed beside the coverage, overall and by density.
 
-Run: ``python3 benchmarks/adaptive_rule.py [--split fit] [--densities 0.1 0.2 0.3 0.4]
-[--seeds 2] [--nodes 300] [--localizer olstm-dvhop] [--variant NAME key=value ...]``, e.g.
+Run: ``python3 benchmarks/adaptive_rule.py [--split fit | --fresh SEED --maps 4]
+[--densities 0.1 0.2 0.3 0.4] [--seeds 2] [--nodes 300] [--localizer olstm-dvhop]
+[--variant NAME key=value ...]``, e.g.
 ``--variant "cells 0.2" cell_need=0.2 --variant "sides 0.5" side_rate=0.5``.
 """
 
@@ -31,7 +34,7 @@ import numpy as np
 
 from aoass_env.config import AOASSConfig, ConfigError, config_for_map
 from aoass_env.localization import METHODS, localize
-from aoass_env.maps import load_map
+from aoass_env.maps import MAX_DENSITY, ObstacleMap, generate_map, load_map
 from aoass_env.maps.registry import list_maps, validation_split
 from aoass_env.metrics import localization_rmse
 from aoass_env.planning import AdaptiveConfig
@@ -54,11 +57,11 @@ class Outcome:
     rmse: float | None = None
 
 
-def sweep(name: str, seed: int, nodes: int, rule: AdaptiveConfig | None,
+def sweep(obstacle_map: ObstacleMap, seed: int, nodes: int, rule: AdaptiveConfig | None,
           localizer: str | None = None) -> Outcome:
-    """Sweep map ``name`` with ``nodes`` nodes and ``seed``: the plain spiral (``rule`` None)
-    or the adaptive sweep with ``rule``; localize its beacon log with ``localizer`` if given."""
-    obstacle_map = load_map(name)
+    """Sweep ``obstacle_map`` with ``nodes`` nodes and ``seed``: the plain spiral (``rule``
+    None) or the adaptive sweep with ``rule``; localize its beacon log with ``localizer`` if
+    given."""
     config = config_for_map(AOASSConfig(n_nodes=nodes), obstacle_map)
     if rule is not None:
         config = sweep_config(config, rule, obstacle_map.width)
@@ -121,12 +124,16 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
     parser.add_argument("--seeds", type=int, default=2, help="seeds (nodes, obstacles) per map")
     parser.add_argument("--nodes", type=int, default=300, help="N")
     parser.add_argument("--limit", type=int, help="only the first LIMIT maps of the split")
+    parser.add_argument("--fresh", type=int, metavar="SEED",
+                        help="freshly generated maps from SEED instead of maps/train")
+    parser.add_argument("--maps", type=int, default=4,
+                        help="with --fresh, generated maps per density")
     parser.add_argument("--localizer", choices=METHODS,
                         help="also localize every sweep's log and print its RMSE")
     parser.add_argument("--variant", nargs="+", action="append", default=[],
                         metavar="NAME key=value", help="a rule with these fields changed")
     args = parser.parse_args(argv)
-    for flag in ("seeds", "nodes", "limit"):
+    for flag in ("seeds", "nodes", "limit", "maps"):
         value = getattr(args, flag)
         if value is not None and value < 1:
             parser.error(f"--{flag} must be at least 1, got {value}")
@@ -134,23 +141,35 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
         variants = parse_variants(args.variant)
     except ConfigError as exc:
         parser.error(str(exc))
-    fit, held = validation_split(list_maps("train", field_size=args.field))
-    maps = [n for n in (fit if args.split == "fit" else held)
-            if any(f"/d{d:.2f}_" in n for d in args.densities)]
-    maps = maps[:args.limit] if args.limit is not None else maps
-    if not maps:
-        parser.error(f"no maps/train map of field {args.field:g} m at densities "
-                     f"{args.densities} in the {args.split} split")
-    episodes = [(name, seed) for name in maps for seed in range(args.seeds)]
-    density = np.array([float(name.rsplit("/d", 1)[1][:4]) for name, _ in episodes])
-    spiral = [sweep(n, s, args.nodes, None, args.localizer) for n, s in episodes]
-    print(f"{len(maps)} maps of the {args.split} split x {args.seeds} seeds, N = {args.nodes}")
+    if args.fresh is not None:
+        bad = [d for d in args.densities if not 0.0 <= d <= MAX_DENSITY]
+        if bad:
+            parser.error(f"--densities {bad[0]:g}: a generated map's density must lie in "
+                         f"[0, {MAX_DENSITY:g}]")
+        maps = [(d, generate_map(args.field, d, np.random.default_rng(
+                    [args.fresh, round(100 * d), k]))) for d in args.densities
+                for k in range(args.maps)]
+        source = f"freshly generated maps (seed {args.fresh}, {args.maps} per density)"
+    else:
+        fit, held = validation_split(list_maps("train", field_size=args.field))
+        names = [n for n in (fit if args.split == "fit" else held)
+                 if any(f"/d{d:.2f}_" in n for d in args.densities)]
+        names = names[:args.limit] if args.limit is not None else names
+        if not names:
+            parser.error(f"no maps/train map of field {args.field:g} m at densities "
+                         f"{args.densities} in the {args.split} split")
+        maps = [(float(n.rsplit("/d", 1)[1][:4]), load_map(n)) for n in names]
+        source = f"maps of the {args.split} split"
+    episodes = [(m, seed) for _, m in maps for seed in range(args.seeds)]
+    density = np.repeat([d for d, _ in maps], args.seeds)
+    spiral = [sweep(m, s, args.nodes, None, args.localizer) for m, s in episodes]
+    print(f"{len(maps)} {source} x {args.seeds} seeds, N = {args.nodes}")
     table = {SPIRAL: spiral}
     rmse_head = f" RMSE {args.localizer} [m] |" if args.localizer else ""
     print("| sweep | coverage |" + rmse_head + " path [m] | path / spiral's | ended by itself | "
           "uncovered nodes: in covered cells / in open cells / outside the map's cells |")
     print("|---|---|" + "---|" * bool(rmse_head) + "---|---|---|---|")
-    table.update({name: [sweep(n, s, args.nodes, rule, args.localizer) for n, s in episodes]
+    table.update({name: [sweep(m, s, args.nodes, rule, args.localizer) for m, s in episodes]
                   for name, rule in variants.items()})
     for name, outcomes in table.items():
         cov = np.mean([o.coverage for o in outcomes])

@@ -17,6 +17,8 @@ WaypointFollower`, with its detours and its recovery from traps) and reads the a
    ``detour_need`` -0.25, below any need, ``detour_excess`` 1e4 m): the pruned plan has
    already left out what the rest covers, and passing its far waypoints over broke its order
    (docs/adaptive.md). The agent's knobs at +1 raise the two needs to 0 (skip what is covered).
+   On a dense map (obstacle density above ``dense_above``, 0.45) the ``dense_`` thresholds
+   stand in for the three (0, 0 and 20 m: the online skips on), where they shortened the sweep.
    **Side of a detour.** When the sweep does detour to a target, it can weigh the planner's
    shortest way against the shortest way round the other side of the obstacle (a keep-out
    fence on the perpendicular through the first way's widest point, out to the field's
@@ -127,6 +129,15 @@ class AdaptiveConfig(ValidatedConfig):
                                  "spiral's later passes and the densify phase cover what it "
                                  "leaves; 1e4: never, the plan's order stands; the rule without "
                                  "a plan used 20)", unit="m", low=0.0, high=1e4)
+    dense_above: float = param(0.45, "on a map whose obstacle density (the static map's "
+                               "obstacle area / field area) is above this, the three dense_ "
+                               "thresholds below stand in for skip_need, detour_need and "
+                               "detour_excess (1: never; chosen on training and fresh maps, "
+                               "docs/adaptive.md)", low=0.0, high=1.0)
+    dense_skip_need: float = param(0.0, "skip_need on a dense map", low=-1.0, high=1.0)
+    dense_detour_need: float = param(0.0, "detour_need on a dense map", low=-1.0, high=1.0)
+    dense_detour_excess: float = param(20.0, "detour_excess on a dense map", unit="m",
+                                       low=0.0, high=1e4)
     densify_need: float = param(0.0, "after the spiral, uncovered cells with a deficit above "
                                 "this are visited, nearest first", low=-1.0, high=1.0)
     cell_need: float = param(0.0, "then, free cells with a deficit above this (0: every cell "
@@ -165,6 +176,14 @@ def sweep_config(config: AOASSConfig, rule: AdaptiveConfig, side: float) -> AOAS
     return config.replace(spiral_spacing=config_spacing(config, side, side, wide=True))
 
 
+class OnlineThresholds(NamedTuple):
+    """The thresholds of the online skips in force on a map (:class:`AdaptiveConfig`)."""
+
+    skip_need: float
+    detour_need: float
+    detour_excess: float
+
+
 class SweepKnobs(NamedTuple):
     """The agent's knobs on the rule, each in [-1, 1] (0: the rule as configured)."""
 
@@ -185,6 +204,8 @@ class AdaptiveSweep:
         config: the episode's configuration (the densify followers are built from it).
         rule: the rule's thresholds.
         time_limit: the episode's time limit (s), for ``beyond_time``.
+        density: the static map's obstacle density (obstacle area / field area), for
+            ``dense_above``.
 
     Attributes:
         knobs: the knobs in force (the environment sets them from the action).
@@ -202,6 +223,7 @@ class AdaptiveSweep:
     config: AOASSConfig
     rule: AdaptiveConfig = field(default_factory=AdaptiveConfig)
     time_limit: float = math.inf
+    density: float = 0.0
     knobs: SweepKnobs = field(default_factory=SweepKnobs)
     passed: list[Skip] = field(default_factory=list)
     revisits: list[tuple[int, float]] = field(default_factory=list)
@@ -324,14 +346,24 @@ class AdaptiveSweep:
             self._near[index] = cells
         return float(self.coverage.deficit_at(cells).mean()) if len(cells) else 0.0
 
+    def online_thresholds(self) -> OnlineThresholds:
+        """The rule's skip_need, detour_need and detour_excess (m) on this map: the ``dense_``
+        ones when the map's obstacle density is above ``dense_above``."""
+        rule = self.rule
+        if self.density > rule.dense_above:
+            return OnlineThresholds(rule.dense_skip_need, rule.dense_detour_need,
+                                    rule.dense_detour_excess)
+        return OnlineThresholds(rule.skip_need, rule.detour_need, rule.detour_excess)
+
     def _pass_covered(self, position: np.ndarray, runner: WaypointFollower) -> None:
         """Pass over the runner's targets the rule says to skip; on the spiral, those with
         coverage still missing stay open for the densify runs. Whether to detour to a target is
         judged once, when it becomes the target (a planner search); its coverage every
         period."""
-        skip_need = self._threshold(self.rule.skip_need, self.knobs.skip)
-        detour_need = self._threshold(self.rule.detour_need, self.knobs.detour)
-        max_excess = self.rule.detour_excess * 2.0 ** -float(np.clip(self.knobs.detour, -1, 1))
+        base = self.online_thresholds()
+        skip_need = self._threshold(base.skip_need, self.knobs.skip)
+        detour_need = self._threshold(base.detour_need, self.knobs.detour)
+        max_excess = base.detour_excess * 2.0 ** -float(np.clip(self.knobs.detour, -1, 1))
         on_spiral = runner is self.follower
         while not runner.done:
             need = self.need(runner.index)

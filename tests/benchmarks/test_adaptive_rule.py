@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from aoass_env.maps import load_map
 from aoass_env.planning import AdaptiveConfig
 from tests.benchmarks.conftest import load_benchmark
 
@@ -29,7 +30,7 @@ def test_variants_change_the_named_fields_and_refuse_bad_ones(bench):
             bench.parse_variants([[taken, "cell_need=0.2"]])
 
 
-@pytest.mark.parametrize("flag", ["--seeds", "--nodes", "--limit"])
+@pytest.mark.parametrize("flag", ["--seeds", "--nodes", "--limit", "--maps"])
 def test_counts_below_one_are_refused(bench, capsys, flag):
     with pytest.raises(SystemExit):
         bench.main([flag, "0"])
@@ -57,12 +58,29 @@ def test_a_split_without_maps_of_the_density_is_refused(bench, capsys):
 
 
 def test_localizer_adds_each_sweeps_rmse_of_its_own_log(bench, capsys):
-    outcome = bench.sweep("train/d0.10_f100_s000", 0, 40, None, "consensus")
+    train_map = load_map("train/d0.10_f100_s000")
+    outcome = bench.sweep(train_map, 0, 40, None, "consensus")
     assert outcome.rmse is not None and 0.0 < outcome.rmse < 5.0
-    assert bench.sweep("train/d0.10_f100_s000", 0, 40, None).rmse is None
+    assert bench.sweep(train_map, 0, 40, None).rmse is None
     table = bench.main(["--densities", "0.1", "--seeds", "1", "--nodes", "40", "--limit", "1",
                         "--localizer", "consensus"])
     out = capsys.readouterr().out
     assert "RMSE consensus [m]" in out
     assert all(o.rmse is not None for outcomes in table.values() for o in outcomes)
     assert f"| {table['rule'][0].rmse:.3f} |" in out
+
+
+def test_fresh_maps_are_generated_from_the_seed_per_density(bench, capsys):
+    args = ["--fresh", "987", "--maps", "1", "--densities", "0.1", "0.4", "--seeds", "1",
+            "--nodes", "30"]
+    table = bench.main(args)
+    out = capsys.readouterr().out
+    assert "2 freshly generated maps (seed 987, 1 per density) x 1 seeds" in out
+    assert "d = 0.1" in out and "d = 0.4" in out
+    assert len(table["rule"]) == 2
+    assert bench.main(args) == table            # the same seed, the same maps and sweeps
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        bench.main(["--fresh", "987", "--densities", "0.7"])
+    assert "--densities 0.7: a generated map's density must lie in [0, 0.6]" in \
+        capsys.readouterr().err

@@ -66,6 +66,24 @@ def test_by_default_only_the_skip_knob_passes_covered_targets_over():
     assert ctl.done and {p.reason for p in ctl.passed} == {"covered"}
 
 
+def test_on_a_map_denser_than_dense_above_the_dense_thresholds_skip_online():
+    config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
+    sparse = AdaptiveConfig(dense_above=0.5)          # WALL's density is about 0.02
+    dense = AdaptiveConfig(dense_above=0.01)
+    _, ctl = _sweep(config, 1, sparse, obstacle_map=WALL)
+    assert ctl.online_thresholds() == (sparse.skip_need, sparse.detour_need,
+                                       sparse.detour_excess)
+    assert ctl.done and not ctl.passed
+    sim, ctl = _sweep(config, 1, dense, obstacle_map=WALL)
+    assert ctl.density == pytest.approx(WALL.density)
+    assert ctl.online_thresholds() == (0.0, 0.0, 20.0)
+    assert ctl.done and "covered" in {p.reason for p in ctl.passed}
+    # the same as naming the thresholds themselves
+    same, twin = _sweep(config, 1, AdaptiveConfig(dense_above=1.0, **ONLINE), obstacle_map=WALL)
+    assert twin.passed == ctl.passed
+    assert same.network.distance_travelled == sim.network.distance_travelled
+
+
 def test_a_long_detour_is_left_open_and_revisited_after_the_spiral():
     config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
     sim, ctl = _sweep(config, 1, AdaptiveConfig(detour_excess=5.0, end_coverage=1.0),
