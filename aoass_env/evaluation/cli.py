@@ -23,7 +23,13 @@ from aoass_env.backends import (
     make_backend,
 )
 from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
-from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, RunOptions, select_methods
+from aoass_env.evaluation.methods import (
+    DEFAULT_POLICY,
+    METHODS,
+    RunOptions,
+    config_defaults_digest,
+    select_methods,
+)
 from aoass_env.evaluation.report import (
     draw_figures,
     label,
@@ -33,6 +39,7 @@ from aoass_env.evaluation.report import (
     write_summary_csv,
 )
 from aoass_env.evaluation.store import (
+    CONFIG_DEFAULTS,
     NO_LOCALIZER,
     EpisodeStore,
     EvaluationError,
@@ -187,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
             out = args.out or Path("out") / preset.name
             jobs = episode_jobs(preset, methods, localizers, args.seeds)
             title = f"AOASS evaluation: preset {preset.name}"
-        inputs = {}
+        inputs = {} if args.logs is not None else {CONFIG_DEFAULTS: config_defaults_digest()}
         record = None
         own = [METHODS[m] for m in methods if METHODS[m].checkpoint] if args.logs is None else []
         for spec in own:

@@ -25,6 +25,8 @@ first, so all methods see the same nodes on the same map and seed.
 from __future__ import annotations
 
 import functools
+import hashlib
+import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -38,15 +40,26 @@ from aoass_env.config import AOASSConfig
 from aoass_env.data import shipped_dir
 from aoass_env.evaluation.store import EvaluationError
 from aoass_env.maps import ObstacleMap
-from aoass_env.planning import PlannedMethod
+from aoass_env.planning import AdaptiveConfig, PlannedMethod
 from aoass_env.planning.baselines import BASELINE_METHODS
 from aoass_env.planning.classical import CLASSICAL_METHODS
 from aoass_env.planning.sweep import Controller
+from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.simulator import Simulator
 from aoass_env.wrappers import make_safe_env
 
-__all__ = ["DEFAULT_POLICY", "METHODS", "MethodRun", "MethodSpec", "RunOptions",
-           "select_methods"]
+__all__ = ["DEFAULT_POLICY", "METHODS", "MethodRun", "MethodSpec",
+           "RunOptions", "config_defaults_digest", "select_methods"]
+
+
+def config_defaults_digest() -> str:
+    """SHA-256 (hex) of the defaults of the configs the methods are built from (AOASSConfig,
+    AdaptiveConfig: the rule, SafetyConfig, TrackerConfig): rows made with other defaults (a
+    rule's threshold tuned since) must not be mixed with this run's in one table."""
+    defaults = {cls.__name__: cls().to_dict()
+                for cls in (AOASSConfig, AdaptiveConfig, SafetyConfig, TrackerConfig)}
+    text = json.dumps(defaults, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 #: The shipped AOASS policy and the algorithm that saved it.
 DEFAULT_POLICY = shipped_dir("checkpoints") / "aoass_td3_lstm" / "best.zip"

@@ -23,10 +23,10 @@ from typing import Any
 
 from aoass_env.atomic import write_text_atomic
 
-__all__ = ["COLUMNS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS", "LOCALIZATION_FIELDS",
-           "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey", "EpisodeStore", "EvaluationError",
-           "check_inputs", "RUNS_FILE", "comparable_lines", "file_digest", "read_episodes",
-           "read_runs", "record_run", "row_key"]
+__all__ = ["COLUMNS", "CONFIG_DEFAULTS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS",
+           "LOCALIZATION_FIELDS", "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey", "EpisodeStore",
+           "EvaluationError", "check_inputs", "RUNS_FILE", "comparable_lines", "file_digest",
+           "read_episodes", "read_runs", "record_run", "row_key"]
 
 
 class EvaluationError(ValueError):
@@ -169,11 +169,24 @@ def file_digest(*paths: str | os.PathLike[str]) -> str:
     return digest.hexdigest()
 
 
+#: The input name (:func:`check_inputs`) of the config defaults every method is built from.
+CONFIG_DEFAULTS = "config defaults"
+
+
+def _input_phrase(name: str) -> str:
+    """How an input of :func:`check_inputs` is named in its refusal: "another policy
+    checkpoint", "another aoass-adaptive checkpoint", "other config defaults"."""
+    if name == CONFIG_DEFAULTS:
+        return "other config defaults"
+    return f"another {name.removesuffix(' checkpoint')} checkpoint"
+
+
 def check_inputs(store: EpisodeStore, inputs: dict[str, str]) -> None:
     """Refuse to resume ``store`` with other checkpoints than its rows were produced with.
 
-    ``inputs`` maps a name (``"policy"``, ``"olstm-dvhop"``) to the digest
-    (:func:`file_digest`) of the files that name stands for. They are recorded in
+    ``inputs`` maps a name (``"policy"``, ``"olstm-dvhop"``, ``"config defaults"``) to the
+    digest (:func:`file_digest`, or the methods' config defaults') of what that name stands
+    for. They are recorded in
     :data:`INPUTS_FILE` beside the CSV (written atomically, merged with earlier records; while
     the CSV has no rows, a new digest simply replaces the recorded one).
 
@@ -190,14 +203,14 @@ def check_inputs(store: EpisodeStore, inputs: dict[str, str]) -> None:
             raise EvaluationError(f"{record_path} is unreadable ({exc}); delete it and "
                                   f"{store.path}, or choose another --out folder") from None
     if store.rows:
-        changed = [name.removesuffix(" checkpoint") for name, value in inputs.items()
+        changed = [_input_phrase(name) for name, value in inputs.items()
                    if recorded.get(name, value) != value]
         if changed:
             raise EvaluationError(
-                f"{store.path} holds episodes produced with another {' and '.join(changed)} "
-                f"checkpoint than this run's ({record_path} records its SHA-256); resuming "
-                f"would mix the two in one table. Delete {store.path} (or the folder), or "
-                f"choose another --out folder")
+                f"{store.path} holds episodes produced with {' and '.join(changed)} than "
+                f"this run's ({record_path} records their SHA-256); resuming would mix the "
+                f"two in one table. Delete {store.path} (or the folder), or choose another "
+                f"--out folder")
     try:
         write_text_atomic(record_path, json.dumps(recorded | inputs, indent=1,
                                                   sort_keys=True) + "\n")

@@ -9,11 +9,12 @@ from dataclasses import replace
 
 import pytest
 
-from aoass_env.evaluation import cli
+from aoass_env.evaluation import cli, methods
 from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, POLICY_COMMAND
 from aoass_env.evaluation.store import COLUMNS, NO_LOCALIZER, read_episodes, read_runs
 from aoass_env.evaluation.sweep import PRESETS, robustness_seed
 from aoass_env.localization import METHODS as LOCALIZERS
+from aoass_env.planning import AdaptiveConfig
 
 
 def _usage_error(capsys, argv: list[str]) -> str:
@@ -119,6 +120,27 @@ def test_resuming_with_another_policy_fails_before_any_work(smoke_run, capsys, t
     before = (tmp_path / "episodes.csv").read_text()
     err = _usage_error(capsys, [*argv, "--policy", str(second)])
     assert "another policy checkpoint" in err and str(tmp_path / "episodes.csv") in err
+    assert (tmp_path / "episodes.csv").read_text() == before
+
+
+def test_resuming_with_other_config_defaults_is_refused(smoke_run, monkeypatch, capsys,
+                                                       tmp_path):
+    """A rule's default tuned since the rows were made: resuming would mix the two rules."""
+    out, _ = smoke_run
+    for name in ("episodes.csv", "inputs.json"):
+        shutil.copy(out / name, tmp_path / name)
+    assert methods.config_defaults_digest() == methods.config_defaults_digest()
+
+    def tuned() -> AdaptiveConfig:
+        return AdaptiveConfig(dense_above=AdaptiveConfig().dense_above / 2)
+
+    tuned.__name__ = "AdaptiveConfig"
+    monkeypatch.setattr(methods, "AdaptiveConfig", tuned)
+    argv = ["--preset", "smoke", "--methods", "spiral", "--localizers", "dvhop",
+            "--out", str(tmp_path), "--no-progress"]
+    before = (tmp_path / "episodes.csv").read_text()
+    err = _usage_error(capsys, argv)
+    assert "produced with other config defaults than this run's" in err
     assert (tmp_path / "episodes.csv").read_text() == before
 
 

@@ -6,6 +6,7 @@ import pytest
 
 from aoass_env.evaluation.store import (
     COLUMNS,
+    CONFIG_DEFAULTS,
     INPUTS_FILE,
     RUNS_FILE,
     TIMING_FIELDS,
@@ -131,6 +132,11 @@ def test_resuming_with_another_checkpoint_is_refused_and_nothing_is_lost(tmp_pat
         with pytest.raises(EvaluationError) as exc:
             check_inputs(store, {"aoass-adaptive checkpoint": "eee"})
     assert "another aoass-adaptive checkpoint than this run's" in str(exc.value)
+    with EpisodeStore(tmp_path / "episodes.csv") as store:  # the methods' config defaults
+        check_inputs(store, {CONFIG_DEFAULTS: "fff"})
+        with pytest.raises(EvaluationError) as exc:
+            check_inputs(store, {CONFIG_DEFAULTS: "ggg", "policy": "ccc"})
+    assert "with other config defaults and another policy checkpoint than" in str(exc.value)
     assert (tmp_path / "episodes.csv").read_text() == csv_text
 
 
