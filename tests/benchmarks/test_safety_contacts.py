@@ -36,6 +36,10 @@ def test_summary_counts_contacts_and_their_situations():
 
 def test_the_stacks_are_benchmarks_safety_pys():
     bench = load_benchmark("safety_contacts")
-    assert bench.STACKS["clearance-first"].shortfall_tolerance == 1.0
-    assert bench.STACKS["one-cost"].shortfall_tolerance is None
+    cf, one = bench.STACKS["clearance-first"], bench.STACKS["one-cost"]
+    assert cf.shortfall_tolerance == 1.0 and cf.yield_shortfall_tolerance == 1.0
+    assert one.shortfall_tolerance is None and one.yield_shortfall_tolerance is None
+    assert bench.STACKS["yield-one-cost"].shortfall_tolerance == 1.0
+    assert bench.STACKS["yield-one-cost"].yield_shortfall_tolerance is None
+    assert bench.STACKS["yield-tolerance"].yield_shortfall_tolerance == 3.0
     assert bench.STACKS["stack"].shortfall_tolerance is None      # the defaults
