@@ -2,7 +2,8 @@
 
 Five measurements, each printed as a table and saved to ``OUT/results.json``. The stacks
 compared (``--stacks``, ``--cost-stacks``) run the same seeds: ``stack`` (the defaults: ORCA
-plus the look-ahead of issue 24, which yields to the sweep), ``eager`` (the look-ahead's first
+plus the look-ahead of issue 24, which yields to the sweep; the clearance first, one cost while
+yielding, as ``yield-one-cost``), ``eager`` (the look-ahead's first
 version: it escapes whenever ORCA's velocity falls short anywhere in its horizon, without a
 price on headway or an escape budget), ``orca`` (the filter before the look-ahead,
 ``SafetyConfig.orca_only()``), ``bare`` (AOASS-v0 without a stack), and two ablations of the

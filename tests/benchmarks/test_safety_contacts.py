@@ -44,4 +44,5 @@ def test_the_stacks_are_benchmarks_safety_pys():
     assert bench.STACKS["yield-one-cost"].shortfall_tolerance == 1.0
     assert bench.STACKS["yield-one-cost"].yield_shortfall_tolerance is None
     assert bench.STACKS["yield-tolerance"].yield_shortfall_tolerance == 3.0
-    assert bench.STACKS["stack"].shortfall_tolerance is None      # the defaults
+    stack = bench.STACKS["stack"]                                # the defaults
+    assert stack.shortfall_tolerance == 1.0 and stack.yield_shortfall_tolerance is None
