@@ -349,7 +349,7 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
             clearance=cfg.look_ahead_clearance, obstacle_radius=c.moving_obstacle_radius,
             react=None if self._escaping else react,
             progress_weight=cfg.yield_progress_weight if yielding else cfg.progress_weight,
-            tolerance=cfg.shortfall_tolerance)
+            tolerance=cfg.yield_shortfall_tolerance if yielding else cfg.shortfall_tolerance)
 
     def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         executed, report = self._filter(action)

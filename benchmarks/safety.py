@@ -2,16 +2,19 @@
 
 Five measurements, each printed as a table and saved to ``OUT/results.json``. The stacks
 compared (``--stacks``, ``--cost-stacks``) run the same seeds: ``stack`` (the defaults: ORCA
-plus the look-ahead of issue 24, which yields to the sweep), ``eager`` (the look-ahead's first
+plus the look-ahead of issue 24, which yields to the sweep; the clearance first, one cost while
+yielding, as ``yield-one-cost``), ``eager`` (the look-ahead's first
 version: it escapes whenever ORCA's velocity falls short anywhere in its horizon, without a
 price on headway or an escape budget), ``orca`` (the filter before the look-ahead,
 ``SafetyConfig.orca_only()``), ``bare`` (AOASS-v0 without a stack), and two ablations of the
 defaults that tell which of the yielding look-ahead's changes costs contacts: ``early``
 (escapes start whenever ORCA's velocity falls short in the horizon) and ``no-headway`` (no
-price on the sweep's headway); ``one-cost`` (the defaults, explicitly: the escape's prices
+price on the sweep's headway); ``one-cost`` (issue 24's first defaults: the escape's prices
 on free space and headway compete with the clearance shortfall on one cost and can buy a
-candidate with more shortfall) and ``clearance-first`` (they choose only among the
-candidates within 1 m x steps of the least shortfall, ``shortfall_tolerance=1``).
+candidate with more shortfall), ``clearance-first`` (they choose only among the candidates
+within 1 m x steps of the least shortfall, ``shortfall_tolerance=1``, also while yielding to
+the sweep), ``yield-one-cost`` (clearance first until the escape budget yields, then one
+cost) and ``yield-tolerance`` (clearance first, within 3 m x steps while yielding).
 
 1. **contacts**: ``--episodes`` episodes (default 200) on generated 100 m maps of densities
    0.1-0.6 in turn, driven by uniformly random actions (a worst-case agent): anchor contacts
@@ -59,17 +62,26 @@ STACKS = {"stack": SafetyConfig(), "orca": SafetyConfig.orca_only(), "bare": Non
           # the look-ahead's first version: an escape whenever ORCA's velocity falls short
           # anywhere in the horizon, no price on the sweep's headway, no escape budget
           "eager": SafetyConfig(look_ahead_react=60.0, progress_weight=0.0,
-                                escape_budget=1e4, shortfall_tolerance=None),
+                                escape_budget=1e4, shortfall_tolerance=None,
+                                yield_shortfall_tolerance=None),
           # the yielding look-ahead less one of its changes each, to tell which costs contacts:
           # escapes start whenever ORCA falls short in the horizon; no price on the headway
           # (ablations of issue 24's first defaults, the one-cost contest)
-          "early": SafetyConfig(look_ahead_react=60.0, shortfall_tolerance=None),
-          "no-headway": SafetyConfig(progress_weight=0.0, shortfall_tolerance=None),
+          "early": SafetyConfig(look_ahead_react=60.0, shortfall_tolerance=None,
+                                yield_shortfall_tolerance=None),
+          "no-headway": SafetyConfig(progress_weight=0.0, shortfall_tolerance=None,
+                                     yield_shortfall_tolerance=None),
           # the escape's prices on free space, headway, preference and turning compete with
-          # the clearance shortfall on one cost (the defaults), or choose only among the
-          # candidates within 1 m x steps of the least shortfall (issue 24's second round)
-          "one-cost": SafetyConfig(shortfall_tolerance=None),
-          "clearance-first": SafetyConfig(shortfall_tolerance=1.0)}
+          # the clearance shortfall on one cost (issue 24's first defaults), or choose only
+          # among the candidates within 1 m x steps of the least shortfall (issue 24's second
+          # round), also while yielding to the sweep
+          "one-cost": SafetyConfig(shortfall_tolerance=None, yield_shortfall_tolerance=None),
+          "clearance-first": SafetyConfig(shortfall_tolerance=1.0, yield_shortfall_tolerance=1.0),
+          # clearance first until the escape budget is spent; while yielding, the prices
+          # (headway priced yield_progress_weight) compete with the shortfall on one cost, or
+          # choose among the candidates within 3 m x steps of the least (issue 24's third round)
+          "yield-one-cost": SafetyConfig(shortfall_tolerance=1.0, yield_shortfall_tolerance=None),
+          "yield-tolerance": SafetyConfig(shortfall_tolerance=1.0, yield_shortfall_tolerance=3.0)}
 
 
 def episode(task: tuple[str, str, float | str, int]) -> dict:

@@ -12,7 +12,8 @@ a summary is printed: contacts per 100 episodes by density, and how many contact
 or just after escaping, while yielding, at speed, or with the anchor standing pinned.
 
 Run: ``python3 benchmarks/safety_contacts.py --stack stack --episodes 150 --first-seed 61000
---out out/contacts_stack.jsonl [--policy random|zero] [--jobs 2]``; ``--summary FILE ...``
+--out out/contacts_stack.jsonl [--policy random|zero] [--jobs 2] [--set FIELD=JSON ...]``
+(``--set`` changes fields of the stack, e.g. ``escape_budget=10``); ``--summary FILE ...``
 prints the summary of earlier runs.
 """
 
@@ -23,6 +24,7 @@ import json
 import math
 import sys
 from collections import deque
+from dataclasses import replace
 from multiprocessing import Pool
 from pathlib import Path
 
@@ -103,6 +105,8 @@ def summary(rows: list[dict]) -> dict:
            "static_contacts": sum(r["static_contacts"] for r in rows),
            "complete": sum(r["complete"] for r in rows),
            "coverage": float(np.mean([r["coverage"] for r in rows])),
+           "path_length": float(np.mean([r["path_length"] for r in rows])),
+           "time": float(np.mean([r["time"] for r in rows])),
            "median_min_separation": float(np.median([r["min_separation"] for r in rows])),
            "escaping_in_last_8": sum(any(h["escaping"] for h in c["history"][-8:])
                                      for c in found),
@@ -127,6 +131,9 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=61_000)
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("out/safety_contacts.jsonl"))
+    parser.add_argument("--set", nargs="+", default=[], metavar="FIELD=JSON",
+                        help="change fields of the stack's SafetyConfig, e.g. escape_budget=10 "
+                             "yield_shortfall_tolerance=null")
     parser.add_argument("--summary", type=Path, nargs="+",
                         help="print the summary of these earlier runs and stop")
     args = parser.parse_args()
@@ -135,6 +142,11 @@ def main() -> None:
             rows = [json.loads(line) for line in path.read_text().splitlines() if line]
             print(path, json.dumps(summary(rows)))
         return
+    if args.set:
+        # the pool's workers are forked after this: they read the changed stack
+        fields = dict(item.split("=", 1) for item in args.set)
+        STACKS[args.stack] = replace(STACKS[args.stack],
+                                     **{k: json.loads(v) for k, v in fields.items()})
     tasks = [(args.policy, args.stack, DENSITIES[i % len(DENSITIES)], args.first_seed + i)
              for i in range(args.episodes)]
     args.out.parent.mkdir(parents=True, exist_ok=True)

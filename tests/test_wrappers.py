@@ -197,6 +197,32 @@ def test_safety_report_is_consistent():
         assert 0.0 <= s["speed_cmd"] <= env.unwrapped.config.anchor_max_speed + 1e-12
 
 
+def test_the_look_ahead_takes_the_yielding_tolerance_and_headway_price_while_yielding(
+        monkeypatch):
+    """While the escape budget yields to the sweep, the look-ahead's contest runs with
+    ``yield_shortfall_tolerance`` and ``yield_progress_weight`` (issue 24, third round),
+    otherwise with ``shortfall_tolerance`` and ``progress_weight``."""
+    import aoass_env.wrappers as wrappers
+
+    seen = []
+    real = wrappers.escape_velocity
+
+    def spy(*args, **kwargs):
+        seen.append((kwargs["tolerance"], kwargs["progress_weight"], kwargs["maneuver"]))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(wrappers, "escape_velocity", spy)
+    cfg = SafetyConfig(shortfall_tolerance=1.0, yield_shortfall_tolerance=3.0,
+                       progress_weight=2.0, yield_progress_weight=10.0, maneuver_share=0.5)
+    env = make_safe_env(safety=cfg, **SMALL)
+    env.reset(seed=1)
+    v = np.array([1.0, 0.0])
+    env._look_ahead(v, v)
+    env.escape_budget.yielding = True
+    env._look_ahead(v, v)
+    assert seen == [(1.0, 2.0, 0.5), (3.0, 10.0, 0.0)]
+
+
 # --- map sampling ---------------------------------------------------------------------------
 def test_map_sampler_draws_reproducibly_and_cycles_in_order():
     maps = ["test/d0.10_f100_s500", "test/d0.20_f100_s503", "test/d0.30_f100_s506"]

@@ -97,9 +97,15 @@ class SafetyConfig(ValidatedConfig):
     yield_progress_weight: float = param(
         10.0, "progress_weight while yielding to the sweep", low=0.0, high=100.0)
     shortfall_tolerance: float | None = param(
-        None, "the look-ahead's prices on walls, headway, preference and turning choose only "
-        "among candidates whose clearance shortfall is within this of the least (None: they "
-        "compete with the shortfall on one cost)", low=0.0, high=1e4, optional=True)
+        1.0, "the look-ahead's prices on walls, headway, preference and turning choose only "
+        "among candidates whose clearance shortfall is within this of the least (m x steps; "
+        "None: they compete with the shortfall on one cost)", low=0.0, high=1e4,
+        optional=True)
+    yield_shortfall_tolerance: float | None = param(
+        None, "shortfall_tolerance while yielding to the sweep (m x steps; None: the prices "
+        "compete with the shortfall on one cost, so the headway priced yield_progress_weight "
+        "can take the anchor out of a pocket an obstacle holds it in)", low=0.0, high=1e4,
+        optional=True)
 
     @classmethod
     def orca_only(cls, **kwargs: object) -> SafetyConfig:

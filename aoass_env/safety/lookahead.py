@@ -548,10 +548,11 @@ class EscapeBudget:
     reaches ``budget`` (s) the anchor *yields* to the sweep until half the budget has come
     back (hysteresis): the look-ahead then escapes only from predicted contacts with the
     obstacles' discs grown by their track covariance alone (no room for a turn), and prices
-    the sweep's headway higher; ORCA's lines, the static lines and the braking envelope are
-    unchanged, so the anchor still does not drive into anything. An obstacle bouncing in a
-    pocket beside the spiral can no longer hold the anchor off its way for the rest of the
-    episode.
+    the sweep's headway higher (the wrapper also takes ``SafetyConfig.
+    yield_shortfall_tolerance`` as the contest's tolerance then); ORCA's lines, the static
+    lines and the braking envelope are unchanged, so the anchor still does not drive into
+    anything. An obstacle bouncing in a pocket beside the spiral can no longer hold the
+    anchor off its way for the rest of the episode.
     """
 
     budget: float

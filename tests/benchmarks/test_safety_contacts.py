@@ -20,10 +20,11 @@ def test_summary_counts_contacts_and_their_situations():
     pinned = ([_period(0.0, escaping=False)] * 14 + [_period(0.0, escaping=False, std=0.17)]
               + [_period(0.05, escaping=False, static_active=2, yielding=True)])
     rows = [{"density": 0.5, "moving_contacts": 2, "static_contacts": 0, "complete": False,
-             "coverage": 0.8, "min_separation": -0.01,
+             "coverage": 0.8, "min_separation": -0.01, "path_length": 900.0, "time": 3880.0,
              "contacts": [{"period": 10, "history": dash}, {"period": 99, "history": pinned}]},
             {"density": 0.1, "moving_contacts": 0, "static_contacts": 0, "complete": True,
-             "coverage": 1.0, "min_separation": 2.0, "contacts": []}]
+             "coverage": 1.0, "min_separation": 2.0, "path_length": 1100.0, "time": 2000.0,
+             "contacts": []}]
     out = bench.summary(rows)
     assert out["episodes"] == 2 and out["moving_contacts"] == 2
     assert math.isclose(out["moving_per_100"], 100.0)
@@ -32,10 +33,16 @@ def test_summary_counts_contacts_and_their_situations():
     assert out["by_density"]["0.5"] == [1, 2] and out["by_density"]["0.1"] == [1, 0]
     assert math.isclose(out["track_std_max"], 0.17)
     assert out["complete"] == 1
+    assert out["path_length"] == 1000.0 and out["time"] == 2940.0
 
 
 def test_the_stacks_are_benchmarks_safety_pys():
     bench = load_benchmark("safety_contacts")
-    assert bench.STACKS["clearance-first"].shortfall_tolerance == 1.0
-    assert bench.STACKS["one-cost"].shortfall_tolerance is None
-    assert bench.STACKS["stack"].shortfall_tolerance is None      # the defaults
+    cf, one = bench.STACKS["clearance-first"], bench.STACKS["one-cost"]
+    assert cf.shortfall_tolerance == 1.0 and cf.yield_shortfall_tolerance == 1.0
+    assert one.shortfall_tolerance is None and one.yield_shortfall_tolerance is None
+    assert bench.STACKS["yield-one-cost"].shortfall_tolerance == 1.0
+    assert bench.STACKS["yield-one-cost"].yield_shortfall_tolerance is None
+    assert bench.STACKS["yield-tolerance"].yield_shortfall_tolerance == 3.0
+    stack = bench.STACKS["stack"]                                # the defaults
+    assert stack.shortfall_tolerance == 1.0 and stack.yield_shortfall_tolerance is None

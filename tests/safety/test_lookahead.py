@@ -191,19 +191,20 @@ def test_the_sweeps_headway_picks_among_escapes():
     assert keen.velocity[1] > 1.0 and keen.chosen_shortfall == 0.0
 
 
-def _passage(tolerance):
+def _passage(tolerance, ahead=6.0, maneuver=0.5, progress_weight=2.0):
     """The anchor 1 m inside a 3.2 m passage (walls x = +-1.6 from y = -1 on, heading -y out
-    of it, standing); an obstacle 6 m ahead drives into the mouth at 1 m/s."""
+    of it, standing); an obstacle ``ahead`` m ahead drives into the mouth at 1 m/s (the
+    look-ahead's ``maneuver`` and ``progress_weight``: 0 and 10 while yielding)."""
     starts = np.array([[-1.6, -1.0], [1.6, 20.0]])
     ends = np.array([[-1.6, 20.0], [1.6, -1.0]])
     v = np.array([0.0, -1.0])
     return escape_velocity(v, v, np.zeros(2), -math.pi / 2, 0.0,
-                           np.array([[0.0, -6.0, 0.0, 1.0, 1.5]]),
+                           np.array([[0.0, -ahead, 0.0, 1.0, 1.5]]),
                            np.diag([0.01, 0.01, 0.01, 0.01])[None], max_speed=2.0,
                            max_accel=1.0, max_turn_rate=math.pi / 2, horizon=4.5, step=0.25,
-                           starts=starts, ends=ends, radius=0.7, sigma=2.0, maneuver=0.5,
-                           clearance=0.2, obstacle_radius=1.0, react=2.5, progress_weight=2.0,
-                           tolerance=tolerance)
+                           starts=starts, ends=ends, radius=0.7, sigma=2.0, maneuver=maneuver,
+                           clearance=0.2, obstacle_radius=1.0, react=2.5,
+                           progress_weight=progress_weight, tolerance=tolerance)
 
 
 def test_free_space_does_not_buy_clearance_in_a_passage():
@@ -217,6 +218,24 @@ def test_free_space_does_not_buy_clearance_in_a_passage():
     out = _passage(1.0)
     assert out.escaping and out.velocity[1] > 0.5                # backs up the passage
     assert out.chosen_shortfall <= 1.0
+
+
+def test_a_wider_tolerance_while_yielding_leaves_the_passage_but_not_at_the_obstacle():
+    """Issue 24, third round: with the clearance first (tolerance 1) an anchor yielding to the
+    sweep stays in the passage an obstacle drives at, however small the shortfall of leaving
+    (it stood pinned in such pockets and lost sweeps to the time limit); the yielding
+    tolerance (3) lets the sweep's headway take it out past the obstacle 8 m off for a small
+    shortfall, but not past it 6 m off, where the one cost dashes at it anyway."""
+    yielding = {"maneuver": 0.0, "progress_weight": 10.0}
+    stays = _passage(1.0, ahead=8.0, **yielding)
+    assert stays.escaping and stays.velocity[1] > -0.1           # stands in the passage
+    leaves = _passage(3.0, ahead=8.0, **yielding)
+    assert leaves.escaping and leaves.velocity[1] < -1.0         # out toward the sweep
+    assert 0.0 < leaves.chosen_shortfall <= 3.0
+    near = _passage(3.0, ahead=6.0, **yielding)
+    assert near.escaping and near.velocity[1] > -0.1 and near.chosen_shortfall <= 3.0
+    one_cost = _passage(None, ahead=6.0, **yielding)
+    assert one_cost.velocity[1] < -1.0 and one_cost.chosen_shortfall > 3.0
 
 
 def test_the_escape_budget_yields_with_hysteresis():

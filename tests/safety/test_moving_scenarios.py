@@ -74,15 +74,17 @@ SCENARIOS = {
                             _wall((22.0, 22.5), (38.0, 22.5), 2.0)]}),
     # the anchor starts inside a 4 m passage (x 14-23) whose mouth opens on the field; an
     # obstacle drives at the mouth head-on: backing up keeps clear, dashing past it out of
-    # the passage toward free space does not. The clearance-first contest (the look-ahead's
-    # prices choose only among the candidates within shortfall_tolerance of the least) backs
-    # up; the defaults' one cost, whose price on ending near a wall can buy shortfall, come
-    # within 0.05 m (test below)
+    # the passage toward free space does not. The defaults' clearance-first contest (the
+    # look-ahead's prices choose only among the candidates within shortfall_tolerance of the
+    # least) backs up; the one cost of issue 24's first defaults, whose price on ending near a
+    # wall can buy shortfall, comes within 0.05 m (test below)
     "passage_mouth": ((28.0, 20.0), (-1.0, 0.0), 60,
                       {"walls": [_wall((14.0, 17.0), (23.0, 17.0), 2.0),
-                                 _wall((14.0, 23.0), (23.0, 23.0), 2.0)],
-                       "safety": SafetyConfig(shortfall_tolerance=1.0)}),
+                                 _wall((14.0, 23.0), (23.0, 23.0), 2.0)]}),
 }
+#: Issue 24's first defaults: the look-ahead's prices and its shortfall on one cost, also
+#: while yielding to the sweep.
+ONE_COST = SafetyConfig(shortfall_tolerance=None, yield_shortfall_tolerance=None)
 #: Minimum separation (m) each scenario must keep: no contact, and then some.
 MIN_SEPARATION = 0.5
 
@@ -104,11 +106,11 @@ def test_the_turning_obstacle_nearly_hits_the_orca_only_filter():
 
 
 def test_the_passage_mouth_nearly_hits_the_one_cost_contest():
-    """The defaults (the look-ahead's prices and its shortfall on one cost) dash past the
-    obstacle at the passage's mouth: the scenario is a real threat (issue 24's contacts left
-    were mostly such escapes, benchmarks/safety_contacts.py)."""
+    """Issue 24's first defaults (the look-ahead's prices and its shortfall on one cost) dash
+    past the obstacle at the passage's mouth: the scenario is a real threat (their contacts
+    left were mostly such escapes, benchmarks/safety_contacts.py)."""
     start, velocity, steps, kw = SCENARIOS["passage_mouth"]
-    separation, _ = _run(start, velocity, steps, walls=kw["walls"])
+    separation, _ = _run(start, velocity, steps, safety=ONE_COST, **kw)
     assert separation < MIN_SEPARATION
 
 
@@ -116,7 +118,7 @@ def test_the_passage_mouth_nearly_hits_the_one_cost_contest():
 #: escape whenever ORCA's velocity falls short of the clearance anywhere in the horizon, no
 #: price on headway, no escape budget.
 EAGER = SafetyConfig(look_ahead_react=60.0, progress_weight=0.0, escape_budget=1e4,
-                     shortfall_tolerance=None)
+                     shortfall_tolerance=None, yield_shortfall_tolerance=None)
 #: A cage beside the first leg (y = 20, 1.5 m from the cage's top wall) holding an obstacle
 #: that bounces up and down at 1 m/s (a 1.6 m slot, too narrow for it, in the bottom wall).
 CAGE = [_wall((24.5, 18.0), (30.5, 18.0), 1.0), _wall((24.5, 12.0), (26.7, 12.0), 1.0),

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import aoass_env  # noqa: F401  (registers AOASS-Safe-v0)
+from aoass_env.safety.config import SafetyConfig
 from tests.test_episode_fingerprint import _Hashes
 
 #: name -> (AOASS-Safe-v0 keywords, seed, steps); many fast moving obstacles, so that the
@@ -32,6 +33,16 @@ REPORT_KEYS = ("intervention", "orca_correction", "flc_turn", "flc_speed", "spee
                "look_ahead_shortfall", "yielding")
 
 EXPECTED: dict[str, dict[str, str]] = {
+    'f50_moving12': {'observation': 'ddea2dd01b7f2f22', 'reward': '1a41306b61de5672',
+                     'safety': '020db3407d8015d4', 'world': 'f8765b87abd9da66'},
+    'f70_d0.2_moving8': {'observation': 'ad9d2a50eae0b7eb', 'reward': '0b62b2223a00d0db',
+                         'safety': 'f04402ad948acd9f', 'world': '965b48eac69fc49d'},
+}
+#: the same episodes with issue 24's first defaults (``one-cost``: the look-ahead's shortfall
+#: and prices on one cost, also while yielding), the hashes recorded before the defaults moved
+#: to the clearance first (issue 24, third round): the old behaviour stays reachable
+ONE_COST = SafetyConfig(shortfall_tolerance=None, yield_shortfall_tolerance=None)
+EXPECTED_ONE_COST: dict[str, dict[str, str]] = {
     'f50_moving12': {'observation': 'ada9debca1e9c14c', 'reward': '46e4738850f15bfe',
                      'safety': 'c054a23da6bf4b3a', 'world': 'cae8d559ee5bd6d3'},
     'f70_d0.2_moving8': {'observation': '672bb70049685343', 'reward': '3c4183e47d9d24c7',
@@ -39,10 +50,11 @@ EXPECTED: dict[str, dict[str, str]] = {
 }
 
 
-def fingerprint(name: str) -> tuple[dict[str, str], int]:
-    """The per-part hashes of case ``name`` and the number of steps that escaped."""
+def fingerprint(name: str, safety: SafetyConfig | None = None) -> tuple[dict[str, str], int]:
+    """The per-part hashes of case ``name`` (with ``safety``, default: the defaults) and the
+    number of steps that escaped."""
     kwargs, seed, steps = CASES[name]
-    env = gym.make("AOASS-Safe-v0", **kwargs)
+    env = gym.make("AOASS-Safe-v0", **kwargs, safety=safety)
     rng = np.random.default_rng(2000 + seed)
     hashes = _Hashes()
     obs, _ = env.reset(seed=seed)
@@ -70,6 +82,13 @@ def test_safe_episodes_unchanged_bit_for_bit(name):
     digests, escapes = fingerprint(name)
     assert escapes > 0           # the look-ahead's escape path is exercised
     assert digests == EXPECTED[name]
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_one_cost_episodes_are_the_first_defaults_bit_for_bit(name):
+    digests, escapes = fingerprint(name, ONE_COST)
+    assert escapes > 0
+    assert digests == EXPECTED_ONE_COST[name]
 
 
 if __name__ == "__main__":
