@@ -134,6 +134,10 @@ class AOASSConfig(ValidatedConfig):
     backout_distance: float = param(
         3.0, "how far back along its own track a stuck follower retreats before re-planning",
         unit="m", low=0.0, high=100.0)
+    replan_excess: float | None = param(
+        None, "a stuck follower's re-plan round its keep-outs longer than the plain way to the "
+        "target by more than this is not taken (None: always taken)", unit="m", low=0.0,
+        high=1e4, optional=True)
 
     # --- environment: observation, action, episode ---------------------------------------
     obs_waypoints: int = param(8, "K: upcoming spiral waypoints in the observation", low=1,

@@ -12,9 +12,10 @@ a summary is printed: contacts per 100 episodes by density, and how many contact
 or just after escaping, while yielding, at speed, or with the anchor standing pinned.
 
 Run: ``python3 benchmarks/safety_contacts.py --stack stack --episodes 150 --first-seed 61000
---out out/contacts_stack.jsonl [--policy random|zero] [--jobs 2] [--set FIELD=JSON ...]``
-(``--set`` changes fields of the stack, e.g. ``escape_budget=10``); ``--summary FILE ...``
-prints the summary of earlier runs.
+--out out/contacts_stack.jsonl [--policy random|zero] [--jobs 2] [--set FIELD=JSON ...]
+[--env FIELD=JSON ...]`` (``--set`` changes fields of the stack, e.g. ``escape_budget=10``,
+``--env`` fields of the environment's AOASSConfig, e.g. ``replan_excess=30``);
+``--summary FILE ...`` prints the summary of earlier runs.
 """
 
 from __future__ import annotations
@@ -38,13 +39,15 @@ from aoass_env.wrappers import make_safe_env  # noqa: E402
 
 #: control periods logged before each contact
 HISTORY = 16
+#: AOASSConfig fields of the environment changed by ``--env`` (read by the forked workers)
+ENV_FIELDS: dict = {}
 
 
 def episode(task: tuple[str, str, float, int]) -> dict:
     """One episode of ``benchmarks/safety.py``'s ``episode`` (policy, stack label, density,
     seed: the same actions and map) with each moving contact's history."""
     policy, label, density, seed = task
-    env = make_safe_env(safety=STACKS[label], obstacle_density=density)
+    env = make_safe_env(safety=STACKS[label], **{**ENV_FIELDS, "obstacle_density": density})
     rng = np.random.default_rng(seed + 1_000_003)
     env.reset(seed=seed)
     world = env.unwrapped.sim.world
@@ -134,6 +137,9 @@ def main() -> None:
     parser.add_argument("--set", nargs="+", default=[], metavar="FIELD=JSON",
                         help="change fields of the stack's SafetyConfig, e.g. escape_budget=10 "
                              "yield_shortfall_tolerance=null")
+    parser.add_argument("--env", nargs="+", default=[], metavar="FIELD=JSON",
+                        help="change fields of the environment's AOASSConfig, e.g. "
+                             "replan_excess=30")
     parser.add_argument("--summary", type=Path, nargs="+",
                         help="print the summary of these earlier runs and stop")
     args = parser.parse_args()
@@ -147,6 +153,7 @@ def main() -> None:
         fields = dict(item.split("=", 1) for item in args.set)
         STACKS[args.stack] = replace(STACKS[args.stack],
                                      **{k: json.loads(v) for k, v in fields.items()})
+    ENV_FIELDS.update({k: json.loads(v) for k, v in (item.split("=", 1) for item in args.env)})
     tasks = [(args.policy, args.stack, DENSITIES[i % len(DENSITIES)], args.first_seed + i)
              for i in range(args.episodes)]
     args.out.parent.mkdir(parents=True, exist_ok=True)

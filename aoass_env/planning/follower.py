@@ -16,7 +16,9 @@ target with no path from the field and one past its stall timer. When the planne
 because the anchor itself stands where it reaches nothing (its grid cell is shut in a pocket,
 e.g. after an escape into a narrow passage), the follower backs out along its track to where the
 field is reachable and plans again (one of the target's tries), rather than give up every
-remaining waypoint at once.
+remaining waypoint at once. Optionally (``replan_excess``) a re-plan round the keep-outs that
+is much longer than the plain way is not taken: a target the follower got stuck on is given up
+(``"long re-plan"``), any other target (keep-outs left by an earlier one) takes the plain way.
 """
 
 from __future__ import annotations
@@ -139,8 +141,9 @@ def _polyline_length(points: list) -> float:
 @dataclass(frozen=True)
 class Skip:
     """A waypoint the follower gave up: its index, the time (s, follower clock) and why:
-    ``"no path"`` (the planner finds none), ``"stall timer"`` (not reached in its time) or
-    ``"stuck"`` (the watchdog fired ``MAX_RECOVERIES`` + 1 times, or beside the target)."""
+    ``"no path"`` (the planner finds none), ``"stall timer"`` (not reached in its time),
+    ``"stuck"`` (the watchdog fired ``MAX_RECOVERIES`` + 1 times, or beside the target) or
+    ``"long re-plan"`` (its re-plan round the keep-outs exceeds ``replan_excess``)."""
 
     index: int
     time: float
@@ -167,6 +170,9 @@ class WaypointFollower:
             after which the follower is stuck (inf: no watchdog).
         watchdog_progress: progress (m) that resets the watchdog.
         backout_distance: how far back along its track a stuck follower retreats (m).
+        replan_excess: a re-plan round the keep-outs longer than the plain path to the target
+            by more than this (m) is not taken: the target is given up when the follower got
+            stuck on it, else the plain path is taken (inf: always taken).
 
     Attributes:
         recoveries: back-outs so far.
@@ -184,6 +190,7 @@ class WaypointFollower:
     watchdog_time: float = math.inf
     watchdog_progress: float = 1.0
     backout_distance: float = 3.0
+    replan_excess: float = math.inf
     index: int = 0
     recoveries: int = 0
     skipped: list[Skip] = field(default_factory=list)
@@ -211,7 +218,8 @@ class WaypointFollower:
         ``anchor_max_accel``, and capture a waypoint within the anchor radius or half a control
         period's travel, whichever is larger; ``blocked`` None: no waypoint is skipped; the
         waypoints before ``start`` are skipped; ``recovery``: get out of traps with the config's
-        progress watchdog (``watchdog_time``, ``watchdog_progress``, ``backout_distance``),
+        progress watchdog (``watchdog_time``, ``watchdog_progress``, ``backout_distance``,
+        ``replan_excess``),
         else rely on the stall timer alone (``stall_time``, s)."""
         wps = np.asarray(waypoints, dtype=np.float64)
         return cls(wps, np.zeros(len(wps), dtype=bool) if blocked is None else blocked,
@@ -221,7 +229,9 @@ class WaypointFollower:
                    stall_time=stall_time, planner=planner,
                    watchdog_time=config.watchdog_time if recovery else math.inf,
                    watchdog_progress=config.watchdog_progress,
-                   backout_distance=config.backout_distance, index=start)
+                   backout_distance=config.backout_distance,
+                   replan_excess=(math.inf if config.replan_excess is None or not recovery
+                                  else config.replan_excess), index=start)
 
     @property
     def done(self) -> bool:
@@ -301,6 +311,11 @@ class WaypointFollower:
                 break
             keepout = self._active_keepouts(position)
             path = self.planner.path(position, target, keepout, KEEPOUT_RADIUS)
+            if path is not None and len(keepout) and self._too_long(position, target, path):
+                if self._tries:     # stuck on this target: give it up
+                    self._give_up("long re-plan")
+                    continue
+                path = self.planner.path(position, target)  # keep-outs of an earlier target
             if path is None:
                 if self._rejoin(position):  # shut in where the planner reaches nothing
                     return self.command(position, heading, 0.0)
@@ -378,6 +393,15 @@ class WaypointFollower:
             self._backout = self._retreat(position)
             self.recoveries += 1
         self._reset_watchdog()
+
+    def _too_long(self, position: np.ndarray, target: np.ndarray, path: np.ndarray) -> bool:
+        """Whether ``path`` (round the keep-outs) is longer than the plain path from
+        ``position`` to ``target`` by more than ``replan_excess`` (m)."""
+        if self.replan_excess == math.inf:
+            return False
+        plain = self.planner.path(position, target)
+        return plain is not None and (_polyline_length(list(path))
+                                      > _polyline_length(list(plain)) + self.replan_excess)
 
     def _rejoin(self, position: np.ndarray) -> bool:
         """No path to the target from ``position``: when the planner sees ``position`` shut

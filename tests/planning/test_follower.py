@@ -5,7 +5,7 @@ import pytest
 
 from aoass_env.maps import ObstacleMap
 from aoass_env.planning.detour import DetourPlanner
-from aoass_env.planning.follower import WaypointFollower
+from aoass_env.planning.follower import KEEPOUT_RADIUS, WaypointFollower
 
 
 def _follower(blocked):
@@ -166,6 +166,63 @@ def test_replan_after_backing_out_goes_round_the_stuck_spot():
     # a passage reached only through a keep-out is still planned (keep-outs are soft)
     assert planner.path(np.array([6.0, 10.0]), np.array([18.0, 10.0]),
                         np.array([[10.0, 20.0], [10.0, 10.0]]), 1.5) is not None
+
+
+def _two_gaps(**kw):
+    """The wall of the test above (gaps at y 9-11 and y 19-21), a follower stuck at the near
+    gap's mouth (9, 10) and backed out to (6, 10); the planner, the follower and its re-plan's
+    keep-out path and plain path (6, 10) -> (18, 10)."""
+    wall = (np.array([[9.5, 0.0], [10.5, 0.0], [10.5, 9.0], [9.5, 9.0]]),
+            np.array([[9.5, 11.0], [10.5, 11.0], [10.5, 19.0], [9.5, 19.0]]),
+            np.array([[9.5, 21.0], [10.5, 21.0], [10.5, 40.0], [9.5, 40.0]]))
+    planner = DetourPlanner(ObstacleMap(40.0, 40.0, wall), 0.6)
+    wps = np.array([[2.0, 10.0], [18.0, 10.0], [18.0, 30.0]])
+    f = WaypointFollower(wps, np.zeros(3, dtype=bool), capture_radius=0.5, cruise_speed=1.0,
+                         stall_time=1000.0, planner=planner, watchdog_time=8.0, **kw)
+    for px in np.arange(2.0, 9.01, 0.5):
+        f.command(np.array([px, 10.0]), 0.0, 0.5)
+    _wait(f, [9.0, 10.0], until=lambda f: f.recoveries > 0)
+    for px in np.arange(9.0, 6.49, -0.5):
+        f.command(np.array([px, 10.0]), math.pi, 0.5)
+    start, goal = np.array([6.0, 10.0]), wps[1]
+    keep = planner.path(start, goal, np.array([[9.0, 10.0]]), KEEPOUT_RADIUS)
+    plain = planner.path(start, goal)
+    return f, keep, plain
+
+
+def _length(path):
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+
+
+def test_a_replan_round_the_keepout_much_longer_than_the_plain_way_gives_the_target_up():
+    f, keep, plain = _two_gaps(replan_excess=5.0)
+    assert 5.0 < _length(keep) - _length(plain) < 20.0    # about 12 m round by the far gap
+    f.command(np.array([6.0, 10.0]), math.pi, 0.5)        # back-out ends: re-plan
+    assert [(s.index, s.reason) for s in f.skipped] == [(1, "long re-plan")]
+    assert f.index == 2 and not f._backout
+
+
+def test_a_target_not_stuck_on_takes_the_plain_way_past_an_earlier_targets_keepout():
+    f, _, plain = _two_gaps(replan_excess=5.0)
+    g = WaypointFollower(f.waypoints, f.blocked, capture_radius=0.5, cruise_speed=1.0,
+                         stall_time=1000.0, planner=f.planner, watchdog_time=8.0,
+                         replan_excess=5.0, index=1)
+    g._keepout.append((np.array([9.0, 10.0]), 60.0))      # left by an earlier target
+    g.command(np.array([6.0, 10.0]), 0.0, 0.5)
+    assert not g.skipped and g.index == 1
+    assert np.array_equal(np.array(g._detour).reshape(-1, 2), plain[1:-1].reshape(-1, 2))
+
+
+def test_a_replan_within_the_excess_is_taken():
+    f, keep, plain = _two_gaps(replan_excess=20.0)
+    f.command(np.array([6.0, 10.0]), math.pi, 0.5)
+    assert not f.skipped and f.index == 1
+    assert max(p[1] for p in f._detour) > 18.0             # through the far gap
+    # without the cap (the default) the same
+    g, _, _ = _two_gaps()
+    g.command(np.array([6.0, 10.0]), math.pi, 0.5)
+    assert g.replan_excess == math.inf and not g.skipped
+    assert np.array_equal(np.array(g._detour), np.array(f._detour))
 
 
 def _room_planner():
