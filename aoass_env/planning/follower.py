@@ -311,11 +311,13 @@ class WaypointFollower:
                 break
             keepout = self._active_keepouts(position)
             path = self.planner.path(position, target, keepout, KEEPOUT_RADIUS)
-            if path is not None and len(keepout) and self._too_long(position, target, path):
+            plain = (self._plain_instead(position, target, path)
+                     if path is not None and len(keepout) else None)
+            if plain is not None:
                 if self._tries:     # stuck on this target: give it up
                     self._give_up("long re-plan")
                     continue
-                path = self.planner.path(position, target)  # keep-outs of an earlier target
+                path = plain        # the keep-outs are an earlier target's
             if path is None:
                 if self._rejoin(position):  # shut in where the planner reaches nothing
                     return self.command(position, heading, 0.0)
@@ -394,14 +396,17 @@ class WaypointFollower:
             self.recoveries += 1
         self._reset_watchdog()
 
-    def _too_long(self, position: np.ndarray, target: np.ndarray, path: np.ndarray) -> bool:
-        """Whether ``path`` (round the keep-outs) is longer than the plain path from
-        ``position`` to ``target`` by more than ``replan_excess`` (m)."""
+    def _plain_instead(self, position: np.ndarray, target: np.ndarray, path: np.ndarray
+                       ) -> np.ndarray | None:
+        """The plain path from ``position`` to ``target`` when ``path`` (round the keep-outs)
+        is longer than it by more than ``replan_excess`` (m), else None."""
         if self.replan_excess == math.inf:
-            return False
+            return None
         plain = self.planner.path(position, target)
-        return plain is not None and (_polyline_length(list(path))
-                                      > _polyline_length(list(plain)) + self.replan_excess)
+        if plain is None or (_polyline_length(list(path))
+                             <= _polyline_length(list(plain)) + self.replan_excess):
+            return None
+        return plain
 
     def _rejoin(self, position: np.ndarray) -> bool:
         """No path to the target from ``position``: when the planner sees ``position`` shut
