@@ -25,7 +25,6 @@ import json
 import math
 import sys
 from collections import deque
-from dataclasses import replace
 from multiprocessing import Pool
 from pathlib import Path
 
@@ -34,6 +33,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from safety import DENSITIES, STACKS  # noqa: E402  (benchmarks/safety.py)
 
+from aoass_env.config import AOASSConfig  # noqa: E402
 from aoass_env.safety.lookahead import position_std  # noqa: E402
 from aoass_env.wrappers import make_safe_env  # noqa: E402
 
@@ -126,7 +126,22 @@ def summary(rows: list[dict]) -> dict:
     return out
 
 
-def main() -> None:
+def _fields(items: list[str], flag: str) -> dict:
+    """``FIELD=JSON`` items as a dict; ValueError naming ``flag`` and the bad item."""
+    fields = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"{flag} {item!r}: expected FIELD=JSON, e.g. escape_budget=10")
+        try:
+            fields[key] = json.loads(value)
+        except json.JSONDecodeError:
+            raise ValueError(f"{flag} {item!r}: {value!r} is not JSON (a number, true, false "
+                             "or null)") from None
+    return fields
+
+
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--stack", default="stack", choices=[k for k in STACKS if k != "bare"])
     parser.add_argument("--policy", default="random", choices=["random", "zero"])
@@ -142,18 +157,24 @@ def main() -> None:
                              "replan_excess=30")
     parser.add_argument("--summary", type=Path, nargs="+",
                         help="print the summary of these earlier runs and stop")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    for flag in ("episodes", "jobs"):
+        if getattr(args, flag) < 1:
+            parser.error(f"--{flag} must be at least 1, got {getattr(args, flag)}")
     if args.summary:
         for path in args.summary:
             rows = [json.loads(line) for line in path.read_text().splitlines() if line]
             print(path, json.dumps(summary(rows)))
         return
-    if args.set:
-        # the pool's workers are forked after this: they read the changed stack
-        fields = dict(item.split("=", 1) for item in args.set)
-        STACKS[args.stack] = replace(STACKS[args.stack],
-                                     **{k: json.loads(v) for k, v in fields.items()})
-    ENV_FIELDS.update({k: json.loads(v) for k, v in (item.split("=", 1) for item in args.env)})
+    try:
+        stack = STACKS[args.stack].replace(**_fields(args.set, "--set"))
+        env_fields = _fields(args.env, "--env")
+        AOASSConfig.from_kwargs(**env_fields)       # refused here, not in a worker
+    except ValueError as exc:       # ConfigError included: the field and what is valid
+        parser.error(str(exc))
+    # the pool's workers are forked after this: they read the changed stack and fields
+    STACKS[args.stack] = stack
+    ENV_FIELDS.update(env_fields)
     tasks = [(args.policy, args.stack, DENSITIES[i % len(DENSITIES)], args.first_seed + i)
              for i in range(args.episodes)]
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import pytest
+
 from tests.benchmarks.conftest import load_benchmark
 
 
@@ -46,3 +48,23 @@ def test_the_stacks_are_benchmarks_safety_pys():
     assert bench.STACKS["yield-tolerance"].yield_shortfall_tolerance == 3.0
     stack = bench.STACKS["stack"]                                # the defaults
     assert stack.shortfall_tolerance == 1.0 and stack.yield_shortfall_tolerance is None
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--set", "escape_budgt=10"], "did you mean 'escape_budget'"),
+    (["--set", "escape_budget=-1"], "escape_budget=-1 must be a number"),
+    (["--set", "escape_budget"], "--set 'escape_budget': expected FIELD=JSON"),
+    (["--set", "escape_budget=ten"], "'ten' is not JSON"),
+    (["--env", "replan_exces=30"], "did you mean 'replan_excess'"),
+    (["--episodes", "0"], "--episodes must be at least 1, got 0"),
+    (["--jobs", "0"], "--jobs must be at least 1, got 0"),
+])
+def test_bad_fields_and_counts_are_refused_before_any_episode(capsys, tmp_path, argv, message):
+    bench = load_benchmark("safety_contacts")
+    out = tmp_path / "log.jsonl"
+    with pytest.raises(SystemExit) as exc:
+        bench.main([*argv, "--out", str(out)])
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+    assert bench.STACKS["stack"] == bench.STACKS["stack"].__class__()   # left as it was
