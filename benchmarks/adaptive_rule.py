@@ -117,8 +117,8 @@ def parse_variants(specs: Sequence[Sequence[str]]) -> dict[str, AdaptiveConfig]:
 def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
     """Run the comparison (module docstring); the outcomes of every sweep by row name."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--split", choices=("fit", "validation"), default="fit",
-                        help="which maps/train split (never maps/test)")
+    parser.add_argument("--split", choices=("fit", "validation"),
+                        help="which maps/train split (default fit; never maps/test)")
     parser.add_argument("--field", type=float, default=100.0, help="field size of the maps (m)")
     parser.add_argument("--densities", type=float, nargs="+", default=[0.1, 0.2, 0.3, 0.4])
     parser.add_argument("--seeds", type=int, default=2, help="seeds (nodes, obstacles) per map")
@@ -126,8 +126,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
     parser.add_argument("--limit", type=int, help="only the first LIMIT maps of the split")
     parser.add_argument("--fresh", type=int, metavar="SEED",
                         help="freshly generated maps from SEED instead of maps/train")
-    parser.add_argument("--maps", type=int, default=4,
-                        help="with --fresh, generated maps per density")
+    parser.add_argument("--maps", type=int,
+                        help="with --fresh, generated maps per density (default 4)")
     parser.add_argument("--localizer", choices=METHODS,
                         help="also localize every sweep's log and print its RMSE")
     parser.add_argument("--variant", nargs="+", action="append", default=[],
@@ -141,6 +141,11 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
         variants = parse_variants(args.variant)
     except ConfigError as exc:
         parser.error(str(exc))
+    if args.fresh is not None and (args.split or args.limit):
+        parser.error("--fresh generates its maps: --split and --limit apply to maps/train only")
+    if args.fresh is None and args.maps is not None:
+        parser.error("--maps applies to --fresh only (maps/train has its own maps)")
+    args.split, args.maps = args.split or "fit", args.maps or 4
     if args.fresh is not None:
         bad = [d for d in args.densities if not 0.0 <= d <= MAX_DENSITY]
         if bad:

@@ -80,6 +80,14 @@ def test_fresh_maps_are_generated_from_the_seed_per_density(bench, capsys):
     assert len(table["rule"]) == 2
     assert bench.main(args) == table            # the same seed, the same maps and sweeps
     capsys.readouterr()
+    for flags, message in ((["--split", "fit"], "--split and --limit apply to maps/train"),
+                           (["--limit", "1"], "--split and --limit apply to maps/train")):
+        with pytest.raises(SystemExit):
+            bench.main(["--fresh", "987", *flags])
+        assert message in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        bench.main(["--maps", "2"])
+    assert "--maps applies to --fresh only" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         bench.main(["--fresh", "987", "--densities", "0.7"])
     assert "--densities 0.7: a generated map's density must lie in [0, 0.6]" in \
