@@ -25,7 +25,7 @@ import numpy as np
 from aoass_env.config import AOASSConfig
 from aoass_env.validators import integer, real
 
-__all__ = ["Network", "lambda_min"]
+__all__ = ["Network", "lambda_min", "residual_after"]
 
 #: Columns of d_old and d_new whose products update Sxx, Sxy, Syy (Welford's recurrence).
 _OLD_COLS, _NEW_COLS = np.array([0, 0, 1]), np.array([0, 1, 1])
@@ -43,6 +43,18 @@ def lambda_min(scatter: np.ndarray) -> np.ndarray:
     sxx, sxy, syy = scatter[:, 0], scatter[:, 1], scatter[:, 2]
     lam = 0.5 * (sxx + syy) - np.hypot(0.5 * (sxx - syy), sxy)
     return np.maximum(lam, 0.0)
+
+
+def residual_after(heard: int, mean: np.ndarray, scatter: np.ndarray,
+                   points: np.ndarray) -> np.ndarray:
+    """Root-sum-square distance [m] (K,) of one node's heard beacons to their best line once a
+    beacon at each of ``points`` (K, 2) [m] is added alone: its ``heard`` count, ``mean`` (2,)
+    [m] and ``scatter`` (3,) Sxx, Sxy, Syy [m^2] grown by Welford's term n/(n+1) d d^T."""
+    d = np.asarray(points, dtype=np.float64).reshape(-1, 2) - mean
+    w = heard / (heard + 1.0)
+    grown = np.asarray(scatter, dtype=np.float64) + w * np.stack(
+        [d[:, 0] * d[:, 0], d[:, 0] * d[:, 1], d[:, 1] * d[:, 1]], axis=1)
+    return np.sqrt(lambda_min(grown))
 
 
 class Network:
@@ -149,6 +161,12 @@ class Network:
     def line_residual(self) -> np.ndarray:
         """Root-sum-square distance [m] (N,) of each node's heard beacons to their best line."""
         return np.sqrt(lambda_min(self._scatter))
+
+    @property
+    def scatter(self) -> np.ndarray:
+        """(N, 3) Sxx, Sxy, Syy [m^2] of each node's heard beacons about their mean (read-only;
+        frozen once the node is covered)."""
+        return _read_only(self._scatter)
 
     @property
     def n_covered(self) -> int:

@@ -16,10 +16,14 @@ themselves (before the time limit), and the share of uncovered nodes that
 lie in cells the anchor's coverage map counts as covered, in cells it lacks, and in cells it
 does not keep (inside obstacles); then coverage and path share by density. With
 ``--localizer``, every sweep's beacon log is also localized and the Eq. 15 RMSE (m, over the
-localized nodes) is printed beside the coverage, overall and by density.
+localized nodes) is printed beside the coverage, overall and by density. With ``--bound``, a
+last row gives the coverage no sweep of these nodes can much exceed: Eq. 18 on the same nodes
+with a beacon sent from every point of a 1 m lattice of the free field the anchor can reach
+(:func:`~aoass_env.planning.adaptive.site_radio`'s points: the detour planner's free cells of
+its main region), each heard by the nodes' own radio.
 
 Run: ``python3 benchmarks/adaptive_rule.py [--split fit | --fresh SEED --maps 4]
-[--densities 0.1 0.2 0.3 0.4] [--seeds 2] [--nodes 300] [--localizer olstm-dvhop]
+[--densities 0.1 0.2 0.3 0.4] [--seeds 2] [--nodes 300] [--localizer olstm-dvhop] [--bound]
 [--variant NAME key=value ...]``, e.g.
 ``--variant "cells 0.2" cell_need=0.2 --variant "sides 0.5" side_rate=0.5``.
 """
@@ -37,8 +41,9 @@ from aoass_env.localization import METHODS, localize
 from aoass_env.maps import MAX_DENSITY, ObstacleMap, generate_map, load_map
 from aoass_env.maps.registry import list_maps, validation_split
 from aoass_env.metrics import localization_rmse
+from aoass_env.network import Network
 from aoass_env.planning import AdaptiveConfig
-from aoass_env.planning.adaptive import sweep_config
+from aoass_env.planning.adaptive import site_radio, sweep_config
 from aoass_env.simulator import Simulator
 
 
@@ -82,6 +87,18 @@ def sweep(obstacle_map: ObstacleMap, seed: int, nodes: int, rule: AdaptiveConfig
                    in_covered, int(kept.sum()) - in_covered, int((~kept).sum()), rmse)
 
 
+def coverage_bound(obstacle_map: ObstacleMap, seed: int, nodes: int) -> float:
+    """Eq. 18 coverage (share of nodes) of the nodes of ``seed`` if a beacon were sent from every
+    point of the lattice of the free field the anchor can reach (module docstring): an upper
+    bound of every sweep's on these nodes, up to the lattice's 1 m spacing."""
+    config = config_for_map(AOASSConfig(n_nodes=nodes), obstacle_map)
+    sim = Simulator(config, np.random.default_rng(seed), obstacle_map=obstacle_map, seed=seed)
+    network = Network(len(sim.nodes), config)
+    for point in site_radio(sim.planner, sim.coverage_map).nodes:
+        network.record_beacon(point, sim.radio.receivers(point))
+    return network.coverage_ratio
+
+
 def _mean_rmse(outcomes: Sequence[Outcome]) -> float:
     """Mean RMSE (m) of localized sweeps (a sweep that localized no node has a NaN RMSE)."""
     return float(np.nanmean([o.rmse for o in outcomes]))
@@ -89,13 +106,15 @@ def _mean_rmse(outcomes: Sequence[Outcome]) -> float:
 
 #: The reference row's name.
 SPIRAL = "plain spiral"
+#: With ``--bound``, the returned table's key of the bound (its outcomes' coverage; no path).
+BOUND = "reachable bound"
 
 
 def parse_variants(specs: Sequence[Sequence[str]]) -> dict[str, AdaptiveConfig]:
     """``--variant NAME key=value ...`` groups as rules (the configured rule first)."""
     variants = {"rule": AdaptiveConfig()}
     for name, *fields in specs:
-        if name in variants or name == SPIRAL:
+        if name in variants or name in (SPIRAL, BOUND):
             raise ConfigError(f"--variant {name!r}: that row name is taken; choose another")
         kwargs = {}
         for item in fields:
@@ -130,6 +149,9 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
                         help="with --fresh, generated maps per density (default 4)")
     parser.add_argument("--localizer", choices=METHODS,
                         help="also localize every sweep's log and print its RMSE")
+    parser.add_argument("--bound", action="store_true",
+                        help="also print the coverage of beacons from everywhere the anchor "
+                             "can reach (an upper bound)")
     parser.add_argument("--variant", nargs="+", action="append", default=[],
                         metavar="NAME key=value", help="a rule with these fields changed")
     args = parser.parse_args(argv)
@@ -199,6 +221,12 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
             cells.append(f"{np.mean([o.coverage for o, _ in pick]):.2%} / "
                          f"{np.mean([o.path / s.path for o, s in pick]):.3f}{rmse}")
         print(f"| {name} | " + " | ".join(cells) + " |")
+    if args.bound:
+        bound = np.array([coverage_bound(m, s, args.nodes) for m, s in episodes])
+        print("| reachable bound (coverage) | " + " | ".join(
+            f"{bound[density == d].mean():.2%}" for d in levels) + " |")
+        print(f"\nreachable bound over all sweeps: {bound.mean():.2%} (lowest {bound.min():.2%})")
+        table[BOUND] = [Outcome(b, 0.0, True, 0, 0, 0) for b in bound]
     return table
 
 

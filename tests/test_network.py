@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig
-from aoass_env.network import Network
+from aoass_env.network import Network, residual_after
 
 CONFIG = AOASSConfig()
 
@@ -121,6 +121,23 @@ def test_coverage_is_monotone_and_matches_svd(points):
         was_covered = bool(net.covered[0])
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(0, 20), st.floats(0, 20)), min_size=1, max_size=12),
+       st.lists(st.tuples(st.floats(0, 20), st.floats(0, 20)), min_size=1, max_size=5))
+def test_residual_after_one_more_beacon_matches_the_svd_of_the_grown_set(heard, extra):
+    """``residual_after`` of a node's statistics: the spread it would have with each extra
+    beacon alone, against SVD of the heard points plus that one (an uncovered node's
+    statistics, which ``Network.scatter`` exposes)."""
+    net = Network(1, AOASSConfig(collinearity_tol=100.0))   # points 20 m apart: never covered
+    for p in heard:
+        net.record_beacon(np.array(p), np.array([0]))
+    got = residual_after(int(net.heard[0]), net.beacon_centroid[0], net.scatter[0],
+                         np.array(extra))
+    assert got.shape == (len(extra),)
+    for r, q in zip(got, extra, strict=True):
+        assert_residual_matches(float(r), np.array(heard + [q]))
+
+
 def test_energy_ledger_exact_joules():
     net = Network(4, CONFIG)
     assert net.tx_energy_per_beacon == pytest.approx(256 * (50e-9 + 10e-12 * 25.0 ** 2),
@@ -159,7 +176,7 @@ def test_energy_uses_config_numbers():
 def test_views_are_read_only():
     net = Network(3, CONFIG)
     net.record_beacon(np.array([1.0, 1.0]), np.array([0, 2]))
-    for array in (net.heard, net.covered):
+    for array in (net.heard, net.covered, net.scatter, net.beacon_centroid):
         with pytest.raises(ValueError):
             array[0] = 0
     assert net.heard.tolist() == [1, 0, 1]

@@ -39,7 +39,12 @@ WaypointFollower`, with its detours and its recovery from traps) and reads the a
    shortest way and follows the spiral while its waypoints stay open (the skip rule still
    passing over those the run's own beacons have covered). When no open waypoint is left, it
    heads for the free cells the map lacks (deficit above ``cell_need``; with a plan, only the
-   cells the whole spiral would cover), the cheapest first, each until the cell is covered,
+   cells the whole spiral would cover), the cheapest first. **Sites** (``cell_sites``, off):
+   for a cell that heard two beacons or more, the sweep heads not for its centre, whose
+   straight approach lays beacons on the line the cell already heard, but for the cheapest
+   point of a 1 m lattice from which one more beacon completes the cell's Eq. 18 spread (with
+   a beacon interval to spare), in its guaranteed range and sight; a cell gets two tries, then
+   is given up. Without a site the sweep heads for the centre until the cell is covered,
    reached within two cells, or given up.
 3. **End.** The sweep ends when the map's covered share of the free field reaches
    ``end_coverage``, or when no open waypoint needs a visit. Visiting every spiral waypoint is
@@ -55,6 +60,7 @@ rule: ``skip`` raises ``skip_need`` by ``knob_step`` x skip (skip more); ``detou
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field
 from typing import ClassVar, NamedTuple
 
@@ -66,9 +72,10 @@ from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import Skip, WaypointFollower
 from aoass_env.planning.pruning import PrunedPlan, cached_plan, prune_spiral
 from aoass_env.planning.square_spiral import config_spacing
+from aoass_env.radio import Radio
 from aoass_env.validators import ValidatedConfig, param
 
-__all__ = ["AdaptiveConfig", "AdaptiveSweep", "SweepKnobs", "sweep_config"]
+__all__ = ["AdaptiveConfig", "AdaptiveSweep", "SweepKnobs", "site_radio", "sweep_config"]
 
 #: Open waypoints (nearest first) whose way the planner measures to choose the next densify run.
 DENSIFY_CANDIDATES = 5
@@ -87,6 +94,11 @@ SIDE_KEEPOUT = 4.0
 SIDE_OFF = 1000.0
 #: Spacing (m) of the points along a way whose surroundings count toward its coverage deficit.
 SIDE_SAMPLE = 4.0
+#: Spacing (m) of the lattice of points a lacking cell's beacon may be sent from (the planner's
+#: free cells of the main region, thinned to about this).
+SITE_SPACING = 1.0
+#: With ``cell_sites``, the times a lacking cell is headed for before it is given up.
+CELL_TRIES = 2
 
 
 @dataclass(frozen=True)
@@ -153,6 +165,13 @@ class AdaptiveConfig(ValidatedConfig):
                                "most one beacon)", low=-1.0, high=1.0)
     beyond_time: float = param(0.8, "... until this share of the episode's time limit has "
                                "passed", low=0.0, high=1.0)
+    cell_sites: bool = param(False, "in the cells phase, head for the cheapest point from "
+                             "which one beacon completes the cell's Eq. 18 spread (in its "
+                             "guaranteed range and sight), not for the cell's centre, whose "
+                             "straight approach lays collinear beacons; a cell gets CELL_TRIES "
+                             "tries (off: more of the cells phase's targets get covered, but on "
+                             "validation and fresh maps the sweep's coverage and path were "
+                             "level, docs/adaptive.md)", kind="bool")
     cell_hop: float = param(1e4, "a lacking cell is headed for only when the planner's way "
                             "to it costs at most this (the cells phase ends when none is that "
                             "near)", unit="m", low=0.0, high=1e4, low_open=True)
@@ -235,6 +254,8 @@ class AdaptiveSweep:
     _runner: WaypointFollower | None = None
     _open: np.ndarray | None = None
     _cell: int = -1
+    _site: np.ndarray | None = None
+    _tries: int = 0
     _judged: int = -1
     _dropped: np.ndarray | None = None
     _recoveries: int = 0
@@ -445,16 +466,20 @@ class AdaptiveSweep:
         if self.densifying:
             self._recoveries += self._runner.recoveries
         self._judged = -1
-        if self._cell >= 0:      # what beacons around here can give that cell, they have given
+        if self._cell >= 0:
+            cell, self._cell, self._site = self._cell, -1, None
+            if (self.rule.cell_sites and not self.coverage.covered[cell]
+                    and self._tries < CELL_TRIES and self._head_for(position, cell)):
+                return            # again, from a site that the beacons laid since call for
+            # what beacons around here can give that cell, they have given
             capture = CELL_CAPTURE_CELLS * self.coverage.cell
-            self._dropped[self._cell] = True
+            self._dropped[cell] = True
             self._dropped[self.coverage.near(position, capture)] = True
-            centre = self.coverage.centres[self._cell]
-            if (not self.coverage.covered[self._cell]
+            centre = self.coverage.centres[cell]
+            if (not self.coverage.covered[cell]
                     and math.hypot(*(centre - position)) > capture):
                 # given up on the way: the cells around it need the same way
                 self._dropped[self.coverage.near(centre, GIVE_UP_RADIUS)] = True
-            self._cell = -1
         threshold = self._threshold(self.rule.densify_need, self.knobs.densify)
         todo = np.flatnonzero(self._open)
         for i in todo:
@@ -530,21 +555,61 @@ class AdaptiveSweep:
             self._done = True
             return
         near = int(np.argmin(cost))
-        self._cell = int(todo[near])
-        centre = cov.centres[self._cell]
-        # a cell beside an obstacle may be out of the anchor's reach: little time past the
+        self._tries = 0
+        self._head_for(position, int(todo[near]), float(cost[near]))
+
+    def _head_for(self, position: np.ndarray, cell: int, cost: float | None = None) -> bool:
+        """Head for lacking cell ``cell``: for its beacon site (``cell_sites``, :meth:`_site`),
+        else for its centre, whose planner's way costs ``cost`` (m); False, heading nowhere,
+        when a cell tried before has no site."""
+        site = self._site_of(position, cell) if self.rule.cell_sites else None
+        if site is None and (self._tries > 0 or cost is None):
+            return False
+        goal, cost = (self.coverage.centres[cell], cost) if site is None else site
+        self._tries += 1
+        self._cell, self._site = cell, None if site is None else goal
+        # a goal beside an obstacle may be out of the anchor's reach: little time past the
         # travel
-        travel = 2.0 * float(cost[near]) / self.config.anchor_nominal_speed
-        self._runner = WaypointFollower.nominal(self.config, centre[None, :], planner=self.planner,
+        travel = 2.0 * cost / self.config.anchor_nominal_speed
+        self._runner = WaypointFollower.nominal(self.config, goal[None, :], planner=self.planner,
                                                 recovery=True, stall_time=CELL_STALL_TIME + travel)
-        self._via = self._way_to(position, centre)
+        self._via = self._way_to(position, goal)
         self.revisits.append((-1, self._clock))
+        return True
+
+    def _site_of(self, position: np.ndarray, cell: int) -> tuple[np.ndarray, float] | None:
+        """(point, cost of the planner's way there (m)): the cheapest lattice point
+        (:data:`SITE_SPACING`) from which one more beacon completes ``cell``'s Eq. 18 test (its
+        third or later, spread at least ``collinearity_tol`` + ``beacon_interval``, since the
+        beacon falls up to an interval short of the site), within the cell's guaranteed range
+        and in sight, and farther than an interval from the anchor; None when no reachable
+        point does (the cell heard fewer than two beacons, or the ones it heard leave no such
+        point)."""
+        cov = self.coverage
+        if cov.heard[cell] < 2:
+            return None
+        sites = site_radio(self.planner, cov)
+        points = sites.nodes[sites.receivers(cov.centres[cell])]
+        # the last beacon before the site falls up to one beacon interval short of it, and a
+        # site nearer than that to the anchor may get no beacon of its own
+        interval = self.config.beacon_interval
+        d = points - position
+        points = points[(cov.residual_after(cell, points) >= self.config.collinearity_tol
+                         + interval) & (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] > interval ** 2)]
+        if not len(points):
+            return None
+        cost = self.planner.costs(self._start(position), points)
+        best = int(np.argmin(cost))
+        return (points[best], float(cost[best])) if np.isfinite(cost[best]) else None
 
     def _cell_done(self, position: np.ndarray) -> bool:
-        """Whether the cell the sweep heads for is covered, or reached: beacons within a few
-        cells of it cover it as well as standing on it."""
+        """Whether the cell the sweep heads for is covered; heading for its centre, also
+        whether that is reached: beacons within a few cells of it cover it as well as standing
+        on it (a site's runner ends when it reaches the site)."""
+        if self.coverage.covered[self._cell]:
+            return True
         centre = self.coverage.centres[self._cell]
-        return bool(self.coverage.covered[self._cell]) or math.hypot(
+        return self._site is None and math.hypot(
             *(centre - position)) <= CELL_CAPTURE_CELLS * self.coverage.cell
 
     def _way_length(self, position: np.ndarray, target: np.ndarray) -> float:
@@ -552,6 +617,26 @@ class AdaptiveSweep:
         if self.planner.visible(position, target):
             return float(np.hypot(*(target - position)))
         return float(np.hypot(*(target - position))) + self._detour_excess(position, target)
+
+
+#: Beacon-site radios of the last maps seen, per coverage-map radio (one per map and cell
+#: settings; maps are immutable).
+_SITES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def site_radio(planner: DetourPlanner, coverage: CoverageMap) -> Radio:
+    """The lattice of points a beacon may be sent from (the planner's free cells of its main
+    region, thinned to :data:`SITE_SPACING`) as the nodes of a radio with the cells' guaranteed
+    range and line of sight: its receivers of a cell's virtual node are the points from which
+    a beacon reaches the cell (range and sight are symmetric). Built once per map."""
+    radio = coverage.radio
+    per_map = _SITES.setdefault(radio, {})
+    key = (planner.radius, planner.res)
+    if key not in per_map:
+        step = max(1, round(SITE_SPACING / planner.res))
+        per_map[key] = Radio(planner.main_cells(step), radio.obstacle_map, coverage.reach,
+                             line_of_sight=radio.line_of_sight)
+    return per_map[key]
 
 
 def _length(way: np.ndarray) -> float:

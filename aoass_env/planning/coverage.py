@@ -35,7 +35,7 @@ import shapely
 
 from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.maps import ObstacleMap
-from aoass_env.network import Network
+from aoass_env.network import Network, residual_after
 from aoass_env.radio import Radio
 
 __all__ = ["PARTIAL_CELL_SHARE", "CoverageMap", "cell_range"]
@@ -198,6 +198,14 @@ class CoverageMap:
         missing = np.maximum(0, 3 - net.heard[cells])
         spread = 1.0 - np.minimum(1.0, net.line_residual[cells] / self._tol)
         return np.where(net.covered[cells], 0.0, (missing + spread) / 4.0)
+
+    def residual_after(self, cell: int, points: np.ndarray) -> np.ndarray:
+        """(K,) the spread (m) free cell ``cell`` would have, its heard beacons' distance to
+        their best line, if one more beacon were sent from each of ``points`` (K, 2) (m) alone
+        (:func:`~aoass_env.network.residual_after`)."""
+        net = self._network
+        return residual_after(int(net.heard[cell]), net.beacon_centroid[cell],
+                              net.scatter[cell], points)
 
     def visible_near(self, point: np.ndarray, radius: float) -> np.ndarray:
         """Indices of the free cells within ``radius`` (m, at most :attr:`reach`) of ``point``

@@ -159,6 +159,14 @@ class DetourPlanner:
         j = np.clip((goals[:, 1] / self.res).astype(np.int64), 0, self.shape[1] - 1)
         return dist[self._nearest[i * self.shape[1] + j]]
 
+    def main_cells(self, step: int = 1) -> np.ndarray:
+        """(M, 2) the centres (m) of the free grid cells in the largest connected region, where
+        the anchor can stand and most of the field is reached; with ``step`` > 1 only every
+        step-th cell along each axis (a thinned lattice)."""
+        i, j = np.unravel_index(np.flatnonzero(self._main), self.shape)
+        keep = (i % step == 0) & (j % step == 0)
+        return self.centres[(i * self.shape[1] + j)[keep]]
+
     def main_point(self, point: np.ndarray) -> np.ndarray:
         """(2,) the centre (m) of the free grid cell nearest to ``point`` in the largest
         connected free region (where :meth:`can_start` holds): where an anchor the planner

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
+from aoass_env.config import AOASSConfig, config_for_map
 from aoass_env.maps import load_map
 from aoass_env.planning import AdaptiveConfig
+from aoass_env.planning.adaptive import site_radio
+from aoass_env.simulator import Simulator
 from tests.benchmarks.conftest import load_benchmark
 
 
@@ -92,3 +96,32 @@ def test_fresh_maps_are_generated_from_the_seed_per_density(bench, capsys):
         bench.main(["--fresh", "987", "--densities", "0.7"])
     assert "--densities 0.7: a generated map's density must lie in [0, 0.6]" in \
         capsys.readouterr().err
+
+
+def test_the_bound_is_eq18_of_beacons_from_every_reachable_lattice_point(bench, capsys):
+    """``coverage_bound`` against Eq. 18 by its definition (at least three heard beacons whose
+    root-sum-square distance to their best line, by SVD, is at least the tolerance), with the
+    heard points collected node by node from the nodes' radio."""
+    obstacle_map = load_map("train/d0.40_f100_s015")
+    config = config_for_map(AOASSConfig(n_nodes=40), obstacle_map)
+    sim = Simulator(config, np.random.default_rng(3), obstacle_map=obstacle_map, seed=3)
+    sites = site_radio(sim.planner, sim.coverage_map).nodes
+    heard = [[] for _ in sim.nodes]
+    for point in sites:
+        for node in sim.radio.receivers(point):
+            heard[node].append(point)
+    covered = 0
+    for points in heard:
+        if len(points) >= 3:
+            centred = np.array(points) - np.mean(points, axis=0)
+            covered += np.linalg.svd(centred, compute_uv=False)[-1] >= config.collinearity_tol
+    bound = bench.coverage_bound(obstacle_map, 3, 40)
+    assert bound == covered / 40
+    table = bench.main(["--densities", "0.1", "--seeds", "1", "--nodes", "40", "--limit", "1",
+                        "--bound"])
+    out = capsys.readouterr().out
+    assert "| reachable bound (coverage) |" in out and "reachable bound over all sweeps" in out
+    (b,) = table[bench.BOUND]
+    assert b.coverage >= max(o.coverage for name, (o,) in table.items() if name != bench.BOUND)
+    with pytest.raises(bench.ConfigError, match="that row name is taken"):
+        bench.parse_variants([[bench.BOUND, "cell_need=0.2"]])

@@ -10,7 +10,7 @@ from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.env import AOASSEnv
 from aoass_env.maps import ObstacleMap
 from aoass_env.planning import AdaptiveConfig, SweepKnobs, default_spacing
-from aoass_env.planning.adaptive import AdaptiveSweep
+from aoass_env.planning.adaptive import AdaptiveSweep, site_radio
 from aoass_env.planning.coverage import CoverageMap
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import WaypointFollower
@@ -245,3 +245,66 @@ def test_cells_farther_than_the_hop_end_the_cells_phase():
         speed, _ = sweep.command(start, 0.0, config.dt)
         assert sweep.done is done and (sweep.target is None) is done
         assert (speed == 0.0) if done else sweep.densifying
+
+
+def test_the_site_radio_hears_a_cell_from_exactly_the_points_whose_beacon_the_cell_hears():
+    """Range and sight are symmetric: the sites the site radio finds around a cell's virtual
+    node are the lattice points from which the cells' own radio reaches that cell."""
+    config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
+    coverage = CoverageMap(WALL, config)
+    planner = DetourPlanner(WALL, config.anchor_radius + 0.5)
+    sites = site_radio(planner, coverage)
+    assert site_radio(planner, coverage) is sites                  # once per map
+    np.testing.assert_array_equal(sites.nodes, planner.main_cells(2))
+    heard_from = [set(coverage.radio.receivers(p).tolist()) for p in sites.nodes]
+    rng = np.random.default_rng(0)
+    for cell in rng.choice(coverage.n_cells, 25, replace=False):
+        found = set(sites.receivers(coverage.centres[cell]).tolist())
+        assert found == {k for k, cells in enumerate(heard_from) if cell in cells}
+
+
+def _beacons_on_a_line() -> tuple[AOASSConfig, CoverageMap, DetourPlanner, np.ndarray]:
+    """An open 60 m field whose cells heard only beacons on the line y = 30: none is covered
+    (collinear); the anchor on that line."""
+    config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
+    field = ObstacleMap(60.0, 60.0, [])
+    coverage = CoverageMap(field, config)
+    for x in np.arange(1.0, 60.0, config.beacon_interval):
+        coverage.add_beacon(np.array([x, 30.0]))
+    assert not coverage.covered.any()
+    return config, coverage, DetourPlanner(field, config.anchor_radius + 0.5), np.array([30.0,
+                                                                                        30.0])
+
+
+@pytest.mark.parametrize("cell_sites", [True, False])
+def test_a_cell_with_collinear_beacons_is_headed_for_at_a_site_off_their_line(cell_sites):
+    """With ``cell_sites`` the cells phase heads for the cheapest point whose one beacon would
+    complete the nearest lacking cell (spread >= tol + one beacon interval, more than an
+    interval from the anchor), where a beacon does cover it; without, for a cell's centre, and
+    the cells within two cells of the anchor are given up at once (reached)."""
+    config, coverage, planner, start = _beacons_on_a_line()
+    follower = WaypointFollower.nominal(config, start[None, :], planner=planner, recovery=True)
+    sweep = AdaptiveSweep(follower, coverage, planner, config,
+                          AdaptiveConfig(prune=False, cell_sites=cell_sites, **ONLINE))
+    sweep.command(start, 0.0, config.dt)          # reaches its one waypoint: the spiral is done
+    sweep.command(start, 0.0, config.dt)
+    cell = sweep._cell
+    centre = coverage.centres[cell]
+    target = sweep.target
+    if not cell_sites:     # the nearest cell beyond the two cells round the anchor it drops
+        np.testing.assert_array_equal(target, centre)
+        assert 2 * coverage.cell < np.hypot(*(centre - start)) <= 3 * coverage.cell
+        return
+    assert np.hypot(*(centre - start)) <= coverage.cell               # the nearest lacking cell
+    need = config.collinearity_tol + config.beacon_interval
+    assert coverage.residual_after(cell, target[None])[0] >= need
+    assert np.hypot(*(target - start)) > config.beacon_interval
+    # the cheapest such point of the lattice (on an open field: the nearest)
+    sites = site_radio(planner, coverage).nodes
+    spread = coverage.residual_after(cell, sites)
+    ok = (spread >= need) & (np.hypot(*(sites - start).T) > config.beacon_interval) & (
+        np.hypot(*(sites - centre).T) <= coverage.reach)
+    costs = planner.costs(start, sites[ok])
+    assert planner.costs(start, target[None])[0] == pytest.approx(costs.min())
+    coverage.add_beacon(target)
+    assert coverage.covered[cell]

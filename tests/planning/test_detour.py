@@ -152,6 +152,22 @@ def test_main_point_leads_out_of_a_pocket_and_stays_put_on_the_field():
     assert np.hypot(*(p.main_point(on_field) - on_field)) <= p.res
 
 
+def test_main_cells_are_the_free_cells_that_reach_the_field_thinned_by_step():
+    m = ObstacleMap(100, 100, [WALL, C_SHAPE])
+    p = DetourPlanner(m, radius=0.5)
+    every, thinned = p.main_cells(), p.main_cells(2)
+    start = np.array([20.0, 50.0])
+    assert np.all(np.isfinite(p.costs(start, every)))          # all reach the field
+    inside_c = np.all((every > 61.5) & (every < 78.5), axis=1)   # the C's pocket: free, shut
+    assert not inside_c.any() and p.free.sum() > len(every)
+    i, j = (every / p.res).astype(int).T                     # cell indices of the centres
+    assert p.free.ravel()[i * p.shape[1] + j].all()
+    ti, tj = (thinned / p.res).astype(int).T
+    assert np.all(ti % 2 == 0) and np.all(tj % 2 == 0)
+    keep = (i % 2 == 0) & (j % 2 == 0)
+    np.testing.assert_array_equal(thinned, every[keep])
+
+
 class _SearchesOnly(DetourPlanner):
     """The planner before its quick searches (the oracle): with no forced quick path, path()
     and the keep-out searches run the bounded search, the kept tree and the whole-grid search
