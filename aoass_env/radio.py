@@ -272,6 +272,20 @@ class Radio:
         p = _points(point, "point", single=True)
         return self._in_sight(p, self._in_range(p, among))
 
+    def receivers_many(self, points: np.ndarray) -> list[np.ndarray]:
+        """:meth:`receivers` of a beacon at each of ``points`` (K, 2) [m]: the line of sight of
+        all their candidates is tested in one call (a segment's answer does not depend on the
+        others tested with it), which saves that call's fixed cost per point."""
+        pts = _points(points, "points")
+        found = [self._in_range(p, None) for p in pts]
+        if self._los is None or not found:
+            return found
+        cand = np.concatenate(found)
+        ends = np.repeat(pts, [len(c) for c in found], axis=0)
+        heard = ~self._los._blocked(self.nodes[cand], ends, self._node_inside[cand])
+        split = np.cumsum([len(c) for c in found])[:-1]
+        return [c[part] for c, part in zip(found, np.split(heard, split), strict=True)]
+
     def _in_range(self, p: np.ndarray, among: np.ndarray | None) -> np.ndarray:
         """Sorted int64 indices of the nodes (of ``among``) within the anchor's range
         R K(theta) of the checked point ``p`` (2,) [m], line of sight not yet tested."""

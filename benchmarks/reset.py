@@ -18,6 +18,7 @@ import argparse
 import importlib.util
 import statistics
 import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -46,6 +47,7 @@ def module_at(commit: str, path: str, folder: Path) -> ModuleType:
     file.write_text(source)
     spec = importlib.util.spec_from_file_location(f"at_{commit}_{file.stem}", file)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module        # dataclasses look their module up while it runs
     spec.loader.exec_module(module)
     return module
 

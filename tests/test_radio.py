@@ -416,3 +416,24 @@ def test_receivers_at_one_point_are_each_radios_receivers(seed, doi, counts):
             for (radio, mask), heard in zip(queries, got, strict=True):
                 assert heard.dtype == np.int64
                 np.testing.assert_array_equal(heard, radio.receivers(point, mask))
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), doi=st.sampled_from([0.0, 0.3]),
+       counts=st.tuples(st.integers(0, 120), st.integers(0, 12)),
+       line_of_sight=st.booleans())
+def test_receivers_of_many_points_are_each_points_receivers(seed, doi, counts, line_of_sight):
+    """One line-of-sight call for all the points' candidates gives each point's own answer,
+    node for node (lattice points on vertices and edges included)."""
+    rng = np.random.default_rng(seed)
+    lattice = counts[0] % 2 == 1
+    obstacle_map = LATTICE_MAP if lattice else random_map(rng)
+    nodes = LATTICE if lattice else rng.uniform(0, 60, (counts[0], 2))
+    radio = Radio(nodes, obstacle_map, 15.0, doi=doi, rng=rng, line_of_sight=line_of_sight)
+    points = np.vstack([rng.uniform(0, 60, (counts[1], 2)),
+                        LATTICE[rng.integers(len(LATTICE), size=counts[1] % 4)]])
+    got = radio.receivers_many(points)
+    assert len(got) == len(points)
+    for point, heard in zip(points, got, strict=True):
+        assert heard.dtype == np.int64
+        np.testing.assert_array_equal(heard, radio.receivers(point))

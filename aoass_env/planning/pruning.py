@@ -62,6 +62,8 @@ ROUNDS = 3
 REORDER_PASSES = 10
 #: Lattice (m) the planned beacons are snapped to for the receivers' lookup.
 SNAP = 0.25
+#: Round-off allowance (m) of a way's length against the straight distance of its ends.
+STRAIGHT_SLACK = 1e-9
 
 
 @dataclass(frozen=True)
@@ -136,11 +138,18 @@ class _Ways:
         """The cells that hear a beacon at ``point`` snapped to the lattice, that point, and
         its :func:`beacon_weight`."""
         key = (round(point[0] / SNAP), round(point[1] / SNAP))
-        snapped = np.array(key, dtype=np.float64) * SNAP
-        if key not in self._heard:
-            self._heard[key] = (self.radio.receivers(snapped), np.uint64(beacon_weight(key)))
+        self._hear([key])
         cells, weight = self._heard[key]
-        return cells, snapped, weight
+        return cells, np.array(key, dtype=np.float64) * SNAP, weight
+
+    def _hear(self, keys: list[tuple[int, int]]) -> None:
+        """Cache the cells and weight of the lattice points ``keys`` not cached yet, the
+        radio's line of sight tested for all of them at once."""
+        new = list(dict.fromkeys(k for k in keys if k not in self._heard))
+        if new:
+            points = np.array(new, dtype=np.float64) * SNAP
+            for key, cells in zip(new, self.radio.receivers_many(points), strict=True):
+                self._heard[key] = (cells, np.uint64(beacon_weight(key)))
 
     def get(self, a: int, b: int) -> _Way | None:
         """(length m, cells, their (K, 6) statistics, their (K,) signature sums) of the way
@@ -153,17 +162,30 @@ class _Ways:
         return self._ways[key]
 
     def _measure(self, way: np.ndarray) -> _Way:
+        """The way's length and what its beacons (every ``interval`` m from its start, snapped
+        to the lattice) give the cells: their statistics summed beacon by beacon in order
+        (``np.bincount`` adds in the order of its input, so the floats are those of adding
+        the beacons one after the other) and their weights' wrapped sums."""
         steps = np.linalg.norm(np.diff(way, axis=0), axis=1)
         along = np.r_[0.0, np.cumsum(steps)]
         length = float(along[-1])
         marks = np.arange(self.interval, length + 1e-9, self.interval)
-        stats = np.zeros((self.n_cells, 6))
+        xs, ys = np.interp(marks, along, way[:, 0]), np.interp(marks, along, way[:, 1])
+        keys = list(zip(np.rint(xs / SNAP).astype(np.int64).tolist(),
+                        np.rint(ys / SNAP).astype(np.int64).tolist(), strict=True))
+        self._hear(keys)
+        heard = [self._heard[k] for k in keys]
+        sizes = np.array([len(cells) for cells, _ in heard], dtype=np.int64)
+        cells = (np.concatenate([c for c, _ in heard]) if heard
+                 else np.zeros(0, dtype=np.int64))
+        snapped = np.array(keys, dtype=np.float64).reshape(-1, 2) * SNAP
+        x, y = np.repeat(snapped[:, 0], sizes), np.repeat(snapped[:, 1], sizes)
+        stats = np.stack([np.bincount(cells, weights=w, minlength=self.n_cells) for w in
+                          (np.ones(len(cells)), x, y, x * x, x * y, y * y)], axis=1)
+        stats = stats.astype(np.float64, copy=False)    # bincount of nothing gives int64
         signature = np.zeros(self.n_cells, dtype=np.uint64)
-        for s in marks:
-            cells, (x, y), weight = self.receivers(np.array([np.interp(s, along, way[:, 0]),
-                                                             np.interp(s, along, way[:, 1])]))
-            stats[cells] += (1.0, x, y, x * x, x * y, y * y)
-            signature[cells] += weight
+        np.add.at(signature, cells, np.repeat(
+            np.array([w for _, w in heard], dtype=np.uint64), sizes))
         touched = np.flatnonzero(stats[:, 0])
         return _Way(length, touched, stats[touched], signature[touched])
 
@@ -227,12 +249,16 @@ class _Pruner:
         a, b = self.prev.get(run[0]), self.next.get(run[-1])
         if a is None or b is None:
             return False
-        shortcut = self.ways.get(a, b)
-        if shortcut is None:
-            return False
         chain = [a, *run, b]
         old = [self.ways.get(x, y) for x, y in zip(chain[:-1], chain[1:], strict=True)]
-        if sum(w.length for w in old) - shortcut.length <= min_gain:
+        through = sum(w.length for w in old)
+        # the planner's way from a to b is at least their distance (it ends at both): when
+        # even that gains too little (less 1 nm of round-off), the way is not searched
+        ends = self.ways.waypoints[b] - self.ways.waypoints[a]
+        if through - (math.hypot(ends[0], ends[1]) - STRAIGHT_SLACK) <= min_gain:
+            return False
+        shortcut = self.ways.get(a, b)
+        if shortcut is None or through - shortcut.length <= min_gain:
             return False
         if not self._exchange(old, [shortcut]):
             return False

@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig
 from aoass_env.env import AOASSEnv
-from aoass_env.maps import ObstacleMap
+from aoass_env.maps import ObstacleMap, generate_map
 from aoass_env.network import Network
-from aoass_env.planning import AdaptiveConfig
+from aoass_env.planning import AdaptiveConfig, pruning
 from aoass_env.planning.coverage import CoverageMap
 from aoass_env.planning.pruning import (
     SNAP,
@@ -248,3 +248,67 @@ def test_only_on_a_dense_map_the_cells_phase_goes_beyond_the_reference(below, la
         assert sweep.done and sweep._cell < 0
     else:
         assert not sweep.done and not sweep.plan.reference[sweep._cell]
+
+
+class _OneByOne(pruning._Ways):
+    """The ways before the batched measure (the oracle): every beacon's receivers asked of the
+    radio alone and its statistics added to the cells one beacon after the other."""
+
+    def receivers(self, point: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.uint64]:
+        key = (round(point[0] / SNAP), round(point[1] / SNAP))
+        snapped = np.array(key, dtype=np.float64) * SNAP
+        if key not in self._heard:
+            self._heard[key] = (self.radio.receivers(snapped), np.uint64(beacon_weight(key)))
+        cells, weight = self._heard[key]
+        return cells, snapped, weight
+
+    def _measure(self, way: np.ndarray) -> pruning._Way:
+        steps = np.linalg.norm(np.diff(way, axis=0), axis=1)
+        along = np.r_[0.0, np.cumsum(steps)]
+        length = float(along[-1])
+        marks = np.arange(self.interval, length + 1e-9, self.interval)
+        stats = np.zeros((self.n_cells, 6))
+        signature = np.zeros(self.n_cells, dtype=np.uint64)
+        for s in marks:
+            cells, (x, y), weight = self.receivers(np.array([np.interp(s, along, way[:, 0]),
+                                                             np.interp(s, along, way[:, 1])]))
+            stats[cells] += (1.0, x, y, x * x, x * y, y * y)
+            signature[cells] += weight
+        touched = np.flatnonzero(stats[:, 0])
+        return pruning._Way(length, touched, stats[touched], signature[touched])
+
+
+@pytest.mark.parametrize("density", [0.2, 0.5])
+def test_batched_ways_and_plans_are_those_of_measuring_beacon_by_beacon(density, monkeypatch):
+    """The batched measure (one line-of-sight call per way's new lattice points, statistics
+    summed by ``np.bincount``) gives every way's statistics and signatures bit for bit, and so
+    the same plan, as adding the beacons one by one."""
+    config = AOASSConfig(field_size=60.0, n_nodes=50, n_moving_obstacles=0)
+    obstacle_map = generate_map(60.0, density, np.random.default_rng([7, round(100 * density)]))
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=obstacle_map)
+    cov, wps = sim.coverage_map, sim.path.waypoints
+    args = (wps, sim.planner, cov.radio, cov.n_cells, config.beacon_interval)
+    new, old = pruning._Ways(*args), _OneByOne(*args)
+    rng = np.random.default_rng(1)
+    pairs = [(i, i + 1) for i in range(len(wps) - 1)] + [
+        tuple(rng.choice(len(wps), 2, replace=False)) for _ in range(20)]
+    for a, b in pairs:
+        got, want = new.get(a, b), old.get(a, b)
+        assert (got is None) == (want is None)
+        if got is not None:
+            assert got.length == want.length
+            for field in ("cells", "stats", "signature"):
+                g, w = getattr(got, field), getattr(want, field)
+                assert g.dtype == w.dtype
+                np.testing.assert_array_equal(g, w)
+    assert new._heard.keys() == old._heard.keys()
+    plan = prune_spiral(wps, sim.path.blocked, sim.start_index, sim.planner, cov.radio,
+                        cov.n_cells, config.beacon_interval, config.collinearity_tol, (6, 2.0),
+                        error_limit=1.5)
+    monkeypatch.setattr(pruning, "_Ways", _OneByOne)
+    oracle = prune_spiral(wps, sim.path.blocked, sim.start_index, sim.planner, cov.radio,
+                          cov.n_cells, config.beacon_interval, config.collinearity_tol, (6, 2.0),
+                          error_limit=1.5)
+    for field in ("kept", "order", "reference"):
+        np.testing.assert_array_equal(getattr(plan, field), getattr(oracle, field))
+    assert (plan.length, plan.full_length) == (oracle.length, oracle.full_length)
