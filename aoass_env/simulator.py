@@ -137,7 +137,10 @@ class Simulator:
     def _start_index(self) -> int:
         """The waypoint the anchor starts on: the path's first free waypoint from which the
         detour planner reaches the map's main free region (not one shut in a pocket, or wedged
-        against an obstacle's corner), else its first free waypoint.
+        against an obstacle's corner) and which leads out by exact clearance
+        (:meth:`~aoass_env.planning.detour.DetourPlanner.leads_out`: not a nook whose exit
+        only the planner's grid takes for open); else the first that reaches the main region;
+        else the first free waypoint.
 
         Raises:
             MapError: every waypoint lies inside an obstacle.
@@ -145,9 +148,14 @@ class Simulator:
         free = np.flatnonzero(~self.path.blocked)
         if len(free) == 0:
             raise MapError("every waypoint of the path lies inside an obstacle; nowhere to start")
-        radius = self.config.anchor_radius
-        return int(next((i for i in free
-                         if self.planner.can_start(self.path.waypoints[i], radius)), free[0]))
+        radius, points = self.config.anchor_radius, self.path.waypoints
+        first = None
+        for i in free:
+            if self.planner.can_start(points[i], radius):
+                if self.planner.leads_out(points[i]):
+                    return int(i)
+                first = i if first is None else first
+        return int(free[0] if first is None else first)
 
     def _broadcast(self, beacons: np.ndarray) -> int:
         newly = 0

@@ -50,6 +50,9 @@ KEEPOUT_COST = 25.0
 #: Extra clearance (m) the nominal follower's detours keep from obstacles beyond the anchor
 #: radius, room for the turn-rate-limited anchor to round the corners of a detour.
 DETOUR_MARGIN = 0.3
+#: How far (m) a start must lead out, through cells of exact clearance, to count as open
+#: (:meth:`DetourPlanner.leads_out`).
+LEAD_OUT = 10.0
 
 #: map -> {(radius, resolution): planner}: the planners :meth:`DetourPlanner.for_map` copies
 #: (kept while the map lives)
@@ -72,6 +75,7 @@ class DetourPlanner:
         nx = max(1, math.ceil(obstacle_map.width / resolution))
         ny = max(1, math.ceil(obstacle_map.height / resolution))
         self.shape = (nx, ny)
+        self._size = (float(obstacle_map.width), float(obstacle_map.height))
         xs, ys = (np.arange(nx) + 0.5) * resolution, (np.arange(ny) + 0.5) * resolution
         gx, gy = np.meshgrid(xs, ys, indexing="ij")
         self.centres = np.stack([gx.ravel(), gy.ravel()], axis=1)
@@ -188,6 +192,33 @@ class DetourPlanner:
         leg = shapely.LineString([point, self.centres[cell]])
         return bool(self._obstacles.is_empty
                     or shapely.distance(self._obstacles, leg) >= clearance)
+
+    def leads_out(self, point: np.ndarray, reach: float = LEAD_OUT) -> bool:
+        """Whether a disc of the planner's radius gets farther than ``reach`` (m) from ``point``
+        through grid cells whose *exact* clearance (distance to the obstacles and the border)
+        is at least that radius, from the cell ``point`` snaps to (8-connected). The grid's own
+        clearance is a distance transform to occupied cell centres, which misses obstacle
+        parts thinner than a cell: a point in a nook can look open to the grid while its exit
+        is narrower than the radius (a start the anchor inside the safety stack never left)."""
+        point = np.asarray(point, dtype=np.float64)
+        nx, ny = self.shape
+        k = math.ceil(reach / self.res) + 1
+        si, sj = divmod(self._cell(point), ny)
+        i_lo, j_lo = max(0, si - k), max(0, sj - k)
+        gi, gj = np.meshgrid(np.arange(i_lo, min(nx, si + k + 1)),
+                             np.arange(j_lo, min(ny, sj + k + 1)), indexing="ij")
+        cx, cy = (gi + 0.5) * self.res, (gj + 0.5) * self.res
+        width, height = self._size
+        clear = np.minimum(np.minimum(cx, width - cx), np.minimum(cy, height - cy))
+        if not self._obstacles.is_empty:
+            clear = np.minimum(clear, shapely.distance(
+                self._obstacles, shapely.points(cx.ravel(), cy.ravel())).reshape(cx.shape))
+        ok = clear >= self.radius
+        far = (cx - point[0]) ** 2 + (cy - point[1]) ** 2 > reach * reach
+        start = (si - i_lo, sj - j_lo)
+        ok[start] = True                      # the anchor stands there already
+        labels, _ = ndimage.label(ok, structure=np.ones((3, 3), dtype=bool))
+        return bool(np.any(far & (labels == labels[start])))
 
     def visible(self, a: np.ndarray, b: np.ndarray) -> bool:
         """True when a disc of the planner's radius can move straight from ``a`` to ``b``."""

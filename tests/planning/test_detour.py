@@ -168,6 +168,19 @@ def test_main_cells_are_the_free_cells_that_reach_the_field_thinned_by_step():
     np.testing.assert_array_equal(thinned, every[keep])
 
 
+def test_a_point_leads_out_only_through_cells_of_exact_clearance():
+    """Inside the C (its mouth 0.6 m, narrower than the disc; its inside at most 12.8 m from
+    the centre) no way leads 15 m out, though the anchor's own cell counts; beside it and on
+    an open field one does; a reach within the pocket is reached. (The nook the grid takes
+    for open: tests/test_simulator.py, on the generated map where it was found.)"""
+    p = DetourPlanner(ObstacleMap(100, 100, [C_SHAPE]), radius=0.5)
+    centre = np.array([70.0, 70.0])
+    assert not p.leads_out(centre, reach=15.0)
+    assert p.leads_out(centre, reach=5.0)
+    assert p.leads_out(np.array([55.0, 70.0]), reach=15.0)
+    assert p.leads_out(np.array([20.0, 20.0]))
+
+
 class _SearchesOnly(DetourPlanner):
     """The planner before its quick searches (the oracle): with no forced quick path, path()
     and the keep-out searches run the bounded search, the kept tree and the whole-grid search
