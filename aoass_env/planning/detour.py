@@ -76,6 +76,7 @@ class DetourPlanner:
         ny = max(1, math.ceil(obstacle_map.height / resolution))
         self.shape = (nx, ny)
         self._size = (float(obstacle_map.width), float(obstacle_map.height))
+        self._leads: dict[tuple[float, float, float], bool] = {}   # shared by copies
         xs, ys = (np.arange(nx) + 0.5) * resolution, (np.arange(ny) + 0.5) * resolution
         gx, gy = np.meshgrid(xs, ys, indexing="ij")
         self.centres = np.stack([gx.ravel(), gy.ravel()], axis=1)
@@ -201,6 +202,12 @@ class DetourPlanner:
         parts thinner than a cell: a point in a nook can look open to the grid while its exit
         is narrower than the radius (a start the anchor inside the safety stack never left)."""
         point = np.asarray(point, dtype=np.float64)
+        key = (float(point[0]), float(point[1]), float(reach))
+        if key not in self._leads:            # the map is immutable: once per point
+            self._leads[key] = self._leads_out(point, reach)
+        return self._leads[key]
+
+    def _leads_out(self, point: np.ndarray, reach: float) -> bool:
         nx, ny = self.shape
         k = math.ceil(reach / self.res) + 1
         si, sj = divmod(self._cell(point), ny)

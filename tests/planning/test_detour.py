@@ -179,6 +179,11 @@ def test_a_point_leads_out_only_through_cells_of_exact_clearance():
     assert p.leads_out(centre, reach=5.0)
     assert p.leads_out(np.array([55.0, 70.0]), reach=15.0)
     assert p.leads_out(np.array([20.0, 20.0]))
+    # answered once per map and point: the planners of one map share the answers
+    shared = ObstacleMap(100, 100, [C_SHAPE])
+    first, second = DetourPlanner.for_map(shared, 0.5), DetourPlanner.for_map(shared, 0.5)
+    assert not first.leads_out(centre, reach=15.0)
+    assert second._leads == {(70.0, 70.0, 15.0): False}
 
 
 class _SearchesOnly(DetourPlanner):
