@@ -559,7 +559,7 @@ class AdaptiveSweep:
         self._head_for(position, int(todo[near]), float(cost[near]))
 
     def _head_for(self, position: np.ndarray, cell: int, cost: float | None = None) -> bool:
-        """Head for lacking cell ``cell``: for its beacon site (``cell_sites``, :meth:`_site`),
+        """Head for lacking cell ``cell``: for its beacon site (``cell_sites``, :meth:`_site_of`),
         else for its centre, whose planner's way costs ``cost`` (m); False, heading nowhere,
         when a cell tried before has no site."""
         site = self._site_of(position, cell) if self.rule.cell_sites else None

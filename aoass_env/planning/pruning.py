@@ -134,14 +134,6 @@ class _Ways:
         self._ways: dict[tuple[int, int], _Way | None] = {}
         self._heard: dict[tuple[int, int], tuple[np.ndarray, np.uint64]] = {}
 
-    def receivers(self, point: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.uint64]:
-        """The cells that hear a beacon at ``point`` snapped to the lattice, that point, and
-        its :func:`beacon_weight`."""
-        key = (round(point[0] / SNAP), round(point[1] / SNAP))
-        self._hear([key])
-        cells, weight = self._heard[key]
-        return cells, np.array(key, dtype=np.float64) * SNAP, weight
-
     def _hear(self, keys: list[tuple[int, int]]) -> None:
         """Cache the cells and weight of the lattice points ``keys`` not cached yet, the
         radio's line of sight tested for all of them at once."""
