@@ -30,7 +30,10 @@ WaypointFollower`, with its detours and its recovery from traps) and reads the a
 0. **Plan.** Before it moves (``prune``, ``reorder``), the sweep prunes Eq. 5's spiral on the
    static map (:mod:`aoass_env.planning.pruning`): it leaves out the free waypoints whose
    surroundings the rest of the spiral's beacons cover, reorders the kept ones where that is
-   shorter, and its follower walks the plan. Without a plan, ``wide_passes`` lays wider passes
+   shorter, and its follower walks the plan. With ``sites`` it walks instead a tour through
+   beacon sites chosen by set cover of the cells the whole spiral would cover (each heard by
+   ``site_need`` sites), repaired where its beacons leave such cells uncovered, then pruned
+   the same way. Without a plan, ``wide_passes`` lays wider passes
    than Eq. 5's (:func:`sweep_config`: the ring count rounded down instead of up, 2 rings
    instead of 3 on the default 100 m field) and leaves the gaps to the densify phase.
 
@@ -70,7 +73,7 @@ from aoass_env.config import AOASSConfig
 from aoass_env.planning.coverage import CoverageMap
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import Skip, WaypointFollower
-from aoass_env.planning.pruning import PrunedPlan, cached_plan, prune_spiral
+from aoass_env.planning.pruning import PrunedPlan, cached_plan, plan_sites, prune_spiral
 from aoass_env.planning.square_spiral import config_spacing
 from aoass_env.radio import Radio
 from aoass_env.validators import ValidatedConfig, param
@@ -120,6 +123,12 @@ class AdaptiveConfig(ValidatedConfig):
                                "planned beacons, pruning.class_error) at most the larger of "
                                "this and the full spiral's (0: not checked)", unit="m",
                                low=0.0, high=1000.0)
+    sites: bool = param(True, "with prune, walk a tour through beacon sites chosen by set "
+                        "cover of the cells the whole spiral would cover, repaired and pruned, "
+                        "instead of the spiral's own waypoints pruned (pruning.plan_sites; "
+                        "chosen on training maps, docs/adaptive.md)", kind="bool")
+    site_need: int = param(4, "... the set cover's sites each such cell hears (Eq. 18 needs "
+                           "three beacons)", low=1, high=20, kind="int")
     reorder: bool = param(True, "with prune, also reorder the kept waypoints (2-opt on the "
                           "planner's ways, every reference cell still covered)", kind="bool")
     wide_passes: bool = param(False, "lay the spiral's passes with the ring count of Eq. 5's "
@@ -275,13 +284,19 @@ class AdaptiveSweep:
         key = (follower.waypoints.tobytes(), follower.blocked.tobytes(), follower.index,
                self.planner.radius, self.planner.res, config.beacon_interval,
                config.collinearity_tol, rule.prune_beacons, rule.prune_spread, rule.reorder,
-               rule.prune_error)
-        plan = cached_plan(cov.radio, key, lambda: prune_spiral(
-            follower.waypoints, follower.blocked, follower.index, self.planner, cov.radio,
-            cov.n_cells, config.beacon_interval, config.collinearity_tol,
-            (rule.prune_beacons, rule.prune_spread), rule.reorder,
-            error_limit=rule.prune_error or None))
-        self.follower = WaypointFollower.nominal(config, follower.waypoints[plan.order],
+               rule.prune_error, rule.sites, rule.site_need)
+        margin = (rule.prune_beacons, rule.prune_spread)
+        if rule.sites:
+            plan = cached_plan(cov.radio, key, lambda: plan_sites(
+                follower.waypoints, follower.blocked, follower.index, self.planner, cov.radio,
+                cov.n_cells, config.beacon_interval, config.collinearity_tol, margin,
+                need=rule.site_need, reorder=rule.reorder, error_limit=rule.prune_error or None))
+        else:
+            plan = cached_plan(cov.radio, key, lambda: prune_spiral(
+                follower.waypoints, follower.blocked, follower.index, self.planner, cov.radio,
+                cov.n_cells, config.beacon_interval, config.collinearity_tol, margin,
+                rule.reorder, error_limit=rule.prune_error or None))
+        self.follower = WaypointFollower.nominal(config, plan.points[plan.order],
                                                  planner=self.planner, recovery=True)
         self.follower.stall_travel = True          # the kept waypoints can lie far apart
         return plan

@@ -1,5 +1,6 @@
 """The spiral pruned ahead on the static map: the free waypoints the anchor can leave out while
-every cell the whole spiral would cover stays covered (issue 19).
+every cell the whole spiral would cover stays covered, or a tour through beacon sites that
+covers the same cells (issue 19).
 
 Sent through every free waypoint in order, the square spiral spends most of its path at
 densities 0.2-0.4 on detours to waypoints beside and behind obstacle clusters, ring after ring
@@ -21,6 +22,20 @@ it moves:
    the largest gain first. Then runs of 2-12 consecutive waypoints are tried the same way, in
    spiral order (a stub into a pocket and back, a corner cut across), and the two passes repeat
    while they remove anything (at most :data:`ROUNDS` times).
+
+3. **A site tour** (:func:`plan_sites`, the rule's ``sites``). The spiral's waypoints are not
+   where the beacons are needed: at densities 0.3-0.4 the pruned spiral still rides the rings
+   round the obstacle clusters. The site tour keeps the spiral's reference and drops its
+   waypoints: sites on a 4 m lattice of the planner's free cells (of the main region) are
+   chosen by greedy set multicover until every reference cell hears ``need`` of them
+   (guaranteed range and sight), joined from the spiral's start by a nearest-neighbour tour on
+   the planner's costs, improved by 2-opt. Its planned beacons are then measured as above;
+   where they leave reference cells uncovered (too few beacons, or collinear ones), sites of a
+   1 m lattice are inserted (:func:`_repair`): each candidate, after the kept site where the
+   planner's costs say it adds least, its new ways' beacons measured; the one that covers the
+   most such cells per metre added goes in first. Last, the tour is pruned as in 2 (with the
+   reorder), keeping what it covers of the reference with the margin. Reference cells it
+   could not cover are the cells phase's.
 
 The plan is a plan: the beacons the anchor really sends fall at other points of its odometer,
 moving obstacles push it aside, and the follower cuts corners. The adaptive sweep's densify
@@ -44,13 +59,14 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+from scipy import sparse
 
 from aoass_env.network import lambda_min
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.radio import Radio
 
 __all__ = ["MIN_GAIN", "PrunedPlan", "beacon_weight", "cached_plan", "class_error",
-           "prune_spiral"]
+           "plan_sites", "prune_spiral"]
 
 #: A removal must shorten the plan by more than this (m).
 MIN_GAIN = 0.3
@@ -64,21 +80,34 @@ REORDER_PASSES = 10
 SNAP = 0.25
 #: Round-off allowance (m) of a way's length against the straight distance of its ends.
 STRAIGHT_SLACK = 1e-9
+#: Spacing (m) of the candidate beacon sites of a site tour (the planner's free cells, thinned).
+SITE_STEP = 4.0
+#: Spacing (m) of the candidate sites of a site tour's repair.
+REPAIR_STEP = 1.0
+#: Rounds of a site tour's repair: sites added where its planned beacons leave reference cells
+#: uncovered (Eq. 18's spread, not only the count).
+REPAIR_ROUNDS = 4
+#: Candidate sites of a repair round (those the most uncovered reference cells hear).
+REPAIR_CANDIDATES = 40
 
 
 @dataclass(frozen=True)
 class PrunedPlan:
-    """A pruned spiral.
+    """A pruned spiral, or a tour through beacon sites.
 
     Attributes:
-        kept: (W,) bool: the waypoints the plan visits (free, from the start on, reachable).
-        order: the kept waypoints' indices in visiting order (spiral order unless reordered).
-        length: the planner's way through the kept waypoints (m).
-        full_length: the planner's way through every reachable free waypoint (m).
-        reference: (C,) bool: the coverage map's cells the full plan covers; the kept plan
-            covers each of them too (with its planned beacons).
+        points: (P, 2) the plan's candidate points (m): the spiral's waypoints, or the spiral's
+            start followed by the candidate beacon sites (:func:`plan_sites`).
+        kept: (P,) bool: the points the plan visits (free, from the start on, reachable).
+        order: the kept points' indices in visiting order (spiral order unless reordered).
+        length: the planner's way through the kept points (m).
+        full_length: the planner's way through every reachable free spiral waypoint (m).
+        reference: (C,) bool: the coverage map's cells the full spiral plan covers; a pruned
+            spiral covers each of them too (with its planned beacons), a site tour each it
+            could (the cells phase goes for the others).
     """
 
+    points: np.ndarray
     kept: np.ndarray
     order: np.ndarray
     length: float
@@ -259,18 +288,25 @@ class _Pruner:
         self.next[a], self.prev[b] = b, a
         return True
 
-    def _exchange(self, old: list[_Way], new: list[_Way]) -> bool:
-        """Drive the ways ``new`` instead of ``old`` when every reference cell stays covered,
-        keeps its margin and (with an error limit) its class error under its cap; whether it
-        did."""
+    def _trial(self, old: list[_Way], new: list[_Way]) -> tuple[np.ndarray, np.ndarray, bool]:
+        """(cells, their statistics, whether every reference cell among them stays covered and
+        keeps its margin) with the ways ``new`` driven instead of ``old``."""
         cells = np.unique(np.concatenate([w.cells for w in old + new]))
         trial = self.total[cells]
         for way in old:
             trial[np.searchsorted(cells, way.cells)] -= way.stats
         for way in new:
             trial[np.searchsorted(cells, way.cells)] += way.stats
-        if (np.any(self.reference[cells] & ~_covered(trial, self.tol))
-                or np.any(self.robust[cells] & ~self._robust(trial))):
+        keeps = not (np.any(self.reference[cells] & ~_covered(trial, self.tol))
+                     or np.any(self.robust[cells] & ~self._robust(trial)))
+        return cells, trial, keeps
+
+    def _exchange(self, old: list[_Way], new: list[_Way]) -> bool:
+        """Drive the ways ``new`` instead of ``old`` when every reference cell stays covered,
+        keeps its margin and (with an error limit) its class error under its cap; whether it
+        did."""
+        cells, trial, keeps = self._trial(old, new)
+        if not keeps:
             return False
         if self.cap is not None:        # the signatures matter only under an error limit
             whole = self.signature.copy()
@@ -283,6 +319,36 @@ class _Pruner:
             self.signature = whole
         self.total[cells] = trial
         return True
+
+    def insertion(self, site: int, after: int, target: np.ndarray
+                  ) -> tuple[float, np.ndarray] | None:
+        """(extra length m, the ``target`` cells it covers that are not covered now) of visiting
+        ``site`` right after the kept point ``after``; None when the planner finds no way or a
+        reference cell would lose its cover."""
+        b = self.next.get(after)
+        new = [self.ways.get(after, site)] + ([self.ways.get(site, b)] if b is not None else [])
+        if any(w is None for w in new):
+            return None
+        old = [self.ways.get(after, b)] if b is not None else []
+        cells, trial, keeps = self._trial(old, new)
+        if not keeps:
+            return None
+        gained = cells[target[cells] & _covered(trial, self.tol)
+                       & ~_covered(self.total[cells], self.tol)]
+        return sum(w.length for w in new) - sum(w.length for w in old), gained
+
+    def insert(self, site: int, after: int) -> None:
+        """Visit ``site`` right after ``after`` (:meth:`insertion` said it may); the cells it
+        covers join the reference."""
+        b = self.next.get(after)
+        old = [self.ways.get(after, b)] if b is not None else []
+        new = [self.ways.get(after, site)] + ([self.ways.get(site, b)] if b is not None else [])
+        cells, trial, _ = self._trial(old, new)
+        self.total[cells] = trial
+        self.reference[cells] |= _covered(trial, self.tol)
+        self.next[after], self.prev[site] = site, after
+        if b is not None:
+            self.next[site], self.prev[b] = b, site
 
     def gain(self, k: int) -> float:
         """How much shorter (m) the plan gets without waypoint ``k`` (-inf when it cannot)."""
@@ -378,6 +444,37 @@ class _Pruner:
         return removed
 
 
+def _stops(ways: _Ways, blocked: np.ndarray, start: int) -> list[int]:
+    """The full plan's waypoints: the free ones from ``start`` on, in order, less those the
+    planner cannot reach from the previous one (the follower gives them up)."""
+    free = [int(i) for i in np.flatnonzero(~np.asarray(blocked, dtype=bool)) if i >= start]
+    stops = free[:1]
+    for k in free[1:]:
+        if ways.get(stops[-1], k) is not None:
+            stops.append(k)
+    return stops
+
+
+def _prune(pruner: _Pruner, reorder: bool, min_gain: float) -> None:
+    """The greedy passes (module docstring), repeated while they change anything."""
+    for _ in range(ROUNDS):
+        changed = pruner.singles(min_gain)
+        for length in RUN_LENGTHS:
+            changed = pruner.runs(length, min_gain) or changed
+        if reorder:
+            changed = pruner.reorder(min_gain) or changed
+        if not changed:
+            break
+
+
+def _plan(points: np.ndarray, pruner: _Pruner, full: float,
+          reference: np.ndarray) -> PrunedPlan:
+    order = np.array(pruner.order(), dtype=np.int64)
+    kept = np.zeros(len(points), dtype=bool)
+    kept[order] = True
+    return PrunedPlan(points, kept, order, pruner.length(), full, reference)
+
+
 def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,
                  planner: DetourPlanner, radio: Radio, n_cells: int, beacon_interval: float,
                  collinearity_tol: float, margin: tuple[float, float] = (3, 1.0),
@@ -399,27 +496,185 @@ def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,
             plan's beacons must stay at most the larger of its square and the full plan's (the
             kept plan must not make the cells harder to tell apart than that).
     """
-    ways = _Ways(np.asarray(waypoints, dtype=np.float64), planner, radio, n_cells,
-                 beacon_interval)
-    free = [int(i) for i in np.flatnonzero(~np.asarray(blocked, dtype=bool)) if i >= start]
-    stops = free[:1]
-    for k in free[1:]:
-        if ways.get(stops[-1], k) is not None:
-            stops.append(k)
-    pruner = _Pruner(ways, stops, collinearity_tol, margin, error_limit)
+    points = np.asarray(waypoints, dtype=np.float64)
+    ways = _Ways(points, planner, radio, n_cells, beacon_interval)
+    pruner = _Pruner(ways, _stops(ways, blocked, start), collinearity_tol, margin, error_limit)
     full = pruner.length()
-    for _ in range(ROUNDS):
-        changed = pruner.singles(min_gain)
-        for length in RUN_LENGTHS:
-            changed = pruner.runs(length, min_gain) or changed
-        if reorder:
-            changed = pruner.reorder(min_gain) or changed
-        if not changed:
-            break
-    order = np.array(pruner.order(), dtype=np.int64)
-    kept = np.zeros(len(waypoints), dtype=bool)
-    kept[order] = True
-    return PrunedPlan(kept, order, pruner.length(), full, pruner.reference)
+    _prune(pruner, reorder, min_gain)
+    return _plan(points, pruner, full, pruner.reference)
+
+
+def _multicover(heard: sparse.csr_matrix, need: np.ndarray, taken: np.ndarray) -> list[int]:
+    """Greedy set multicover: sites (rows of ``heard``, sites x cells, 1 where the cell hears a
+    beacon from the site) not ``taken``, each next the one heard by the most cells still in
+    need (the lowest index among ties), until no untaken site serves a cell in need.
+    ``need`` (cells,) counts down in place; ``taken`` is left as it was."""
+    chosen: list[int] = []
+    taken = taken.copy()
+    while True:
+        gains = heard @ (need > 0).astype(np.int64)
+        gains[taken] = -1
+        site = int(np.argmax(gains))
+        if gains[site] <= 0:
+            return chosen
+        chosen.append(site)
+        taken[site] = True
+        cells = heard.indices[heard.indptr[site]:heard.indptr[site + 1]]
+        need[cells] = np.maximum(need[cells] - 1, 0)
+
+
+class _Costs:
+    """The planner's costs (m) from candidate points to all of them, one search per row,
+    cached, made symmetric by the smaller of the two ways round."""
+
+    def __init__(self, points: np.ndarray, planner: DetourPlanner) -> None:
+        self.points = points
+        self.planner = planner
+        self._rows: dict[int, np.ndarray] = {}
+
+    def row(self, a: int) -> np.ndarray:
+        if a not in self._rows:
+            self._rows[a] = self.planner.costs(self.points[a], self.points)
+        return self._rows[a]
+
+    def __call__(self, a: int, b: int) -> float:
+        return float(min(self.row(a)[b], self.row(b)[a]))
+
+
+def _tour(stops: list[int], cost: _Costs) -> list[int]:
+    """An open tour from ``stops[0]`` through all ``stops``: nearest neighbour, then 2-opt
+    (reversals that shorten it by more than 1 mm) until none is left."""
+    first, left = stops[0], set(stops[1:])
+    order = [first]
+    while left:
+        here = cost.row(order[-1])
+        nxt = min(left, key=lambda k: (min(here[k], cost.row(k)[order[-1]]), k))
+        order.append(nxt)
+        left.remove(nxt)
+    n = len(order)
+    pairs = {(a, b): cost(a, b) for a in order for b in order}
+    improved = True
+    while improved:
+        improved = False
+        for i in range(1, n - 1):
+            for j in range(i + 1, n):
+                a, b, c = order[i - 1], order[i], order[j]
+                delta = pairs[a, c] - pairs[a, b]
+                if j + 1 < n:
+                    d = order[j + 1]
+                    delta += pairs[b, d] - pairs[c, d]
+                if delta < -1e-3:
+                    order[i:j + 1] = order[i:j + 1][::-1]
+                    improved = True
+    return order
+
+
+def _heard_by(radio: Radio, sites: np.ndarray, n_cells: int) -> sparse.csr_matrix:
+    """(sites x cells) 1 where the cell's virtual node hears a beacon sent from the site."""
+    found = radio.receivers_many(sites)
+    rows = np.repeat(np.arange(len(sites)), [len(c) for c in found])
+    cols = np.concatenate(found) if found else rows
+    return sparse.csr_matrix((np.ones(len(rows), dtype=np.int64), (rows, cols)),
+                             shape=(len(sites), n_cells))
+
+
+def plan_sites(waypoints: np.ndarray, blocked: np.ndarray, start: int,
+               planner: DetourPlanner, radio: Radio, n_cells: int, beacon_interval: float,
+               collinearity_tol: float, margin: tuple[float, float] = (3, 1.0),
+               site_step: float = SITE_STEP, need: int = 3, reorder: bool = True,
+               min_gain: float = MIN_GAIN, error_limit: float | None = None) -> PrunedPlan:
+    """A tour through beacon sites that covers the spiral's reference (module docstring, 3):
+    ``waypoints``, ``blocked`` and ``start`` are the spiral's (they give the reference and the
+    tour's first point), the other arguments as :func:`prune_spiral`'s; every reference cell
+    hears ``need`` sites of the set cover, whose candidates lie ``site_step`` (m) apart, and
+    the repair's :data:`REPAIR_STEP` (the planner's free cells of its main region, thinned).
+    The plan's points are the spiral's start followed by every repair candidate (a lattice
+    the set cover's candidates are part of). With ``error_limit`` the last pruning keeps
+    every reference cell's class error at most the larger of its square and the repaired
+    tour's, as :func:`prune_spiral`'s does."""
+    spiral = _Ways(np.asarray(waypoints, dtype=np.float64), planner, radio, n_cells,
+                   beacon_interval)
+    stops = _stops(spiral, blocked, start)
+    whole = _Pruner(spiral, stops, collinearity_tol, margin)
+    reference, full = whole.reference, whole.length()
+    fine = max(1, round(REPAIR_STEP / planner.res))
+    coarse = max(fine, fine * round(site_step / (fine * planner.res)))
+    cells = planner.main_cells(fine)
+    points = np.vstack([spiral.waypoints[stops[0]][None], cells])
+    ij = np.rint(cells / planner.res - 0.5).astype(np.int64)
+    lattice = 1 + np.flatnonzero((ij[:, 0] % coarse == 0) & (ij[:, 1] % coarse == 0))
+    cost = _Costs(points, planner)
+    # set cover on the coarse lattice: every reference cell hears `need` sites
+    heard = _heard_by(radio, points[lattice], n_cells)
+    chosen = [int(lattice[k]) for k in _multicover(heard, np.where(reference, need, 0),
+                                                     np.zeros(len(lattice), dtype=bool))]
+    order = _tour([0, *(k for k in chosen if np.isfinite(cost(0, k)))], cost)
+    # repair on the fine lattice (every point but the start is a candidate site)
+    ways = _Ways(points, planner, radio, n_cells, beacon_interval)
+    pruner = _Pruner(ways, order, collinearity_tol, margin)
+    _repair(pruner, reference, cost, Radio(points, radio.obstacle_map, radio.radio_range,
+                                           line_of_sight=radio.line_of_sight))
+    pruner = _Pruner(ways, pruner.order(), collinearity_tol, margin, error_limit)
+    # the tour keeps what it covers of the spiral's reference; the rest is the cells phase's
+    pruner.reference &= reference
+    pruner.robust &= reference
+    _prune(pruner, reorder, min_gain)
+    return _plan(points, pruner, full, reference)
+
+
+def _repair(pruner: _Pruner, reference: np.ndarray, cost: _Costs, listeners: Radio) -> None:
+    """Insert sites where the tour's planned beacons leave ``reference`` cells uncovered: the
+    candidates are the points (``listeners``' nodes) these cells hear, the
+    :data:`REPAIR_CANDIDATES` heard by the most of them (nearest the tour among ties); each
+    is tried after the kept point where the planner's costs say it adds the least, and the
+    insertion that covers the most such cells per metre added goes in (its way's beacons
+    measured, no reference cell lost), again while one covers any, :data:`REPAIR_ROUNDS`
+    rounds of candidates at most."""
+    radio = pruner.ways.radio
+    for _ in range(REPAIR_ROUNDS):
+        short = reference & ~pruner.reference
+        if not short.any():
+            return
+        cells = np.flatnonzero(short)
+        found = listeners.receivers_many(radio.nodes[cells])    # range and sight are symmetric
+        heard = np.bincount(np.concatenate(found), minlength=len(listeners.nodes)) if found \
+            else np.zeros(len(listeners.nodes), dtype=np.int64)
+        order = pruner.order()
+        heard[order] = 0
+        candidates = np.flatnonzero(heard)
+        near = _nearest_sq(listeners.nodes[candidates], listeners.nodes[order])
+        candidates = candidates[np.lexsort((near, -heard[candidates]))][:REPAIR_CANDIDATES]
+        inserted = False
+        while True:
+            best, pick = 0.0, None
+            order = pruner.order()
+            for site in candidates:
+                site = int(site)
+                if site in pruner.prev or site == pruner.first or not np.isfinite(
+                        cost(order[0], site)):
+                    continue
+                extra = [cost(a, site) + (cost(site, b) - cost(a, b) if b is not None else 0.0)
+                         for a, b in zip(order, [*order[1:], None], strict=True)]
+                after = order[int(np.argmin(extra))]
+                tried = pruner.insertion(site, after, short)
+                if tried is None or not len(tried[1]):
+                    continue
+                rate = len(tried[1]) / max(tried[0], 1.0)
+                if rate > best:
+                    best, pick = rate, (site, after)
+            if pick is None:
+                break
+            pruner.insert(*pick)
+            short &= ~pruner.reference
+            inserted = True
+        if not inserted:
+            return
+
+
+def _nearest_sq(points: np.ndarray, of: np.ndarray) -> np.ndarray:
+    """(P,) squared distance (m^2) from each of ``points`` to the nearest of ``of``."""
+    d = points[:, None, :] - of[None, :, :]
+    return np.min(d[..., 0] ** 2 + d[..., 1] ** 2, axis=1)
 
 
 #: Plans of the last maps seen, per coverage-map radio (one per map and cell settings, shared

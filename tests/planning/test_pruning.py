@@ -21,6 +21,7 @@ from aoass_env.planning.pruning import (
     beacon_weight,
     cached_plan,
     class_error,
+    plan_sites,
     prune_spiral,
 )
 from aoass_env.simulator import Simulator
@@ -41,13 +42,16 @@ def _plan(obstacle_map: ObstacleMap, margin=(3, 1.0), **options):
     return sim, plan
 
 
-def _planned_beacons(sim: Simulator, stops: np.ndarray) -> np.ndarray:
+def _planned_beacons(sim: Simulator, stops: np.ndarray, points: np.ndarray | None = None
+                     ) -> np.ndarray:
     """The plan's beacons, laid again from scratch: every beacon_interval metres along the
-    planner's way between consecutive stops (from the lower index to the higher, whichever
-    is visited first), snapped to the lattice."""
+    planner's way between consecutive stops of ``points`` (default the spiral's waypoints;
+    from the lower index to the higher, whichever is visited first), snapped to the
+    lattice."""
+    points = sim.path.waypoints if points is None else points
     out = []
     for a, b in zip(stops[:-1], stops[1:], strict=True):
-        way = sim.planner.path(sim.path.waypoints[min(a, b)], sim.path.waypoints[max(a, b)])
+        way = sim.planner.path(points[min(a, b)], points[max(a, b)])
         along = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(way, axis=0), axis=1))]
         for s in np.arange(CONFIG.beacon_interval, along[-1] + 1e-9, CONFIG.beacon_interval):
             p = np.array([np.interp(s, along, way[:, 0]), np.interp(s, along, way[:, 1])])
@@ -193,15 +197,75 @@ def test_plans_are_cached_per_map_and_settings():
     assert len(made) == 2
 
 
-def test_the_sweep_walks_the_plan_without_touching_the_spiral():
+@pytest.mark.parametrize("density", [0.0, 0.3])
+def test_a_site_tour_starts_at_the_spiral_start_and_its_beacons_cover_the_reference(density):
+    """Oracle: the site tour's beacons laid again from scratch along the planner's ways cover
+    (nearly) every cell the whole spiral covers, with a shorter way than the pruned spiral's."""
+    if density == 0.0:
+        obstacle_map, config = BLOCKS, CONFIG
+    else:
+        config = CONFIG.replace(field_size=80.0, obstacle_density=density)
+        obstacle_map = generate_map(80.0, density, np.random.default_rng([8801, 3]))
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=obstacle_map)
+    cov = sim.coverage_map
+    args = (sim.path.waypoints, sim.path.blocked, sim.start_index, sim.planner, cov.radio,
+            cov.n_cells, config.beacon_interval, config.collinearity_tol, (6, 2.0))
+    plan = plan_sites(*args)
+    spiral = prune_spiral(*args, reorder=True)
+    assert np.array_equal(plan.reference, spiral.reference)
+    assert plan.order[0] == 0 and np.array_equal(plan.points[0],
+                                                 sim.path.waypoints[sim.start_index])
+    assert np.array_equal(np.sort(plan.order), np.flatnonzero(plan.kept))
+    assert plan.full_length == pytest.approx(spiral.full_length)
+    fresh = CoverageMap(obstacle_map, config)
+    beacons = _planned_beacons(sim, plan.order, plan.points)
+    assert len(beacons) == pytest.approx(plan.length / config.beacon_interval, abs=len(plan.order))
+    for p in beacons:
+        fresh.add_beacon(p)
+    assert fresh.covered[plan.reference].mean() >= 0.98
+    assert plan.length < spiral.length
+
+
+def test_an_insertion_adds_its_ways_beacons_and_length():
+    """Oracle: after :meth:`_Pruner.insert`, the statistics and length are those of a pruner
+    built afresh on the new order, and :meth:`_Pruner.insertion` said how much longer."""
+    sim = Simulator(CONFIG, np.random.default_rng(0), obstacle_map=BLOCKS)
+    cov = sim.coverage_map
+    points = sim.planner.main_cells(8)
+    ways = pruning._Ways(points, sim.planner, cov.radio, cov.n_cells, CONFIG.beacon_interval)
+    order = [0, 20, 40, 60]
+    pruner = pruning._Pruner(ways, order, CONFIG.collinearity_tol, (3, 1.0))
+    before = pruner.length()
+    target = ~pruner.reference
+    for site, after in ((30, 20), (70, 60), (10, 0)):
+        tried = pruner.insertion(site, after, target)
+        assert tried is not None
+        extra, gained = tried
+        assert np.all(target[gained]) and not np.any(pruner.reference[gained])
+        pruner.insert(site, after)
+        assert np.all(pruner.reference[gained])
+        assert pruner.length() == pytest.approx(before + extra)
+        before = pruner.length()
+    assert pruner.order() == [0, 10, 20, 30, 40, 60, 70]
+    fresh = pruning._Pruner(ways, pruner.order(), CONFIG.collinearity_tol, (3, 1.0))
+    np.testing.assert_allclose(pruner.total, fresh.total, atol=1e-6)
+    assert np.array_equal(pruner.reference, fresh.reference)
+
+
+@pytest.mark.parametrize("sites", [False, True])
+def test_the_sweep_walks_the_plan_without_touching_the_spiral(sites):
     config = CONFIG
+    rule = AdaptiveConfig(prune=True, wide_passes=False, sites=sites)
     sim = Simulator(config, np.random.default_rng(0), obstacle_map=BLOCKS)
     spiral_blocked = sim.path.blocked.copy()
-    sweep = sim.adaptive_sweep(AdaptiveConfig(prune=True, wide_passes=False))
+    sweep = sim.adaptive_sweep(rule)
     again = Simulator(config, np.random.default_rng(1), obstacle_map=BLOCKS)
-    assert again.adaptive_sweep(AdaptiveConfig(prune=True, wide_passes=False)).plan is sweep.plan
+    assert again.adaptive_sweep(rule).plan is sweep.plan
+    assert sim.adaptive_sweep(dataclasses.replace(rule, sites=not sites)).plan is not sweep.plan
     assert np.array_equal(sim.path.blocked, spiral_blocked)
-    assert np.array_equal(sweep.follower.waypoints, sim.path.waypoints[sweep.plan.order])
+    assert np.array_equal(sweep.follower.waypoints, sweep.plan.points[sweep.plan.order])
+    if not sites:
+        assert np.array_equal(sweep.plan.points, sim.path.waypoints)
     assert sweep.follower.stall_travel and not sweep.follower.blocked.any()
     assert np.array_equal(np.sort(sweep.plan.order), np.flatnonzero(sweep.plan.kept))
     sim.run(controller=sweep)
