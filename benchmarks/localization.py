@@ -13,6 +13,10 @@ training maps, never the test maps), the consensus alone, with the OLSTM's band,
 non-learned counting band, with the true pattern, and without the map (range only) with the DOI
 bound and with the OLSTM.
 
+Ceiling (``--ceiling``): per cell with DOI > 0, the consensus with the anchor's true pattern
+(saved beside each log, never available at inference) beside the consensus alone and
+OLSTM-DV-Hop: the most a reception model can give the consensus's scoring.
+
 Neighbour stages (``--neighbour-rounds LOG_DIR``): on logs of ``train.py localizer`` (training
 maps only), the consensus alone and OLSTM-DV-Hop with 0-3 neighbour stages.
 
@@ -70,14 +74,15 @@ METHODS = ("dvhop", "consensus", "olstm-dvhop")
 LABELS = {"dvhop": "DV-Hop", "consensus": "consensus", "olstm-dvhop": "OLSTM-DV-Hop"}
 
 
-def accuracy_specs(seeds: int, dois: tuple[float, ...] = DOIS) -> list[EpisodeSpec]:
+def accuracy_specs(seeds: int, dois: tuple[float, ...] = DOIS,
+                   densities: tuple[float, ...] = DENSITIES) -> list[EpisodeSpec]:
     """The benchmark episodes, seed-major so that a partial run covers every cell evenly."""
     names = list_maps("test")
     specs = []
     for doi in dois:
         for seed in range(seeds):
             for n in NODES:
-                for density in DENSITIES:
+                for density in densities:
                     maps = [m for m in names if m.split("/")[1].startswith(f"d{density:.2f}_f100")]
                     specs.append(EpisodeSpec(maps[seed % len(maps)], n, doi, 10_000 + seed))
     return specs
@@ -230,6 +235,39 @@ def ablation(folder: Path, model: OLSTM) -> str:
     return out.getvalue()
 
 
+def ceiling(paths: list[Path], specs: list[EpisodeSpec], model: OLSTM) -> str:
+    """Per cell (N, density) of the logs with DOI > 0: the pooled RMSE [m] of the consensus
+    alone, of OLSTM-DV-Hop and of the consensus with the anchor's *true* pattern K (saved
+    beside each log by the simulation, never available at inference) as both band edges,
+    each with its gain over the consensus alone: what a perfect reception model would give."""
+    acc: dict[tuple[float, int, float], dict[str, float]] = {}
+    for path, spec in zip(paths, specs, strict=True):
+        if spec.doi <= 0:
+            continue
+        episode = prepare(BeaconLog.load(path))
+        nodes = np.flatnonzero(episode.covered)
+        true = episode.log.nodes[nodes]
+        first = node_consensus(episode, nodes)
+        pattern = np.load(pattern_path(path), allow_pickle=False)
+        est = {"consensus": first.estimate,
+               "olstm": olstm_dvhop(episode, model, first)[nodes],
+               "true": node_consensus(episode, nodes, band=(pattern, pattern)).estimate}
+        cell = acc.setdefault((spec.doi, spec.n_nodes, float(spec.map_name.split("/")[1][1:5])),
+                              {"n": 0.0})
+        cell["n"] += len(nodes)
+        for name, e in est.items():
+            cell[name] = cell.get(name, 0.0) + float(np.sum((e - true) ** 2))
+    out = io.StringIO()
+    out.write("RMSE [m] pooled per cell; gain = 1 - method / consensus alone\n\n| DOI | N | "
+              "density | consensus alone | OLSTM-DV-Hop | gain | consensus + true pattern | "
+              "gain |\n" + "|---" * 8 + "|\n")
+    for (doi, n, density), cell in sorted(acc.items()):
+        c, o, t = (np.sqrt(cell[k] / cell["n"]) for k in ("consensus", "olstm", "true"))
+        out.write(f"| {doi} | {n} | {density} | {c:.3f} | {o:.3f} | {100 * (1 - o / c):.1f} % | "
+                  f"{t:.3f} | {100 * (1 - t / c):.1f} % |\n")
+    return out.getvalue()
+
+
 def neighbour_rounds(folder: Path, model: OLSTM, rounds: tuple[int, ...] = (0, 1, 2, 3)) -> str:
     """Pooled RMSE [m] per DOI of the consensus alone and of OLSTM-DV-Hop over the logs of
     ``folder`` with each number of neighbour stages (0: the beacons alone)."""
@@ -285,6 +323,12 @@ def main() -> None:
     parser.add_argument("--neighbour-rounds", type=Path, default=None, metavar="LOG_DIR",
                         help="only the table of neighbour stages (0-3), on the logs of `train.py "
                              "localizer` (e.g. out/localizer_logs/val)")
+    parser.add_argument("--densities", type=float, nargs="+", default=list(DENSITIES),
+                        help="obstacle densities of the cells (default "
+                             f"{' '.join(map(str, DENSITIES))})")
+    parser.add_argument("--ceiling", action="store_true",
+                        help="only the table of what the anchor's true pattern gives the "
+                             "consensus, beside OLSTM-DV-Hop, per cell with DOI > 0")
     parser.add_argument("--ablation", type=Path, default=None, metavar="VAL_DIR",
                         help="only the ablation table, on the validation logs of `train.py "
                              "localizer` (e.g. out/localizer_logs/val)")
@@ -301,7 +345,7 @@ def main() -> None:
         write_text_atomic(args.out / "ablation.md", report)
         return
     dois = tuple(args.dois)
-    specs = accuracy_specs(args.seeds, dois)
+    specs = accuracy_specs(args.seeds, dois, tuple(args.densities))
     logs = args.out / "logs" if args.logs is None else args.logs
     if args.cached_only:
         specs = [s for s in specs if (logs / s.file_name).is_file()]
@@ -309,6 +353,11 @@ def main() -> None:
     if args.logs_only:
         return
     model = load_checkpoint(args.checkpoint)
+    if args.ceiling:
+        report = ceiling(paths, specs, model)
+        print(report)
+        write_text_atomic(args.out / "ceiling.md", report)
+        return
     rows = accuracy(paths, specs, model)
     report = "\n".join(accuracy_table(rows, doi) for doi in dois)
     if not args.no_speed:

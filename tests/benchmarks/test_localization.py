@@ -1,4 +1,4 @@
-"""benchmarks/localization.py: the table of neighbour stages."""
+"""benchmarks/localization.py: the tables of neighbour stages and of the true pattern's ceiling."""
 
 from __future__ import annotations
 
@@ -6,8 +6,10 @@ import numpy as np
 
 from aoass_env.config import AOASSConfig
 from aoass_env.localization import consensus as module
-from aoass_env.localization import localize
+from aoass_env.localization import localize, prepare
+from aoass_env.localization.consensus import node_consensus
 from aoass_env.localization.olstm import load_checkpoint
+from aoass_env.localization.training import EpisodeSpec, pattern_path
 from aoass_env.simulator import Simulator
 from tests.benchmarks.conftest import load_benchmark
 
@@ -29,3 +31,37 @@ def test_neighbour_rounds_table_matches_localize_and_restores_the_default(tmp_pa
         ok = np.all(np.isfinite(est), axis=1)
         rmse = np.sqrt(np.mean(np.sum((est[ok] - true[ok]) ** 2, axis=1)))
         assert cells[-1].split(" / ")[column] == f"{rmse:.3f}"     # the default's column
+
+
+def test_ceiling_table_is_the_consensus_with_the_true_pattern_beside_localize(tmp_path):
+    bench = load_benchmark("localization")
+    config = AOASSConfig(field_size=40.0, n_nodes=40, obstacle_density=0.1,
+                         n_moving_obstacles=0, doi=0.1)
+    sim = Simulator(config, np.random.default_rng(3), seed=3)
+    log = sim.run()
+    path = tmp_path / "a.npz"
+    log.save(path)
+    np.save(pattern_path(path), np.array(sim.radio.anchor_pattern), allow_pickle=False)
+    zero = tmp_path / "b.npz"          # a DOI 0 log is left out of the table
+    Simulator(config.replace(doi=0.0), np.random.default_rng(4), seed=4).run().save(zero)
+    model = load_checkpoint()
+    specs = [EpisodeSpec("test/d0.10_f100_s500", 40, 0.1, 3),
+             EpisodeSpec("test/d0.10_f100_s500", 40, 0.0, 4)]
+    table = bench.ceiling([path, zero], specs, model)
+    rows = [line for line in table.splitlines() if line.startswith("| 0.")]
+    assert len(rows) == 1
+    cells = [c.strip() for c in rows[0].strip("|").split("|")]
+    assert cells[:3] == ["0.1", "40", "0.1"]
+    covered = np.flatnonzero(prepare(log).covered)
+    true = log.nodes[covered]
+
+    def rmse(est):
+        return f"{np.sqrt(np.mean(np.sum((est - true) ** 2, axis=1))):.3f}"
+
+    assert cells[3] == rmse(localize(log, "consensus", checkpoint=model)[covered])
+    assert cells[4] == rmse(localize(log, "olstm-dvhop", checkpoint=model)[covered])
+    pattern = np.array(sim.radio.anchor_pattern)
+    assert cells[6] == rmse(node_consensus(prepare(log), covered,
+                                           band=(pattern, pattern)).estimate)
+    c, o = float(cells[3]), float(cells[4])
+    assert abs(float(cells[5].rstrip(" %")) - 100 * (1 - o / c)) < 0.2
