@@ -243,6 +243,7 @@ class _Pruner:
                 self.signature[way.cells] += way.signature
         self.reference = _covered(self.total, tol)
         self.robust = self._robust(self.total)
+        self.costs: _Costs | None = None      # the planner's costs from the points, if kept
         self.cap = None
         if error_limit is not None:
             full = class_error(self.signature, ways.radio.nodes)
@@ -393,8 +394,11 @@ class _Pruner:
         n = len(order)
         if n < 4:
             return False
-        points = self.ways.waypoints[order]
-        cost = np.array([self.ways.planner.costs(p, points) for p in points])
+        if self.costs is not None:          # the rows already searched, the same costs
+            cost = np.array([self.costs.row(k)[order] for k in order])
+        else:
+            points = self.ways.waypoints[order]
+            cost = np.array([self.ways.planner.costs(p, points) for p in points])
         cost = np.minimum(cost, cost.T)
         row = {k: r for r, k in enumerate(order)}
         changed, improved, passes = False, True, 0
@@ -618,6 +622,7 @@ def plan_sites(waypoints: np.ndarray, blocked: np.ndarray, start: int,
     # the tour keeps what it covers of the spiral's reference; the rest is the cells phase's
     pruner.reference &= reference
     pruner.robust &= reference
+    pruner.costs = cost
     _prune(pruner, reorder, min_gain)
     return _plan(points, pruner, full, reference)
 
