@@ -14,7 +14,7 @@
 * ``AOASS-Adaptive-Train-v0`` (:func:`aoass_env.wrappers.make_training_env`): the adaptive
   policy's training setup (configs/aoass_adaptive.yml): ``AOASS-Adaptive-v0`` with the
   training setup's decisions, scales and maps, and the sweep's rule the shipped adaptive
-  policy trained on (not ``AdaptiveConfig``'s defaults).
+  policy trained on (every field named, not ``AdaptiveConfig``'s defaults).
 
 None has a ``reward_threshold``: Eq. 14 has no level at which the task counts as solved
 (docs/env.md gives the reference returns instead).
@@ -59,10 +59,16 @@ _AGENT = {"action_repeat": 16, "action_heading_scale": round(math.pi / 12, 4), "
 #: What makes a setup adaptive (configs/aoass_adaptive.yml).
 _ADAPTIVE = {"action_type": "adaptive", "obs_coverage_sectors": 8}
 #: The sweep's rule the shipped adaptive policy trained on (configs/aoass_adaptive.yml's
-#: ``adaptive``: wide passes, no pruned plan, online skips), not AdaptiveConfig's defaults.
-_ADAPTIVE_POLICY_RULE = {"prune": False, "reorder": False, "wide_passes": True,
-                         "cell_need": 0.5, "skip_need": 0.0, "detour_need": 0.0,
-                         "detour_excess": 20.0, "dense_above": 1.0}
+#: ``adaptive``: the site tour), every field named so that AdaptiveConfig's defaults changing
+#: later does not change it.
+_ADAPTIVE_POLICY_RULE = {
+    "prune": True, "prune_beacons": 6.0, "prune_spread": 2.0, "prune_error": 0.0,
+    "sites": True, "site_need": 4, "reorder": True, "wide_passes": False, "skip_radius": 8.0,
+    "skip_need": -0.25, "detour_need": -0.25, "detour_excess": 10000.0, "dense_above": 0.45,
+    "dense_skip_need": 0.0, "dense_detour_need": 0.0, "dense_detour_excess": 20.0,
+    "densify_need": 0.0, "cell_need": 0.0, "beyond_below": 0.0, "beyond_need": 0.5,
+    "beyond_time": 0.8, "cell_sites": False, "cell_hop": 10000.0, "end_coverage": 0.995,
+    "side_rate": 1000.0, "knob_step": 0.25}
 
 #: id -> (entry point, default keywords)
 _IDS: dict[str, tuple[str, dict]] = {

@@ -4,6 +4,7 @@ the benchmark setups (issue 22)."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 import math
 import pickle
@@ -173,7 +174,9 @@ def test_the_adaptive_training_id_is_the_shipped_adaptive_policys_setup():
     shipped = read_yaml(ROOT / "configs" / "aoass_adaptive.yml")["td3-lstm"]["env"]
     run = read_yaml(ROOT / "checkpoints" / "aoass_adaptive" / "run.yml")
     base = env.unwrapped
-    assert base.adaptive == AdaptiveConfig(**shipped["adaptive"]) != AdaptiveConfig()
+    assert base.adaptive == AdaptiveConfig(**shipped["adaptive"])
+    # every field of the rule named: a later change of AdaptiveConfig's defaults leaves it be
+    assert set(shipped["adaptive"]) == {f.name for f in dataclasses.fields(AdaptiveConfig)}
     assert shipped["adaptive"] == run["hyperparameters"]["env"]["adaptive"]
     assert wrapper(env, ActionRepeat).repeat == shipped["action_repeat"]
     assert base.config.obs_coverage_sectors == shipped["obs_coverage_sectors"]

@@ -12,7 +12,7 @@ interval) and returns the finished :class:`~aoass_env.simulator.Simulator` with 
   strong baseline;
 * ``aoass-adaptive``: the same stack driven by the adaptive TD3-LSTM policy
   (``checkpoints/aoass_adaptive/best.zip``), when it is shipped, with the rule its run record
-  names (the shipped one was trained on the wide-pass rule without a pruned plan);
+  names (the shipped one was trained on the site tour, every field of the rule named);
 * ``spiral``: the plain square spiral with the nominal follower, no safety stack;
 * every :class:`~aoass_env.planning.PlannedMethod` of
   :data:`~aoass_env.planning.classical.CLASSICAL_METHODS` and
