@@ -88,6 +88,11 @@ def accuracy_specs(seeds: int, dois: tuple[float, ...] = DOIS,
     return specs
 
 
+def _density(spec: EpisodeSpec) -> float:
+    """The obstacle density of a spec's map, from its name (``test/d0.30_...``)."""
+    return float(spec.map_name.split("/")[1][1:5])
+
+
 def estimates(path: Path, model: OLSTM) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """True node positions (N, 2) and every method's estimates (N, 2) [m] of one log; the
     consensus pass is computed once and shared with OLSTM-DV-Hop (same result as
@@ -106,7 +111,7 @@ def accuracy(paths: list[Path], specs: list[EpisodeSpec], model: OLSTM) -> list[
     for path, spec in zip(paths, specs, strict=True):
         true, est_of = estimates(path, model)
         row = {"map": spec.map_name, "n_nodes": spec.n_nodes, "doi": spec.doi, "seed": spec.seed,
-               "density": float(spec.map_name.split("/")[1][1:5]),
+               "density": _density(spec),
                "coverage": float(np.mean(np.all(np.isfinite(est_of["consensus"]), axis=1)))}
         for method in METHODS:
             est = est_of[method]
@@ -252,8 +257,7 @@ def ceiling(paths: list[Path], specs: list[EpisodeSpec], model: OLSTM) -> str:
         est = {"consensus": first.estimate,
                "olstm": olstm_dvhop(episode, model, first)[nodes],
                "true": node_consensus(episode, nodes, band=(pattern, pattern)).estimate}
-        cell = acc.setdefault((spec.doi, spec.n_nodes, float(spec.map_name.split("/")[1][1:5])),
-                              {"n": 0.0})
+        cell = acc.setdefault((spec.doi, spec.n_nodes, _density(spec)), {"n": 0.0})
         cell["n"] += len(nodes)
         for name, e in est.items():
             cell[name] = cell.get(name, 0.0) + float(np.sum((e - true) ** 2))

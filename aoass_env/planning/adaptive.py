@@ -284,7 +284,7 @@ class AdaptiveSweep:
         key = (follower.waypoints.tobytes(), follower.blocked.tobytes(), follower.index,
                self.planner.radius, self.planner.res, config.beacon_interval,
                config.collinearity_tol, rule.prune_beacons, rule.prune_spread, rule.reorder,
-               rule.prune_error, rule.sites, rule.site_need)
+               rule.prune_error, rule.sites, rule.site_need if rule.sites else None)
         margin = (rule.prune_beacons, rule.prune_spread)
         if rule.sites:
             plan = cached_plan(cov.radio, key, lambda: plan_sites(

@@ -60,6 +60,7 @@ from typing import NamedTuple
 
 import numpy as np
 from scipy import sparse
+from scipy.spatial import cKDTree
 
 from aoass_env.network import lambda_min
 from aoass_env.planning.detour import DetourPlanner
@@ -227,7 +228,7 @@ class _Pruner:
     """The greedy pruning of the module docstring, on a doubly linked list of waypoints."""
 
     def __init__(self, ways: _Ways, stops: list[int], tol: float, margin: tuple[float, float],
-                 error_limit: float | None = None) -> None:
+                 error_limit: float | None = None, costs: _Costs | None = None) -> None:
         self.ways = ways
         self.tol = tol
         self.margin = margin
@@ -243,7 +244,7 @@ class _Pruner:
                 self.signature[way.cells] += way.signature
         self.reference = _covered(self.total, tol)
         self.robust = self._robust(self.total)
-        self.costs: _Costs | None = None      # the planner's costs from the points, if kept
+        self.costs = costs          # the planner's costs between the points, when searched
         self.cap = None
         if error_limit is not None:
             full = class_error(self.signature, ways.radio.nodes)
@@ -321,16 +322,22 @@ class _Pruner:
         self.total[cells] = trial
         return True
 
+    def _around(self, site: int, after: int) -> tuple[list[_Way], list[_Way | None]]:
+        """(old, new): the way from ``after`` to its successor (none at the end), and the ways
+        through ``site`` instead."""
+        b = self.next.get(after)
+        if b is None:
+            return [], [self.ways.get(after, site)]
+        return [self.ways.get(after, b)], [self.ways.get(after, site), self.ways.get(site, b)]
+
     def insertion(self, site: int, after: int, target: np.ndarray
                   ) -> tuple[float, np.ndarray] | None:
         """(extra length m, the ``target`` cells it covers that are not covered now) of visiting
         ``site`` right after the kept point ``after``; None when the planner finds no way or a
         reference cell would lose its cover."""
-        b = self.next.get(after)
-        new = [self.ways.get(after, site)] + ([self.ways.get(site, b)] if b is not None else [])
+        old, new = self._around(site, after)
         if any(w is None for w in new):
             return None
-        old = [self.ways.get(after, b)] if b is not None else []
         cells, trial, keeps = self._trial(old, new)
         if not keeps:
             return None
@@ -342,9 +349,7 @@ class _Pruner:
         """Visit ``site`` right after ``after`` (:meth:`insertion` said it may); the cells it
         covers join the reference."""
         b = self.next.get(after)
-        old = [self.ways.get(after, b)] if b is not None else []
-        new = [self.ways.get(after, site)] + ([self.ways.get(site, b)] if b is not None else [])
-        cells, trial, _ = self._trial(old, new)
+        cells, trial, _ = self._trial(*self._around(site, after))
         self.total[cells] = trial
         self.reference[cells] |= _covered(trial, self.tol)
         self.next[after], self.prev[site] = site, after
@@ -508,13 +513,13 @@ def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,
     return _plan(points, pruner, full, pruner.reference)
 
 
-def _multicover(heard: sparse.csr_matrix, need: np.ndarray, taken: np.ndarray) -> list[int]:
+def _multicover(heard: sparse.csr_matrix, need: np.ndarray) -> list[int]:
     """Greedy set multicover: sites (rows of ``heard``, sites x cells, 1 where the cell hears a
-    beacon from the site) not ``taken``, each next the one heard by the most cells still in
-    need (the lowest index among ties), until no untaken site serves a cell in need.
-    ``need`` (cells,) counts down in place; ``taken`` is left as it was."""
+    beacon from the site), each next the one heard by the most cells still in need (the lowest
+    index among ties), until no site left serves a cell in need. ``need`` (cells,) counts
+    down in place."""
     chosen: list[int] = []
-    taken = taken.copy()
+    taken = np.zeros(heard.shape[0], dtype=bool)
     while True:
         gains = heard @ (need > 0).astype(np.int64)
         gains[taken] = -1
@@ -610,19 +615,17 @@ def plan_sites(waypoints: np.ndarray, blocked: np.ndarray, start: int,
     cost = _Costs(points, planner)
     # set cover on the coarse lattice: every reference cell hears `need` sites
     heard = _heard_by(radio, points[lattice], n_cells)
-    chosen = [int(lattice[k]) for k in _multicover(heard, np.where(reference, need, 0),
-                                                     np.zeros(len(lattice), dtype=bool))]
+    chosen = [int(lattice[k]) for k in _multicover(heard, np.where(reference, need, 0))]
     order = _tour([0, *(k for k in chosen if np.isfinite(cost(0, k)))], cost)
     # repair on the fine lattice (every point but the start is a candidate site)
     ways = _Ways(points, planner, radio, n_cells, beacon_interval)
     pruner = _Pruner(ways, order, collinearity_tol, margin)
     _repair(pruner, reference, cost, Radio(points, radio.obstacle_map, radio.radio_range,
                                            line_of_sight=radio.line_of_sight))
-    pruner = _Pruner(ways, pruner.order(), collinearity_tol, margin, error_limit)
+    pruner = _Pruner(ways, pruner.order(), collinearity_tol, margin, error_limit, cost)
     # the tour keeps what it covers of the spiral's reference; the rest is the cells phase's
     pruner.reference &= reference
     pruner.robust &= reference
-    pruner.costs = cost
     _prune(pruner, reorder, min_gain)
     return _plan(points, pruner, full, reference)
 
@@ -647,7 +650,7 @@ def _repair(pruner: _Pruner, reference: np.ndarray, cost: _Costs, listeners: Rad
         order = pruner.order()
         heard[order] = 0
         candidates = np.flatnonzero(heard)
-        near = _nearest_sq(listeners.nodes[candidates], listeners.nodes[order])
+        near, _ = cKDTree(listeners.nodes[order]).query(listeners.nodes[candidates])
         candidates = candidates[np.lexsort((near, -heard[candidates]))][:REPAIR_CANDIDATES]
         inserted = False
         while True:
@@ -674,12 +677,6 @@ def _repair(pruner: _Pruner, reference: np.ndarray, cost: _Costs, listeners: Rad
             inserted = True
         if not inserted:
             return
-
-
-def _nearest_sq(points: np.ndarray, of: np.ndarray) -> np.ndarray:
-    """(P,) squared distance (m^2) from each of ``points`` to the nearest of ``of``."""
-    d = points[:, None, :] - of[None, :, :]
-    return np.min(d[..., 0] ** 2 + d[..., 1] ** 2, axis=1)
 
 
 #: Plans of the last maps seen, per coverage-map radio (one per map and cell settings, shared
