@@ -160,7 +160,7 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
             dtype=np.float32)
         self._low, self._high = self.observation_space.low, self.observation_space.high
         self._horizon = real("horizon", self.horizon, "s", low=0.0)   # as predict_positions
-        self._no_ahead = np.zeros(2 * self._slots)
+        self._no_ahead = np.zeros(2 * self._slots, np.float32)   # empty slots' block
         self._no_ahead.flags.writeable = False
 
     def reset(self, *, seed: int | None = None,
@@ -190,14 +190,17 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
 
     def observation(self, observation: np.ndarray) -> np.ndarray:
         c = self._base.config
-        anchor = self._base.sim.world.position
-        self.tracker.step(self._base.detections)
-
-        states = self.tracker.states()
+        detections = self._base.detections
+        if len(detections) or self.tracker.tracks:
+            self.tracker.step(detections)
+            states = self.tracker.states()
+        else:                       # no track, no detection: tracker.step() would return at once
+            states = ()
         if len(states) == 0:        # no confirmed track: empty slots (the lines below, in short)
             out = np.concatenate([observation, self._no_ahead])
             out[self._moving] = 0.0
-            return np.minimum(np.maximum(out, self._low), self._high).astype(np.float32)
+            return self._clipped(out)
+        anchor = self._base.sim.world.position
         # MultiTargetTracker.predict_positions(horizon) of the same states
         predicted = states[:, :2] + self._horizon * states[:, 2:]
         rel = states[:, :2] - anchor
@@ -211,8 +214,15 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
         ahead[:m] = (predicted[order] - anchor) / c.sensing_range
         out = np.concatenate([observation, ahead.ravel()])
         out[self._moving] = filtered.ravel()
-        # np.clip's values, without its dispatch
-        return np.minimum(np.maximum(out, self._low), self._high).astype(np.float32)
+        return self._clipped(out)
+
+    def _clipped(self, out: np.ndarray) -> np.ndarray:
+        """``out`` clipped to the observation space, as float32: ``np.clip``'s values without
+        its dispatch. A float32 ``out`` (AOASS-v0's observation with empty slots) is clipped
+        in float32: the same comparisons of the same values as in float64 (float32 widens
+        exactly), so the same floats, without the two conversions."""
+        return np.minimum(np.maximum(out, self._low), self._high).astype(np.float32,
+                                                                         copy=False)
 
 
 class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
@@ -315,12 +325,15 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                                np.asarray(position, dtype=np.float64), radius,
                                c.anchor_max_accel, c.dt)
 
-    def _moving_obstacles(self) -> np.ndarray:
+    def _moving_obstacles(self) -> np.ndarray | None:
         """Kalman-tracked moving obstacles (x, y, vx, vy, radius + moving_margin +
-        covariance_sigma x the std of the position estimate along its worst axis)."""
+        covariance_sigma x the std of the position estimate along its worst axis); None when
+        there is no confirmed track (what :func:`orca_lines` reads as none)."""
         tracks = self._tracker.tracked_obstacles
+        if len(tracks) == 0:
+            return None
         tracks[:, 4] += self.config.moving_margin
-        if self.config.covariance_sigma > 0.0 and len(tracks):
+        if self.config.covariance_sigma > 0.0:
             std = position_std(self._tracker.tracked_covariances, np.zeros(1))[:, 0]
             tracks[:, 4] += self.config.covariance_sigma * std
         return tracks
@@ -370,14 +383,17 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         nominal = base.nominal_command          # raises before the first reset
         anchor = base.anchor
         (speed_des, heading_des), knobs = self.agent_action.decode(action, nominal)
-        v_des = speed_des * np.array([math.cos(heading_des), math.sin(heading_des)])
+        # the desired and preferred velocities: speed x (cos, sin), in floats (an array times
+        # a float multiplies each entry alone: the same floats)
+        v_des = (speed_des * math.cos(heading_des), speed_des * math.sin(heading_des))
 
         heading = anchor.heading
         turn, slow = self.controller(anchor.obstacle_gap, wrap_angle(heading_des - heading))
         max_turn = c.anchor_max_turn_rate * c.dt
         heading_pref = heading + float(turn) * max_turn
         speed_pref = float(slow) * speed_des
-        v_pref = speed_pref * np.array([math.cos(heading_pref), math.sin(heading_pref)])
+        pref = (speed_pref * math.cos(heading_pref), speed_pref * math.sin(heading_pref))
+        v_pref = np.array(pref)
 
         lines = orca_lines(anchor.position, anchor.velocity, c.anchor_radius + cfg.margin,
                            c.anchor_max_speed, static_obstacles=self._static_obstacles(),
@@ -392,7 +408,7 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                 # the rollouts chose among the moving obstacles: the static lines stay hard
                 lines = OrcaLines(lines.point[:lines.n_static],
                                   lines.direction[:lines.n_static], lines.n_static,
-                                  None if lines.rows is None else lines.rows[:lines.n_static])
+                                  lines.rows[:lines.n_static])
                 v_star = solve_velocity(lines, escape.velocity, c.anchor_max_speed)
         speed_cmd, heading_cmd = unicycle_command(
             v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
@@ -400,13 +416,12 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         executed = base.action_type.action(speed_cmd, heading_cmd, nominal, knobs)
 
         # constraints active at v*: on the line (within 1e-6 m/s) or violated; the slack
-        # det(d, p - v*) in Python floats, the same operations as on the arrays
+        # det(d, p - v*) in Python floats (orca_lines' rows: the arrays' floats), the same
+        # operations as on the arrays
         sx, sy = v_star.tolist()
-        active = [dx * (py - sy) - dy * (px - sx) > -1e-6 for (px, py), (dx, dy) in
-                  zip(lines.point.tolist(), lines.direction.tolist(), strict=True)]
-        (dsx, dsy), (psx, psy) = (v_star - v_des).tolist(), (v_star - v_pref).tolist()
-        report = {"intervention": float(np.hypot(dsx, dsy)),
-                  "orca_correction": float(np.hypot(psx, psy)),
+        active = [dx * (py - sy) - dy * (px - sx) > -1e-6 for px, py, dx, dy in lines.rows]
+        report = {"intervention": float(np.hypot(sx - v_des[0], sy - v_des[1])),
+                  "orca_correction": float(np.hypot(sx - pref[0], sy - pref[1])),
                   "flc_turn": float(turn), "flc_speed": float(slow),
                   "speed_cmd": speed_cmd, "heading_cmd": heading_cmd,
                   "constraints": len(active), "static": lines.n_static,

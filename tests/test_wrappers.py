@@ -281,3 +281,155 @@ def test_free_space_loops_put_free_space_on_the_right():
     signed = [0.5 * np.sum(lp[:, 0] * np.roll(lp[:, 1], -1) - np.roll(lp[:, 0], -1) * lp[:, 1])
               for lp in loops]
     assert sorted(signed) == pytest.approx([-200.0, 12.0])    # border clockwise, box CCW
+
+
+# --- the fast paths of the wrappers against their old code (issue 20, seventh round) ------------
+
+def _old_observation(self, observation):
+    """``KalmanObstacleTracker.observation`` before issue 20's seventh round (the oracle)."""
+    from aoass_env.observation import MOVING_FIELDS
+    c = self._base.config
+    anchor = self._base.sim.world.position
+    self.tracker.step(self._base.detections)
+    states = self.tracker.states()
+    if len(states) == 0:
+        out = np.concatenate([observation, np.zeros(2 * self._slots)])
+        out[self._moving] = 0.0
+        return np.minimum(np.maximum(out, self._low), self._high).astype(np.float32)
+    predicted = states[:, :2] + self._horizon * states[:, 2:]
+    rel = states[:, :2] - anchor
+    order = np.argsort(np.hypot(rel[:, 0], rel[:, 1]), kind="stable")[:self._slots]
+    m = len(order)
+    filtered = np.zeros((self._slots, len(MOVING_FIELDS)))
+    filtered[:m, :2] = rel[order] / c.sensing_range
+    filtered[:m, 2:4] = states[order, 2:4] / self._v_scale
+    filtered[:m, 4] = 1.0
+    ahead = np.zeros((self._slots, 2))
+    ahead[:m] = (predicted[order] - anchor) / c.sensing_range
+    out = np.concatenate([observation, ahead.ravel()])
+    out[self._moving] = filtered.ravel()
+    return np.minimum(np.maximum(out, self._low), self._high).astype(np.float32)
+
+
+def _old_filter(self, action):
+    """``FuzzyORCASafety._filter`` before issue 20's seventh round (the oracle), with its
+    ``_moving_obstacles``."""
+    from aoass_env.safety.lookahead import position_std
+    from aoass_env.safety.orca import OrcaLines, orca_lines, solve_velocity
+    from aoass_env.safety.unicycle import unicycle_command
+    from aoass_env.world import wrap_angle
+
+    tracks = self._tracker.tracked_obstacles
+    tracks[:, 4] += self.config.moving_margin
+    if self.config.covariance_sigma > 0.0 and len(tracks):
+        std = position_std(self._tracker.tracked_covariances, np.zeros(1))[:, 0]
+        tracks[:, 4] += self.config.covariance_sigma * std
+    base, cfg = self._base, self.config
+    c = base.config
+    nominal = base.nominal_command
+    anchor = base.anchor
+    (speed_des, heading_des), knobs = self.agent_action.decode(action, nominal)
+    v_des = speed_des * np.array([math.cos(heading_des), math.sin(heading_des)])
+    heading = anchor.heading
+    turn, slow = self.controller(anchor.obstacle_gap, wrap_angle(heading_des - heading))
+    max_turn = c.anchor_max_turn_rate * c.dt
+    heading_pref = heading + float(turn) * max_turn
+    speed_pref = float(slow) * speed_des
+    v_pref = speed_pref * np.array([math.cos(heading_pref), math.sin(heading_pref)])
+    lines = orca_lines(anchor.position, anchor.velocity, c.anchor_radius + cfg.margin,
+                       c.anchor_max_speed, static_obstacles=self._static_obstacles(),
+                       moving_obstacles=tracks, time_horizon=cfg.time_horizon,
+                       time_horizon_obst=cfg.time_horizon_obst, time_step=c.dt)
+    v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
+    escape = None
+    if cfg.look_ahead and len(lines) > lines.n_static:
+        escape = self._look_ahead(v_star, v_pref)
+        if escape.escaping:
+            lines = OrcaLines(lines.point[:lines.n_static], lines.direction[:lines.n_static],
+                              lines.n_static, lines.rows[:lines.n_static])
+            v_star = solve_velocity(lines, escape.velocity, c.anchor_max_speed)
+    speed_cmd, heading_cmd = unicycle_command(
+        v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
+        lines.direction, heading_pref, self._braking_envelope(anchor.position))
+    executed = base.action_type.action(speed_cmd, heading_cmd, nominal, knobs)
+    sx, sy = v_star.tolist()
+    active = [dx * (py - sy) - dy * (px - sx) > -1e-6 for (px, py), (dx, dy) in
+              zip(lines.point.tolist(), lines.direction.tolist(), strict=True)]
+    (dsx, dsy), (psx, psy) = (v_star - v_des).tolist(), (v_star - v_pref).tolist()
+    report = {"intervention": float(np.hypot(dsx, dsy)),
+              "orca_correction": float(np.hypot(psx, psy)),
+              "flc_turn": float(turn), "flc_speed": float(slow),
+              "speed_cmd": speed_cmd, "heading_cmd": heading_cmd,
+              "constraints": len(active), "static": lines.n_static,
+              "active": sum(active), "active_static": sum(active[:lines.n_static]),
+              "escaping": bool(escape is not None and escape.escaping),
+              "look_ahead_shortfall": 0.0 if escape is None else escape.shortfall,
+              "yielding": self.escape_budget.yielding}
+    return executed, report
+
+
+def _same(a, b) -> bool:
+    """Equal bit for bit: arrays by dtype and bytes, floats by their bits, dicts by key."""
+    if isinstance(a, tuple):
+        return type(b) is tuple and len(a) == len(b) and all(map(_same, a, b))
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, np.ndarray):
+        return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+    if isinstance(a, float):
+        return type(b) is type(a) and math.copysign(1.0, a) == math.copysign(1.0, b) and (
+            a == b or (a != a and b != b))
+    return type(a) is type(b) and a == b
+
+
+@pytest.mark.parametrize("config, seed", [
+    (dict(SMALL, n_moving_obstacles=6, moving_obstacle_speed=(0.8, 1.5)), 3),
+    (dict(field_size=60.0, n_nodes=40, obstacle_density=0.4, n_moving_obstacles=8), 5),
+])
+def test_filter_and_tracker_fast_paths_equal_the_old_code(config, seed):
+    """Every step's tracker observation, filter verdict and report equal the old code's, bit
+    for bit, through episodes with and without tracks, escapes and back-to-back resets."""
+    old, new = make_safe_env(**config), make_safe_env(**config)
+    tracker = old.env
+    tracker.observation = _old_observation.__get__(tracker)
+    old._filter = _old_filter.__get__(old)
+    rng = np.random.default_rng(seed)
+    counts = {"tracks": 0, "escapes": 0, "filtered": 0}
+    for episode in range(2):
+        o_old, _ = old.reset(seed=seed + episode)
+        o_new, _ = new.reset(seed=seed + episode)
+        assert _same(o_old, o_new)
+        for _ in range(300):
+            action = rng.uniform(-1.0, 1.0, 2).astype(rng.choice([np.float32, np.float64]))
+            assert _same(old._filter(action), new._filter(action))   # no state changes
+            o_old, r_old, te, tr, i_old = old.step(action)
+            o_new, r_new, _, _, i_new = new.step(action)
+            assert _same(o_old, o_new) and _same(r_old, r_new)
+            assert _same(i_old["safety"], i_new["safety"])
+            counts["tracks"] += len(new.env.tracked_obstacles) > 0
+            counts["escapes"] += i_new["safety"]["escaping"]
+            counts["filtered"] += 1
+            if te or tr:
+                break
+    assert counts["tracks"] > 50 and counts["escapes"] > 0, counts
+
+
+def test_tracker_clips_float32_as_float64():
+    """The empty slots' observation clipped in float32 gives the float64 clip's floats: values
+    on, inside and past the bounds, signed zeros, infinities and NaN."""
+    env = make_safe_env(**SMALL)
+    tracker = env.env
+    low, high = tracker._low, tracker._high
+    rng = np.random.default_rng(0)
+    specials = np.array([0.0, -0.0, 1.0, -1.0, np.inf, -np.inf, np.nan, 1e-45, -1e-45,
+                         np.nextafter(np.float32(1), np.float32(2)), 0.5], np.float32)
+    for _ in range(300):
+        out = np.where(rng.random(low.shape) < 0.5,
+                       rng.choice(specials, low.shape),
+                       (rng.standard_normal(low.shape) * 2.0)).astype(np.float32)
+        for bound in (low, high):
+            pick = rng.random(low.shape) < 0.2
+            out[pick] = bound[pick]
+        want = np.minimum(np.maximum(out.astype(np.float64), low), high).astype(np.float32)
+        got = tracker._clipped(out)
+        assert got.dtype == np.float32 and got.tobytes() == want.tobytes()
