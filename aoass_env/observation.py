@@ -143,20 +143,27 @@ class Observer:
         n = c.n_moving_obstacles
         if n == 0 or c.obs_moving_obstacles == 0:
             return slots
-        rel = world.moving_positions - world.position
+        position = world.position
+        px, py = position.tolist()
         noise = self._rng.normal(size=(n, 4))
-        # none in range, the common case, decided on squared distances: only a distance
+        # none in range, the common case, decided on squared distances of the offsets
+        # (moving_positions - position, in floats: the same subtractions): only a distance
         # within a relative 1e-9 of the range could be decided otherwise by np.hypot below
         r2 = c.sensing_range * c.sensing_range * (1.0 + 1e-9)
-        if all(dx * dx + dy * dy > r2 for dx, dy in rel.tolist()):
+        for mx, my in world.moving_xy:
+            dx, dy = mx - px, my - py
+            if dx * dx + dy * dy <= r2:
+                break
+        else:
             return slots
+        rel = world.moving_positions - position
         seen = np.flatnonzero(np.hypot(rel[:, 0], rel[:, 1]) <= c.sensing_range)
         if seen.size == 0:
             return slots
         meas_pos = rel[seen] + c.obs_position_noise * noise[seen, :2]
         meas_vel = world.moving_velocities[seen] + c.obs_velocity_noise * noise[seen, 2:]
         order = np.argsort(np.hypot(meas_pos[:, 0], meas_pos[:, 1]), kind="stable")
-        self.detections = np.hstack([world.position + meas_pos[order], meas_vel[order]])
+        self.detections = np.hstack([position + meas_pos[order], meas_vel[order]])
         order = order[:c.obs_moving_obstacles]
         m = len(order)
         slots[:m, :2] = meas_pos[order] / c.sensing_range

@@ -559,6 +559,12 @@ class World:
         return np.array(self._mpos, dtype=np.float64).reshape(-1, 2)
 
     @property
+    def moving_xy(self) -> list[tuple[float, float]]:
+        """The centres of :attr:`moving_positions` as (x, y) tuples of Python floats (m), a
+        new list."""
+        return list(self._mpos)
+
+    @property
     def moving_velocities(self) -> np.ndarray:
         """(M, 2) velocities of the moving obstacles (m/s); a bounce or a random turn changes
         the direction, never the speed."""
