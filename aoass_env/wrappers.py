@@ -319,10 +319,8 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         radius = c.anchor_radius + self.config.margin
         top = c.anchor_max_speed
         reach = top * c.dt + top * top / (2.0 * c.anchor_max_accel) + radius
-        static = self._static_obstacles()
-        near = static.edges_near(position, reach)
-        return BrakingEnvelope(static.point[near], static.point[static.next[near]],
-                               np.asarray(position, dtype=np.float64), radius,
+        starts, ends = self._static_obstacles().segments_near(position, reach)
+        return BrakingEnvelope(starts, ends, np.asarray(position, dtype=np.float64), radius,
                                c.anchor_max_accel, c.dt)
 
     def _moving_obstacles(self) -> np.ndarray | None:
@@ -347,17 +345,16 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
             c.anchor_max_speed, c.anchor_max_accel, c.anchor_max_turn_rate, c.dt)
         tracks = self._tracker.tracked_obstacles
         tracks[:, 4] += c.anchor_radius
-        static = self._static_obstacles()
         radius = c.anchor_radius + cfg.margin
-        near = static.edges_near(anchor.position, c.anchor_max_speed * horizon + radius)
+        starts, ends = self._static_obstacles().segments_near(
+            anchor.position, c.anchor_max_speed * horizon + radius)
         react = cfg.look_ahead_react or c.dt + c.anchor_max_speed / c.anchor_max_accel
         yielding = self.escape_budget.yielding
         return escape_velocity(
             v_star, v_pref, anchor.position, anchor.heading, anchor.speed, tracks,
             self._tracker.tracked_covariances, max_speed=c.anchor_max_speed,
             max_accel=c.anchor_max_accel, max_turn_rate=c.anchor_max_turn_rate,
-            horizon=horizon, step=0.5 * c.dt, starts=static.point[near],
-            ends=static.point[static.next[near]], radius=radius,
+            horizon=horizon, step=0.5 * c.dt, starts=starts, ends=ends, radius=radius,
             sigma=cfg.covariance_sigma, maneuver=0.0 if yielding else cfg.maneuver_share,
             clearance=cfg.look_ahead_clearance, obstacle_radius=c.moving_obstacle_radius,
             react=None if self._escaping else react,

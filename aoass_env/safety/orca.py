@@ -187,6 +187,8 @@ class _EdgeCache:
     #: the edges near a recent query point, by reach: reach -> (x, y, cap, indices, edge
     #: rows), every edge closer than ``cap`` (m) to (x, y) (see :meth:`near`)
     local: dict = field(default_factory=dict, repr=False)
+    #: :meth:`StaticObstacles.segments_near`'s read-only (starts, ends) arrays by edge list
+    segments: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(cls, point: np.ndarray, direction: np.ndarray, nxt: np.ndarray, prv: np.ndarray,
@@ -434,6 +436,29 @@ class StaticObstacles:
         if not (type(reach) is float and 0.0 <= reach < math.inf):
             reach = real("reach", reach, "m", low=0.0)
         return np.array(self._cache.near(px, py, reach), dtype=np.int64)
+
+    def segments_near(self, position: ArrayLike, reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """(starts, ends): the end points (m), (m, 2) each, of the :meth:`edges_near` edges
+        in its order, ``point[near]`` and ``point[next[near]]``.
+
+        The anchor finds the same few edges period after period: the two arrays are built
+        once per list of edges (the last 4096 lists) and shared, read-only.
+        """
+        px, py = _vec2("position", position, "m")
+        if not (type(reach) is float and 0.0 <= reach < math.inf):
+            reach = real("reach", reach, "m", low=0.0)
+        cache = self._cache
+        near = tuple(cache.near(px, py, reach))
+        pair = cache.segments.get(near)
+        if pair is None:
+            index = np.array(near, dtype=np.int64)
+            pair = self.point[index], self.point[self.next[index]]
+            for array in pair:
+                array.flags.writeable = False
+            if len(cache.segments) >= 4096:
+                cache.segments.clear()
+            cache.segments[near] = pair
+        return pair
 
 
 def _static(value: Any) -> StaticObstacles | None:

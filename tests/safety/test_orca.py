@@ -345,6 +345,37 @@ def test_local_edge_lists_answer_as_the_whole_map_does():
     assert answered > 1000
 
 
+def test_segments_near_are_the_indexed_end_points():
+    """segments_near gives point[near] and point[next[near]] of edges_near's list (values,
+    dtype, shape, order), shared read-only between the queries that find the same edges, with
+    and without edges near, along random walks and jumps with several reaches."""
+    from aoass_env.maps import generate_map
+
+    so = StaticObstacles.from_loops(generate_map(60.0, 0.4, np.random.default_rng(5))
+                                    .free_space_loops)
+    rng = np.random.default_rng(6)
+    p = np.array([30.0, 30.0])
+    shared = empty = 0
+    for step in range(2000):
+        p = rng.uniform(-20.0, 80.0, 2) if step % 150 == 0 else p + rng.uniform(-0.6, 0.6, 2)
+        for reach in (1.0, 2.7, 3.7):
+            near = so.edges_near(p, reach)
+            starts, ends = so.segments_near(p, reach)
+            for got, want in ((starts, so.point[near]), (ends, so.point[so.next[near]])):
+                assert got.dtype == want.dtype and got.shape == want.shape
+                assert got.tobytes() == want.tobytes() and got.flags.c_contiguous
+                assert not got.flags.writeable
+            again = so.segments_near(p, reach)
+            assert again[0] is starts and again[1] is ends
+            shared += len(near) > 0
+            empty += len(near) == 0
+    assert shared > 1000 and empty > 100
+    with pytest.raises(ValueError, match="reach"):
+        so.segments_near(p, -1.0)
+    with pytest.raises(ValueError, match="position"):
+        so.segments_near([np.nan, 0.0], 1.0)
+
+
 # --------------------------------------------------------------------------------------------
 # bad input
 # --------------------------------------------------------------------------------------------
