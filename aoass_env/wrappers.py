@@ -327,9 +327,9 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         """Kalman-tracked moving obstacles (x, y, vx, vy, radius + moving_margin +
         covariance_sigma x the std of the position estimate along its worst axis); None when
         there is no confirmed track (what :func:`orca_lines` reads as none)."""
-        tracks = self._tracker.tracked_obstacles
-        if len(tracks) == 0:
+        if not self._tracker.tracker.confirmed:
             return None
+        tracks = self._tracker.tracked_obstacles
         tracks[:, 4] += self.config.moving_margin
         if self.config.covariance_sigma > 0.0:
             std = position_std(self._tracker.tracked_covariances, np.zeros(1))[:, 0]
