@@ -18,6 +18,7 @@ import shapely
 from aoass_env.clearance import MARGIN, ClearanceCertificates
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
+from aoass_env.trig import SCALAR_TRIG
 from aoass_env.validators import real, vec2
 
 # Collision types (pymunk handlers) and filter categories (queries) of the four kinds of shape.
@@ -505,14 +506,20 @@ class World:
         obstacle along each ray of :meth:`ray_angles`; ``sensing_range`` where none is hit."""
         reach = self.config.sensing_range
         start = _cp.cpBodyGetPosition(self._c_anchor)
-        angles = self._heading + self._ray_offsets
-        xs = (start.x + reach * np.cos(angles)).tolist()
-        ys = (start.y + reach * np.sin(angles)).tolist()
-        out = [reach] * len(xs)
+        if SCALAR_TRIG:
+            # the ray ends of the array code below in Python floats: the same operations
+            x, y, h = start.x, start.y, self._heading
+            ends = [(x + reach * math.cos(a), y + reach * math.sin(a))
+                    for a in [h + offset for offset in self._ray_offsets.tolist()]]
+        else:
+            angles = self._heading + self._ray_offsets
+            ends = zip((start.x + reach * np.cos(angles)).tolist(),
+                       (start.y + reach * np.sin(angles)).tolist(), strict=True)
+        out = []
         query, space, info = _cp.cpSpaceSegmentQueryFirst, self._c_space, self._seg_info
-        for i, end in enumerate(zip(xs, ys, strict=True)):
-            if query(space, start, end, 0.0, _SENSED_C, info):
-                out[i] = info.alpha * reach
+        for end in ends:
+            out.append(info.alpha * reach if query(space, start, end, 0.0, _SENSED_C, info)
+                       else reach)
         return np.array(out)
 
     def nearest_obstacle_distance(self) -> float:

@@ -44,6 +44,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aoass_env.trig import SCALAR_TRIG
+
 __all__ = ["Escape", "EscapeBudget", "candidate_commands", "escape_velocity", "look_ahead_horizon",
            "obstacle_radii", "position_std", "predict_obstacles", "rollout",
            "segment_distances", "violation"]
@@ -106,17 +108,6 @@ def segment_distances(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) 
     return _Segments(starts, ends).distances(points)
 
 
-def _scalar_trig_is_numpys() -> bool:
-    """Whether ``math.cos``/``math.sin`` give NumPy's float64 ``cos``/``sin`` bit for bit on
-    this machine (NumPy may dispatch to its own SIMD code): the one-path rollout below runs in
-    Python floats only then, so that it computes what the array code computes."""
-    probe = np.random.default_rng(0).uniform(-20.0, 20.0, 4096)
-    return (np.array_equal(np.cos(probe), [math.cos(x) for x in probe])
-            and np.array_equal(np.sin(probe), [math.sin(x) for x in probe]))
-
-
-#: see :func:`_scalar_trig_is_numpys`
-SCALAR_TRIG = _scalar_trig_is_numpys()
 #: Slack (m) of a clearance certificate: a point within ``d`` of a point whose exact distance to
 #: the segments is ``g`` is at least ``g - d`` from them; a test is skipped only when that bound
 #: clears its threshold by this much (far above the rounding of either distance).

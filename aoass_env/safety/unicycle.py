@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aoass_env.trig import SCALAR_TRIG
+
 __all__ = ["BrakingEnvelope", "braking_speed", "clearance", "free_travel", "speed_bounds",
            "turn_headings", "unicycle_command"]
 
@@ -246,22 +248,6 @@ _CERTIFICATE_SLACK = 1e-4
 _TINY = 1e-300
 #: The arc's fractions: `np.linspace(0, 1, 9)`, exactly i / 8.
 _FRACTIONS = tuple(np.linspace(0.0, 1.0, 9).tolist())
-
-
-def _scalar_trig_is_numpys() -> bool:
-    """Whether ``math.cos``/``math.sin`` give NumPy's float64 ``cos``/``sin`` bit for bit on
-    this machine (NumPy may dispatch to its own SIMD code): the float path of
-    :func:`unicycle_command` runs only then (as the look-ahead's one-path rollout)."""
-    probe = np.random.default_rng(0).uniform(-20.0, 20.0, 4096)
-    arc = np.linspace(-7.0, 7.0, 9)
-    return (np.array_equal(np.cos(probe), [math.cos(x) for x in probe])
-            and np.array_equal(np.sin(probe), [math.sin(x) for x in probe])
-            and np.array_equal(np.cos(arc), [math.cos(x) for x in arc])
-            and np.array_equal(np.sin(arc), [math.sin(x) for x in arc]))
-
-
-#: see :func:`_scalar_trig_is_numpys`
-SCALAR_TRIG = _scalar_trig_is_numpys()
 
 
 def _clearance_floats(starts: list, ends: list, px: float, py: float) -> float:
