@@ -177,10 +177,10 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
     def tracked_obstacles(self) -> np.ndarray:
         """(m, 5) confirmed tracks in the world frame: x, y (m), vx, vy (m/s), radius (m)."""
         states = self.tracker.states()
-        if len(states) == 0:
-            return np.zeros((0, 5))
-        radius = np.full((len(states), 1), self._base.config.moving_obstacle_radius)
-        return np.hstack([states.reshape(-1, 4), radius])
+        tracks = np.empty((len(states), 5))
+        tracks[:, :4] = states
+        tracks[:, 4] = self._base.config.moving_obstacle_radius
+        return tracks
 
     @property
     def tracked_covariances(self) -> np.ndarray:

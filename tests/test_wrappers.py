@@ -414,6 +414,26 @@ def test_filter_and_tracker_fast_paths_equal_the_old_code(config, seed):
     assert counts["tracks"] > 50 and counts["escapes"] > 0, counts
 
 
+def test_tracked_obstacles_are_the_old_stacked_rows():
+    """tracked_obstacles (rows written into one array) gives the old np.hstack of the states
+    and a radius column, bit for bit, with 0 to several confirmed tracks."""
+    env = make_safe_env(**dict(SMALL, n_moving_obstacles=6))
+    tracker = env.env
+    env.reset(seed=4)
+    rng = np.random.default_rng(4)
+    counts = set()
+    for _ in range(300):
+        env.step(rng.uniform(-1.0, 1.0, 2).astype(np.float32))
+        states = tracker.tracker.states()
+        want = (np.zeros((0, 5)) if len(states) == 0 else np.hstack(
+            [states.reshape(-1, 4), np.full((len(states), 1),
+                                            tracker._base.config.moving_obstacle_radius)]))
+        got = tracker.tracked_obstacles
+        assert got.tobytes() == want.tobytes() and got.shape == want.shape
+        counts.add(len(states))
+    assert {0, 1} <= counts and max(counts) >= 2, counts
+
+
 def test_tracker_clips_float32_as_float64():
     """The empty slots' observation clipped in float32 gives the float64 clip's floats: values
     on, inside and past the bounds, signed zeros, infinities and NaN."""

@@ -184,7 +184,7 @@ class MultiTargetTracker:
         sel = self._selected(confirmed_only)
         if not sel:
             return np.zeros((0, 4))
-        return np.stack([t.filter.x[:, 0] for t in sel])
+        return np.array([t.filter.x[:, 0] for t in sel])     # np.stack's array, faster
 
     def covariances(self, confirmed_only: bool = True) -> np.ndarray:
         """Covariances of :meth:`states` (m^2, m^2/s, m^2/s^2), shape (m, 4, 4), rows in the
@@ -192,7 +192,7 @@ class MultiTargetTracker:
         sel = self._selected(confirmed_only)
         if not sel:
             return np.zeros((0, 4, 4))
-        return np.stack([t.filter.P for t in sel])
+        return np.array([t.filter.P for t in sel])
 
     def position_covariances(self, confirmed_only: bool = True) -> np.ndarray:
         """Covariances of the estimated positions (m^2), shape (m, 2, 2), rows as in
@@ -240,8 +240,8 @@ class MultiTargetTracker:
         if not tracks or cols.size == 0:
             return tracks
         dz = self._dz
-        x = np.stack([t.filter.x[:dz, 0] for t in tracks])              # H x, (m, dz)
-        s = np.stack([t.filter.P[:dz, :dz] for t in tracks]) + self._R   # H P H' + R
+        x = np.array([t.filter.x[:dz, 0] for t in tracks])              # H x, (m, dz)
+        s = np.array([t.filter.P[:dz, :dz] for t in tracks]) + self._R   # H P H' + R
         if extra is not None:
             s += extra[:dz, :dz]
         y = z[cols][None, :, :] - x[:, None, :]                            # (m, n, dz)

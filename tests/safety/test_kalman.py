@@ -309,3 +309,27 @@ def test_empty_detections_and_bad_horizons():
     for k in (-1, 1.5, True):
         with pytest.raises(ValueError, match="k="):
             tr.predict_steps(k)
+
+
+def test_stacked_queries_are_np_stack_bit_for_bit():
+    """states() and covariances() (np.array over the tracks) give np.stack's arrays, for every
+    number of tracks a run of crossing, appearing and vanishing targets passes through."""
+    rng = np.random.default_rng(12)
+    tracker = MultiTargetTracker(0.5, position_noise=0.3, velocity_noise=0.2)
+    seen = set()
+    for k in range(200):
+        n = int(rng.integers(0, 5))
+        z = np.column_stack([rng.uniform(-1, 1, (n, 2)) + np.arange(n)[:, None] * 3.0 + 0.1 * k,
+                             rng.uniform(-1, 1, (n, 2))])
+        tracker.step(z)
+        for confirmed_only in (True, False):
+            sel = tracker.confirmed if confirmed_only else tracker.tracks
+            states, covariances = tracker.states(confirmed_only), tracker.covariances(
+                confirmed_only)
+            seen.add(len(sel))
+            if sel:
+                for got, want in ((states, np.stack([t.filter.x[:, 0] for t in sel])),
+                                  (covariances, np.stack([t.filter.P for t in sel]))):
+                    assert got.tobytes() == want.tobytes() and got.shape == want.shape
+                    assert got.dtype == want.dtype and got.flags.c_contiguous
+    assert {0, 1, 2, 3} <= seen
