@@ -327,8 +327,10 @@ def rollout(position: np.ndarray, heading: float, speed: float, headings: np.nda
     out = np.empty((k, n_steps, 2))
     for i in range(n_steps):
         turn = np.remainder(headings - theta + math.pi, 2.0 * math.pi) - math.pi
-        theta = theta + np.clip(turn, -max_dh, max_dh)
-        v = v + np.clip(target_speed - v, -max_dv, max_dv)
+        # np.clip's values without its wrappers: the bounds are not zero, so a tie with one
+        # cannot differ in the sign of a zero (the only difference of the two)
+        theta = theta + np.minimum(np.maximum(turn, -max_dh), max_dh)
+        v = v + np.minimum(np.maximum(target_speed - v, -max_dv), max_dv)
         moved = xy + (v * step)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1)
         if segments is not None:
             new_gap = segments.distances(moved)
