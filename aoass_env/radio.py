@@ -142,7 +142,9 @@ class LineOfSight:
         m = len(a)
         if m == 0 or len(self._polygons) == 0:
             return np.zeros(m, dtype=bool)
-        segs = np.stack([a, b], axis=1)
+        segs = np.empty((m, 2, 2))          # np.stack([a, b], axis=1), without its wrappers
+        segs[:, 0] = a
+        segs[:, 1] = b
         seg, edge = self._edge_tree.query(shapely.linestrings(segs))
         ax, ay, bx, by = a[seg, 0], a[seg, 1], b[seg, 0], b[seg, 1]
         px, py, qx, qy = self._px[edge], self._py[edge], self._qx[edge], self._qy[edge]
@@ -353,6 +355,11 @@ def receivers_at(point: np.ndarray,
                                                                         strict=True)])
     inside = np.concatenate([radio._node_inside[cand] for (radio, _), cand in zip(
         queries, found, strict=True)])
-    heard = ~los._blocked(start, np.broadcast_to(p, start.shape), inside)
-    ends = np.cumsum([len(cand) for cand in found])
-    return [cand[part] for cand, part in zip(found, np.split(heard, ends[:-1]), strict=True)]
+    end = np.empty(start.shape)             # the beacon point on every row
+    end[:] = p
+    heard = ~los._blocked(start, end, inside)
+    out, first = [], 0
+    for cand in found:                      # heard split by radio
+        out.append(cand[heard[first:first + len(cand)]])
+        first += len(cand)
+    return out

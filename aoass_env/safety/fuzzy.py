@@ -312,14 +312,14 @@ class FuzzyController:
                                            zip(fp.T.tolist(), slope.T.tolist(), left.tolist(),
                                                strict=True)], lo, hi)
                          for inner, fp, slope, left, lo, hi in inputs]
-        scalar_rules = [(i, j, tnames.index(rules[(dt, ht)][0]),
-                         nt + snames.index(rules[(dt, ht)][1]))
-                        for i, dt in enumerate(dnames) for j, ht in enumerate(hnames)]
+        # [distance term][heading term] -> (turn column, speed column)
+        scalar_table = [[(tnames.index(rules[(dt, ht)][0]), nt + snames.index(rules[(dt, ht)][1]))
+                         for ht in hnames] for dt in dnames]
         grid = np.ascontiguousarray(np.concatenate(grids))                # C order: fast
         return {"inputs": inputs, "grid": grid[:, None, :], "grid2d": grid,
                 "moments": moments, "nt": nt, "consequent": consequent,
                 "rules": len(dnames) * len(hnames), "scalar_inputs": scalar_inputs,
-                "scalar_rules": scalar_rules, "n_out": grid.shape[0]}
+                "scalar_table": scalar_table, "n_out": grid.shape[0]}
 
     @staticmethod
     def _fuzzify(x: np.ndarray, table: tuple) -> np.ndarray:
@@ -339,21 +339,35 @@ class FuzzyController:
         return [f + s * dx for f, s in zip(fp, slope, strict=True)]
 
     def _infer_scalar(self, d: float, h: float) -> tuple[float, float]:
-        """[omega fraction, speed fraction] for one d (m) and one wrapped dtheta (rad)."""
+        """[omega fraction, speed fraction] for one d (m) and one wrapped dtheta (rad).
+
+        Only the rules whose two memberships are both positive are evaluated: any other rule
+        has a strength min(mu_d, mu_h) <= 0, which never raises an output term's strength
+        (they start at 0), so the strengths are those of the loop over every rule. The
+        centroid's areas and moments come back from their products as Python floats, whose
+        division and clipping round as NumPy's float64 scalars do (NumPy divides a zero area).
+        """
         tab = self._tables
         mu_d = self._fuzzify_scalar(d, tab["scalar_inputs"][0])
         mu_h = self._fuzzify_scalar(h, tab["scalar_inputs"][1])
         out = [0.0] * tab["n_out"]
-        for i, j, t, s in tab["scalar_rules"]:
-            w = min(mu_d[i], mu_h[j])
-            if w > out[t]:
-                out[t] = w
-            if w > out[s]:
-                out[s] = w
+        fired = [j for j, m in enumerate(mu_h) if m > 0.0]
+        for i, md in enumerate(mu_d):
+            if md > 0.0:
+                consequents = tab["scalar_table"][i]
+                for j in fired:
+                    w = min(md, mu_h[j])
+                    t, s = consequents[j]
+                    if w > out[t]:
+                        out[t] = w
+                    if w > out[s]:
+                        out[s] = w
         clipped = np.minimum(np.array(out)[:, None], tab["grid2d"])
         nt = tab["nt"]
-        ta, tm = clipped[:nt].max(axis=0) @ tab["moments"][0]
-        sa, sm = clipped[nt:].max(axis=0) @ tab["moments"][1]
+        ta, tm = (clipped[:nt].max(axis=0) @ tab["moments"][0]).tolist()
+        sa, sm = (clipped[nt:].max(axis=0) @ tab["moments"][1]).tolist()
+        if not (ta and sa):     # an area underflowed to 0: NumPy's inf or nan (and warning)
+            ta, sa = np.float64(ta), np.float64(sa)
         return min(max(tm / ta, -1.0), 1.0), min(max(sm / sa, 0.0), 1.0)
 
     def _infer(self, d: np.ndarray, h: np.ndarray) -> np.ndarray:

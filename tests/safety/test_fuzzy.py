@@ -257,3 +257,65 @@ def test_matches_scikit_fuzzy():
         omega, v = FLC(d, h)
         assert omega == pytest.approx(sim.output["turn"], abs=5e-4), (d, h)
         assert v == pytest.approx(sim.output["speed"], abs=5e-4), (d, h)
+
+
+def _old_infer_scalar(controller: FuzzyController, d: float, h: float) -> tuple[float, float]:
+    """``_infer_scalar`` before issue 20's seventh round (the oracle): every rule, NumPy
+    scalars for the centroid."""
+    tab = controller._tables
+    names = [list(var.terms) for var in (controller.distance, controller.heading,
+                                         controller.turn, controller.speed)]
+    nt = len(names[2])
+    rules = [(i, j, names[2].index(controller.rules[(dt, ht)][0]),
+              nt + names[3].index(controller.rules[(dt, ht)][1]))
+             for i, dt in enumerate(names[0]) for j, ht in enumerate(names[1])]
+    mu_d = controller._fuzzify_scalar(d, tab["scalar_inputs"][0])
+    mu_h = controller._fuzzify_scalar(h, tab["scalar_inputs"][1])
+    out = [0.0] * tab["n_out"]
+    for i, j, t, s in rules:
+        w = min(mu_d[i], mu_h[j])
+        if w > out[t]:
+            out[t] = w
+        if w > out[s]:
+            out[s] = w
+    clipped = np.minimum(np.array(out)[:, None], tab["grid2d"])
+    ta, tm = clipped[:nt].max(axis=0) @ tab["moments"][0]
+    sa, sm = clipped[nt:].max(axis=0) @ tab["moments"][1]
+    return min(max(tm / ta, -1.0), 1.0), min(max(sm / sa, 0.0), 1.0)
+
+
+def test_scalar_path_equals_the_old_code_bit_for_bit():
+    """The scalar inference (only the fired rules, Python floats for the centroid) gives the
+    old code's floats: random inputs, every term corner and its neighbours, the universe's
+    ends and beyond, signed zeros, tiny values; the default controller and one whose terms
+    overlap in threes and leave points with a single tiny membership."""
+    custom = FuzzyController(
+        distance=FuzzyVariable("d", (0.0, 5.0, 11), {"a": (0.0, 0.0, 1.0, 3.0),
+                                                     "b": (0.5, 2.0, 4.0), "c": (1.0, 4.5, 5.0),
+                                                     "e": (2.0, 5.0, 5.0)}),
+        heading=FuzzyVariable("h", (-PI, PI, 9), {"n": (-PI, -PI, 0.0), "z": (-1.0, 0.0, 1.0),
+                                                  "p": (0.0, PI, PI)}),
+        turn=FuzzyVariable("t", (-1.0, 1.0, 101), {"r": (-1.0, -1.0, 0.2), "s": (-0.5, 0.0, 0.5),
+                                                   "l": (-0.2, 1.0, 1.0)}),
+        speed=FuzzyVariable("v", (0.0, 1.0, 77), {"lo": (0.0, 0.0, 0.6), "hi": (0.3, 1.0, 1.0)}),
+        rules={(dt, ht): ({"n": "r", "z": "s", "p": "l"}[ht], "lo" if dt in "ab" else "hi")
+               for dt in "abce" for ht in "nzp"})
+    rng = np.random.default_rng(7)
+    for controller in (FLC, custom):
+        corners_d = [v for p in controller.distance.terms.values() for v in p]
+        corners_h = [v for p in controller.heading.terms.values() for v in p]
+        ds = [0.0, -0.0, 5e-324, 1e-300, math.inf, 1e9, *corners_d,
+              *[math.nextafter(v, math.inf) for v in corners_d],
+              *[math.nextafter(v, -math.inf) for v in corners_d],
+              *rng.uniform(-1.0, 12.0, 400).tolist()]
+        hs = [0.0, -0.0, 5e-324, -5e-324, PI, -PI, *corners_h,
+              *[math.nextafter(v, math.inf) for v in corners_h],
+              *[math.nextafter(v, -math.inf) for v in corners_h],
+              *rng.uniform(-PI, PI, 400).tolist()]
+        specials = [(d, h) for d in ds[:-400] for h in hs[:-400]]
+        for d, h in specials + list(zip(ds[-400:], hs[-400:], strict=True)):
+            got = controller._infer_scalar(d, h)
+            want = _old_infer_scalar(controller, d, h)
+            for g, w in zip(got, want, strict=True):
+                assert isinstance(g, float)
+                assert g == w and math.copysign(1.0, g) == math.copysign(1.0, w), (d, h)
