@@ -1,0 +1,80 @@
+"""CPU microseconds per call of the step parts changed in issue 20's seventh round, at one state.
+
+A seeded random-action AOASS-Safe-v0 episode is run ``--steps`` steps; at that state each part
+is called ``--calls`` times (best of five rounds) without stepping on: the rays, the observer's
+moving-obstacle slots, the fuzzy controller, the braking envelope, the filter's moving
+obstacles and its whole verdict, the tracker's observation, and the radios' links of a beacon
+(``receivers_at``, 500 points of the field). The episodes are the same bit for bit in every
+tree this round compares, so the state is too: run the script with each tree first on
+``PYTHONPATH`` and compare the lines (no output depends on the tree but the times)::
+
+    PYTHONPATH=/tmp/base20 python3 benchmarks/step_parts_speed.py
+    PYTHONPATH=$PWD python3 benchmarks/step_parts_speed.py
+
+Run from the repository root or anywhere: the script's own folder, not the working directory,
+comes first on ``sys.path``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+
+import gymnasium as gym
+import numpy as np
+
+import aoass_env
+from aoass_env.radio import receivers_at
+from aoass_env.wrappers import FuzzyORCASafety
+
+
+def best_of(function: Callable[[], object], calls: int, rounds: int = 5) -> float:
+    """Least CPU microseconds per call of ``function`` over ``rounds`` rounds of ``calls``."""
+    best = float("inf")
+    for _ in range(rounds):
+        start = time.process_time()
+        for _ in range(calls):
+            function()
+        best = min(best, time.process_time() - start)
+    return best / calls * 1e6
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--steps", type=int, default=400, help="steps before the state")
+    parser.add_argument("--calls", type=int, default=3000, help="calls per round")
+    args = parser.parse_args()
+    env = gym.make("AOASS-Safe-v0", n_nodes=100)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    for _ in range(args.steps):
+        env.step(env.action_space.sample())
+    safe = env
+    while not isinstance(safe, FuzzyORCASafety):
+        safe = safe.env
+    tracker, base = safe.env, safe._base
+    world, observer = base.sim.world, base._observe
+    position, inner = base.anchor.position, base._observation()
+    action = np.array([0.3, -0.2], np.float32)
+    beacons = np.random.default_rng(1).uniform(0.0, base.config.field_size, (500, 2))
+    queries = [(base.sim.radio, None), base.sim.coverage_map.listeners()]
+    parts = {
+        "World.ray_distances": world.ray_distances,
+        "Observer.moving": lambda: observer.moving(world),
+        "FuzzyController (one input)": lambda: safe.controller(2.0, 0.3),
+        "FuzzyORCASafety._braking_envelope": lambda: safe._braking_envelope(position),
+        "FuzzyORCASafety._moving_obstacles": safe._moving_obstacles,
+        "FuzzyORCASafety._filter": lambda: safe._filter(action),
+        "KalmanObstacleTracker.observation": lambda: tracker.observation(inner),
+    }
+    print(f"aoass_env from {aoass_env.__file__}; state after {args.steps} steps "
+          f"({len(tracker.tracked_obstacles)} confirmed tracks)")
+    for name, function in parts.items():
+        print(f"  {name:40s} {best_of(function, args.calls):8.2f} us/call")
+    per_beacon = best_of(lambda: [receivers_at(p, queries) for p in beacons], 1) / len(beacons)
+    print(f"  {'receivers_at (one beacon, both radios)':40s} {per_beacon:8.2f} us/call")
+
+
+if __name__ == "__main__":
+    main()
