@@ -1,10 +1,10 @@
 """The package's layers point down, and no module imports itself through others.
 
 Every import of ``aoass_env`` and ``agents`` modules counts: at module level, inside functions
-(lazy imports) and under ``TYPE_CHECKING``. The layers, bottom up (DEVELOPERS.md, "Shape of the
-code"): pure maths and infrastructure -> config -> maps, radio, world, network, beacon logs ->
-planning -> simulator -> environment and wrappers -> localization -> evaluation; ``agents``
-stands beside evaluation and never imports it.
+(lazy imports) and under ``TYPE_CHECKING``. The layers, bottom up (the developers' guide,
+"Shape of the code"): pure maths and infrastructure -> config -> maps, radio, world, network,
+beacon logs -> planning -> simulator -> environment and wrappers -> localization ->
+evaluation; ``agents`` stands beside evaluation and never imports it.
 """
 
 from __future__ import annotations

@@ -118,10 +118,12 @@ class AdaptiveConfig(ValidatedConfig):
                                  high=1000.0)
     prune_spread: float = param(2.0, "... and their spread at least this many times Eq. 18's "
                                 "collinearity_tol", low=1.0, high=100.0)
-    prune_error: float = param(0.0, "... and, above 0, a cell's class error (the distance "
+    prune_error: float = param(2.0, "... and, above 0, a cell's class error (the distance "
                                "from its centre to the mean of the cells hearing the same "
                                "planned beacons, pruning.class_error) at most the larger of "
-                               "this and the full spiral's (0: not checked)", unit="m",
+                               "this and the full spiral's; with sites, the tour's wider "
+                               "classes are split by inserted sites first (0: not checked; "
+                               "chosen on training maps, docs/adaptive.md)", unit="m",
                                low=0.0, high=1000.0)
     sites: bool = param(True, "with prune, walk a tour through beacon sites chosen by set "
                         "cover of the cells the whole spiral would cover, repaired and pruned, "
@@ -165,11 +167,12 @@ class AdaptiveConfig(ValidatedConfig):
                              "not covered; 0.5: heard at most one beacon) are visited, the "
                              "cheapest first (with prune, only the cells the whole spiral "
                              "would cover)", low=-1.0, high=1.0)
-    beyond_below: float = param(0.0, "with prune, on a map where the whole spiral would cover "
-                                "less than this share of the free cells (a dense map), the "
-                                "cells phase also visits the others (beyond_need); 0: never (on "
-                                "fresh dense maps it cost the sweeps their completion, "
-                                "docs/adaptive.md)", low=0.0, high=1.0)
+    beyond_below: float = param(0.92, "with prune, on a map where the whole spiral would "
+                                "cover less than this share of the free cells (a dense map), "
+                                "the cells phase also visits the others (beyond_need); 0: never "
+                                "(0.92 separates densities 0.4 and 0.5 on the fitting split; "
+                                "chosen with the site tour, docs/adaptive.md)", low=0.0,
+                                high=1.0)
     beyond_need: float = param(0.5, "... those of them with a deficit above this (0.5: heard at "
                                "most one beacon)", low=-1.0, high=1.0)
     beyond_time: float = param(0.8, "... until this share of the episode's time limit has "
@@ -193,12 +196,22 @@ class AdaptiveConfig(ValidatedConfig):
                              "always the shortest way, the other side is not weighed)",
                              unit="1/m", low=0.0, high=1000.0)
     knob_step: float = param(0.25, "threshold shift of a knob at +-1", low=0.0, high=1.0)
+    beacon_interval: float | None = param(None, "distance the adaptive anchor travels between "
+                                          "beacons, in the plan and in the sweep (None: the "
+                                          "environment's beacon_interval); the spiral's "
+                                          "waypoints keep the environment's spacing", unit="m",
+                                          low=0.0, high=100.0, low_open=True, optional=True)
 
 
 def sweep_config(config: AOASSConfig, rule: AdaptiveConfig, side: float) -> AOASSConfig:
     """``config`` for the adaptive sweep on a ``side`` (m) square field: with
     ``rule.wide_passes`` and no ``spiral_spacing`` of its own, the wide passes'
-    (:func:`~aoass_env.planning.square_spiral.default_spacing` with ``wide``)."""
+    (:func:`~aoass_env.planning.square_spiral.default_spacing` with ``wide``); with
+    ``rule.beacon_interval``, that interval between beacons, the spiral's waypoints still
+    ``config.path_step`` apart."""
+    if rule.beacon_interval is not None and rule.beacon_interval != config.beacon_interval:
+        config = config.replace(beacon_interval=rule.beacon_interval,
+                                waypoint_step=config.path_step)
     if not rule.wide_passes or config.spiral_spacing is not None:
         return config
     return config.replace(spiral_spacing=config_spacing(config, side, side, wide=True))

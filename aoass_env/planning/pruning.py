@@ -33,9 +33,14 @@ it moves:
    where they leave reference cells uncovered (too few beacons, or collinear ones), sites of a
    1 m lattice are inserted (:func:`_repair`): each candidate, after the kept site where the
    planner's costs say it adds least, its new ways' beacons measured; the one that covers the
-   most such cells per metre added goes in first. Last, the tour is pruned as in 2 (with the
-   reorder), keeping what it covers of the reference with the margin. Reference cells it
-   could not cover are the cells phase's.
+   most such cells per metre added goes in first. With an error limit, the tour's wide
+   classes are split next (:func:`_split`): the cells that hear the same planned beacons form
+   a class a range-free localizer cannot tell apart, and where a reference cell's class is
+   wider (:func:`class_error`) than the larger of the limit and the whole spiral's, sites that
+   part of the class hears are inserted, the most class error removed per metre first. Last,
+   the tour is pruned as in 2 (with the reorder), keeping what it covers of the reference with
+   the margin (and, with the limit, no class wider than the split tour's or the limit).
+   Reference cells it could not cover are the cells phase's.
 
 The plan is a plan: the beacons the anchor really sends fall at other points of its odometer,
 moving obstacles push it aside, and the follower cuts corners. The adaptive sweep's densify
@@ -90,6 +95,17 @@ REPAIR_STEP = 1.0
 REPAIR_ROUNDS = 4
 #: Candidate sites of a repair round (those the most uncovered reference cells hear).
 REPAIR_CANDIDATES = 40
+#: Sites a site tour's class split inserts, at most (one per round).
+SPLIT_ROUNDS = 30
+#: Classes whose candidates a round of the split tries (those with the most excess).
+SPLIT_CLASSES = 6
+#: Candidate sites per class (those nearest the tour).
+SPLIT_CANDIDATES = 8
+#: A candidate site tells a class's cells apart when at least this share of them hears it and
+#: at least this share does not.
+SPLIT_SHARE = 0.2
+#: A split's insertion must remove at least this excess per metre it adds (m^2/m).
+SPLIT_MIN_RATE = 0.05
 
 
 @dataclass(frozen=True)
@@ -236,12 +252,11 @@ class _Pruner:
         self.prev = dict(zip(stops[1:], stops[:-1], strict=True))
         self.first = stops[0]
         self.total = np.zeros((ways.n_cells, 6))
-        self.signature = np.zeros(ways.n_cells, dtype=np.uint64)    # used by an error limit
+        self.signature = np.zeros(ways.n_cells, dtype=np.uint64)    # the cells' classes
         for a, b in zip(stops[:-1], stops[1:], strict=True):
             way = ways.get(a, b)
             self.total[way.cells] += way.stats
-            if error_limit is not None:
-                self.signature[way.cells] += way.signature
+            self.signature[way.cells] += way.signature
         self.reference = _covered(self.total, tol)
         self.robust = self._robust(self.total)
         self.costs = costs          # the planner's costs between the points, when searched
@@ -303,6 +318,15 @@ class _Pruner:
                      or np.any(self.robust[cells] & ~self._robust(trial)))
         return cells, trial, keeps
 
+    def _signature(self, old: list[_Way], new: list[_Way]) -> np.ndarray:
+        """Every cell's signature with the ways ``new`` driven instead of ``old`` (a copy)."""
+        whole = self.signature.copy()
+        for way in old:
+            whole[way.cells] -= way.signature
+        for way in new:
+            whole[way.cells] += way.signature
+        return whole
+
     def _exchange(self, old: list[_Way], new: list[_Way]) -> bool:
         """Drive the ways ``new`` instead of ``old`` when every reference cell stays covered,
         keeps its margin and (with an error limit) its class error under its cap; whether it
@@ -310,15 +334,10 @@ class _Pruner:
         cells, trial, keeps = self._trial(old, new)
         if not keeps:
             return False
-        if self.cap is not None:        # the signatures matter only under an error limit
-            whole = self.signature.copy()
-            for way in old:
-                whole[way.cells] -= way.signature
-            for way in new:
-                whole[way.cells] += way.signature
-            if np.any(class_error(whole, self.ways.radio.nodes) > self.cap):
-                return False
-            self.signature = whole
+        whole = self._signature(old, new)
+        if self.cap is not None and np.any(class_error(whole, self.ways.radio.nodes) > self.cap):
+            return False
+        self.signature = whole
         self.total[cells] = trial
         return True
 
@@ -345,11 +364,27 @@ class _Pruner:
                        & ~_covered(self.total[cells], self.tol)]
         return sum(w.length for w in new) - sum(w.length for w in old), gained
 
+    def split(self, site: int, after: int, cap: np.ndarray) -> tuple[float, float] | None:
+        """(extra length m, excess removed m^2) of visiting ``site`` right after the kept point
+        ``after``: the excess is the cells' :func:`class_error` above ``cap`` (per cell, m^2),
+        summed; None when the planner finds no way or a reference cell would lose its cover."""
+        old, new = self._around(site, after)
+        if any(w is None for w in new):
+            return None
+        if not self._trial(old, new)[2]:
+            return None
+        nodes = self.ways.radio.nodes
+        now = np.maximum(class_error(self.signature, nodes) - cap, 0.0).sum()
+        then = np.maximum(class_error(self._signature(old, new), nodes) - cap, 0.0).sum()
+        return sum(w.length for w in new) - sum(w.length for w in old), float(now - then)
+
     def insert(self, site: int, after: int) -> None:
-        """Visit ``site`` right after ``after`` (:meth:`insertion` said it may); the cells it
-        covers join the reference."""
+        """Visit ``site`` right after ``after`` (:meth:`insertion` or :meth:`split` said it
+        may); the cells it covers join the reference."""
         b = self.next.get(after)
-        cells, trial, _ = self._trial(*self._around(site, after))
+        old, new = self._around(site, after)
+        cells, trial, _ = self._trial(old, new)
+        self.signature = self._signature(old, new)
         self.total[cells] = trial
         self.reference[cells] |= _covered(trial, self.tol)
         self.next[after], self.prev[site] = site, after
@@ -598,9 +633,11 @@ def plan_sites(waypoints: np.ndarray, blocked: np.ndarray, start: int,
     hears ``need`` sites of the set cover, whose candidates lie ``site_step`` (m) apart, and
     the repair's :data:`REPAIR_STEP` (the planner's free cells of its main region, thinned).
     The plan's points are the spiral's start followed by every repair candidate (a lattice
-    the set cover's candidates are part of). With ``error_limit`` the last pruning keeps
-    every reference cell's class error at most the larger of its square and the repaired
-    tour's, as :func:`prune_spiral`'s does."""
+    the set cover's candidates are part of). With ``error_limit`` the repaired tour's wide
+    classes are split (:func:`_split`: sites inserted where a reference cell's
+    :func:`class_error` exceeds the larger of ``error_limit`` squared and the whole spiral
+    plan's), and the last pruning keeps every reference cell's class error at most the larger
+    of ``error_limit`` squared and the split tour's."""
     spiral = _Ways(np.asarray(waypoints, dtype=np.float64), planner, radio, n_cells,
                    beacon_interval)
     stops = _stops(spiral, blocked, start)
@@ -620,12 +657,24 @@ def plan_sites(waypoints: np.ndarray, blocked: np.ndarray, start: int,
     # repair on the fine lattice (every point but the start is a candidate site)
     ways = _Ways(points, planner, radio, n_cells, beacon_interval)
     pruner = _Pruner(ways, order, collinearity_tol, margin)
-    _repair(pruner, reference, cost, Radio(points, radio.obstacle_map, radio.radio_range,
-                                           line_of_sight=radio.line_of_sight))
-    pruner = _Pruner(ways, pruner.order(), collinearity_tol, margin, error_limit, cost)
-    # the tour keeps what it covers of the spiral's reference; the rest is the cells phase's
-    pruner.reference &= reference
-    pruner.robust &= reference
+    listeners = Radio(points, radio.obstacle_map, radio.radio_range,
+                      line_of_sight=radio.line_of_sight)
+    _repair(pruner, reference, cost, listeners)
+
+    def kept(order: list[int]) -> _Pruner:
+        """The tour ``order``: it keeps what it covers of the spiral's reference (the rest
+        is the cells phase's)."""
+        tour = _Pruner(ways, order, collinearity_tol, margin, error_limit, cost)
+        tour.reference &= reference
+        tour.robust &= reference
+        return tour
+
+    pruner = kept(pruner.order())
+    if error_limit is not None:     # no wider classes than the whole spiral's, or the limit
+        spiral_error = class_error(whole.signature, radio.nodes)
+        _split(pruner, np.where(reference, np.maximum(spiral_error, error_limit**2), np.inf),
+               cost, listeners)
+        pruner = kept(pruner.order())       # the split tour's classes are the cap
     _prune(pruner, reorder, min_gain)
     return _plan(points, pruner, full, reference)
 
@@ -658,12 +707,9 @@ def _repair(pruner: _Pruner, reference: np.ndarray, cost: _Costs, listeners: Rad
             order = pruner.order()
             for site in candidates:
                 site = int(site)
-                if site in pruner.prev or site == pruner.first or not np.isfinite(
-                        cost(order[0], site)):
+                after = _cheapest_after(pruner, order, site, cost)
+                if after is None:
                     continue
-                extra = [cost(a, site) + (cost(site, b) - cost(a, b) if b is not None else 0.0)
-                         for a, b in zip(order, [*order[1:], None], strict=True)]
-                after = order[int(np.argmin(extra))]
                 tried = pruner.insertion(site, after, short)
                 if tried is None or not len(tried[1]):
                     continue
@@ -677,6 +723,58 @@ def _repair(pruner: _Pruner, reference: np.ndarray, cost: _Costs, listeners: Rad
             inserted = True
         if not inserted:
             return
+
+
+def _cheapest_after(pruner: _Pruner, order: list[int], site: int, cost: _Costs) -> int | None:
+    """The kept point (of ``order``, the tour) after which visiting ``site`` adds the least to
+    the planner's costs; None when ``site`` is kept already or unreachable."""
+    if site in pruner.prev or site == pruner.first or not np.isfinite(cost(order[0], site)):
+        return None
+    extra = [cost(a, site) + (cost(site, b) - cost(a, b) if b is not None else 0.0)
+             for a, b in zip(order, [*order[1:], None], strict=True)]
+    return order[int(np.argmin(extra))]
+
+
+def _split(pruner: _Pruner, cap: np.ndarray, cost: _Costs, listeners: Radio) -> None:
+    """Insert sites where the tour's planned beacons leave cells in wide classes: a range-free
+    localizer cannot tell apart the cells that hear the same beacons, so a cell's
+    :func:`class_error` above its ``cap`` (m^2; inf: not judged) is error it cannot avoid.
+    Per round, the :data:`SPLIT_CLASSES` classes with the most such excess (summed over their
+    cells) give the candidates: the points (``listeners``' nodes) that between
+    :data:`SPLIT_SHARE` and 1 - :data:`SPLIT_SHARE` of the class's cells hear, the
+    :data:`SPLIT_CANDIDATES` nearest the tour. Each is tried after the kept point where the
+    planner's costs say it adds the least, its new ways' beacons measured (no reference cell
+    lost); the one that removes the most excess per metre added goes in while that is at
+    least :data:`SPLIT_MIN_RATE`, :data:`SPLIT_ROUNDS` times at most."""
+    nodes = pruner.ways.radio.nodes
+    for _ in range(SPLIT_ROUNDS):
+        excess = np.maximum(class_error(pruner.signature, nodes) - cap, 0.0)
+        wide = np.flatnonzero(excess > 0.0)
+        if not len(wide):
+            return
+        classes: dict[int, list[int]] = {}
+        for cell, signature in zip(wide.tolist(), pruner.signature[wide].tolist(),
+                                   strict=True):
+            classes.setdefault(signature, []).append(cell)
+        order = pruner.order()
+        tour = cKDTree(listeners.nodes[order])
+        candidates: list[int] = []
+        for members in sorted(classes.values(), key=lambda m: -excess[m].sum())[:SPLIT_CLASSES]:
+            heard = np.bincount(np.concatenate(listeners.receivers_many(nodes[members])),
+                                minlength=len(listeners.nodes)) / len(members)
+            points = np.flatnonzero((heard >= SPLIT_SHARE) & (heard <= 1.0 - SPLIT_SHARE))
+            if len(points):
+                near, _ = tour.query(listeners.nodes[points])
+                candidates += points[np.argsort(near, kind="stable")][:SPLIT_CANDIDATES].tolist()
+        best, pick = 0.0, None
+        for site in dict.fromkeys(candidates):
+            after = _cheapest_after(pruner, order, site, cost)
+            tried = None if after is None else pruner.split(site, after, cap)
+            if tried is not None and (rate := tried[1] / max(tried[0], 1.0)) > best:
+                best, pick = rate, (site, after)
+        if pick is None or best < SPLIT_MIN_RATE:
+            return
+        pruner.insert(*pick)
 
 
 #: Plans of the last maps seen, per coverage-map radio (one per map and cell settings, shared

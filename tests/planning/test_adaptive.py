@@ -183,6 +183,26 @@ def test_wide_passes_round_the_ring_count_down_and_keep_the_spirals_time_limit()
     assert adaptive.max_episode_steps == AOASSEnv(field_size=200.0).max_episode_steps
 
 
+def test_the_rules_beacon_interval_sets_the_anchors_broadcasts_not_the_spirals_waypoints():
+    base = AOASSEnv(action_type="adaptive", field_size=60.0, obstacle_density=0.0, n_nodes=20,
+                    n_moving_obstacles=0)
+    dense = AOASSEnv(action_type="adaptive", adaptive={"beacon_interval": 1.0},
+                     field_size=60.0, obstacle_density=0.0, n_nodes=20, n_moving_obstacles=0)
+    assert base.config.beacon_interval == 2.0 and dense.config.beacon_interval == 1.0
+    assert dense.config.path_step == base.config.path_step == 2.0
+    assert dense.max_episode_steps == base.max_episode_steps
+    counts = []
+    for env in (base, dense):
+        env.reset(seed=3)
+        np.testing.assert_array_equal(env.sim.path.waypoints, base.sim.path.waypoints)
+        for _ in range(60):
+            env.step(np.zeros(env.action_space.shape, np.float32))
+        counts.append(env.sim.network.beacons_sent / env.sim.network.distance_travelled)
+    assert counts[0] == pytest.approx(0.5, abs=0.05) and counts[1] == pytest.approx(1.0, abs=0.05)
+    with pytest.raises(ConfigError, match="beacon_interval"):
+        AdaptiveConfig(beacon_interval=0.0)
+
+
 @pytest.mark.parametrize(("side_rate", "round_below"), [(0.5, True), (1000.0, False)])
 def test_a_detour_goes_round_the_side_where_coverage_is_missing(side_rate, round_below):
     """The shortest way round the block passes above it, where beacons already covered the

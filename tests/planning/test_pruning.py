@@ -119,12 +119,14 @@ def test_class_error_groups_the_cells_that_hear_the_same_beacons(heard, seed):
     np.testing.assert_allclose(class_error(signature, centres), expected, atol=1e-9)
 
 
-def _oracle_class_error(sim: Simulator, stops: np.ndarray) -> np.ndarray:
-    """Every cell's class error under the plan through ``stops``, from its beacons laid again
-    and grouped by the cells' heard multisets of beacon points."""
+def _oracle_class_error(sim: Simulator, stops: np.ndarray, points: np.ndarray | None = None
+                        ) -> np.ndarray:
+    """Every cell's class error under the plan through ``stops`` (of ``points``, default the
+    spiral's waypoints), from its beacons laid again and grouped by the cells' heard multisets
+    of beacon points."""
     cov = sim.coverage_map
     heard: list[list[tuple[float, float]]] = [[] for _ in range(cov.n_cells)]
-    for p in _planned_beacons(sim, stops):
+    for p in _planned_beacons(sim, stops, points):
         for cell in cov.radio.receivers(p):
             heard[cell].append((p[0], p[1]))
     groups: dict[tuple, list[int]] = {}
@@ -226,6 +228,31 @@ def test_a_site_tour_starts_at_the_spiral_start_and_its_beacons_cover_the_refere
     assert plan.length < spiral.length
 
 
+def test_a_site_tour_with_an_error_limit_splits_the_wide_classes():
+    """Oracle: with ``error_limit`` the site tour's reference cells lie in narrower classes
+    (class errors from the plan's beacons laid again) above the cap the split aims at (the
+    larger of the limit squared and the whole spiral's), for a longer tour."""
+    limit = 2.0
+    config = CONFIG.replace(field_size=80.0, obstacle_density=0.3)
+    obstacle_map = generate_map(80.0, 0.3, np.random.default_rng([8801, 3]))
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=obstacle_map)
+    cov = sim.coverage_map
+    args = (sim.path.waypoints, sim.path.blocked, sim.start_index, sim.planner, cov.radio,
+            cov.n_cells, config.beacon_interval, config.collinearity_tol, (6, 2.0))
+    bare = plan_sites(*args)
+    split = plan_sites(*args, error_limit=limit)
+    whole = prune_spiral(*args, min_gain=1e9)          # nothing removed: the whole spiral
+    assert np.array_equal(split.reference, bare.reference)
+    cap = np.maximum(_oracle_class_error(sim, whole.order), limit**2)[split.reference]
+
+    def excess(plan) -> float:
+        error = _oracle_class_error(sim, plan.order, plan.points)[plan.reference]
+        return np.maximum(error - cap, 0.0).sum()
+
+    assert excess(split) < 0.8 * excess(bare)
+    assert bare.length < split.length < whole.length
+
+
 def test_an_insertion_adds_its_ways_beacons_and_length():
     """Oracle: after :meth:`_Pruner.insert`, the statistics and length are those of a pruner
     built afresh on the new order, and :meth:`_Pruner.insertion` said how much longer."""
@@ -250,6 +277,34 @@ def test_an_insertion_adds_its_ways_beacons_and_length():
     fresh = pruning._Pruner(ways, pruner.order(), CONFIG.collinearity_tol, (3, 1.0))
     np.testing.assert_allclose(pruner.total, fresh.total, atol=1e-6)
     assert np.array_equal(pruner.reference, fresh.reference)
+    assert np.array_equal(pruner.signature, fresh.signature)
+
+
+def test_a_split_removes_the_class_error_it_says():
+    """Oracle: :meth:`_Pruner.split`'s excess removed is the drop of the cells' class errors
+    above the cap, each from the plan's beacons laid again and grouped by heard multisets."""
+    sim = Simulator(CONFIG, np.random.default_rng(0), obstacle_map=BLOCKS)
+    cov = sim.coverage_map
+    points = sim.planner.main_cells(8)
+    ways = pruning._Ways(points, sim.planner, cov.radio, cov.n_cells, CONFIG.beacon_interval)
+    pruner = pruning._Pruner(ways, [0, 20, 40, 60], CONFIG.collinearity_tol, (3, 1.0))
+    cap = np.full(cov.n_cells, 4.0)
+
+    def excess() -> float:
+        return np.maximum(_oracle_class_error(sim, pruner.order(), points) - cap, 0.0).sum()
+
+    before = excess()
+    assert before > 0.0
+    removed = []
+    for site, after in ((30, 20), (70, 60), (10, 0)):
+        length = pruner.length()
+        extra, gone = pruner.split(site, after, cap)
+        pruner.insert(site, after)
+        assert pruner.length() == pytest.approx(length + extra)
+        assert excess() == pytest.approx(before - gone, abs=1e-6)
+        before -= gone
+        removed.append(gone)
+    assert max(removed) > 0.0
 
 
 @pytest.mark.parametrize("sites", [False, True])
