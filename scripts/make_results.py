@@ -4,7 +4,9 @@ Run: ``python3 scripts/make_results.py [--workers W] [--skip-runs | --presets P 
 
 1. Runs ``evaluate.py --preset P --seeds S`` for each preset of :data:`SEEDS` (or only those of
    ``--presets``) into ``out/P``. The sweeps resume: episodes already in ``out/P/episodes.csv``
-   are not run again, so an interrupted regeneration continues where it stopped.
+   are not run again, so an interrupted regeneration continues where it stopped; the episodes
+   of a method whose config defaults or checkpoints changed since they ran are dropped and run
+   again (``--discard-changed``), those of the other methods kept.
 2. Reads the episodes back (only the seeds of :data:`SEEDS`, so a folder that holds more seeds
    gives the same page; the figures are drawn from the same rows) and the wall times that
    ``evaluate.py`` recorded in ``out/P/runs.jsonl``. The ``robustness`` preset is optional: a
@@ -65,7 +67,8 @@ def run_presets(out: Path, seeds: dict[str, int], workers: int | None) -> None:
     """``evaluate.py`` for every preset (resumable); exits with its status if one fails."""
     for preset, n in seeds.items():
         argv = ["--preset", preset, "--seeds", str(n), "--out", str(out / preset),
-                "--no-progress"] + (["--workers", str(workers)] if workers else [])
+                "--discard-changed", "--no-progress"] + (
+                    ["--workers", str(workers)] if workers else [])
         print(f"== evaluate.py {' '.join(argv)}", flush=True)
         status = cli.main(argv)
         if status != 0:

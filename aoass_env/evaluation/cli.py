@@ -27,7 +27,6 @@ from aoass_env.evaluation.methods import (
     DEFAULT_POLICY,
     METHODS,
     RunOptions,
-    config_defaults_digest,
     select_methods,
 )
 from aoass_env.evaluation.report import (
@@ -39,11 +38,11 @@ from aoass_env.evaluation.report import (
     write_summary_csv,
 )
 from aoass_env.evaluation.store import (
-    CONFIG_DEFAULTS,
     NO_LOCALIZER,
     EpisodeStore,
     EvaluationError,
     check_inputs,
+    config_input,
     file_digest,
     record_run,
 )
@@ -133,6 +132,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="run record (run.yml of train.py) of the stack the policy was "
                              "trained in (default: the run.yml beside --policy; a policy "
                              "without one is refused)")
+    parser.add_argument("--discard-changed", action="store_true",
+                        help="resuming DIR: drop the episodes of the methods whose config "
+                             "defaults or checkpoints changed since they ran, and run them "
+                             "again (without it such a resume is refused)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
 
@@ -194,20 +197,28 @@ def main(argv: list[str] | None = None) -> int:
             out = args.out or Path("out") / preset.name
             jobs = episode_jobs(preset, methods, localizers, args.seeds)
             title = f"AOASS evaluation: preset {preset.name}"
-        inputs = {} if args.logs is not None else {CONFIG_DEFAULTS: config_defaults_digest()}
+        # what each method's rows were made with, and the methods each input concerns
+        inputs: dict[str, str] = {}
+        scope: dict[str, list[str]] = {}
         record = None
-        own = [METHODS[m] for m in methods if METHODS[m].checkpoint] if args.logs is None else []
-        for spec in own:
-            inputs[f"{spec.name} checkpoint"] = file_digest(
-                spec.checkpoint, spec.checkpoint.with_name("run.yml"))
-        if args.logs is None and any(METHODS[m].uses_policy for m in methods):
-            record = _check_policy(args.policy, args.policy_run)
-            inputs["policy"] = file_digest(args.policy, record)
+        if args.logs is None:
+            for name in methods:
+                spec = METHODS[name]
+                inputs[config_input(name)] = spec.defaults_digest
+                scope[config_input(name)] = [name]
+                if spec.checkpoint:
+                    inputs[f"{name} checkpoint"] = file_digest(
+                        spec.checkpoint, spec.checkpoint.with_name("run.yml"))
+                    scope[f"{name} checkpoint"] = [name]
+            scope["policy"] = [m for m in methods if METHODS[m].uses_policy]
+            if scope["policy"]:
+                record = _check_policy(args.policy, args.policy_run)
+                inputs["policy"] = file_digest(args.policy, record)
         if "olstm-dvhop" in localizers:
             inputs["olstm-dvhop"] = file_digest(DEFAULT_CHECKPOINT)
         backend = make_backend(args.backend, workers=args.workers, address=args.address)
         store = EpisodeStore(out / "episodes.csv")
-        check_inputs(store, inputs)
+        check_inputs(store, inputs, scope, discard=args.discard_changed)
     except (EvaluationError, BackendError) as exc:
         parser.error(str(exc))
 

@@ -52,14 +52,20 @@ __all__ = ["DEFAULT_POLICY", "METHODS", "MethodRun", "MethodSpec",
            "RunOptions", "config_defaults_digest", "select_methods"]
 
 
-def config_defaults_digest() -> str:
-    """SHA-256 (hex) of the defaults of the configs the methods are built from (AOASSConfig,
-    AdaptiveConfig: the rule, SafetyConfig, TrackerConfig): rows made with other defaults (a
-    rule's threshold tuned since) must not be mixed with this run's in one table."""
-    defaults = {cls.__name__: cls().to_dict()
-                for cls in (AOASSConfig, AdaptiveConfig, SafetyConfig, TrackerConfig)}
+def config_defaults_digest(configs: Sequence[type]) -> str:
+    """SHA-256 (hex) of the defaults of the config classes ``configs``: a method's rows made
+    with other defaults of the configs it is built from (a rule's threshold tuned since) must
+    not be mixed with this run's in one table (:attr:`MethodSpec.configs`)."""
+    defaults = {cls.__name__: cls().to_dict() for cls in configs}
     text = json.dumps(defaults, sort_keys=True, default=repr)
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+#: The configs whose defaults a method's episodes depend on: every method's (the environment),
+#: the safety stack's and the adaptive sweep's rule.
+PLAIN_CONFIGS: tuple[type, ...] = (AOASSConfig,)
+STACK_CONFIGS: tuple[type, ...] = (AOASSConfig, SafetyConfig, TrackerConfig)
+ADAPTIVE_CONFIGS: tuple[type, ...] = (*STACK_CONFIGS, AdaptiveConfig)
 
 #: The shipped AOASS policy and the algorithm that saved it.
 DEFAULT_POLICY = shipped_dir("checkpoints") / "aoass_td3_lstm" / "best.zip"
@@ -124,8 +130,8 @@ Runner = Callable[[AOASSConfig, ObstacleMap, int, RunOptions], MethodRun]
 class MethodSpec:
     """One evaluated method: command-line name, label for tables and figures, kind ("aoass",
     "ablation", "spiral", "classical" or "baseline"), runner, whether it needs the policy
-    checkpoint of ``--policy``, and a shipped checkpoint of its own it needs (with the command
-    that produces it), if any."""
+    checkpoint of ``--policy``, a shipped checkpoint of its own it needs (with the command
+    that produces it), if any, and the config classes whose defaults its episodes depend on."""
 
     name: str
     label: str
@@ -134,6 +140,12 @@ class MethodSpec:
     uses_policy: bool = False
     checkpoint: Path | None = None
     checkpoint_command: str = ""
+    configs: tuple[type, ...] = PLAIN_CONFIGS
+
+    @property
+    def defaults_digest(self) -> str:
+        """:func:`config_defaults_digest` of :attr:`configs`."""
+        return config_defaults_digest(self.configs)
 
     @property
     def available(self) -> bool:
@@ -247,18 +259,22 @@ def _run_planned(method: PlannedMethod, config: AOASSConfig, obstacle_map: Obsta
 def _registry() -> dict[str, MethodSpec]:
     methods = {
         "aoass": MethodSpec("aoass", "AOASS", "aoass",
-                            functools.partial(_run_safety_stack, learned=True), uses_policy=True),
+                            functools.partial(_run_safety_stack, learned=True), uses_policy=True,
+                            configs=STACK_CONFIGS),
         "aoass-scripted": MethodSpec("aoass-scripted", "AOASS, zero action (ablation)",
                                      "ablation",
-                                     functools.partial(_run_safety_stack, learned=False)),
+                                     functools.partial(_run_safety_stack, learned=False),
+                                     configs=STACK_CONFIGS),
         "aoass-rule": MethodSpec("aoass-rule", "AOASS, adaptive rule", "ablation",
                                  functools.partial(_run_safety_stack, learned=False,
-                                                   adaptive=True)),
+                                                   adaptive=True),
+                                 configs=ADAPTIVE_CONFIGS),
         "aoass-adaptive": MethodSpec("aoass-adaptive", "AOASS, adaptive policy", "aoass",
                                      functools.partial(_run_safety_stack, learned=True,
                                                        adaptive=True),
                                      checkpoint=ADAPTIVE_POLICY,
-                                     checkpoint_command=ADAPTIVE_POLICY_COMMAND),
+                                     checkpoint_command=ADAPTIVE_POLICY_COMMAND,
+                                     configs=ADAPTIVE_CONFIGS),
         "spiral": MethodSpec("spiral", "Square spiral", "spiral", _run_spiral),
     }
     for kind, planned in (("classical", CLASSICAL_METHODS), ("baseline", BASELINE_METHODS)):

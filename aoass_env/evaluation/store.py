@@ -17,6 +17,7 @@ import json
 import math
 import os
 import warnings
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -25,8 +26,8 @@ from aoass_env.atomic import write_text_atomic
 
 __all__ = ["COLUMNS", "CONFIG_DEFAULTS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS",
            "LOCALIZATION_FIELDS", "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey", "EpisodeStore",
-           "EvaluationError", "check_inputs", "RUNS_FILE", "comparable_lines", "file_digest",
-           "read_episodes", "read_runs", "record_run", "row_key"]
+           "EvaluationError", "check_inputs", "RUNS_FILE", "comparable_lines", "config_input",
+           "file_digest", "read_episodes", "read_runs", "record_run", "row_key"]
 
 
 class EvaluationError(ValueError):
@@ -169,30 +170,44 @@ def file_digest(*paths: str | os.PathLike[str]) -> str:
     return digest.hexdigest()
 
 
-#: The input name (:func:`check_inputs`) of the config defaults every method is built from.
+#: The input names (:func:`check_inputs`) of the config defaults a method is built from start
+#: with this (:func:`config_input`); a record of an older evaluate.py holds it alone, for the
+#: defaults of every method's configs.
 CONFIG_DEFAULTS = "config defaults"
+
+
+def config_input(method: str) -> str:
+    """The input name of the config defaults ``method`` is built from: "config defaults of
+    spiral"."""
+    return f"{CONFIG_DEFAULTS} of {method}"
 
 
 def _input_phrase(name: str) -> str:
     """How an input of :func:`check_inputs` is named in its refusal: "another policy
-    checkpoint", "another aoass-adaptive checkpoint", "other config defaults"."""
-    if name == CONFIG_DEFAULTS:
-        return "other config defaults"
+    checkpoint", "another aoass-adaptive checkpoint", "other config defaults of spiral"."""
+    if name.startswith(CONFIG_DEFAULTS):
+        return f"other {name}"
     return f"another {name.removesuffix(' checkpoint')} checkpoint"
 
 
-def check_inputs(store: EpisodeStore, inputs: dict[str, str]) -> None:
-    """Refuse to resume ``store`` with other checkpoints than its rows were produced with.
+def check_inputs(store: EpisodeStore, inputs: dict[str, str],
+                 scope: Mapping[str, Collection[str]] | None = None,
+                 discard: bool = False) -> None:
+    """Refuse to resume ``store`` with other checkpoints or config defaults than its rows were
+    produced with, or with ``discard`` drop those rows (the episodes then run again).
 
-    ``inputs`` maps a name (``"policy"``, ``"olstm-dvhop"``, ``"config defaults"``) to the
-    digest (:func:`file_digest`, or the methods' config defaults') of what that name stands
-    for. They are recorded in
-    :data:`INPUTS_FILE` beside the CSV (written atomically, merged with earlier records; while
-    the CSV has no rows, a new digest simply replaces the recorded one).
+    ``inputs`` maps a name (``"policy"``, ``"olstm-dvhop"``, :func:`config_input` of a
+    method) to the digest (:func:`file_digest`, or :func:`~aoass_env.evaluation.methods.
+    config_defaults_digest`) of what that name stands for; ``scope`` maps a name to the
+    methods whose rows depend on it (a name not in it: every row). An input changed for the
+    rows in its scope when the record gives another digest, or none while such rows exist
+    (they were made by an older evaluate.py that did not record it). The inputs are recorded
+    in :data:`INPUTS_FILE` beside the CSV (written atomically, merged with earlier records;
+    while no row depends on a name, a new digest simply replaces the recorded one).
 
     Raises:
-        EvaluationError: the CSV holds rows and the record gives another digest for a name,
-            i.e. resuming would mix episodes of two checkpoints in one table.
+        EvaluationError: without ``discard``, an input changed for some rows, i.e. resuming
+            would mix episodes of two checkpoints or two sets of defaults in one table.
     """
     record_path = store.path.with_name(INPUTS_FILE)
     recorded: dict[str, str] = {}
@@ -202,15 +217,22 @@ def check_inputs(store: EpisodeStore, inputs: dict[str, str]) -> None:
         except (OSError, TypeError, ValueError) as exc:
             raise EvaluationError(f"{record_path} is unreadable ({exc}); delete it and "
                                   f"{store.path}, or choose another --out folder") from None
-    if store.rows:
-        changed = [_input_phrase(name) for name, value in inputs.items()
-                   if recorded.get(name, value) != value]
-        if changed:
-            raise EvaluationError(
-                f"{store.path} holds episodes produced with {' and '.join(changed)} than "
-                f"this run's ({record_path} records their SHA-256); resuming would mix the "
-                f"two in one table. Delete {store.path} (or the folder), or choose another "
-                f"--out folder")
+    present = {row["method"] for row in store.rows}
+    changed: dict[str, set[str]] = {}
+    for name, value in inputs.items():
+        methods = present if scope is None or name not in scope else present & set(scope[name])
+        if methods and recorded.get(name) != value:
+            changed[name] = methods
+    if changed and not discard:
+        stale = sorted(set().union(*changed.values()))
+        raise EvaluationError(
+            f"{store.path} holds episodes of {', '.join(stale)} produced with "
+            f"{' and '.join(_input_phrase(n) for n in changed)} than this run's "
+            f"({record_path} records their SHA-256); resuming would mix the two in one "
+            f"table. Run again with --discard-changed to drop those episodes and run them "
+            f"anew, delete {store.path} (or the folder), or choose another --out folder")
+    if changed:
+        store.discard(set().union(*changed.values()))
     try:
         write_text_atomic(record_path, json.dumps(recorded | inputs, indent=1,
                                                   sort_keys=True) + "\n")
@@ -278,6 +300,18 @@ class EpisodeStore:
             raise EvaluationError(f"cannot write the output folder {self.path.parent}: "
                                   f"{exc.strerror or exc}") from None
         #: (episode key, localizer) pairs already in the file
+        self.done = {row_key(r) for r in self.rows}
+
+    def discard(self, methods: Collection[str]) -> None:
+        """Drop the rows of ``methods`` from the file (rewritten atomically): their episodes
+        count as not done."""
+        self._file.close()
+        self.rows = [r for r in self.rows if r["method"] not in methods]
+        try:
+            write_text_atomic(self.path, _csv_text(self.rows, header=True))
+            self._file = open(self.path, "a", encoding="utf-8", newline="")  # noqa: SIM115
+        except OSError as exc:
+            raise EvaluationError(f"cannot write {self.path}: {exc.strerror or exc}") from None
         self.done = {row_key(r) for r in self.rows}
 
     def append(self, rows: list[dict[str, Any]]) -> None:

@@ -9,9 +9,16 @@ from dataclasses import replace
 
 import pytest
 
+from aoass_env.config import AOASSConfig
 from aoass_env.evaluation import cli, methods
 from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, POLICY_COMMAND
-from aoass_env.evaluation.store import COLUMNS, NO_LOCALIZER, read_episodes, read_runs
+from aoass_env.evaluation.store import (
+    COLUMNS,
+    NO_LOCALIZER,
+    comparable_lines,
+    read_episodes,
+    read_runs,
+)
 from aoass_env.evaluation.sweep import PRESETS, robustness_seed
 from aoass_env.localization import METHODS as LOCALIZERS
 from aoass_env.planning import AdaptiveConfig
@@ -116,32 +123,57 @@ def test_resuming_with_another_policy_fails_before_any_work(smoke_run, capsys, t
     # records first.zip's digest before any episode (the run is then cut short)
     monkeypatch.setattr(cli, "run_jobs", interrupted)
     assert cli.main([*argv, "--policy", str(first)]) == 130
+    # the folder holds no aoass episode yet: another policy has nothing to mix with
+    assert cli.main([*argv, "--policy", str(second)]) == 130
+    assert cli.main([*argv, "--policy", str(first)]) == 130
     capsys.readouterr()
+    # aoass episodes made with first.zip (the spiral's rows, relabelled)
+    text = (tmp_path / "episodes.csv").read_text()
+    (tmp_path / "episodes.csv").write_text(text.replace("\nspiral,", "\naoass,"))
     before = (tmp_path / "episodes.csv").read_text()
+    assert before != text
     err = _usage_error(capsys, [*argv, "--policy", str(second)])
     assert "another policy checkpoint" in err and str(tmp_path / "episodes.csv") in err
     assert (tmp_path / "episodes.csv").read_text() == before
 
 
-def test_resuming_with_other_config_defaults_is_refused(smoke_run, monkeypatch, capsys,
-                                                       tmp_path):
-    """A rule's default tuned since the rows were made: resuming would mix the two rules."""
+def test_resuming_with_other_config_defaults_is_refused_for_the_methods_built_on_them(
+        smoke_run, monkeypatch, capsys, tmp_path):
+    """A default tuned since the rows were made: resuming would mix two settings for the
+    methods built on that config, and --discard-changed runs their episodes again."""
     out, _ = smoke_run
     for name in ("episodes.csv", "inputs.json"):
         shutil.copy(out / name, tmp_path / name)
-    assert methods.config_defaults_digest() == methods.config_defaults_digest()
-
-    def tuned() -> AdaptiveConfig:
-        return AdaptiveConfig(dense_above=AdaptiveConfig().dense_above / 2)
-
-    tuned.__name__ = "AdaptiveConfig"
-    monkeypatch.setattr(methods, "AdaptiveConfig", tuned)
+    spec = METHODS["spiral"]
+    assert spec.defaults_digest == methods.config_defaults_digest((AOASSConfig,))
+    assert METHODS["aoass-rule"].defaults_digest != spec.defaults_digest
+    assert AdaptiveConfig not in spec.configs and AdaptiveConfig in METHODS["aoass-rule"].configs
     argv = ["--preset", "smoke", "--methods", "spiral", "--localizers", "dvhop",
             "--out", str(tmp_path), "--no-progress"]
     before = (tmp_path / "episodes.csv").read_text()
-    err = _usage_error(capsys, argv)
-    assert "produced with other config defaults than this run's" in err
+
+    def tuned_rule() -> AdaptiveConfig:
+        return AdaptiveConfig(dense_above=AdaptiveConfig().dense_above / 2)
+
+    tuned_rule.__name__ = "AdaptiveConfig"
+    monkeypatch.setitem(METHODS, "aoass-rule",
+                        replace(METHODS["aoass-rule"], configs=(AOASSConfig, tuned_rule)))
+    assert cli.main(argv) == 0                     # the rule's defaults: not the spiral's
     assert (tmp_path / "episodes.csv").read_text() == before
+
+    def tuned() -> AOASSConfig:
+        return AOASSConfig(edge_margin=AOASSConfig().edge_margin / 2)
+
+    tuned.__name__ = "AOASSConfig"
+    monkeypatch.setitem(METHODS, "spiral", replace(spec, configs=(tuned,)))
+    err = _usage_error(capsys, argv)
+    assert "episodes of spiral produced with other config defaults of spiral than" in err
+    assert "--discard-changed" in err
+    assert (tmp_path / "episodes.csv").read_text() == before
+    assert cli.main([*argv, "--discard-changed", "--workers", "1"]) == 0
+    # the same episodes again (the tuned default never reached them)
+    assert comparable_lines(tmp_path / "episodes.csv") == comparable_lines(out / "episodes.csv")
+    assert (tmp_path / "episodes.csv").read_text() != before       # timings are new
 
 
 def test_unwritable_output_folder_fails_before_any_work(capsys, tmp_path):

@@ -1,5 +1,6 @@
 """episodes.csv: schema, appending, a half-written last line, other schemas, bad folders."""
 
+import json
 import math
 
 import pytest
@@ -15,6 +16,7 @@ from aoass_env.evaluation.store import (
     EvaluationError,
     check_inputs,
     comparable_lines,
+    config_input,
     file_digest,
     read_episodes,
     read_runs,
@@ -127,17 +129,64 @@ def test_resuming_with_another_checkpoint_is_refused_and_nothing_is_lost(tmp_pat
             check_inputs(store, {"policy": "ccc", "olstm-dvhop": "bbb"})
     assert "episodes.csv" in str(exc.value) and "--out" in str(exc.value)
     assert (tmp_path / INPUTS_FILE).read_text() == record   # the record is kept as it was
+    own = {"aoass-adaptive checkpoint": ["aoass-adaptive"]}
     with EpisodeStore(tmp_path / "episodes.csv") as store:  # a method's own checkpoint
-        check_inputs(store, {"aoass-adaptive checkpoint": "ddd"})
+        check_inputs(store, {"aoass-adaptive checkpoint": "ddd"}, own)   # no rows of it yet
         with pytest.raises(EvaluationError) as exc:
-            check_inputs(store, {"aoass-adaptive checkpoint": "eee"})
+            check_inputs(store, {"aoass-adaptive checkpoint": "eee"})   # every row its scope
     assert "another aoass-adaptive checkpoint than this run's" in str(exc.value)
-    with EpisodeStore(tmp_path / "episodes.csv") as store:  # the methods' config defaults
-        check_inputs(store, {CONFIG_DEFAULTS: "fff"})
+    with EpisodeStore(tmp_path / "episodes.csv") as store:  # defaults never recorded for rows
         with pytest.raises(EvaluationError) as exc:
-            check_inputs(store, {CONFIG_DEFAULTS: "ggg", "policy": "ccc"})
-    assert "with other config defaults and another policy checkpoint than" in str(exc.value)
+            check_inputs(store, {config_input("spiral"): "ggg", "policy": "ccc"})
+    assert ("episodes of spiral produced with other config defaults of spiral and another "
+            "policy checkpoint than" in str(exc.value))
     assert (tmp_path / "episodes.csv").read_text() == csv_text
+
+
+def test_changed_inputs_concern_the_methods_of_their_scope_whose_rows_can_be_discarded(
+        tmp_path):
+    path = tmp_path / "episodes.csv"
+    scope = {config_input("spiral"): ["spiral"], config_input("aoass-rule"): ["aoass-rule"],
+             "aoass-adaptive checkpoint": ["aoass-adaptive"]}
+    inputs = {config_input("spiral"): "s1", config_input("aoass-rule"): "r1",
+              "aoass-adaptive checkpoint": "c1"}
+    with EpisodeStore(path) as store:
+        check_inputs(store, inputs, scope)
+        store.append([row(0)])
+        store.append([row(0, method="aoass-rule"), row(0, "olstm-dvhop", method="aoass-rule")])
+        store.append([row(1)])
+    spiral_rows = [line for line in path.read_text().splitlines(keepends=True)
+                   if line.startswith("spiral,")]
+    tuned = {**inputs, config_input("aoass-rule"): "r2"}
+    with EpisodeStore(path) as store:
+        with pytest.raises(EvaluationError) as exc:
+            check_inputs(store, tuned, scope)
+        check_inputs(store, {**inputs, "aoass-adaptive checkpoint": "c2"}, scope)  # no rows
+    assert ("episodes of aoass-rule produced with other config defaults of aoass-rule than"
+            in str(exc.value) and "--discard-changed" in str(exc.value))
+    assert len(path.read_text().splitlines()) == 5
+    with EpisodeStore(path) as store:
+        check_inputs(store, tuned, scope, discard=True)
+        assert {r["method"] for r in store.rows} == {"spiral"} and len(store.done) == 2
+        store.append([row(0, method="aoass-rule")])               # runs again
+    lines = path.read_text().splitlines(keepends=True)
+    assert lines[1:3] == spiral_rows and lines[3].startswith("aoass-rule,")
+    assert json.loads((tmp_path / INPUTS_FILE).read_text())[config_input("aoass-rule")] == "r2"
+    with EpisodeStore(path) as store:                            # resumes with the new digest
+        check_inputs(store, tuned, scope)
+        assert len(store.rows) == 3
+
+
+def test_a_record_of_one_digest_for_every_methods_defaults_is_not_resumed(tmp_path):
+    """An older evaluate.py recorded one digest of every method's config defaults: which
+    methods' rows it covered is unknown, so they count as changed."""
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        check_inputs(store, {CONFIG_DEFAULTS: "old"})
+        store.append([row()])
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        with pytest.raises(EvaluationError, match="other config defaults of spiral"):
+            check_inputs(store, {config_input("spiral"): "s1"},
+                         {config_input("spiral"): ["spiral"]})
 
 
 def test_a_new_or_empty_store_records_the_inputs_of_its_run(tmp_path):
