@@ -199,10 +199,9 @@ def test_plans_are_cached_per_map_and_settings():
     assert len(made) == 2
 
 
-@pytest.mark.parametrize("density", [0.0, 0.3])
-def test_a_site_tour_starts_at_the_spiral_start_and_its_beacons_cover_the_reference(density):
-    """Oracle: the site tour's beacons laid again from scratch along the planner's ways cover
-    (nearly) every cell the whole spiral covers, with a shorter way than the pruned spiral's."""
+def _planning(density: float) -> tuple[Simulator, tuple]:
+    """A simulator on BLOCKS (density 0) or a generated 80 m map, and the planners' arguments
+    of its spiral (margin 6 beacons, 2x the spread)."""
     if density == 0.0:
         obstacle_map, config = BLOCKS, CONFIG
     else:
@@ -210,8 +209,16 @@ def test_a_site_tour_starts_at_the_spiral_start_and_its_beacons_cover_the_refere
         obstacle_map = generate_map(80.0, density, np.random.default_rng([8801, 3]))
     sim = Simulator(config, np.random.default_rng(0), obstacle_map=obstacle_map)
     cov = sim.coverage_map
-    args = (sim.path.waypoints, sim.path.blocked, sim.start_index, sim.planner, cov.radio,
-            cov.n_cells, config.beacon_interval, config.collinearity_tol, (6, 2.0))
+    return sim, (sim.path.waypoints, sim.path.blocked, sim.start_index, sim.planner, cov.radio,
+                 cov.n_cells, config.beacon_interval, config.collinearity_tol, (6, 2.0))
+
+
+@pytest.mark.parametrize("density", [0.0, 0.3])
+def test_a_site_tour_starts_at_the_spiral_start_and_its_beacons_cover_the_reference(density):
+    """Oracle: the site tour's beacons laid again from scratch along the planner's ways cover
+    (nearly) every cell the whole spiral covers, with a shorter way than the pruned spiral's."""
+    sim, args = _planning(density)
+    config, obstacle_map = sim.config, sim.map
     plan = plan_sites(*args)
     spiral = prune_spiral(*args, reorder=True)
     assert np.array_equal(plan.reference, spiral.reference)
@@ -233,12 +240,7 @@ def test_a_site_tour_with_an_error_limit_splits_the_wide_classes():
     (class errors from the plan's beacons laid again) above the cap the split aims at (the
     larger of the limit squared and the whole spiral's), for a longer tour."""
     limit = 2.0
-    config = CONFIG.replace(field_size=80.0, obstacle_density=0.3)
-    obstacle_map = generate_map(80.0, 0.3, np.random.default_rng([8801, 3]))
-    sim = Simulator(config, np.random.default_rng(0), obstacle_map=obstacle_map)
-    cov = sim.coverage_map
-    args = (sim.path.waypoints, sim.path.blocked, sim.start_index, sim.planner, cov.radio,
-            cov.n_cells, config.beacon_interval, config.collinearity_tol, (6, 2.0))
+    sim, args = _planning(0.3)
     bare = plan_sites(*args)
     split = plan_sites(*args, error_limit=limit)
     whole = prune_spiral(*args, min_gain=1e9)          # nothing removed: the whole spiral
