@@ -364,19 +364,22 @@ class _Pruner:
                        & ~_covered(self.total[cells], self.tol)]
         return sum(w.length for w in new) - sum(w.length for w in old), gained
 
+    def excess(self, cap: np.ndarray, signature: np.ndarray | None = None) -> float:
+        """The cells' :func:`class_error` above ``cap`` (per cell, m^2), summed (m^2), under the
+        plan's signatures or ``signature``."""
+        error = class_error(self.signature if signature is None else signature,
+                            self.ways.radio.nodes)
+        return float(np.maximum(error - cap, 0.0).sum())
+
     def split(self, site: int, after: int, cap: np.ndarray) -> tuple[float, float] | None:
-        """(extra length m, excess removed m^2) of visiting ``site`` right after the kept point
-        ``after``: the excess is the cells' :func:`class_error` above ``cap`` (per cell, m^2),
-        summed; None when the planner finds no way or a reference cell would lose its cover."""
+        """(extra length m, :meth:`excess` m^2 then) of visiting ``site`` right after the kept
+        point ``after``; None when the planner finds no way or a reference cell would lose its
+        cover."""
         old, new = self._around(site, after)
-        if any(w is None for w in new):
+        if any(w is None for w in new) or not self._trial(old, new)[2]:
             return None
-        if not self._trial(old, new)[2]:
-            return None
-        nodes = self.ways.radio.nodes
-        now = np.maximum(class_error(self.signature, nodes) - cap, 0.0).sum()
-        then = np.maximum(class_error(self._signature(old, new), nodes) - cap, 0.0).sum()
-        return sum(w.length for w in new) - sum(w.length for w in old), float(now - then)
+        return (sum(w.length for w in new) - sum(w.length for w in old),
+                self.excess(cap, self._signature(old, new)))
 
     def insert(self, site: int, after: int) -> None:
         """Visit ``site`` right after ``after`` (:meth:`insertion` or :meth:`split` said it
@@ -752,6 +755,7 @@ def _split(pruner: _Pruner, cap: np.ndarray, cost: _Costs, listeners: Radio) -> 
         wide = np.flatnonzero(excess > 0.0)
         if not len(wide):
             return
+        now = float(excess.sum())
         classes: dict[int, list[int]] = {}
         for cell, signature in zip(wide.tolist(), pruner.signature[wide].tolist(),
                                    strict=True):
@@ -770,7 +774,7 @@ def _split(pruner: _Pruner, cap: np.ndarray, cost: _Costs, listeners: Radio) -> 
         for site in dict.fromkeys(candidates):
             after = _cheapest_after(pruner, order, site, cost)
             tried = None if after is None else pruner.split(site, after, cap)
-            if tried is not None and (rate := tried[1] / max(tried[0], 1.0)) > best:
+            if tried is not None and (rate := (now - tried[1]) / max(tried[0], 1.0)) > best:
                 best, pick = rate, (site, after)
         if pick is None or best < SPLIT_MIN_RATE:
             return

@@ -283,8 +283,9 @@ def test_an_insertion_adds_its_ways_beacons_and_length():
 
 
 def test_a_split_removes_the_class_error_it_says():
-    """Oracle: :meth:`_Pruner.split`'s excess removed is the drop of the cells' class errors
-    above the cap, each from the plan's beacons laid again and grouped by heard multisets."""
+    """Oracle: :meth:`_Pruner.excess` now and :meth:`_Pruner.split`'s excess then are the
+    cells' class errors above the cap, summed, each from the plan's beacons laid again and
+    grouped by heard multisets."""
     sim = Simulator(CONFIG, np.random.default_rng(0), obstacle_map=BLOCKS)
     cov = sim.coverage_map
     points = sim.planner.main_cells(8)
@@ -296,16 +297,16 @@ def test_a_split_removes_the_class_error_it_says():
         return np.maximum(_oracle_class_error(sim, pruner.order(), points) - cap, 0.0).sum()
 
     before = excess()
-    assert before > 0.0
+    assert before > 0.0 and pruner.excess(cap) == pytest.approx(before, abs=1e-6)
     removed = []
     for site, after in ((30, 20), (70, 60), (10, 0)):
         length = pruner.length()
-        extra, gone = pruner.split(site, after, cap)
+        extra, then = pruner.split(site, after, cap)
         pruner.insert(site, after)
         assert pruner.length() == pytest.approx(length + extra)
-        assert excess() == pytest.approx(before - gone, abs=1e-6)
-        before -= gone
-        removed.append(gone)
+        assert excess() == pytest.approx(then, abs=1e-6) == pruner.excess(cap)
+        removed.append(before - then)
+        before = then
     assert max(removed) > 0.0
 
 
