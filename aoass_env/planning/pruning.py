@@ -364,22 +364,22 @@ class _Pruner:
                        & ~_covered(self.total[cells], self.tol)]
         return sum(w.length for w in new) - sum(w.length for w in old), gained
 
-    def excess(self, cap: np.ndarray, signature: np.ndarray | None = None) -> float:
-        """The cells' :func:`class_error` above ``cap`` (per cell, m^2), summed (m^2), under the
+    def excess(self, cap: np.ndarray, signature: np.ndarray | None = None) -> np.ndarray:
+        """(C,) every cell's :func:`class_error` above its ``cap`` (m^2; 0 below it), under the
         plan's signatures or ``signature``."""
         error = class_error(self.signature if signature is None else signature,
                             self.ways.radio.nodes)
-        return float(np.maximum(error - cap, 0.0).sum())
+        return np.maximum(error - cap, 0.0)
 
     def split(self, site: int, after: int, cap: np.ndarray) -> tuple[float, float] | None:
-        """(extra length m, :meth:`excess` m^2 then) of visiting ``site`` right after the kept
-        point ``after``; None when the planner finds no way or a reference cell would lose its
-        cover."""
+        """(extra length m, the summed :meth:`excess` then, m^2) of visiting ``site`` right
+        after the kept point ``after``; None when the planner finds no way or a reference cell
+        would lose its cover."""
         old, new = self._around(site, after)
         if any(w is None for w in new) or not self._trial(old, new)[2]:
             return None
         return (sum(w.length for w in new) - sum(w.length for w in old),
-                self.excess(cap, self._signature(old, new)))
+                float(self.excess(cap, self._signature(old, new)).sum()))
 
     def insert(self, site: int, after: int) -> None:
         """Visit ``site`` right after ``after`` (:meth:`insertion` or :meth:`split` said it
@@ -751,7 +751,7 @@ def _split(pruner: _Pruner, cap: np.ndarray, cost: _Costs, listeners: Radio) -> 
     least :data:`SPLIT_MIN_RATE`, :data:`SPLIT_ROUNDS` times at most."""
     nodes = pruner.ways.radio.nodes
     for _ in range(SPLIT_ROUNDS):
-        excess = np.maximum(class_error(pruner.signature, nodes) - cap, 0.0)
+        excess = pruner.excess(cap)
         wide = np.flatnonzero(excess > 0.0)
         if not len(wide):
             return

@@ -432,10 +432,14 @@ class StaticObstacles:
         Returns:
             (m,) int64 edge indices, nearest first (ties in index order).
         """
+        return np.array(self._near(position, reach), dtype=np.int64)
+
+    def _near(self, position: ArrayLike, reach: float) -> list[int]:
+        """:meth:`edges_near`'s indices as a list, the arguments checked."""
         px, py = _vec2("position", position, "m")
         if not (type(reach) is float and 0.0 <= reach < math.inf):
             reach = real("reach", reach, "m", low=0.0)
-        return np.array(self._cache.near(px, py, reach), dtype=np.int64)
+        return self._cache.near(px, py, reach)
 
     def segments_near(self, position: ArrayLike, reach: float) -> tuple[np.ndarray, np.ndarray]:
         """(starts, ends): the end points (m), (m, 2) each, of the :meth:`edges_near` edges
@@ -444,11 +448,8 @@ class StaticObstacles:
         The anchor finds the same few edges period after period: the two arrays are built
         once per list of edges (the last 4096 lists) and shared, read-only.
         """
-        px, py = _vec2("position", position, "m")
-        if not (type(reach) is float and 0.0 <= reach < math.inf):
-            reach = real("reach", reach, "m", low=0.0)
         cache = self._cache
-        near = tuple(cache.near(px, py, reach))
+        near = tuple(self._near(position, reach))
         pair = cache.segments.get(near)
         if pair is None:
             index = np.array(near, dtype=np.int64)
