@@ -32,12 +32,14 @@ from aoass_env.atomic import write_text_atomic
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation import cli
 from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
-from aoass_env.evaluation.methods import select_methods
+from aoass_env.evaluation.methods import METHODS, select_methods
 from aoass_env.evaluation.report import (
     draw_figures,
     label,
     method_stats,
     method_table,
+    paired_ratio,
+    paired_stats,
     robustness_markdown,
 )
 from aoass_env.evaluation.store import read_episodes, read_runs
@@ -61,6 +63,16 @@ OPTIONAL = ("robustness",)
 SECTION = ("<!-- robustness: begin -->", "<!-- robustness: end -->")
 
 Rows = list[dict[str, Any]]
+
+#: The page's AOASS: the adaptive TD3-LSTM policy (issue 19), its zero action (the hand-written
+#: rule), and the residual policy with its zero action, kept as the ablation.
+AOASS, RULE, RESIDUAL, ZERO = "aoass-adaptive", "aoass-rule", "aoass", "aoass-scripted"
+#: The paired comparisons of the page (method, reference, what the pair shows).
+PAIRS = ((AOASS, RULE, "learned against the rule, its zero action"),
+         (RULE, "spiral", "the rule against the plain spiral"),
+         (RESIDUAL, ZERO, "the residual policy against its zero action"))
+#: The densities of issue 19's fresh-map targets.
+FRESH_DENSITIES = (0.1, 0.2, 0.3, 0.4, 0.5)
 
 
 def run_presets(out: Path, seeds: dict[str, int], workers: int | None) -> None:
@@ -123,8 +135,9 @@ def _yes(ok: bool) -> str:
 
 
 def paper_table(fig2: Numbers, fig3: Numbers, fig4: Numbers) -> str:
-    """The paper's claims beside this project's measurements, with a verdict per row."""
-    a = "aoass"
+    """The paper's claims beside this project's measurements, with a verdict per row (AOASS:
+    the adaptive policy, :data:`AOASS`)."""
+    a = AOASS
     lines = ["| quantity | paper | this project (measured, OLSTM-DV-Hop) | agree? |",
              "|---|---|---|---|"]
 
@@ -133,11 +146,12 @@ def paper_table(fig2: Numbers, fig3: Numbers, fig4: Numbers) -> str:
 
     rmse = fig2.mean(a, "rmse")
     row("AOASS RMSE, `fig2` grid", "≈ 1.3 m (target ≤ 1.3 m, stretch 1.0 m)",
-        f"{fig2.rmse(a)} (zero-action stack {fig2.rmse('aoass-scripted')})",
+        f"{fig2.rmse(a)} (rule {fig2.rmse(RULE)}; residual policy {fig2.rmse(RESIDUAL)})",
         f"target {_met(rmse <= 1.3)}, stretch {_met(rmse <= 1.0)}")
     cov = fig2.mean(a, "coverage")
     row("AOASS coverage, `fig2` grid", "≈ 97 % (target ≥ 97 %, stretch 99 %)",
-        f"{fig2.coverage(a)} (zero-action stack {fig2.coverage('aoass-scripted')})",
+        f"{fig2.coverage(a)} (rule {fig2.coverage(RULE)}; residual policy "
+        f"{fig2.coverage(RESIDUAL)})",
         f"target {_met(cov >= 0.97)}, stretch {_met(cov >= 0.99)}")
     for method, paper in (("fdpp", "≈ 1.9 m / 91 %"), ("m-anchoro", "≈ 1.8 m / 93 %"),
                           ("ohm", "≈ 2.35 m / 90 %")):
@@ -177,6 +191,111 @@ def paper_table(fig2: Numbers, fig3: Numbers, fig4: Numbers) -> str:
     return "\n".join(lines)
 
 
+def _signed(stat: tuple[int, float, float, float], spec: str, scale: float = 1.0) -> str:
+    """'+mean ± CI' of a :func:`paired_stats` tuple, times ``scale`` ('–' without a pair)."""
+    n, mean, _, ci = stat
+    if n == 0 or not math.isfinite(mean):
+        return "–"
+    ci_text = "" if not math.isfinite(ci) else f" ± {format(scale * ci, spec.lstrip('+'))}"
+    return f"{format(scale * mean, spec)}{ci_text}"
+
+
+def paired_table(presets: dict[str, Rows | None]) -> str:
+    """The paired comparisons of :data:`PAIRS` on every preset's episodes: the mean difference
+    method − reference over the episodes both played, ± 95 % CI."""
+    lines = ["| comparison | preset | E_total [J] | path [m] | time [s] | coverage [points] | "
+             "RMSE OLSTM-DV-Hop [m] | contacts | n |", "|---|---|---|---|---|---|---|---|---|"]
+    for method, reference, what in PAIRS:
+        for name, rows in presets.items():
+            if not rows:
+                continue
+            cells = [_signed(paired_stats(rows, method, reference, metric), spec, scale)
+                     for metric, spec, scale in (
+                         ("energy_total", "+.0f", 1.0), ("path_length", "+.0f", 1.0),
+                         ("travel_time", "+.0f", 1.0), ("coverage", "+.2f", 100.0),
+                         ("rmse", "+.3f", 1.0), ("collisions", "+.2f", 1.0))]
+            n = paired_stats(rows, method, reference, "energy_total")[0]
+            lines.append(f"| {what}: {label(method)} − {label(reference)} | `{name}` | "
+                         + " | ".join(cells) + f" | {n} |")
+    return "\n".join(lines)
+
+
+def fresh_energy(rows: Rows, method: str, densities: tuple[float, ...] = FRESH_DENSITIES
+                 ) -> tuple[int, float]:
+    """(pairs, ``method``'s E_total / the plain spiral's) on the episodes of ``densities``."""
+    return paired_ratio([r for r in rows if r["obstacle_density"] in densities], method,
+                        "spiral")
+
+
+def energy_table(rows: Rows) -> str:
+    """E_total of every method as a share of the plain spiral's on the same episodes (ratio of
+    the sums), per density and over :data:`FRESH_DENSITIES` (issue 19's fresh-map target)."""
+    densities = sorted({r["obstacle_density"] for r in rows})
+    methods = [m for m in dict.fromkeys(r["method"] for r in rows) if m != "spiral"]
+    span = f"{FRESH_DENSITIES[0]:.1f}–{FRESH_DENSITIES[-1]:.1f}"
+    lines = ["| method | " + " | ".join(f"d = {d:.1f}" for d in densities)
+             + f" | d = {span} |", "|---|" + "---|" * (len(densities) + 1)]
+    for method in [m for m in METHODS if m in methods]:
+        cells = [_fmt(fresh_energy(rows, method, (d,))[1], ".3f") for d in densities]
+        lines.append(f"| {label(method)} | " + " | ".join(cells)
+                     + f" | {_fmt(fresh_energy(rows, method)[1], '.3f')} |")
+    return "\n".join(lines)
+
+
+def issue_table(fig2: Numbers, fig4: Numbers, robustness: Rows | None) -> str:
+    """Issue 19's targets (docs/adaptive.md) against the adaptive policy and the rule, with a
+    verdict per row."""
+    lines = ["| target (issue 19) | adaptive policy | adaptive rule | verdict |",
+             "|---|---|---|---|"]
+
+    def row(target: str, policy: str, rule: str, verdict: str) -> None:
+        lines.append(f"| {target} | {policy} | {rule} | {verdict} |")
+
+    def both(values: dict[str, float], ok: Callable[[float], bool]) -> str:
+        return f"policy {_met(ok(values[AOASS]))}, rule {_met(ok(values[RULE]))}"
+
+    def means(numbers: Numbers, metric: str) -> dict[str, float]:
+        return {m: numbers.mean(m, metric) for m in (AOASS, RULE)}
+
+    row("coverage ≥ 98.5 %, `fig2` grid", fig2.coverage(AOASS), fig2.coverage(RULE),
+        both(means(fig2, "coverage"), lambda v: v >= 0.985))
+    row("RMSE ≤ 0.9 m (OLSTM-DV-Hop), `fig2` grid", fig2.rmse(AOASS), fig2.rmse(RULE),
+        both(means(fig2, "rmse"), lambda v: v <= 0.9))
+    energy = {m: fig2.mean(m, "energy_total") for m in (AOASS, RULE, "fdpp")}
+    row("E_total ≤ 900 J, `fig2` grid", f"{energy[AOASS]:.0f} J", f"{energy[RULE]:.0f} J",
+        both(energy, lambda v: v <= 900.0))
+    row(f"stretch: E_total ≤ FDPP's ({energy['fdpp']:.0f} J here; 621 J in the issue)",
+        f"{energy[AOASS]:.0f} J", f"{energy[RULE]:.0f} J",
+        both(energy, lambda v: v <= energy["fdpp"]))
+    d_energy = paired_stats(fig2.rows, AOASS, RULE, "energy_total")
+    d_cov = paired_stats(fig2.rows, AOASS, RULE, "coverage")
+    row("learned against the rule, paired, `fig2`: E_total lower or equal",
+        f"{_signed(d_energy, '+.1f')} J", "–", f"{_met(d_energy[1] <= 0.0)} (mean difference)")
+    row("... and coverage within 0.5 point", f"{_signed(d_cov, '+.2f', 100.0)} points", "–",
+        _met(d_cov[1] >= -0.005))
+    for metric, target, ok in (("path_complete", "≥ 95 % of sweeps end by themselves",
+                                lambda v: v >= 0.95),
+                               ("coverage", "coverage ≥ 90 %", lambda v: v >= 0.90)):
+        values = means(fig4, metric)
+        row(f"`fig4` (densities 0.5–0.6): {target}", f"{_fmt(100 * values[AOASS], '.1f')} %",
+            f"{_fmt(100 * values[RULE], '.1f')} %", both(values, ok))
+    span = f"{FRESH_DENSITIES[0]:.1f}–{FRESH_DENSITIES[-1]:.1f}"
+    if not robustness:
+        row(f"fresh maps, densities {span}", "not run", "not run", "–")
+        return "\n".join(lines)
+    fresh = [r for r in robustness if r["obstacle_density"] in FRESH_DENSITIES]
+    ratio = {m: fresh_energy(robustness, m)[1] for m in (AOASS, RULE)}
+    row(f"fresh maps ({span}): E_total ≤ 0.73 × the plain spiral's (ratio of sums, paired)",
+        f"{ratio[AOASS]:.3f} ×", f"{ratio[RULE]:.3f} ×", both(ratio, lambda v: v <= 0.73))
+    nodes = [r["n_nodes"] for r in fresh]
+    scale = float(nodes[0]) if len(set(nodes)) == 1 else math.nan
+    d_nodes = paired_stats(fresh, AOASS, RULE, "coverage")
+    row(f"fresh maps ({span}): the policy covers no fewer nodes than its zero action (the "
+        f"rule), nodes per sweep", _signed(d_nodes, "+.2f", scale), "–",
+        f"{_met(d_nodes[1] >= 0.0)} (mean difference)")
+    return "\n".join(lines)
+
+
 def _wall(name: str, rows: Rows, runs: list[dict[str, Any]]) -> str:
     """How long the preset took: the episodes on the page, and the wall time and episode runs
     that evaluate.py recorded for the folder (`runs.jsonl`)."""
@@ -202,7 +321,7 @@ def robustness_values(rows: Rows | None, runs: list[dict[str, Any]], seeds: int
         return {"robustness_text": f"**Not run for this page**: `out/{name}/episodes.csv` was "
                                    f"missing when it was built. `{command}` runs the preset "
                                    f"({seeds} maps per density) and rebuilds the page.",
-                "robustness_tables": ""}
+                "robustness_tables": "", "robustness_energy": ""}
     maps = {(r["obstacle_density"], r["map"]) for r in rows}
     densities = sorted({d for d, _ in maps})
     per_density = sorted({sum(1 for d, _ in maps if d == density) for density in densities})
@@ -227,15 +346,21 @@ def robustness_values(rows: Rows | None, runs: list[dict[str, Any]], seeds: int
     if missing:
         text += (f" **Not run for this page:** {', '.join(missing)} (`{command}` runs them "
                  f"too; the preset resumes, so the episodes above are kept).")
-    return {"robustness_text": text, "robustness_tables": robustness_markdown(rows, level=3)}
+    return {"robustness_text": text, "robustness_tables": robustness_markdown(rows, level=3),
+            "robustness_energy": energy_table(rows)}
 
 
 def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any]]],
                 seeds: dict[str, int], figures: dict[str, str]) -> dict[str, str]:
     """Every ``$name`` of the template from the presets' rows and recorded runs (the rows of
     an :data:`OPTIONAL` preset may be None: not run)."""
-    values: dict[str, str] = {"paper_table": paper_table(
-        Numbers(rows["fig2"]), Numbers(rows["fig3"]), Numbers(rows["fig4"]))}
+    values: dict[str, str] = {
+        "paper_table": paper_table(Numbers(rows["fig2"]), Numbers(rows["fig3"]),
+                                   Numbers(rows["fig4"])),
+        "issue_table": issue_table(Numbers(rows["fig2"]), Numbers(rows["fig4"]),
+                                   rows.get("robustness")),
+        "paired_table": paired_table({name: rows.get(name) for name in
+                                      ("fig2", "fig3", "fig4", "robustness")})}
     values.update(robustness_values(rows.get("robustness"), runs.get("robustness", []),
                                     seeds.get("robustness", SEEDS["robustness"])))
     for name in FIGURE:
@@ -243,7 +368,7 @@ def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any
         values[f"wall_{name}"] = _wall(name, rows[name], runs[name])
         values[f"table_{name}"] = method_table(rows[name])
         values[f"figure_{name}"] = figures[name]
-        per_method = Numbers(rows[name]).stat("aoass", "coverage")[0]
+        per_method = Numbers(rows[name]).stat("spiral", "coverage")[0]
         values[f"per_method_{name}"] = str(per_method)
     splits: dict[str, tuple[str, Callable[[float], str]]] = {
         "fig3": ("field_size", lambda v: f"{v:g}"), "fig4": ("obstacle_density",
@@ -260,7 +385,7 @@ def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any
     fig2 = Numbers(rows["fig2"])
     seconds = method_stats(rows["fig2"], "seconds")
     values["fig2_seconds"] = ", ".join(f"{label(m)} {s[1]:.1f}" for m, s in seconds.items())
-    for method in ("aoass", "aoass-scripted", "spiral", "fdpp", "ohm", "m-anchoro", "otpp"):
+    for method in (AOASS, RULE, RESIDUAL, ZERO, "spiral", "fdpp", "ohm", "m-anchoro", "otpp"):
         key = method.replace("-", "_")
         values[f"fig2_{key}_rmse"] = fig2.rmse(method)
         values[f"fig2_{key}_contacts"] = _fmt(fig2.mean(method, "collisions"), ".1f")
@@ -277,7 +402,7 @@ def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any
     values["fig3_worst_rmse"] = (f"{label(worst[1])}, {_fmt(worst[0], '.2f')} m on the "
                                  f"{worst[2]:g} m field")
     fig4 = Numbers(rows["fig4"])
-    for method in ("aoass", "aoass-scripted", "spiral"):
+    for method in (AOASS, RULE, RESIDUAL, ZERO, "spiral"):
         key = method.replace("-", "_")
         values[f"fig4_{key}_complete"] = _fmt(100 * fig4.mean(method, "path_complete"), ".0f")
         values[f"fig4_{key}_coverage"] = _fmt(100 * fig4.mean(method, "coverage"), ".1f")

@@ -9,6 +9,9 @@
 * :func:`robustness_stats` / :func:`robustness_markdown`: per obstacle density and method, the
   share of sweeps that ended by themselves, coverage and its paired gap to the plain spiral on
   the same episode, the worst coverage, static and moving contacts (the ``robustness`` preset).
+* :func:`paired_stats` / :func:`paired_ratio`: one method against another on the episodes both
+  played (same map, N and seed): the mean paired difference of a metric with its 95 % CI, and
+  the ratio of a metric's sums (E_total against the plain spiral's).
 
 Statistics use the finite values only: an episode in which no node was localized has no RMSE
 (its localized fraction, 0, is still counted).
@@ -40,7 +43,8 @@ from aoass_env.evaluation.store import (
 from aoass_env.evaluation.sweep import PRESETS
 
 __all__ = ["REFERENCE_METHOD", "SUMMARY_METRICS", "bootstrap_interval", "ci_stats",
-           "draw_figures", "method_stats", "method_table", "robustness_markdown",
+           "draw_figures", "method_stats", "method_table", "paired_ratio", "paired_stats",
+           "robustness_markdown",
            "robustness_stats", "seconds_per_episode", "summary_markdown", "summarize",
            "write_summary_csv"]
 
@@ -258,6 +262,38 @@ def summary_markdown(rows: list[dict[str, Any]], title: str, notes: str = "",
 def _paired(key: EpisodeKey) -> EpisodeKey:
     """The episode of ``key`` without its method: the same map, nodes and seed."""
     return dataclasses.replace(key, method="")
+
+
+def _pairs(rows: list[dict[str, Any]], method: str, reference: str, metric: str,
+           localizer: str) -> list[tuple[float, float]]:
+    """(value of ``method``, value of ``reference``) of ``metric`` (as :func:`method_stats`)
+    on every episode both played, in the rows' order."""
+    key = f"{metric}:{localizer}" if metric in ("rmse", "localized") else metric
+    episodes = _episodes(rows)
+    theirs = {_paired(k): ep.get(key, math.nan) for k, ep in episodes.items()
+              if k.method == reference}
+    return [(ep.get(key, math.nan), theirs[_paired(k)]) for k, ep in episodes.items()
+            if k.method == method and _paired(k) in theirs]
+
+
+def paired_stats(rows: list[dict[str, Any]], method: str, reference: str, metric: str,
+                 localizer: str = PRIMARY_LOCALIZER) -> tuple[int, float, float, float]:
+    """:func:`ci_stats` of the paired differences ``method`` − ``reference`` of ``metric`` (an
+    episode column, ``seconds``, or ``rmse`` / ``localized`` of ``localizer``) over the
+    episodes both played (same map, N and seed); a pair with a missing value (an episode
+    that localized no node has no RMSE) is left out."""
+    return ci_stats(a - b for a, b in _pairs(rows, method, reference, metric, localizer))
+
+
+def paired_ratio(rows: list[dict[str, Any]], method: str, reference: str,
+                 metric: str = "energy_total") -> tuple[int, float]:
+    """(pairs, sum of ``method``'s ``metric`` / sum of ``reference``'s) over the episodes both
+    played: ``method``'s E_total as a share of the plain spiral's on the same episodes (NaN
+    without a pair or with a zero sum)."""
+    pairs = [(a, b) for a, b in _pairs(rows, method, reference, metric, PRIMARY_LOCALIZER)
+             if math.isfinite(a) and math.isfinite(b)]
+    total = sum(b for _, b in pairs)
+    return len(pairs), (sum(a for a, _ in pairs) / total if total else math.nan)
 
 
 def robustness_stats(rows: list[dict[str, Any]], reference: str = REFERENCE_METHOD

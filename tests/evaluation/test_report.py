@@ -14,6 +14,8 @@ from aoass_env.evaluation.report import (
     draw_figures,
     method_stats,
     method_table,
+    paired_ratio,
+    paired_stats,
     robustness_markdown,
     robustness_stats,
     seconds_per_episode,
@@ -152,6 +154,31 @@ def test_robustness_gap_is_paired_with_the_spiral_of_the_same_episode():
     assert "### Obstacle density 0.6" in text and robustness_markdown([]) == ""
     # no localizer in the rows: no RMSE column, no figure
     assert "RMSE" not in method_table(rows) and draw_figures(rows, Path("/nonexistent")) == []
+
+
+def test_paired_stats_and_ratio_use_the_episodes_both_played():
+    """scan's E_total is 2x the spiral's on seeds 0 and 1 (the spiral spends 100 and 300 J);
+    seed 2 has no spiral episode, so it is left out of both; the RMSE pairs of OLSTM-DV-Hop
+    (1 + s + i) differ by exactly 1 m (scan is the second method)."""
+    rows = rows_for(["spiral", "scan"], seeds=3)
+    for r in rows:
+        r["energy_total"] = (100.0 + 200.0 * r["seed"]) * (2.0 if r["method"] == "scan" else 1.0)
+    rows = [r for r in rows if not (r["method"] == "spiral" and r["seed"] == 2)]
+    n, mean, std, ci = paired_stats(rows, "scan", "spiral", "energy_total")
+    assert (n, mean) == (2, pytest.approx(200.0)) and std == pytest.approx(math.sqrt(2e4))
+    assert ci == pytest.approx(stats_t975(1) * math.sqrt(2e4) / math.sqrt(2))
+    assert paired_stats(rows, "scan", "spiral", "rmse")[:3] == (2, 1.0, 0.0)
+    assert paired_stats(rows, "scan", "spiral", "rmse", "dvhop")[1] == 1.0
+    assert paired_ratio(rows, "scan", "spiral") == (2, pytest.approx(2.0))
+    # the ratio of sums, not the mean of ratios: 1.5x on a 100 J episode, 1x on a 300 J one
+    for r in rows:
+        if r["method"] == "scan":
+            r["energy_total"] = 150.0 if r["seed"] == 0 else 300.0
+    assert paired_ratio(rows, "scan", "spiral")[1] == pytest.approx(450.0 / 400.0)
+    # no pair: nothing to compare
+    assert paired_stats(rows, "scan", "ohm", "energy_total")[0] == 0
+    n, ratio = paired_ratio(rows, "scan", "ohm")
+    assert n == 0 and math.isnan(ratio)
 
 
 def stats_t975(dof: int) -> float:

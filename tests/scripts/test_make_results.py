@@ -15,7 +15,8 @@ spec = importlib.util.spec_from_file_location("make_results", SCRIPT)
 make_results = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(make_results)
 
-METHODS = ("aoass", "aoass-scripted", "spiral", "fdpp", "ohm", "m-anchoro", "otpp")
+METHODS = ("aoass", "aoass-scripted", "aoass-rule", "aoass-adaptive", "spiral", "fdpp", "ohm",
+           "m-anchoro", "otpp")
 
 
 def preset_rows(preset: str, energy: dict[str, float], rmse: dict[str, float]) -> list[dict]:
@@ -41,27 +42,34 @@ def preset_rows(preset: str, energy: dict[str, float], rmse: dict[str, float]) -
     return out
 
 
-ENERGY = {"aoass": 1000.0, "aoass-scripted": 900.0, "spiral": 900.0, "fdpp": 600.0,
-          "ohm": 1200.0, "m-anchoro": 1500.0, "otpp": 1600.0}
-RMSE = {"aoass": 0.9, "aoass-scripted": 0.9, "spiral": 1.0, "fdpp": 1.2, "ohm": 0.8,
-        "m-anchoro": 1.0, "otpp": 1.0}
+ENERGY = {"aoass-adaptive": 1000.0, "aoass-rule": 800.0, "aoass": 1300.0,
+          "aoass-scripted": 900.0, "spiral": 900.0, "fdpp": 600.0, "ohm": 1200.0,
+          "m-anchoro": 1500.0, "otpp": 1600.0}
+RMSE = {"aoass-adaptive": 0.9, "aoass-rule": 0.8, "aoass": 1.1, "aoass-scripted": 0.9,
+        "spiral": 1.0, "fdpp": 1.2, "ohm": 0.8, "m-anchoro": 1.0, "otpp": 1.0}
 
 
 def robustness_rows(seeds: int) -> list[dict]:
     """The robustness preset's episodes, unlocalized: the spiral covers 90 %, OHM 80 % + 1 % per
-    seed index, AOASS 95 %; every sweep ends by itself but OHM's first."""
+    seed index, the residual AOASS 95 %, the adaptive policy 95 % and the rule 96 %; every sweep
+    ends by itself but OHM's first. E_total: the spiral 1000 J, the adaptive policy 700 J, the
+    rule 800 J at densities up to 0.5 and 2000 J at 0.6, the others 1 J."""
     out = []
-    for job in episode_jobs(PRESETS["robustness"], ("spiral", "ohm", "aoass"), (NO_LOCALIZER,),
-                            seeds):
+    methods = ("spiral", "ohm", "aoass", "aoass-rule", "aoass-adaptive")
+    for job in episode_jobs(PRESETS["robustness"], methods, (NO_LOCALIZER,), seeds):
         k = job.key
         index = k.seed % 1000
         row = dict.fromkeys(COLUMNS, 1.0)
         row.update(method=k.method, map=k.map, field_size=k.field_size, n_nodes=k.n_nodes,
                    obstacle_density=k.obstacle_density, seed=k.seed, localizer=NO_LOCALIZER,
                    rmse=math.nan, localized=math.nan, localize_seconds=0.0,
-                   coverage={"spiral": 0.9, "ohm": 0.8 + 0.01 * index, "aoass": 0.95}[k.method],
+                   coverage={"spiral": 0.9, "ohm": 0.8 + 0.01 * index, "aoass": 0.95,
+                             "aoass-adaptive": 0.95, "aoass-rule": 0.96}[k.method],
                    path_complete=int(k.method != "ohm" or index > 0), collisions_static=2,
-                   collisions_moving=1)
+                   collisions_moving=1,
+                   energy_total={"spiral": 1000.0, "aoass-adaptive": 700.0,
+                                 "aoass-rule": 800.0 if k.obstacle_density <= 0.5 else 2000.0
+                                 }.get(k.method, 1.0))
         out.append(row)
     return out
 
@@ -88,13 +96,13 @@ def test_the_template_gets_every_value(values):
 
 def test_robustness_section_is_computed_from_its_episodes(values):
     text = values["robustness_text"]
-    assert "3 methods, each on 2 freshly generated maps per density" in text
+    assert "5 methods, each on 2 freshly generated maps per density" in text
     assert "(0.1, 0.2, 0.3, 0.4, 0.5, 0.6; 12 maps in all), 100 m field, N = 100" in text
     assert "20261117" in text and "710000" in text and "s = 0 … 1" in text
-    # the methods without episodes are named (the rows hold the spiral, OHM and AOASS only)
-    assert ("**Not run for this page:** AOASS, zero action (ablation), AOASS, adaptive rule, "
-            in text) and ", SCAN," in text
-    assert "Square spiral," not in text and "OHM," not in text
+    # the methods without episodes are named (the rows hold the spiral, OHM and the AOASS
+    # policies and rule only)
+    assert "**Not run for this page:** AOASS, zero action (ablation), SCAN," in text
+    assert "Square spiral," not in text and "OHM," not in text and "adaptive rule," not in text
     tables = values["robustness_tables"]
     ohm = [line for line in tables.splitlines() if line.startswith("| OHM")]
     assert len(ohm) == 1 + 6                         # the overview and one row per density
@@ -176,9 +184,59 @@ def test_paper_table_verdicts_follow_the_numbers(values):
 def test_values_count_episodes_and_wall_time(values):
     assert values["per_method_fig4"] == str(2 * 2)          # 2 densities x 2 seeds
     assert values["wall_fig4"].startswith(
-        "28 episodes; 30 s of wall time on 2 local processes for 10 episode runs (the others")
+        "36 episodes; 30 s of wall time on 2 local processes for 10 episode runs (the others")
     assert values["fig2_fdpp_energy_total"] == "630"
     assert math.isclose(float(values["fig2_aoass_dvhop"]), 10.0)
     # 3 s per episode (2 s simulation + 2 x 0.5 s localization); at 30 seeds instead of 2:
-    # (280 fig2 + 140 fig3 + 28 fig4 episodes) x 3 s x 15 = 20160 s = 5.6 h
-    assert values["cpu_hours_30"] == "6"
+    # (360 fig2 + 180 fig3 + 36 fig4 episodes) x 3 s x 15 = 25920 s = 7.2 h
+    assert values["cpu_hours_30"] == "7"
+
+
+def test_issue_table_verdicts_follow_the_numbers(values):
+    lines = values["issue_table"].splitlines()[2:]
+    rows = {line.split(" | ")[0].lstrip("| "): line for line in lines}
+    # fig2: every coverage 98 %: below 98.5 % for both
+    assert "policy **missed**, rule **missed**" in rows["coverage ≥ 98.5 %, `fig2` grid"]
+    # RMSE: policy 0.9 and 0.99 (mean 0.945), rule 0.8 and 0.88 (0.84)
+    assert "policy **missed**, rule met" in rows["RMSE ≤ 0.9 m (OLSTM-DV-Hop), `fig2` grid"]
+    # E_total: policy 1050 J, rule 840 J; FDPP 630 J
+    energy = rows["E_total ≤ 900 J, `fig2` grid"]
+    assert "| 1050 J | 840 J | policy **missed**, rule met |" in energy
+    stretch = [line for key, line in rows.items() if key.startswith("stretch")]
+    assert len(stretch) == 1 and "FDPP's (630 J here" in stretch[0]
+    assert "policy **missed**, rule **missed**" in stretch[0]
+    # paired: the policy spends 200 J more on seed 0 and 220 J on seed 1; same coverage
+    paired = rows["learned against the rule, paired, `fig2`: E_total lower or equal"]
+    assert "+210.0 ± " in paired and "**missed** (mean difference)" in paired
+    assert "+0.00 ± 0.00 points" in rows["... and coverage within 0.5 point"]
+    assert rows["... and coverage within 0.5 point"].endswith("| met |")
+    # fig4: every sweep ended, 98 % coverage
+    ended = rows["`fig4` (densities 0.5–0.6): ≥ 95 % of sweeps end by themselves"]
+    assert "| 100.0 % | 100.0 % | policy met, rule met |" in ended
+    # fresh maps at 0.1-0.5: the policy 700 J, the rule 800 J against the spiral's 1000 J
+    fresh = [line for key, line in rows.items() if key.startswith("fresh maps (0.1–0.5): E")]
+    assert len(fresh) == 1 and "| 0.700 × | 0.800 × | policy met, rule **missed** |" in fresh[0]
+    # the policy covers 95 nodes of 100, the rule 96: one fewer per sweep
+    nodes = [line for key, line in rows.items() if "no fewer nodes" in key]
+    assert len(nodes) == 1 and "| -1.00 ± 0.00 |" in nodes[0] and "**missed**" in nodes[0]
+
+
+def test_paired_table_and_fresh_energy(values):
+    paired = values["paired_table"].splitlines()
+    fig2 = [line for line in paired if line.startswith(
+        "| learned against the rule, its zero action: AOASS, adaptive policy − AOASS, adaptive "
+        "rule | `fig2` |")]
+    # 200 and 220 J more; path (1000 - 800) / 0.8 = 250 m on both seeds; RMSE 0.1 and 0.11 m
+    assert len(fig2) == 1
+    assert "| +210 ± 3 | +250 ± 0 |" in fig2[0] and "| +0.105 ± 0.002 |" in fig2[0]
+    # the robustness preset has no RMSE, and its rows pair on every one of its episodes
+    robust = [line for line in paired if "`robustness`" in line and "adaptive policy −" in line]
+    assert len(robust) == 1 and "| – |" in robust[0] and robust[0].endswith("| 12 |")
+    assert "| -1.00 ± 0.00 |" in robust[0]
+    energy = values["robustness_energy"].splitlines()
+    assert energy[0].endswith("| d = 0.6 | d = 0.1–0.5 |")
+    rule = [line for line in energy if line.startswith("| AOASS, adaptive rule |")]
+    # 0.8 at 0.1-0.5, 2.0 at 0.6; the span leaves 0.6 out
+    assert rule == ["| AOASS, adaptive rule | 0.800 | 0.800 | 0.800 | 0.800 | 0.800 | 2.000 | "
+                    "0.800 |"]
+    assert not any(line.startswith("| Square spiral") for line in energy)
