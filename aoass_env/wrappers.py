@@ -52,7 +52,7 @@ from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
 from aoass_env.validators import real
 from aoass_env.world import wrap_angle
 
-__all__ = ["ActionRepeat", "FuzzyORCASafety", "KalmanObstacleTracker",
+__all__ = ["ActionRepeat", "EnergyCost", "FuzzyORCASafety", "KalmanObstacleTracker",
            "MapSampler", "TRAINING_SPLITS", "make_safe_env", "make_training_env"]
 
 #: Measurement-noise floor of the tracker (m, m/s): a noiseless observation still needs a
@@ -430,6 +430,37 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         return executed, report
 
 
+class EnergyCost(_EntryPointWrapper):
+    """Opt-in reward shaping outside Eq. 14: each step's reward less ``weight`` times the
+    energy the episode spent in it (the growth of ``info["energy_total"]``, J: the anchor's
+    motion and beacons and the nodes' receptions, Table 1). Eq. 14 charges time (its per-step
+    penalties) but not the anchor's travel, so a policy trained on it alone drives faster
+    along a longer path; this term puts E_total into the objective. ``info["energy_cost"]``
+    holds the step's term (<= 0); the Eq. 14 terms stay in ``info["reward_terms"]``."""
+
+    def __init__(self, env: gym.Env, weight: float) -> None:
+        if (isinstance(weight, bool) or not isinstance(weight, (int, float))
+                or not math.isfinite(weight) or weight < 0.0):
+            raise ValueError(f"energy_weight must be a finite number >= 0 (per J), got "
+                             f"{weight!r}")
+        super().__init__(env)
+        self.weight = float(weight)
+        self._spent = 0.0
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(**kwargs)
+        self._spent = float(info["energy_total"])
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        spent = float(info["energy_total"])
+        cost = -self.weight * (spent - self._spent)
+        self._spent = spent
+        info["energy_cost"] = cost
+        return obs, float(reward) + cost, terminated, truncated, info
+
+
 class ActionRepeat(_EntryPointWrapper):
     """Holds each action for ``repeat`` steps of the wrapped environment (fewer when the episode
     ends first); the reward is their sum and the observation and info are the last step's.
@@ -459,14 +490,18 @@ class ActionRepeat(_EntryPointWrapper):
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         total = 0.0
         costs = dict.fromkeys(COST_KEYS, 0.0)
+        energy = 0.0
         for _ in range(self.repeat):
             obs, reward, terminated, truncated, info = self.env.step(action)
             total += float(reward)
             for key in COST_KEYS:
                 costs[key] += info[key]
+            energy += info.get("energy_cost", 0.0)
             if terminated or truncated:
                 break
         info.update(costs)
+        if "energy_cost" in info:
+            info["energy_cost"] = energy
         return obs, total, terminated, truncated, info
 
 
@@ -476,9 +511,10 @@ def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
                   safety: SafetyConfig | dict[str, Any] | None = None,
                   action_repeat: int = 1, action_type: str = "residual",
                   adaptive: AdaptiveConfig | dict[str, Any] | None = None,
-                  **kwargs: Any) -> gym.Env:
+                  energy_weight: float = 0.0, **kwargs: Any) -> gym.Env:
     """The full AOASS stack: AOASS-v0 (in its ``TimeLimit``) -> :class:`KalmanObstacleTracker`
-    -> :class:`FuzzyORCASafety` (-> :class:`ActionRepeat` when ``action_repeat`` > 1).
+    -> :class:`FuzzyORCASafety` (-> :class:`EnergyCost` when ``energy_weight`` > 0) (->
+    :class:`ActionRepeat` when ``action_repeat`` > 1).
 
     Args:
         config, kwargs: the environment's configuration, as for ``gymnasium.make("AOASS-v0")``
@@ -495,6 +531,8 @@ def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
             :class:`~aoass_env.action.AdaptiveAction`).
         adaptive: the adaptive sweep's :class:`~aoass_env.planning.AdaptiveConfig` (or
             keywords), used with ``action_type="adaptive"``.
+        energy_weight: reward shaping outside Eq. 14, per J of E_total spent
+            (:class:`EnergyCost`; 0: none, the reward is Eq. 14's).
     """
     cfg = config_with(config, kwargs)
     tracker_config = TrackerConfig.coerce(tracker, "tracker")
@@ -504,6 +542,8 @@ def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
                    adaptive=adaptive)
     tracked = KalmanObstacleTracker(env, tracker_config)
     env = FuzzyORCASafety(tracked, tracked, safety_config)
+    if energy_weight != 0 or not isinstance(energy_weight, (int, float)):
+        env = EnergyCost(env, energy_weight)      # which checks energy_weight
     if type(action_repeat) is int and action_repeat == 1:
         return env
     return ActionRepeat(env, action_repeat)   # which checks action_repeat

@@ -20,6 +20,7 @@ from aoass_env.registration import SAFE_ENV_ID
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.wrappers import (
     ActionRepeat,
+    EnergyCost,
     FuzzyORCASafety,
     KalmanObstacleTracker,
     MapSampler,
@@ -147,6 +148,33 @@ def test_action_repeat_holds_the_action_and_sums_the_rewards():
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="action_repeat"):
             make_safe_env(**SMALL, action_repeat=bad)
+
+
+def test_energy_cost_charges_the_energy_spent_in_each_step():
+    """The shaped stack plays the same episode as the plain one; each reward is Eq. 14's less
+    the weight times the growth of E_total in the step, held steps summed."""
+    plain = run(make_safe_env(**SMALL), seed=4, steps=300)
+    shaped = run(make_safe_env(**SMALL, energy_weight=0.5), seed=4, steps=300)
+    assert isinstance(make_safe_env(**SMALL, energy_weight=0.5), EnergyCost)
+    assert not isinstance(make_safe_env(**SMALL), EnergyCost)
+    charged = 0.0
+    for k in range(1, len(plain)):
+        np.testing.assert_array_equal(shaped[k][0], plain[k][0])
+        spent = plain[k][2]["energy_total"] - plain[k - 1][2]["energy_total"]
+        assert shaped[k][2]["energy_cost"] == pytest.approx(-0.5 * spent, abs=1e-12)
+        assert shaped[k][1] == pytest.approx(plain[k][1] - 0.5 * spent, abs=1e-9)
+        charged += spent
+    assert charged > 1.0          # the anchor moved: the term is not vacuous
+    action = np.array([0.3, 0.1], np.float32)
+    steady = run(make_safe_env(**SMALL), seed=4, steps=300, actions=action)
+    held = run(make_safe_env(**SMALL, energy_weight=0.5, action_repeat=4), seed=4, steps=75,
+               actions=action)
+    for k in range(1, len(held)):
+        spent = steady[4 * k][2]["energy_total"] - steady[4 * k - 4][2]["energy_total"]
+        assert held[k][2]["energy_cost"] == pytest.approx(-0.5 * spent, abs=1e-9)
+    for bad in (-1.0, math.nan, math.inf, True, "0.1", None):
+        with pytest.raises(ValueError, match="energy_weight"):
+            make_safe_env(**SMALL, energy_weight=bad)
 
 
 def test_action_repeat_stops_at_the_end_of_the_episode():
