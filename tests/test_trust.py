@@ -390,15 +390,22 @@ def test_a_ctrl_c_inside_a_pymunk_callback_is_swallowed_without_the_guard():
 
 
 def test_the_first_ctrl_c_stops_even_inside_a_pymunk_callback():
+    import signal
     import time
 
     from aoass_env.backends import deliver_interrupts
     steps: list[int] = []
     space = _space_interrupting_itself(steps)
-    with pytest.raises(KeyboardInterrupt), deliver_interrupts():
-        for _ in range(10_000):
-            space.step(0.1)
-            time.sleep(0.001)
+    # Python's own Ctrl-C handler, as in a terminal: a test run started in the background by a
+    # non-interactive shell inherits SIGINT ignored, where deliver_interrupts does nothing
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt), deliver_interrupts():
+            for _ in range(10_000):
+                space.step(0.1)
+                time.sleep(0.001)
+    finally:
+        signal.signal(signal.SIGINT, before)
     assert len(steps) < 10_000
 
 
