@@ -436,7 +436,8 @@ class EnergyCost(_EntryPointWrapper):
     motion and beacons and the nodes' receptions, Table 1). Eq. 14 charges time (its per-step
     penalties) but not the anchor's travel, so a policy trained on it alone drives faster
     along a longer path; this term puts E_total into the objective. ``info["energy_cost"]``
-    holds the step's term (<= 0); the Eq. 14 terms stay in ``info["reward_terms"]``."""
+    holds the step's term (<= 0); the Eq. 14 terms stay in ``info["reward_terms"]``. Outside
+    :class:`ActionRepeat`, a held action's term is the energy of all its periods."""
 
     def __init__(self, env: gym.Env, weight: float) -> None:
         if (isinstance(weight, bool) or not isinstance(weight, (int, float))
@@ -490,18 +491,14 @@ class ActionRepeat(_EntryPointWrapper):
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         total = 0.0
         costs = dict.fromkeys(COST_KEYS, 0.0)
-        energy = 0.0
         for _ in range(self.repeat):
             obs, reward, terminated, truncated, info = self.env.step(action)
             total += float(reward)
             for key in COST_KEYS:
                 costs[key] += info[key]
-            energy += info.get("energy_cost", 0.0)
             if terminated or truncated:
                 break
         info.update(costs)
-        if "energy_cost" in info:
-            info["energy_cost"] = energy
         return obs, total, terminated, truncated, info
 
 
@@ -513,8 +510,8 @@ def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
                   adaptive: AdaptiveConfig | dict[str, Any] | None = None,
                   energy_weight: float = 0.0, **kwargs: Any) -> gym.Env:
     """The full AOASS stack: AOASS-v0 (in its ``TimeLimit``) -> :class:`KalmanObstacleTracker`
-    -> :class:`FuzzyORCASafety` (-> :class:`EnergyCost` when ``energy_weight`` > 0) (->
-    :class:`ActionRepeat` when ``action_repeat`` > 1).
+    -> :class:`FuzzyORCASafety` (-> :class:`ActionRepeat` when ``action_repeat`` > 1) (->
+    :class:`EnergyCost` when ``energy_weight`` > 0).
 
     Args:
         config, kwargs: the environment's configuration, as for ``gymnasium.make("AOASS-v0")``
@@ -542,11 +539,11 @@ def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
                    adaptive=adaptive)
     tracked = KalmanObstacleTracker(env, tracker_config)
     env = FuzzyORCASafety(tracked, tracked, safety_config)
-    if energy_weight != 0 or not isinstance(energy_weight, (int, float)):
-        env = EnergyCost(env, energy_weight)      # which checks energy_weight
-    if type(action_repeat) is int and action_repeat == 1:
-        return env
-    return ActionRepeat(env, action_repeat)   # which checks action_repeat
+    if not (type(action_repeat) is int and action_repeat == 1):
+        env = ActionRepeat(env, action_repeat)   # which checks action_repeat
+    if isinstance(energy_weight, bool) or energy_weight != 0:
+        env = EnergyCost(env, energy_weight)     # which checks energy_weight
+    return env
 
 
 make_safe_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render modes

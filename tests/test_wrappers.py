@@ -172,7 +172,9 @@ def test_energy_cost_charges_the_energy_spent_in_each_step():
     for k in range(1, len(held)):
         spent = steady[4 * k][2]["energy_total"] - steady[4 * k - 4][2]["energy_total"]
         assert held[k][2]["energy_cost"] == pytest.approx(-0.5 * spent, abs=1e-9)
-    for bad in (-1.0, math.nan, math.inf, True, "0.1", None):
+    assert isinstance(make_safe_env(**SMALL, energy_weight=0.5, action_repeat=4).env,
+                      ActionRepeat)
+    for bad in (-1.0, math.nan, math.inf, True, False, "0.1", None):
         with pytest.raises(ValueError, match="energy_weight"):
             make_safe_env(**SMALL, energy_weight=bad)
 

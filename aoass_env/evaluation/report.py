@@ -264,14 +264,20 @@ def _paired(key: EpisodeKey) -> EpisodeKey:
     return dataclasses.replace(key, method="")
 
 
+def _partners(episodes: dict[EpisodeKey, dict[str, Any]], reference: str, key: str
+              ) -> dict[EpisodeKey, float]:
+    """``reference``'s value of ``key`` per episode without its method (:func:`_paired`)."""
+    return {_paired(k): ep.get(key, math.nan) for k, ep in episodes.items()
+            if k.method == reference}
+
+
 def _pairs(rows: list[dict[str, Any]], method: str, reference: str, metric: str,
            localizer: str) -> list[tuple[float, float]]:
     """(value of ``method``, value of ``reference``) of ``metric`` (as :func:`method_stats`)
     on every episode both played, in the rows' order."""
     key = f"{metric}:{localizer}" if metric in ("rmse", "localized") else metric
     episodes = _episodes(rows)
-    theirs = {_paired(k): ep.get(key, math.nan) for k, ep in episodes.items()
-              if k.method == reference}
+    theirs = _partners(episodes, reference, key)
     return [(ep.get(key, math.nan), theirs[_paired(k)]) for k, ep in episodes.items()
             if k.method == method and _paired(k) in theirs]
 
@@ -305,8 +311,7 @@ def robustness_stats(rows: list[dict[str, Any]], reference: str = REFERENCE_METH
     ``reference`` played too (same map, N and seed); ``worst`` coverage; ``static`` and
     ``moving`` contacts per sweep (:func:`ci_stats`)."""
     episodes = _episodes(rows)
-    baseline = {_paired(k): ep["coverage"] for k, ep in episodes.items()
-                if k.method == reference}
+    baseline = _partners(episodes, reference, "coverage")
     groups: dict[tuple[float, str], list[tuple[EpisodeKey, dict[str, Any]]]] = defaultdict(list)
     for key, ep in episodes.items():
         groups[key.obstacle_density, key.method].append((key, ep))
