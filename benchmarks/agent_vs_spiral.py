@@ -15,8 +15,12 @@ With ``--maps validation`` the episodes are on the validation split of the 100 m
 instead (:func:`~aoass_env.maps.registry.validation_split`): the maps on which to choose between
 policies, since maps/test is for reported tables only.
 
+With ``--constant a,b,...`` the "agent" takes that action at every decision instead of the
+model's, in the stack the model was trained in (a constant-action probe: does the policy do
+better than its own typical action held fixed?).
+
 Run: ``python3 benchmarks/agent_vs_spiral.py [--model checkpoints/aoass_td3_lstm/best.zip]
-[--algo td3-lstm] [--seeds 30] [--jobs 2] [--maps test|validation]``.
+[--algo td3-lstm] [--seeds 30] [--jobs 2] [--maps test|validation] [--constant a,b,...]``.
 """
 
 from __future__ import annotations
@@ -42,11 +46,12 @@ DENSITIES = ("0.10", "0.20", "0.30", "0.40")
 METRICS = ("return", "eta_traj", "coverage", "energy", "contacts", "steps")
 
 
-def episode(task: tuple[str, str, int, str]) -> dict:
-    """(policy: an algorithm name or 'zero', map name, seed, model path) -> the episode's
-    record. The evaluation's runners play it: the policy acts in the stack it was trained in
-    (``action_repeat`` etc. from the ``run.yml`` beside the model)."""
-    policy, map_name, seed, model_path, adaptive = task
+def episode(task: tuple) -> dict:
+    """(policy: an algorithm name or 'zero', map name, seed, model path, adaptive, constant
+    action or None) -> the episode's record. The evaluation's runners play it: the policy acts
+    in the stack it was trained in (``action_repeat`` etc. from the ``run.yml`` beside the
+    model)."""
+    policy, map_name, seed, model_path, adaptive, constant = task
     torch.set_num_threads(1)
     obstacle_map = load_map(map_name)
     config = AOASSConfig(field_size=obstacle_map.width, map=map_name)
@@ -63,6 +68,20 @@ def episode(task: tuple[str, str, int, str]) -> dict:
             "seed": seed, "return": run.episode_return, "eta_traj": m["eta_traj"],
             "coverage": m["coverage"], "energy": m["energy_total"], "contacts": m["collisions"],
             "steps": round(m["travel_time"] / config.dt), "complete": bool(m["path_complete"])}
+
+
+def parse_constant(text: str, adaptive: bool) -> tuple[float, ...]:
+    """``--constant``'s comma-separated action (5 entries with ``--adaptive``, else 2), each in
+    [-1, 1]; ValueError naming the flag otherwise."""
+    size = 5 if adaptive else 2
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--constant {text!r}: not {size} comma-separated numbers") from None
+    if len(values) != size or not all(-1.0 <= v <= 1.0 for v in values):
+        raise ValueError(f"--constant {text!r}: {size} numbers in [-1, 1] expected (the "
+                         f"{'adaptive' if adaptive else 'residual'} action)")
+    return values
 
 
 def paired(rows: list[dict], key: str) -> tuple[float, float]:
@@ -87,10 +106,18 @@ def main() -> None:
     parser.add_argument("--maps", choices=("test", "validation"), default="test",
                         help="maps/test (reported tables) or the validation split of maps/train "
                              "(choosing between policies)")
+    parser.add_argument("--constant", metavar="A,B,...",
+                        help="take this action at every decision instead of --model's (in "
+                             "--model's stack)")
     parser.add_argument("--out", type=Path, default=Path("out/bench_agent"))
     args = parser.parse_args()
     if not args.model.is_file():
         parser.error(f"--model {args.model}: no such file")
+    try:
+        constant = (parse_constant(args.constant, args.adaptive) if args.constant is not None
+                    else None)
+    except ValueError as err:
+        parser.error(str(err))
     tasks = []
     for d in DENSITIES:
         if args.maps == "test":
@@ -101,11 +128,12 @@ def main() -> None:
         for s in range(args.seeds):
             for policy in (args.algo, "zero"):
                 tasks.append((policy, maps[s % len(maps)], 100 + s, str(args.model.resolve()),
-                              args.adaptive))
+                              args.adaptive, constant if policy != "zero" else None))
     with Pool(args.jobs) as pool:
         rows = pool.map(episode, tasks, chunksize=1)
 
-    print(f"{args.model}: {args.seeds} episodes per density on the {args.maps} maps, both "
+    what = f"the constant action {constant}" if constant is not None else args.model
+    print(f"{what}: {args.seeds} episodes per density on the {args.maps} maps, both "
           "inside the safety stack")
     print(f"{'density':8s} {'policy':7s} " + " ".join(f"{k:>9s}" for k in METRICS))
     summary: dict = {}
@@ -132,7 +160,7 @@ def main() -> None:
     print("criteria:", ", ".join(f"{k} {'met' if v else 'MISSED'}" for k, v in verdict.items()))
     args.out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out / "results.json", json.dumps(
-        {"model": str(args.model), "seeds": args.seeds, "summary": summary,
+        {"model": str(args.model), "constant": constant, "seeds": args.seeds, "summary": summary,
          "criteria": verdict}, indent=1))
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(rows[0]))

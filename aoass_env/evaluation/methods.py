@@ -100,6 +100,10 @@ class RunOptions:
             one beside ``policy``.
         adaptive_policy: checkpoint of the ``aoass-adaptive`` policy (a TD3-LSTM .zip with its
             run.yml beside it).
+        constant_action: with it, the learned methods (``aoass``, ``aoass-adaptive``) take this
+            action, in [-1, 1] per entry, at every decision instead of their policy's, in the
+            stack their policy was trained in (a constant-action probe of what the policy
+            learned; ``benchmarks/agent_vs_spiral.py --constant``).
     """
 
     policy: str = str(DEFAULT_POLICY)
@@ -107,6 +111,7 @@ class RunOptions:
     max_steps: int | None = None
     policy_run: str | None = None
     adaptive_policy: str = str(ADAPTIVE_POLICY)
+    constant_action: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -202,7 +207,10 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
                         safety=stack.get("safety"), action_repeat=repeat,
                         action_type=stack.get("action_type", "residual"),
                         adaptive=stack.get("adaptive"))
-    policy = load_policy(path, algo, record) if learned else None
+    constant = None if learned else np.zeros(env.action_space.shape, np.float32)
+    if learned and options.constant_action is not None:
+        constant = _constant_action(options.constant_action, env.action_space)
+    policy = load_policy(path, algo, record) if constant is None else None
     obs, _ = env.reset(seed=seed, options={"map": obstacle_map})
     state, start = None, np.ones(1, dtype=bool)
     interventions: list[float] = []
@@ -210,7 +218,7 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
     steps, total, terminated, truncated = 0, 0.0, False, False
     while not (terminated or truncated) and steps < limit:
         if policy is None:
-            action = np.zeros(env.action_space.shape, np.float32)
+            action = constant.copy()
         else:
             action, state = policy.predict(obs, state=state, episode_start=start,
                                            deterministic=True)
@@ -225,6 +233,18 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
                     float(np.mean(interventions)) if interventions else None, total)
     env.close()
     return run
+
+
+def _constant_action(values: tuple[float, ...], space: Any) -> np.ndarray:
+    """``RunOptions.constant_action`` as an action of ``space`` (a Box in [-1, 1]); ValueError
+    naming ``constant_action`` when its length or a value is not valid."""
+    action = np.asarray(values, dtype=np.float64).ravel()
+    if action.shape != space.shape:
+        raise ValueError(f"constant_action has {action.size} entries; this stack's actions "
+                         f"have {space.shape[0]}")
+    if not np.all(np.abs(action) <= 1.0):     # NaN fails too
+        raise ValueError(f"constant_action={tuple(values)!r}: every entry must lie in [-1, 1]")
+    return action.astype(np.float32)
 
 
 def _run_simulator(sim: Simulator, options: RunOptions,

@@ -188,3 +188,38 @@ def test_safety_stack_runs_report_the_eq14_return(small_map):
     assert run.episode_return != 0.0
     spiral = METHODS["spiral"].runner(config, obstacle_map, 3, RunOptions(max_steps=50))
     assert spiral.episode_return is None
+
+
+def test_a_constant_action_replaces_the_policy_in_its_stack(monkeypatch, tmp_path, small_map):
+    """``constant_action``: the policy is never loaded; its stack still applies (here an action
+    repeat of 4); the constant 0 is the zero action's episode; another constant is another
+    episode, driven by that action at every step; a wrong length or value is refused by name."""
+    policy = tmp_path / "best.zip"
+    (tmp_path / "run.yml").write_text(
+        "algo: td3-lstm\nhyperparameters:\n  env: {n_nodes: 20, action_repeat: 4}\n")
+
+    def no_policy(*args):
+        raise AssertionError("the policy was loaded")
+
+    monkeypatch.setattr(methods_module, "load_policy", no_policy)
+    obstacle_map = load_map(str(small_map))
+    config = AOASSConfig(field_size=40.0, n_nodes=20, map=str(small_map))
+
+    def run(constant):
+        options = RunOptions(policy=str(policy), max_steps=48, constant_action=constant)
+        return METHODS["aoass"].runner(config, obstacle_map, 3, options)
+
+    zero = METHODS["aoass-scripted"].runner(config, obstacle_map, 3, RunOptions(max_steps=48))
+    held = run((0.0, 0.0))
+    # the same rewards, summed four at a time by the action repeat
+    assert held.episode_return == pytest.approx(zero.episode_return, rel=1e-12)
+    np.testing.assert_array_equal(held.log.anchor_path, zero.log.anchor_path)
+    fast = run((1.0, 0.0))
+    assert fast.log.anchor_path[-1].tolist() != zero.log.anchor_path[-1].tolist()
+    assert len(fast.log.anchor_path) == len(zero.log.anchor_path)    # 48 periods, 12 decisions
+    with pytest.raises(ValueError, match="constant_action has 3 entries; .* have 2"):
+        run((0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match=r"constant_action=\(0.0, nan\)"):
+        run((0.0, math.nan))
+    with pytest.raises(ValueError, match="must lie in"):
+        run((1.5, 0.0))

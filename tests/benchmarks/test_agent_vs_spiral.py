@@ -1,0 +1,19 @@
+"""benchmarks/agent_vs_spiral.py's ``--constant`` flag."""
+
+import pytest
+
+from tests.benchmarks.conftest import load_benchmark
+
+bench = load_benchmark("agent_vs_spiral")
+
+
+def test_constant_is_one_action_of_the_stack_in_bounds():
+    assert bench.parse_constant("1,0,1,1,1", adaptive=True) == (1.0, 0.0, 1.0, 1.0, 1.0)
+    assert bench.parse_constant("-1,0.5", adaptive=False) == (-1.0, 0.5)
+    for text, adaptive, message in (("1,0", True, "5 numbers in"),
+                                    ("1,0,0,0,0", False, "2 numbers"),
+                                    ("1,x", False, "not 2 comma-separated numbers"),
+                                    ("1.5,0", False, r"in \[-1, 1\]"),
+                                    ("nan,0", False, r"in \[-1, 1\]")):
+        with pytest.raises(ValueError, match=rf"--constant '{text}': .*{message}"):
+            bench.parse_constant(text, adaptive)
