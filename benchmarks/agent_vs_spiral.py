@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from aoass_env.action import AdaptiveAction, ResidualAction
 from aoass_env.atomic import write_text_atomic
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation.episode import episode_metrics
@@ -43,6 +44,8 @@ from aoass_env.maps import list_maps, load_map
 from aoass_env.maps.registry import validation_split
 
 DENSITIES = ("0.10", "0.20", "0.30", "0.40")
+#: An action entry at or beyond this magnitude counts as at its bound (``saturated``).
+SATURATED = 0.9
 METRICS = ("return", "eta_traj", "coverage", "energy", "contacts", "steps")
 
 
@@ -63,11 +66,21 @@ def episode(task: tuple) -> dict:
         options = RunOptions(policy=model_path, algo="td3-lstm" if policy == "zero" else policy)
     run = METHODS[method].runner(config, obstacle_map, seed, options)
     m = episode_metrics(run)
+    names = (AdaptiveAction if adaptive else ResidualAction).NAMES
     return {"policy": "zero" if policy == "zero" else "agent", "map": map_name,
             "density": map_name.split("/")[1][1:5],
             "seed": seed, "return": run.episode_return, "eta_traj": m["eta_traj"],
             "coverage": m["coverage"], "energy": m["energy_total"], "contacts": m["collisions"],
-            "steps": round(m["travel_time"] / config.dt), "complete": bool(m["path_complete"])}
+            "steps": round(m["travel_time"] / config.dt), "complete": bool(m["path_complete"]),
+            **action_summary(run.actions, names)}
+
+
+def action_summary(actions: np.ndarray, names: tuple[str, ...]) -> dict[str, float]:
+    """What a policy did in an episode of (decisions, entries) ``actions``: its mean action per
+    entry (``mean_<name>``) and the share of all entries at +-:data:`SATURATED` or beyond
+    (``saturated``: a policy pinned to its bounds shows 1)."""
+    return {**{f"mean_{n}": float(actions[:, i].mean()) for i, n in enumerate(names)},
+            "saturated": float((np.abs(actions) >= SATURATED).mean())}
 
 
 def parse_constant(text: str, adaptive: bool) -> tuple[float, ...]:
@@ -157,6 +170,13 @@ def main() -> None:
         "energy_no_higher": overall["agent"]["energy"] <= overall["zero"]["energy"],
         "no_more_contacts": overall["agent"]["contacts"] <= overall["zero"]["contacts"],
     }
+    agent = [r for r in rows if r["policy"] == "agent"]
+    means = {k[5:]: round(float(np.mean([r[k] for r in agent])), 3)
+             for k in agent[0] if k.startswith("mean_")}
+    summary["actions"] = {"mean": means,
+                          "saturated": float(np.mean([r["saturated"] for r in agent]))}
+    print(f"the agent's mean action {means}; share of its action entries at +-{SATURATED} or "
+          f"beyond: {summary['actions']['saturated']:.3f}")
     print("criteria:", ", ".join(f"{k} {'met' if v else 'MISSED'}" for k, v in verdict.items()))
     args.out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out / "results.json", json.dumps(

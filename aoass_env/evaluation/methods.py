@@ -118,13 +118,15 @@ class RunOptions:
 class MethodRun:
     """A finished episode: the simulator, its beacon log, whether the method ended it itself
     (False: cut by the step limit) and, for the safety stack, the mean safety intervention
-    |v* - v_des| (m/s) per agent decision and the Eq. 14 return (None for other methods)."""
+    |v* - v_des| (m/s) per agent decision, the Eq. 14 return and the actions taken, one row
+    per decision (None for other methods)."""
 
     sim: Simulator
     log: BeaconLog
     complete: bool
     safety_intervention: float | None = None
     episode_return: float | None = None
+    actions: np.ndarray | None = None
 
 
 #: (config, obstacle map, seed, options) -> the finished episode.
@@ -214,6 +216,7 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
     obs, _ = env.reset(seed=seed, options={"map": obstacle_map})
     state, start = None, np.ones(1, dtype=bool)
     interventions: list[float] = []
+    actions: list[np.ndarray] = []
     limit = options.max_steps if options.max_steps is not None else math.inf
     steps, total, terminated, truncated = 0, 0.0, False, False
     while not (terminated or truncated) and steps < limit:
@@ -223,6 +226,7 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
             action, state = policy.predict(obs, state=state, episode_start=start,
                                            deterministic=True)
             start = np.zeros(1, dtype=bool)
+        actions.append(np.asarray(action, dtype=np.float32).ravel())
         obs, reward, terminated, truncated, info = env.step(action)
         total += float(reward)
         if "safety" in info:
@@ -230,7 +234,8 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
         steps += repeat
     base = env.unwrapped
     run = MethodRun(base.sim, base.beacon_log, terminated,
-                    float(np.mean(interventions)) if interventions else None, total)
+                    float(np.mean(interventions)) if interventions else None, total,
+                    np.array(actions).reshape(len(actions), *env.action_space.shape))
     env.close()
     return run
 

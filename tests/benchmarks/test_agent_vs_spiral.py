@@ -1,5 +1,6 @@
 """benchmarks/agent_vs_spiral.py's ``--constant`` flag."""
 
+import numpy as np
 import pytest
 
 from tests.benchmarks.conftest import load_benchmark
@@ -17,3 +18,10 @@ def test_constant_is_one_action_of_the_stack_in_bounds():
                                     ("nan,0", False, r"in \[-1, 1\]")):
         with pytest.raises(ValueError, match=rf"--constant '{text}': .*{message}"):
             bench.parse_constant(text, adaptive)
+
+
+def test_action_summary_is_the_mean_per_entry_and_the_share_at_the_bounds():
+    actions = np.array([[1.0, -0.95, 0.0], [0.9, 0.2, -0.89]])
+    summary = bench.action_summary(actions, ("dv", "dtheta", "skip"))
+    assert summary == pytest.approx({"mean_dv": 0.95, "mean_dtheta": -0.375,
+                                     "mean_skip": -0.445, "saturated": 3 / 6})

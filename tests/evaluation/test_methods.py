@@ -217,6 +217,8 @@ def test_a_constant_action_replaces_the_policy_in_its_stack(monkeypatch, tmp_pat
     fast = run((1.0, 0.0))
     assert fast.log.anchor_path[-1].tolist() != zero.log.anchor_path[-1].tolist()
     assert len(fast.log.anchor_path) == len(zero.log.anchor_path)    # 48 periods, 12 decisions
+    np.testing.assert_array_equal(fast.actions, np.tile(np.float32([1.0, 0.0]), (12, 1)))
+    assert zero.actions.shape == (48, 2) and not zero.actions.any()      # one decision a period
     with pytest.raises(ValueError, match="constant_action has 3 entries; .* have 2"):
         run((0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match=r"constant_action=\(0.0, nan\)"):
