@@ -60,10 +60,11 @@ def episode(task: tuple) -> dict:
     config = AOASSConfig(field_size=obstacle_map.width, map=map_name)
     if adaptive:
         method = "aoass-rule" if policy == "zero" else "aoass-adaptive"
-        options = RunOptions(adaptive_policy=model_path)
+        options = RunOptions(adaptive_policy=model_path, constant_action=constant)
     else:
         method = "aoass-scripted" if policy == "zero" else "aoass"
-        options = RunOptions(policy=model_path, algo="td3-lstm" if policy == "zero" else policy)
+        options = RunOptions(policy=model_path, algo="td3-lstm" if policy == "zero" else policy,
+                             constant_action=constant)
     run = METHODS[method].runner(config, obstacle_map, seed, options)
     m = episode_metrics(run)
     names = (AdaptiveAction if adaptive else ResidualAction).NAMES
