@@ -1,5 +1,8 @@
 """benchmarks/agent_vs_spiral.py's ``--constant`` flag."""
 
+import dataclasses
+import types
+
 import numpy as np
 import pytest
 
@@ -25,3 +28,23 @@ def test_action_summary_is_the_mean_per_entry_and_the_share_at_the_bounds():
     summary = bench.action_summary(actions, ("dv", "dtheta", "skip"))
     assert summary == pytest.approx({"mean_dv": 0.95, "mean_dtheta": -0.375,
                                      "mean_skip": -0.445, "saturated": 3 / 6})
+
+
+def test_the_constant_reaches_the_runner_of_the_agent_only(monkeypatch):
+    seen = {}
+
+    def runner(config, obstacle_map, seed, options):
+        seen[options.constant_action is None] = options
+        return types.SimpleNamespace(episode_return=0.0, actions=np.zeros((3, 5), np.float32))
+
+    metrics = dict.fromkeys(("eta_traj", "coverage", "energy_total", "collisions",
+                             "travel_time", "path_complete"), 0.0)
+    monkeypatch.setattr(bench, "episode_metrics", lambda run: metrics)
+    for method in ("aoass-adaptive", "aoass-rule"):
+        monkeypatch.setitem(bench.METHODS, method,
+                            dataclasses.replace(bench.METHODS[method], runner=runner))
+    model = "checkpoints/aoass_adaptive/best.zip"
+    agent = bench.episode(("td3-lstm", "test/d0.10_f100_s501", 100, model, True, (1.0,) * 5))
+    zero = bench.episode(("zero", "test/d0.10_f100_s501", 100, model, True, None))
+    assert seen[False].constant_action == (1.0,) * 5 and seen[True].adaptive_policy == model
+    assert (agent["policy"], zero["policy"]) == ("agent", "zero")
