@@ -93,6 +93,10 @@ class RecurrentActor(BasePolicy):
         """Actions in ``[-1, 1]`` from ``memory`` outputs (any leading shape)."""
         return self.mu(memory)
 
+    def pre_activation(self, memory: th.Tensor) -> th.Tensor:
+        """The action MLP's output before its final tanh: :meth:`act` is its tanh."""
+        return self.mu[:-1](memory)
+
     def forward(  # type: ignore[override]
         self, obs: th.Tensor, prev_actions: th.Tensor, lstm_state: LSTMState | None = None
     ) -> tuple[th.Tensor, LSTMState]:

@@ -27,7 +27,7 @@ from torch.nn import functional as F
 from agents.buffers import SequenceReplayBuffer, SequenceReplayBufferSamples, check_sequence_lengths
 from agents.checkpoints import SafeLoading
 from agents.policies import RecurrentActor, RecurrentCritic, RecurrentTD3Policy
-from aoass_env.validators import integer
+from aoass_env.validators import integer, real
 
 SelfRecurrentTD3 = TypeVar("SelfRecurrentTD3", bound="RecurrentTD3")
 RolloutState = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -55,6 +55,9 @@ class RecurrentTD3(SafeLoading, TD3):
     :param critic_warmup: gradient steps that train only the critics (and update their
         targets) before the actor's first update, so the actor starts from a critic that has
         seen the replayed data; 0 trains both from the first step (TD3)
+    :param actor_bound_penalty: weight of the mean squared pre-tanh output in the actor's loss
+        (added to TD3's ``-Q``): it keeps the actor off the bounds of its action box, where
+        tanh's gradient vanishes and the actor stops reading its input; 0 is TD3's loss
 
     ``load`` reads a saved model without unpickling anything (rebuilt from the run.yml beside
     it, :mod:`agents.checkpoints`); replay buffers are saved as ``.npz``.
@@ -96,6 +99,7 @@ class RecurrentTD3(SafeLoading, TD3):
         train_length: int = 16,
         n_steps: int = 1,
         critic_warmup: int = 0,
+        actor_bound_penalty: float = 0.0,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
@@ -111,6 +115,7 @@ class RecurrentTD3(SafeLoading, TD3):
         policy_delay = integer("policy_delay", policy_delay, "updates", low=1)
         n_steps = integer("n_steps", n_steps, "steps", low=1)
         critic_warmup = integer("critic_warmup", critic_warmup, "updates", low=0)
+        actor_bound_penalty = real("actor_bound_penalty", actor_bound_penalty, low=0.0)
         if replay_buffer_class is not None and not issubclass(replay_buffer_class,
                                                               SequenceReplayBuffer):
             raise ValueError("replay_buffer_class must be SequenceReplayBuffer or a subclass, got "
@@ -120,6 +125,7 @@ class RecurrentTD3(SafeLoading, TD3):
                 raise ValueError(f"pass {key} to RecurrentTD3, not in replay_buffer_kwargs")
         self.burn_in, self.train_length = burn_in, train_length
         self.critic_warmup = critic_warmup
+        self.actor_bound_penalty = actor_bound_penalty
         self._rollout_state: RolloutState | None = None
         super().__init__(
             policy, env, learning_rate=learning_rate, buffer_size=buffer_size,
@@ -316,8 +322,14 @@ class RecurrentTD3(SafeLoading, TD3):
                 actor_memory, _ = self.actor.memory(data.observations, data.prev_actions)
                 with th.no_grad():  # the actor's gradient does not need the critic's LSTM
                     memory = self.critic.memory(data.observations, data.prev_actions, n=1)[0]
-                q = self.critic.q_value(0, memory[select], self.actor.act(actor_memory[select]))
-                actor_loss = -q.mean()
+                if self.actor_bound_penalty > 0.0:
+                    pre = self.actor.pre_activation(actor_memory[select])
+                    q = self.critic.q_value(0, memory[select], th.tanh(pre))
+                    actor_loss = -q.mean() + self.actor_bound_penalty * pre.pow(2).mean()
+                else:
+                    q = self.critic.q_value(0, memory[select],
+                                            self.actor.act(actor_memory[select]))
+                    actor_loss = -q.mean()
                 actor_losses.append(actor_loss.item())
                 self.actor.optimizer.zero_grad()
                 actor_loss.backward()

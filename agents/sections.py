@@ -46,6 +46,7 @@ _NUMERIC: dict[str, tuple[type, float, float, bool]] = {
     "checkpoint_freq": (int, 1, math.inf, True), "burn_in": (int, 0, math.inf, True),
     "train_length": (int, 1, math.inf, True), "n_steps": (int, 1, math.inf, True),
     "critic_warmup": (int, 0, math.inf, True),
+    "actor_bound_penalty": (float, 0.0, math.inf, True),
 }
 
 

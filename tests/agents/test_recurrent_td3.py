@@ -271,6 +271,28 @@ def test_critic_warmup_holds_the_actor() -> None:
                for k in before if k.startswith("actor."))
 
 
+def test_actor_bound_penalty_pulls_a_saturated_actor_off_its_bounds() -> None:
+    """An actor pinned at +1 (its last layer's bias at 4) stays pinned under TD3's loss, whose
+    gradient tanh all but cancels; with the penalty its pre-tanh outputs come back toward 0.
+    The actions are the tanh of ``pre_activation``."""
+    obs = th.as_tensor(np.random.default_rng(0).normal(size=(16, 6, 3)), dtype=th.float32)
+    prev = th.zeros(16, 6, 1)
+
+    def trained(penalty: float) -> float:
+        model = _model(1, learning_starts=20, actor_bound_penalty=penalty, learning_rate=0.01)
+        for actor in (model.actor, model.actor_target):
+            actor.mu[-2].bias.data.fill_(4.0)
+        model.learn(300)
+        with th.no_grad():
+            memory, _ = model.actor.memory(obs, prev)
+            pre = model.actor.pre_activation(memory)
+            th.testing.assert_close(th.tanh(pre), model.actor.act(memory), rtol=0, atol=0)
+        return float(pre.abs().mean())
+
+    plain, penalised = trained(0.0), trained(1.0)
+    assert plain > 3.5 and penalised < 1.0
+
+
 @pytest.mark.parametrize("n_envs", [1, 2])
 def test_learn_changes_weights(n_envs: int) -> None:
     model = _model(n_envs, learning_starts=100)
@@ -323,6 +345,8 @@ def test_eval_callback_works(tmp_path) -> None:
     (dict(n_steps=0), "n_steps"),
     (dict(critic_warmup=-1), "critic_warmup"),
     (dict(critic_warmup=2.5), "critic_warmup"),
+    (dict(actor_bound_penalty=-0.1), "actor_bound_penalty"),
+    (dict(actor_bound_penalty="big"), "actor_bound_penalty"),
     (dict(optimize_memory_usage=True), "optimize_memory_usage"),
     (dict(replay_buffer_kwargs=dict(burn_in=3)), "burn_in"),
     (dict(policy_kwargs=dict(lstm_hidden_size=0)), "lstm_hidden_size"),
