@@ -322,14 +322,11 @@ class RecurrentTD3(SafeLoading, TD3):
                 actor_memory, _ = self.actor.memory(data.observations, data.prev_actions)
                 with th.no_grad():  # the actor's gradient does not need the critic's LSTM
                     memory = self.critic.memory(data.observations, data.prev_actions, n=1)[0]
+                pre = self.actor.pre_activation(actor_memory[select])
+                q = self.critic.q_value(0, memory[select], th.tanh(pre))   # actor.act's tanh
+                actor_loss = -q.mean()
                 if self.actor_bound_penalty > 0.0:
-                    pre = self.actor.pre_activation(actor_memory[select])
-                    q = self.critic.q_value(0, memory[select], th.tanh(pre))
-                    actor_loss = -q.mean() + self.actor_bound_penalty * pre.pow(2).mean()
-                else:
-                    q = self.critic.q_value(0, memory[select],
-                                            self.actor.act(actor_memory[select]))
-                    actor_loss = -q.mean()
+                    actor_loss = actor_loss + self.actor_bound_penalty * pre.pow(2).mean()
                 actor_losses.append(actor_loss.item())
                 self.actor.optimizer.zero_grad()
                 actor_loss.backward()

@@ -85,9 +85,11 @@ def action_summary(actions: np.ndarray, names: tuple[str, ...]) -> dict[str, flo
 
 
 def parse_constant(text: str, adaptive: bool) -> tuple[float, ...]:
-    """``--constant``'s comma-separated action (5 entries with ``--adaptive``, else 2), each in
-    [-1, 1]; ValueError naming the flag otherwise."""
-    size = 5 if adaptive else 2
+    """``--constant``'s comma-separated action (one entry per name of the adaptive action type
+    with ``--adaptive``, else of the residual one), each in [-1, 1]; ValueError naming the flag
+    otherwise (before any episode runs; the runner checks the action against the stack's
+    space again)."""
+    size = len((AdaptiveAction if adaptive else ResidualAction).NAMES)
     try:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:

@@ -209,9 +209,12 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
                         safety=stack.get("safety"), action_repeat=repeat,
                         action_type=stack.get("action_type", "residual"),
                         adaptive=stack.get("adaptive"))
-    constant = None if learned else np.zeros(env.action_space.shape, np.float32)
-    if learned and options.constant_action is not None:
+    if not learned:
+        constant: np.ndarray | None = np.zeros(env.action_space.shape, np.float32)
+    elif options.constant_action is not None:
         constant = _constant_action(options.constant_action, env.action_space)
+    else:
+        constant = None
     policy = load_policy(path, algo, record) if constant is None else None
     obs, _ = env.reset(seed=seed, options={"map": obstacle_map})
     state, start = None, np.ones(1, dtype=bool)
