@@ -157,10 +157,10 @@ class AOASSConfig(ValidatedConfig):
         kind="int")
     action_speed_scale: float = param(
         1.0, "speed change commanded by action[0] = +-1 on top of the follower's speed",
-        unit="m/s", low=0.0, high=20.0)
+        unit="m/s", low=0.0, high=20.0, low_open=True)
     action_heading_scale: float = param(
         math.pi / 2, "heading change commanded by action[1] = +-1 on top of the follower's "
-        "heading", unit="rad", low=0.0, high=math.pi)
+        "heading", unit="rad", low=0.0, high=math.pi, low_open=True)
     time_limit_factor: float = param(
         5.0, "episode time limit as a multiple of the ideal path's duration at nominal speed "
         "(the environment's: of the ideal spiral's; every evaluated method gets the same)",

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.action import AdaptiveAction, ResidualAction, checked_action
-from aoass_env.config import AOASSConfig
+from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.env import AOASSEnv
 from aoass_env.wrappers import make_safe_env
 
@@ -34,6 +34,15 @@ def test_from_config_and_full_range():
     full = ResidualAction.full_range(c)
     assert full == ResidualAction(c.anchor_max_speed, math.pi, c.anchor_max_speed)
     assert full.reaches_every_command
+
+
+
+@pytest.mark.parametrize("key", ["action_speed_scale", "action_heading_scale"])
+def test_a_zero_scale_is_refused_by_the_configs_own_name(key):
+    # a zero scale would make the residual's inverse divide by zero; the config refuses it
+    # before the action type is built, naming the user's key, not the action's field
+    with pytest.raises(ConfigError, match=rf"^{key}=0\.0 must be a number in \(0\.0, "):
+        AOASSConfig(**{key: 0.0})
 
 
 @settings(max_examples=200, deadline=None)
