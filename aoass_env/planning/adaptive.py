@@ -56,7 +56,9 @@ WaypointFollower`, with its detours and its recovery from traps) and reads the a
 Three knobs in [-1, 1] (:class:`SweepKnobs`, the adaptive action's last three entries) move the
 rule: ``skip`` raises ``skip_need`` by ``knob_step`` x skip (skip more); ``detour`` raises
 ``detour_need`` the same way and divides ``detour_excess`` by 2^detour (detour less);
-``densify`` raises ``densify_need`` (densify less). The zero knobs are the hand-written rule
+``densify`` raises ``densify_need`` (densify less). A knob's shift grows linearly to its full
+size at ±``knob_full`` (0.9) and stays there, so that a tanh actor reaches every setting without
+sitting exactly on its bound. The zero knobs are the hand-written rule
 (evaluate.py's ``aoass-rule`` method). Chosen on training maps (docs/planning.md).
 """
 
@@ -195,7 +197,13 @@ class AdaptiveConfig(ValidatedConfig):
                              "way's by more than this per extra metre (SIDE_OFF = 1000: "
                              "always the shortest way, the other side is not weighed)",
                              unit="1/m", low=0.0, high=1000.0)
-    knob_step: float = param(0.25, "threshold shift of a knob at +-1", low=0.0, high=1.0)
+    knob_step: float = param(0.25, "threshold shift of a knob at full reach (knob_full)",
+                             low=0.0, high=1.0)
+    knob_full: float = param(0.9, "a knob at or beyond +-this shifts the thresholds fully, "
+                             "linearly from 0 (1: only at +-1, where a tanh actor arrives only "
+                             "in the limit, and the corners' effects, e.g. skip_need reaching 0, "
+                             "lie on the bound; docs/adaptive.md)", low=0.0, high=1.0,
+                             low_open=True)
     beacon_interval: float | None = param(None, "distance the adaptive anchor travels between "
                                           "beacons, in the plan and in the sweep (None: the "
                                           "environment's beacon_interval); the spiral's "
@@ -382,8 +390,12 @@ class AdaptiveSweep:
         return 0.0, 0.0
 
     # --- skip ------------------------------------------------------------------------------
+    def _reach(self, knob: float) -> float:
+        """A knob's share of its full shift, in [-1, 1] (full at ``knob_full`` and beyond)."""
+        return min(1.0, max(-1.0, float(knob) / self.rule.knob_full))
+
     def _threshold(self, base: float, knob: float) -> float:
-        return base + self.rule.knob_step * float(np.clip(knob, -1.0, 1.0))
+        return base + self.rule.knob_step * self._reach(knob)
 
     def need(self, index: int) -> float:
         """Mean coverage deficit of the free cells within ``skip_radius`` of spiral waypoint
@@ -412,7 +424,7 @@ class AdaptiveSweep:
         base = self.online_thresholds()
         skip_need = self._threshold(base.skip_need, self.knobs.skip)
         detour_need = self._threshold(base.detour_need, self.knobs.detour)
-        max_excess = base.detour_excess * 2.0 ** -float(np.clip(self.knobs.detour, -1, 1))
+        max_excess = base.detour_excess * 2.0 ** -self._reach(self.knobs.detour)
         on_spiral = runner is self.follower
         while not runner.done:
             need = self.need(runner.index)

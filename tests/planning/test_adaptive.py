@@ -69,6 +69,28 @@ def test_by_default_only_the_skip_knob_passes_covered_targets_over():
     assert ctl.done and {p.reason for p in ctl.passed} == {"covered"}
 
 
+def test_a_knob_short_of_its_bound_reaches_its_full_shift_at_knob_full():
+    """A tanh actor's +1 is 0.98 or so: at the default knob_full (0.9) that is the full shift
+    (skip_need from -0.25 to 0: covered targets passed over), where with knob_full 1 only an
+    exact +1 got there and 0.98 passed nothing over."""
+    config = AOASSConfig(**OPEN)
+    full, ctl_full = _sweep(config, 0, AdaptiveConfig(), knobs=SweepKnobs(skip=1.0))
+    near, ctl_near = _sweep(config, 0, AdaptiveConfig(), knobs=SweepKnobs(skip=0.98))
+    assert ctl_near.passed and ctl_near.passed == ctl_full.passed
+    assert near.network.distance_travelled == full.network.distance_travelled
+    _, cliff = _sweep(config, 0, AdaptiveConfig(knob_full=1.0), knobs=SweepKnobs(skip=0.98))
+    assert cliff.done and not cliff.passed
+    # below knob_full the shift is linear in the knob: 0.45 at 0.9 is 0.5 at 1
+    scaled, ctl_scaled = _sweep(config, 0, AdaptiveConfig(**ONLINE),
+                                knobs=SweepKnobs(skip=0.45, detour=-0.45))
+    plain, ctl_plain = _sweep(config, 0, AdaptiveConfig(**ONLINE, knob_full=1.0),
+                              knobs=SweepKnobs(skip=0.5, detour=-0.5))
+    assert ctl_scaled.passed == ctl_plain.passed
+    assert scaled.network.distance_travelled == plain.network.distance_travelled
+    with pytest.raises(ConfigError, match="knob_full=0.0 must be a number in \\(0.0, 1.0\\]"):
+        AdaptiveConfig(knob_full=0.0)
+
+
 def test_on_a_map_denser_than_dense_above_the_dense_thresholds_skip_online():
     config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
     sparse = AdaptiveConfig(dense_above=0.5)          # WALL's density is about 0.02
