@@ -36,7 +36,6 @@ def test_from_config_and_full_range():
     assert full.reaches_every_command
 
 
-
 @pytest.mark.parametrize("key", ["action_speed_scale", "action_heading_scale"])
 def test_a_zero_scale_is_refused_by_the_configs_own_name(key):
     # a zero scale would make the residual's inverse divide by zero; the config refuses it
