@@ -19,8 +19,14 @@ With ``--constant a,b,...`` the "agent" takes that action at every decision inst
 model's, in the stack the model was trained in (a constant-action probe: does the policy do
 better than its own typical action held fixed?).
 
+With ``--localizer olstm-dvhop`` (or ``dvhop``, ``consensus``) every episode's beacon log is
+localized too, and the Eq. 15 RMSE (m, over the localized nodes) is a column and a criterion
+(no higher than the zero action's): a policy that saves path by passing over beacon sites can
+cost localization, which return and energy do not show.
+
 Run: ``python3 benchmarks/agent_vs_spiral.py [--model checkpoints/aoass_td3_lstm/best.zip]
-[--algo td3-lstm] [--seeds 30] [--jobs 2] [--maps test|validation] [--constant a,b,...]``.
+[--algo td3-lstm] [--seeds 30] [--jobs 2] [--maps test|validation] [--constant a,b,...]
+[--localizer olstm-dvhop]``.
 """
 
 from __future__ import annotations
@@ -38,8 +44,9 @@ import torch
 from aoass_env.action import AdaptiveAction, ResidualAction
 from aoass_env.atomic import write_text_atomic
 from aoass_env.config import AOASSConfig
-from aoass_env.evaluation.episode import episode_metrics
+from aoass_env.evaluation.episode import episode_metrics, localization_row
 from aoass_env.evaluation.methods import METHODS, RunOptions
+from aoass_env.localization import METHODS as LOCALIZERS
 from aoass_env.maps import list_maps, load_map
 from aoass_env.maps.registry import validation_split
 
@@ -51,10 +58,10 @@ METRICS = ("return", "eta_traj", "coverage", "energy", "contacts", "steps")
 
 def episode(task: tuple) -> dict:
     """(policy: an algorithm name or 'zero', map name, seed, model path, adaptive, constant
-    action or None) -> the episode's record. The evaluation's runners play it: the policy acts
-    in the stack it was trained in (``action_repeat`` etc. from the ``run.yml`` beside the
-    model)."""
-    policy, map_name, seed, model_path, adaptive, constant = task
+    action or None, localizer or None) -> the episode's record. The evaluation's runners play
+    it: the policy acts in the stack it was trained in (``action_repeat`` etc. from the
+    ``run.yml`` beside the model); with a localizer the record holds its Eq. 15 ``rmse`` (m)."""
+    policy, map_name, seed, model_path, adaptive, constant, localizer = task
     torch.set_num_threads(1)
     obstacle_map = load_map(map_name)
     config = AOASSConfig(field_size=obstacle_map.width, map=map_name)
@@ -68,12 +75,13 @@ def episode(task: tuple) -> dict:
     run = METHODS[method].runner(config, obstacle_map, seed, options)
     m = episode_metrics(run)
     names = (AdaptiveAction if adaptive else ResidualAction).NAMES
+    rmse = {} if localizer is None else {"rmse": localization_row(run.log, localizer)["rmse"]}
     return {"policy": "zero" if policy == "zero" else "agent", "map": map_name,
             "density": map_name.split("/")[1][1:5],
             "seed": seed, "return": run.episode_return, "eta_traj": m["eta_traj"],
             "coverage": m["coverage"], "energy": m["energy_total"], "contacts": m["collisions"],
             "steps": round(m["travel_time"] / config.dt), "complete": bool(m["path_complete"]),
-            **action_summary(run.actions, names)}
+            **rmse, **action_summary(run.actions, names)}
 
 
 def action_summary(actions: np.ndarray, names: tuple[str, ...]) -> dict[str, float]:
@@ -125,6 +133,9 @@ def main() -> None:
     parser.add_argument("--constant", metavar="A,B,...",
                         help="take this action at every decision instead of --model's (in "
                              "--model's stack)")
+    parser.add_argument("--localizer", choices=LOCALIZERS,
+                        help="also localize every beacon log with this localizer and compare "
+                             "the Eq. 15 RMSE")
     parser.add_argument("--out", type=Path, default=Path("out/bench_agent"))
     args = parser.parse_args()
     if not args.model.is_file():
@@ -134,6 +145,7 @@ def main() -> None:
                     else None)
     except ValueError as err:
         parser.error(str(err))
+    metrics = METRICS + (("rmse",) if args.localizer else ())
     tasks = []
     for d in DENSITIES:
         if args.maps == "test":
@@ -144,26 +156,27 @@ def main() -> None:
         for s in range(args.seeds):
             for policy in (args.algo, "zero"):
                 tasks.append((policy, maps[s % len(maps)], 100 + s, str(args.model.resolve()),
-                              args.adaptive, constant if policy != "zero" else None))
+                              args.adaptive, constant if policy != "zero" else None,
+                              args.localizer))
     with Pool(args.jobs) as pool:
         rows = pool.map(episode, tasks, chunksize=1)
 
     what = f"the constant action {constant}" if constant is not None else args.model
     print(f"{what}: {args.seeds} episodes per density on the {args.maps} maps, both "
           "inside the safety stack")
-    print(f"{'density':8s} {'policy':7s} " + " ".join(f"{k:>9s}" for k in METRICS))
+    print(f"{'density':8s} {'policy':7s} " + " ".join(f"{k:>9s}" for k in metrics))
     summary: dict = {}
     for d in (*DENSITIES, "all"):
         sel = [r for r in rows if d == "all" or r["density"] == d]
         summary[d] = {}
         for policy in ("agent", "zero"):
             mine = [r for r in sel if r["policy"] == policy]
-            means = {k: float(np.mean([r[k] for r in mine])) for k in METRICS}
+            means = {k: float(np.mean([r[k] for r in mine])) for k in metrics}
             summary[d][policy] = means
-            print(f"{d:8s} {policy:7s} " + " ".join(f"{means[k]:9.3f}" for k in METRICS))
-        summary[d]["difference"] = {k: paired(sel, k) for k in METRICS}
+            print(f"{d:8s} {policy:7s} " + " ".join(f"{means[k]:9.3f}" for k in metrics))
+        summary[d]["difference"] = {k: paired(sel, k) for k in metrics}
         print(f"{d:8s} {'diff':7s} " + " ".join(
-            f"{summary[d]['difference'][k][0]:+9.3f}" for k in METRICS))
+            f"{summary[d]['difference'][k][0]:+9.3f}" for k in metrics))
     overall = summary["all"]
     verdict = {
         "higher_return": overall["agent"]["return"] > overall["zero"]["return"],
@@ -173,6 +186,8 @@ def main() -> None:
         "energy_no_higher": overall["agent"]["energy"] <= overall["zero"]["energy"],
         "no_more_contacts": overall["agent"]["contacts"] <= overall["zero"]["contacts"],
     }
+    if args.localizer:
+        verdict["rmse_no_higher"] = overall["agent"]["rmse"] <= overall["zero"]["rmse"]
     agent = [r for r in rows if r["policy"] == "agent"]
     means = {k[5:]: round(float(np.mean([r[k] for r in agent])), 3)
              for k in agent[0] if k.startswith("mean_")}
@@ -183,7 +198,8 @@ def main() -> None:
     print("criteria:", ", ".join(f"{k} {'met' if v else 'MISSED'}" for k, v in verdict.items()))
     args.out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out / "results.json", json.dumps(
-        {"model": str(args.model), "constant": constant, "seeds": args.seeds, "summary": summary,
+        {"model": str(args.model), "constant": constant, "seeds": args.seeds,
+         "localizer": args.localizer, "summary": summary,
          "criteria": verdict}, indent=1))
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(rows[0]))

@@ -1,4 +1,4 @@
-"""benchmarks/agent_vs_spiral.py's ``--constant`` flag."""
+"""benchmarks/agent_vs_spiral.py's ``--constant`` and ``--localizer`` flags."""
 
 import dataclasses
 import types
@@ -44,7 +44,41 @@ def test_the_constant_reaches_the_runner_of_the_agent_only(monkeypatch):
         monkeypatch.setitem(bench.METHODS, method,
                             dataclasses.replace(bench.METHODS[method], runner=runner))
     model = "checkpoints/aoass_adaptive/best.zip"
-    agent = bench.episode(("td3-lstm", "test/d0.10_f100_s501", 100, model, True, (1.0,) * 5))
-    zero = bench.episode(("zero", "test/d0.10_f100_s501", 100, model, True, None))
+    agent = bench.episode(("td3-lstm", "test/d0.10_f100_s501", 100, model, True, (1.0,) * 5,
+                           None))
+    zero = bench.episode(("zero", "test/d0.10_f100_s501", 100, model, True, None, None))
     assert seen[False].constant_action == (1.0,) * 5 and seen[True].adaptive_policy == model
     assert (agent["policy"], zero["policy"]) == ("agent", "zero")
+    assert "rmse" not in agent
+
+
+def test_the_localizer_localizes_the_episodes_own_log(monkeypatch):
+    log = object()
+
+    def runner(config, obstacle_map, seed, options):
+        return types.SimpleNamespace(episode_return=0.0, actions=np.zeros((3, 5), np.float32),
+                                     log=log)
+
+    localized = []
+
+    def localization_row(got, localizer):
+        localized.append((got, localizer))
+        return {"rmse": 0.75}
+
+    metrics = dict.fromkeys(("eta_traj", "coverage", "energy_total", "collisions",
+                             "travel_time", "path_complete"), 0.0)
+    monkeypatch.setattr(bench, "episode_metrics", lambda run: metrics)
+    monkeypatch.setattr(bench, "localization_row", localization_row)
+    monkeypatch.setitem(bench.METHODS, "aoass-rule",
+                        dataclasses.replace(bench.METHODS["aoass-rule"], runner=runner))
+    row = bench.episode(("zero", "test/d0.10_f100_s501", 100, "x.zip", True, None,
+                         "olstm-dvhop"))
+    assert localized == [(log, "olstm-dvhop")] and row["rmse"] == 0.75
+
+
+def test_paired_rmse_is_the_mean_agent_minus_zero_difference():
+    rows = [{"map": "m", "seed": s, "policy": p, "rmse": r}
+            for s, (a, z) in enumerate(((1.0, 0.8), (0.9, 0.9), (1.2, 1.0)))
+            for p, r in (("agent", a), ("zero", z))]
+    mean, half = bench.paired(rows, "rmse")
+    assert mean == pytest.approx(0.4 / 3) and half > 0
