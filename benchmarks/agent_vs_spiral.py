@@ -13,7 +13,10 @@ and ``OUT/episodes.csv``.
 
 With ``--maps validation`` the episodes are on the validation split of the 100 m training maps
 instead (:func:`~aoass_env.maps.registry.validation_split`): the maps on which to choose between
-policies, since maps/test is for reported tables only.
+policies, since maps/test is for reported tables only. That split holds one map per density;
+with ``--maps fresh --fresh SEED`` episode s of a density runs on a map generated for it
+instead (``generate_map(100, d, default_rng([SEED, round(100 d), s]))``, every episode its own
+map): take a SEED used nowhere else, and choose on it or check a choice on it.
 
 With ``--constant a,b,...`` the "agent" takes that action at every decision instead of the
 model's, in the stack the model was trained in (a constant-action probe: does the policy do
@@ -25,8 +28,8 @@ localized too, and the Eq. 15 RMSE (m, over the localized nodes) is a column and
 cost localization, which return and energy do not show.
 
 Run: ``python3 benchmarks/agent_vs_spiral.py [--model checkpoints/aoass_td3_lstm/best.zip]
-[--algo td3-lstm] [--seeds 30] [--jobs 2] [--maps test|validation] [--constant a,b,...]
-[--localizer olstm-dvhop]``.
+[--algo td3-lstm] [--seeds 30] [--jobs 2] [--maps test|validation|fresh] [--fresh SEED]
+[--constant a,b,...] [--localizer olstm-dvhop]``.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ import argparse
 import csv
 import io
 import json
+from functools import lru_cache
 from multiprocessing import Pool
 from pathlib import Path
 
@@ -47,13 +51,32 @@ from aoass_env.config import AOASSConfig
 from aoass_env.evaluation.episode import episode_metrics, localization_row
 from aoass_env.evaluation.methods import METHODS, RunOptions
 from aoass_env.localization import METHODS as LOCALIZERS
-from aoass_env.maps import list_maps, load_map
+from aoass_env.maps import ObstacleMap, generate_map, list_maps, load_map
 from aoass_env.maps.registry import validation_split
 
 DENSITIES = ("0.10", "0.20", "0.30", "0.40")
 #: An action entry at or beyond this magnitude counts as at its bound (``saturated``).
 SATURATED = 0.9
 METRICS = ("return", "eta_traj", "coverage", "energy", "contacts", "steps")
+
+
+#: Prefix of a freshly generated map's name (``fresh/d0.30_s<SEED>_<s>``, :func:`fresh_map`).
+FRESH = "fresh/"
+
+
+def fresh_name(seed: int, density: str, index: int) -> str:
+    """The name of generated map ``index`` of ``density`` (e.g. ``"0.30"``) from ``seed``."""
+    return f"{FRESH}d{density}_s{seed}_{index}"
+
+
+@lru_cache(maxsize=4)
+def fresh_map(name: str) -> ObstacleMap:
+    """The 100 m map of a :func:`fresh_name`: ``generate_map(100, d, default_rng([SEED,
+    round(100 d), index]))``."""
+    density, seed, index = name.removeprefix(FRESH).split("_")
+    d = float(density[1:])
+    return generate_map(100.0, d, np.random.default_rng([int(seed[1:]), round(100 * d),
+                                                         int(index)]), name=name)
 
 
 def episode(task: tuple) -> dict:
@@ -63,8 +86,12 @@ def episode(task: tuple) -> dict:
     ``run.yml`` beside the model); with a localizer the record holds its Eq. 15 ``rmse`` (m)."""
     policy, map_name, seed, model_path, adaptive, constant, localizer = task
     torch.set_num_threads(1)
-    obstacle_map = load_map(map_name)
-    config = AOASSConfig(field_size=obstacle_map.width, map=map_name)
+    if map_name.startswith(FRESH):
+        obstacle_map = fresh_map(map_name)
+        config = AOASSConfig(field_size=obstacle_map.width)
+    else:
+        obstacle_map = load_map(map_name)
+        config = AOASSConfig(field_size=obstacle_map.width, map=map_name)
     if adaptive:
         method = "aoass-rule" if policy == "zero" else "aoass-adaptive"
         options = RunOptions(adaptive_policy=model_path, constant_action=constant)
@@ -127,9 +154,11 @@ def main() -> None:
                              " compare it with the hand-written rule, the adaptive zero action")
     parser.add_argument("--seeds", type=int, default=30, help="episodes per density")
     parser.add_argument("--jobs", type=int, default=2)
-    parser.add_argument("--maps", choices=("test", "validation"), default="test",
-                        help="maps/test (reported tables) or the validation split of maps/train "
-                             "(choosing between policies)")
+    parser.add_argument("--maps", choices=("test", "validation", "fresh"), default="test",
+                        help="maps/test (reported tables), the validation split of maps/train "
+                             "(choosing between policies) or maps generated from --fresh")
+    parser.add_argument("--fresh", type=int, metavar="SEED",
+                        help="with --maps fresh: the generated maps' seed (one map per episode)")
     parser.add_argument("--constant", metavar="A,B,...",
                         help="take this action at every decision instead of --model's (in "
                              "--model's stack)")
@@ -145,11 +174,17 @@ def main() -> None:
                     else None)
     except ValueError as err:
         parser.error(str(err))
+    if (args.maps == "fresh") != (args.fresh is not None):
+        parser.error("--fresh SEED goes with --maps fresh, and --maps fresh needs --fresh SEED")
+    if args.fresh is not None and args.fresh < 0:
+        parser.error(f"--fresh must be a non-negative seed, got {args.fresh}")
     metrics = METRICS + (("rmse",) if args.localizer else ())
     tasks = []
     for d in DENSITIES:
         if args.maps == "test":
             maps = list_maps("test", field_size=100, densities=(float(d), float(d)))
+        elif args.maps == "fresh":
+            maps = [fresh_name(args.fresh, d, s) for s in range(args.seeds)]
         else:
             maps = validation_split(list_maps("train", field_size=100,
                                               densities=(float(d), float(d))))[1]
@@ -162,8 +197,10 @@ def main() -> None:
         rows = pool.map(episode, tasks, chunksize=1)
 
     what = f"the constant action {constant}" if constant is not None else args.model
-    print(f"{what}: {args.seeds} episodes per density on the {args.maps} maps, both "
-          "inside the safety stack")
+    where = f"fresh maps of seed {args.fresh}" if args.fresh is not None else \
+        f"{args.maps} maps"
+    print(f"{what}: {args.seeds} episodes per density on the {where}, both inside the safety "
+          "stack")
     print(f"{'density':8s} {'policy':7s} " + " ".join(f"{k:>9s}" for k in metrics))
     summary: dict = {}
     for d in (*DENSITIES, "all"):
