@@ -82,3 +82,26 @@ def test_paired_rmse_is_the_mean_agent_minus_zero_difference():
             for p, r in (("agent", a), ("zero", z))]
     mean, half = bench.paired(rows, "rmse")
     assert mean == pytest.approx(0.4 / 3) and half > 0
+
+
+def test_a_fresh_map_is_the_generator_s_map_of_its_seed_density_and_index():
+    name = bench.fresh_name(4711, "0.20", 3)
+    assert name.split("/")[1][1:5] == "0.20"          # the density column reads it there
+    expected = bench.generate_map(100.0, 0.2, np.random.default_rng([4711, 20, 3]))
+    got = bench.fresh_map(name)
+    assert got.union.equals(expected.union) and got.width == 100.0
+    assert not got.union.equals(bench.fresh_map(bench.fresh_name(4711, "0.20", 4)).union)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--maps", "fresh"], "--fresh SEED goes with --maps fresh"),
+    (["--fresh", "3"], "--fresh SEED goes with --maps fresh"),
+    (["--maps", "fresh", "--fresh", "-1"], "--fresh must be a non-negative seed"),
+])
+def test_fresh_flags_are_checked_before_any_episode(monkeypatch, capsys, argv, message):
+    monkeypatch.setattr("sys.argv", ["agent_vs_spiral.py", "--adaptive", "--model",
+                                     "checkpoints/aoass_adaptive/best.zip", *argv])
+    monkeypatch.setattr(bench, "Pool", None)      # an episode would fail on it
+    with pytest.raises(SystemExit):
+        bench.main()
+    assert message in capsys.readouterr().err
