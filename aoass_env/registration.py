@@ -64,7 +64,8 @@ _ADAPTIVE = {"action_type": "adaptive", "obs_coverage_sectors": 8}
 _ADAPTIVE_POLICY_RULE = {
     "prune": True, "prune_beacons": 6.0, "prune_spread": 2.0, "prune_error": 2.0,
     "sites": True, "site_need": 4, "reorder": True, "wide_passes": False, "skip_radius": 8.0,
-    "skip_need": -0.25, "detour_need": -0.25, "detour_excess": 10000.0, "dense_above": 0.45,
+    "skip_need": -0.25, "skip_localizing": False, "detour_need": -0.25,
+    "detour_excess": 10000.0, "dense_above": 0.45,
     "dense_skip_need": 0.0, "dense_detour_need": 0.0, "dense_detour_excess": 20.0,
     "densify_need": 0.0, "cell_need": 0.0, "beyond_below": 0.92, "beyond_need": 0.5,
     "beyond_time": 0.8, "cell_sites": False, "cell_hop": 10000.0, "end_coverage": 0.995,

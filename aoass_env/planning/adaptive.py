@@ -19,6 +19,9 @@ WaypointFollower`, with its detours and its recovery from traps) and reads the a
    (docs/adaptive.md). The agent's knobs at +1 raise the two needs to 0 (skip what is covered).
    On a dense map (obstacle density above ``dense_above``, 0.45) the ``dense_`` thresholds
    stand in for the three (0, 0 and 20 m: the online skips on), where they shortened the sweep.
+   A plan's localizing points (:attr:`~aoass_env.planning.pruning.PrunedPlan.localizing`: those
+   its class limit needs) are never passed over as covered unless ``skip_localizing``: the
+   coverage map judges Eq. 18 alone, not which beacons a cell hears.
    **Side of a detour.** When the sweep does detour to a target, it can weigh the planner's
    shortest way against the shortest way round the other side of the obstacle (a keep-out
    fence on the perpendicular through the first way's widest point, out to the field's
@@ -146,6 +149,12 @@ class AdaptiveConfig(ValidatedConfig):
                              "the agent's knob raises it; the pruned plan has already left out "
                              "what the rest covers, docs/adaptive.md; the rule without a plan "
                              "used 0)", low=-1.0, high=1.0)
+    skip_localizing: bool = param(False, "the online skips may pass over a plan point that "
+                                  "the plan's class limit needs (PrunedPlan.localizing: "
+                                  "its surroundings may be covered while the cells around "
+                                  "still share one class); off: such points are visited "
+                                  "(the skip then saves path where it costs no localization, "
+                                  "docs/adaptive.md)", kind="bool")
     detour_need: float = param(-0.25, "the same for a target the anchor cannot reach straight "
                                "(it would detour round an obstacle; the rule without a plan used "
                                "0)", low=-1.0, high=1.0)
@@ -287,6 +296,7 @@ class AdaptiveSweep:
     _site: np.ndarray | None = None
     _tries: int = 0
     _judged: int = -1
+    _localizing: np.ndarray | None = None
     _dropped: np.ndarray | None = None
     _recoveries: int = 0
     _done: bool = False
@@ -294,6 +304,8 @@ class AdaptiveSweep:
     def __post_init__(self) -> None:
         if self.rule.prune:
             self.plan = self._prune()
+            if not self.rule.skip_localizing:
+                self._localizing = self.plan.localizing
         self._runner = self.follower
         self._open = np.zeros(len(self.follower.waypoints), dtype=bool)
         self._dropped = np.zeros(self.coverage.n_cells, dtype=bool)
@@ -428,12 +440,13 @@ class AdaptiveSweep:
         on_spiral = runner is self.follower
         while not runner.done:
             need = self.need(runner.index)
-            if need <= skip_need:
+            kept = self._localizing is not None and self._localizing[runner.index]
+            if need <= skip_need and not kept:
                 reason = "covered"
             elif runner.index == self._judged or self.planner.visible(position, runner.target):
                 self._judged = runner.index
                 return
-            elif need <= detour_need:
+            elif need <= detour_need and not kept:
                 reason = "covered, detour"
             else:
                 way = self.planner.path(position, runner.target)

@@ -122,6 +122,10 @@ class PrunedPlan:
         reference: (C,) bool: the coverage map's cells the full spiral plan covers; a pruned
             spiral covers each of them too (with its planned beacons), a site tour each it
             could (the cells phase goes for the others).
+        localizing: (len(order),) bool, in visiting order: the kept points the plan's class
+            limit needs (planned with an error limit): without one of them every reference
+            cell stays covered, but some cell's :func:`class_error` rises above its cap. An
+            online skip that judges coverage alone would undo them (docs/adaptive.md).
     """
 
     points: np.ndarray
@@ -130,6 +134,7 @@ class PrunedPlan:
     length: float
     full_length: float
     reference: np.ndarray
+    localizing: np.ndarray
 
 
 _MASK = (1 << 64) - 1
@@ -394,6 +399,26 @@ class _Pruner:
         if b is not None:
             self.next[site], self.prev[b] = b, site
 
+    def localizing(self) -> np.ndarray:
+        """(kept points,) bool in visiting order: whether leaving the point out (its two ways
+        replaced by the way between its neighbours; the last point's way dropped) keeps every
+        reference cell covered with its margin but puts some cell's class error above the cap
+        (all False without an error limit, and for the first point and those the planner
+        cannot bypass)."""
+        order = self.order()
+        out = np.zeros(len(order), dtype=bool)
+        if self.cap is None:
+            return out
+        for i, k in enumerate(order[1:], start=1):
+            a, b = self.prev[k], self.next.get(k)
+            old = [self.ways.get(a, k)] + ([self.ways.get(k, b)] if b is not None else [])
+            new = [self.ways.get(a, b)] if b is not None else []
+            if any(w is None for w in new) or not self._trial(old, new)[2]:
+                continue
+            error = class_error(self._signature(old, new), self.ways.radio.nodes)
+            out[i] = bool(np.any(error > self.cap))
+        return out
+
     def gain(self, k: int) -> float:
         """How much shorter (m) the plan gets without waypoint ``k`` (-inf when it cannot)."""
         a, b = self.prev.get(k), self.next.get(k)
@@ -519,7 +544,8 @@ def _plan(points: np.ndarray, pruner: _Pruner, full: float,
     order = np.array(pruner.order(), dtype=np.int64)
     kept = np.zeros(len(points), dtype=bool)
     kept[order] = True
-    return PrunedPlan(points, kept, order, pruner.length(), full, reference)
+    return PrunedPlan(points, kept, order, pruner.length(), full, reference,
+                      pruner.localizing())
 
 
 def prune_spiral(waypoints: np.ndarray, blocked: np.ndarray, start: int,

@@ -91,6 +91,27 @@ def test_a_knob_short_of_its_bound_reaches_its_full_shift_at_knob_full():
         AdaptiveConfig(knob_full=0.0)
 
 
+def test_the_skip_knob_passes_over_no_point_the_plans_class_limit_needs():
+    """A site tour's points that keep its classes narrow (``PrunedPlan.localizing``) lie where
+    the coverage map may already read covered: the skip knob passes over other covered
+    points, never these, unless ``skip_localizing`` lets it."""
+    config = AOASSConfig(**OPEN)
+    kept, ctl = _sweep(config, 0, AdaptiveConfig(), knobs=SweepKnobs(skip=1.0))
+    localizing = set(np.flatnonzero(ctl.plan.localizing).tolist())
+    passed = {p.index for p in ctl.passed if p.reason.startswith("covered")}
+    assert localizing and passed and not passed & localizing
+    free, loose = _sweep(config, 0, AdaptiveConfig(skip_localizing=True),
+                         knobs=SweepKnobs(skip=1.0))
+    assert np.array_equal(loose.plan.localizing, ctl.plan.localizing)
+    loose_passed = {p.index for p in loose.passed if p.reason.startswith("covered")}
+    assert loose_passed & localizing and passed < loose_passed
+    assert free.network.distance_travelled < kept.network.distance_travelled
+    # the rule's zero knobs pass nothing over either way: the same sweep
+    rule, _ = _sweep(config, 0, AdaptiveConfig())
+    same, _ = _sweep(config, 0, AdaptiveConfig(skip_localizing=True))
+    assert rule.network.distance_travelled == same.network.distance_travelled
+
+
 def test_on_a_map_denser_than_dense_above_the_dense_thresholds_skip_online():
     config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
     sparse = AdaptiveConfig(dense_above=0.5)          # WALL's density is about 0.02

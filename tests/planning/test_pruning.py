@@ -150,6 +150,23 @@ def test_an_error_limit_keeps_every_reference_cells_class_error_under_its_cap():
     assert free.length < plan.length < 0.95 * full.length
 
 
+def test_the_localizing_points_are_those_whose_removal_breaks_a_class_cap():
+    """Oracle: leaving out a point the plan marks ``localizing`` (its neighbours joined by the
+    planner's way) puts a reference cell's class error, from the beacons laid again, above the
+    cap the error limit keeps; the start never is one, and without a limit none is."""
+    limit = 1.5
+    sim, full = _plan(BLOCKS, margin=(6, 2.0), min_gain=1e9)
+    _, plan = _plan(BLOCKS, margin=(6, 2.0), error_limit=limit)
+    _, free = _plan(BLOCKS, margin=(6, 2.0))
+    assert plan.localizing.shape == plan.order.shape and not plan.localizing[0]
+    assert plan.localizing.any() and not plan.localizing.all()
+    assert not free.localizing.any()
+    cap = np.maximum(_oracle_class_error(sim, full.order), limit**2)[full.reference]
+    for i in np.flatnonzero(plan.localizing):
+        without = np.delete(plan.order, i)
+        assert np.any(_oracle_class_error(sim, without)[full.reference] > cap + 1e-9)
+
+
 def _pruner(points: list[list[float]], order: list[int]):
     from aoass_env.planning.detour import DetourPlanner
     from aoass_env.planning.pruning import _Pruner, _Ways
