@@ -40,7 +40,9 @@ it moves:
    part of the class hears are inserted, the most class error removed per metre first. Last,
    the tour is pruned as in 2 (with the reorder), keeping what it covers of the reference with
    the margin (and, with the limit, no class wider than the split tour's or the limit).
-   Reference cells it could not cover are the cells phase's.
+   Reference cells it could not cover are the cells phase's. With the limit, the plan marks
+   its *localizing* points (``PrunedPlan.localizing``): those whose removal would keep the
+   reference covered but break a class cap; the adaptive sweep's online skips leave them.
 
 The plan is a plan: the beacons the anchor really sends fall at other points of its odometer,
 moving obstacles push it aside, and the follower cuts corners. The adaptive sweep's densify
