@@ -152,9 +152,9 @@ class AdaptiveConfig(ValidatedConfig):
     skip_localizing: bool = param(False, "the online skips may pass over a plan point that "
                                   "the plan's class limit needs (PrunedPlan.localizing: "
                                   "its surroundings may be covered while the cells around "
-                                  "still share one class); off: such points are visited "
-                                  "(the skip then saves path where it costs no localization, "
-                                  "docs/adaptive.md)", kind="bool")
+                                  "still share one class); off: such points are visited, "
+                                  "so the skip does not undo the plan's class split "
+                                  "(docs/adaptive.md)", kind="bool")
     detour_need: float = param(-0.25, "the same for a target the anchor cannot reach straight "
                                "(it would detour round an obstacle; the rule without a plan used "
                                "0)", low=-1.0, high=1.0)

@@ -150,21 +150,40 @@ def test_an_error_limit_keeps_every_reference_cells_class_error_under_its_cap():
     assert free.length < plan.length < 0.95 * full.length
 
 
+def _oracle_cover(sim: Simulator, stops: np.ndarray, margin: tuple[float, float]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(Eq. 18 covered, covered with the margin's beacons and spread) of every cell under the
+    plan through ``stops``, from its beacons laid again and recorded by a network."""
+    cov = sim.coverage_map
+    net = Network(cov.n_cells, CONFIG)
+    for p in _planned_beacons(sim, stops):
+        net.record_beacon(p, cov.radio.receivers(p))
+    spread = (margin[1] * CONFIG.collinearity_tol) ** 2 * (1.0 - 1e-9)
+    return net.covered.copy(), (net.heard >= margin[0]) & (net.line_residual ** 2 >= spread)
+
+
 def test_the_localizing_points_are_those_whose_removal_breaks_a_class_cap():
     """Oracle: leaving out a point the plan marks ``localizing`` (its neighbours joined by the
     planner's way) puts a reference cell's class error, from the beacons laid again, above the
-    cap the error limit keeps; the start never is one, and without a limit none is."""
-    limit = 1.5
-    sim, full = _plan(BLOCKS, margin=(6, 2.0), min_gain=1e9)
-    _, plan = _plan(BLOCKS, margin=(6, 2.0), error_limit=limit)
-    _, free = _plan(BLOCKS, margin=(6, 2.0))
+    cap the error limit keeps; leaving out an unmarked one either keeps every class under its
+    cap or loses a reference cell's cover or margin. The start never is one, and without a
+    limit none is."""
+    limit, margin = 1.5, (6, 2.0)
+    sim, full = _plan(BLOCKS, margin=margin, min_gain=1e9)
+    _, plan = _plan(BLOCKS, margin=margin, error_limit=limit)
+    _, free = _plan(BLOCKS, margin=margin)
     assert plan.localizing.shape == plan.order.shape and not plan.localizing[0]
     assert plan.localizing.any() and not plan.localizing.all()
     assert not free.localizing.any()
-    cap = np.maximum(_oracle_class_error(sim, full.order), limit**2)[full.reference]
-    for i in np.flatnonzero(plan.localizing):
+    ref = full.reference
+    cap = np.maximum(_oracle_class_error(sim, full.order), limit**2)[ref]
+    robust = _oracle_cover(sim, full.order, margin)[1]
+    for i in range(1, len(plan.order)):
         without = np.delete(plan.order, i)
-        assert np.any(_oracle_class_error(sim, without)[full.reference] > cap + 1e-9)
+        widens = np.any(_oracle_class_error(sim, without)[ref] > cap + 1e-9)
+        covered, kept_margin = _oracle_cover(sim, without, margin)
+        loses = np.any(ref & ~covered) or np.any(robust & ~kept_margin)
+        assert plan.localizing[i] == (widens and not loses), i
 
 
 def _pruner(points: list[list[float]], order: list[int]):
