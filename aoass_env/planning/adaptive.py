@@ -80,6 +80,7 @@ from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import Skip, WaypointFollower
 from aoass_env.planning.pruning import PrunedPlan, cached_plan, plan_sites, prune_spiral
 from aoass_env.planning.square_spiral import config_spacing
+from aoass_env.network import lambda_min
 from aoass_env.radio import Radio
 from aoass_env.validators import ValidatedConfig, param
 
@@ -198,6 +199,11 @@ class AdaptiveConfig(ValidatedConfig):
     cell_hop: float = param(1e4, "a lacking cell is headed for only when the planner's way "
                             "to it costs at most this (the cells phase ends when none is that "
                             "near)", unit="m", low=0.0, high=1e4, low_open=True)
+    coverable_only: bool = param(False, "the cells phase heads only for the lacking cells "
+                                 "that beacons from every point the anchor can reach would "
+                                 "cover (Eq. 18 over site_radio's lattice, coverable()); the "
+                                 "others, in shadows no reachable beacon completes, are given "
+                                 "up at once", kind="bool")
     end_coverage: float = param(0.995, "the sweep ends when the coverage map's covered share "
                                 "of the free field reaches this", low=0.0, high=1.0,
                                 low_open=True)
@@ -598,6 +604,8 @@ class AdaptiveSweep:
                 beyond = self._threshold(self.rule.beyond_need, self.knobs.densify)
                 lacking |= ~self._dropped & ~self.plan.reference & (cov.deficit
                                                                     > max(beyond, 0.0))
+        if self.rule.coverable_only:
+            lacking &= coverable(self.planner, cov, self.config.collinearity_tol)
         todo = np.flatnonzero(lacking)
         if not len(todo):
             self._done = True
@@ -689,6 +697,29 @@ def site_radio(planner: DetourPlanner, coverage: CoverageMap) -> Radio:
         step = max(1, round(SITE_SPACING / planner.res))
         per_map[key] = Radio(planner.main_cells(step), radio.obstacle_map, coverage.reach,
                              line_of_sight=radio.line_of_sight)
+    return per_map[key]
+
+
+def coverable(planner: DetourPlanner, coverage: CoverageMap, tol: float) -> np.ndarray:
+    """(C,) bool: the free cells that beacons sent from every point of :func:`site_radio`'s
+    lattice (everywhere the anchor can reach) would cover by Eq. 18: at least three of them
+    heard, their root-sum-square distance to their best line at least ``tol`` (m,
+    ``collinearity_tol``).
+    More beacons never narrow the spread, so a cell that all of them leave uncovered no sweep
+    covers (up to the lattice's spacing). Built once per map."""
+    sites = site_radio(planner, coverage)
+    per_map = _SITES[coverage.radio]
+    key = ("coverable", planner.radius, planner.res, tol)
+    if key not in per_map:
+        able = np.zeros(coverage.n_cells, dtype=bool)
+        for cell, centre in enumerate(coverage.centres):
+            points = sites.nodes[sites.receivers(centre)]
+            if len(points) >= 3:
+                d = points - points.mean(axis=0)
+                scatter = np.array([[d[:, 0] @ d[:, 0], d[:, 0] @ d[:, 1], d[:, 1] @ d[:, 1]]])
+                able[cell] = math.sqrt(float(lambda_min(scatter)[0])) >= tol
+        able.flags.writeable = False
+        per_map[key] = able
     return per_map[key]
 
 
