@@ -68,8 +68,7 @@ _ADAPTIVE_POLICY_RULE = {
     "detour_excess": 10000.0, "dense_above": 0.45,
     "dense_skip_need": 0.0, "dense_detour_need": 0.0, "dense_detour_excess": 20.0,
     "densify_need": 0.0, "cell_need": 0.0, "beyond_below": 0.92, "beyond_need": 0.5,
-    "beyond_time": 0.8, "cell_sites": False, "cell_hop": 10000.0, "coverable_only": False,
-    "end_coverage": 0.995,
+    "beyond_time": 0.8, "cell_sites": False, "cell_hop": 10000.0, "end_coverage": 0.995,
     "side_rate": 1000.0, "knob_step": 0.25, "knob_full": 0.9, "beacon_interval": None}
 
 #: id -> (entry point, default keywords)

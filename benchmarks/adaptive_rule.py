@@ -20,11 +20,14 @@ localized nodes) is printed beside the coverage, overall and by density. With ``
 last row gives the coverage no sweep of these nodes can much exceed: Eq. 18 on the same nodes
 with a beacon sent from every point of a 1 m lattice of the free field the anchor can reach
 (:func:`~aoass_env.planning.adaptive.site_radio`'s points: the detour planner's free cells of
-its main region), each heard by the nodes' own radio.
+its main region), each heard by the nodes' own radio. With ``--cells``, a last table gives
+what each rule's cells phase did per sweep (:class:`CellsPhase`): the cells it headed for, how
+many were covered when it turned from them and by the sweep's end, how many beacons from
+everywhere the anchor can reach would cover at all, and the path driven to them.
 
 Run: ``python3 benchmarks/adaptive_rule.py [--split fit | --fresh SEED --maps 4]
 [--densities 0.1 0.2 0.3 0.4] [--seeds 2] [--nodes 300] [--localizer olstm-dvhop] [--bound]
-[--variant NAME key=value ...]``, e.g.
+[--cells] [--variant NAME key=value ...]``, e.g.
 ``--variant "cells 0.2" cell_need=0.2 --variant "sides 0.5" side_rate=0.5``.
 """
 
@@ -43,7 +46,7 @@ from aoass_env.maps.registry import list_maps, validation_split
 from aoass_env.metrics import localization_rmse
 from aoass_env.network import Network
 from aoass_env.planning import AdaptiveConfig
-from aoass_env.planning.adaptive import site_radio, sweep_config
+from aoass_env.planning.adaptive import AdaptiveSweep, coverable, site_radio, sweep_config
 from aoass_env.simulator import Simulator
 
 
@@ -60,19 +63,68 @@ class Outcome:
     in_open: int
     outside: int
     rmse: float | None = None
+    cells: CellsPhase | None = None
+
+
+@dataclass(frozen=True)
+class CellsPhase:
+    """What an adaptive sweep's cells phase did: the cells it headed for, how many of them were
+    covered when the sweep turned from each and by the sweep's end, how many beacons from
+    everywhere the anchor can reach would cover (:func:`~aoass_env.planning.adaptive.
+    coverable`), and the path (m) driven while heading for them, all and to the cells no
+    reachable beacon covers."""
+
+    visits: int
+    covered_then: int
+    covered_at_end: int
+    coverable: int
+    path: float
+    path_uncoverable: float
+
+
+def _run_cells(sim: Simulator, controller: AdaptiveSweep) -> CellsPhase:
+    """``sim.run(controller=controller)`` (the same steps), noting the cells phase's visits."""
+    visits: list[tuple[int, float, bool]] = []
+    cell, since = -1, 0.0
+
+    def close() -> None:
+        if cell >= 0:
+            visits.append((cell, sim.network.distance_travelled - since,
+                           bool(sim.coverage_map.covered[cell])))
+
+    for _ in range(sim.step_limit()):
+        speed, heading = controller.command(sim.world.position, sim.world.heading, sim.config.dt)
+        if controller.done:
+            break
+        if controller.cell != cell:
+            close()
+            cell, since = controller.cell, sim.network.distance_travelled
+        sim.step(speed, heading)
+    close()
+    sim.finish()
+    able = coverable(sim.planner, sim.coverage_map, sim.config.collinearity_tol)
+    covered = sim.coverage_map.covered
+    return CellsPhase(len(visits), sum(v[2] for v in visits),
+                      int(sum(covered[v[0]] for v in visits)),
+                      int(sum(able[v[0]] for v in visits)), sum(v[1] for v in visits),
+                      sum(v[1] for v in visits if not able[v[0]]))
 
 
 def sweep(obstacle_map: ObstacleMap, seed: int, nodes: int, rule: AdaptiveConfig | None,
-          localizer: str | None = None) -> Outcome:
+          localizer: str | None = None, cells: bool = False) -> Outcome:
     """Sweep ``obstacle_map`` with ``nodes`` nodes and ``seed``: the plain spiral (``rule``
     None) or the adaptive sweep with ``rule``; localize its beacon log with ``localizer`` if
-    given."""
+    given; with ``cells``, note the adaptive sweep's cells phase (:class:`CellsPhase`)."""
     config = config_for_map(AOASSConfig(n_nodes=nodes), obstacle_map)
     if rule is not None:
         config = sweep_config(config, rule, obstacle_map.width)
     sim = Simulator(config, np.random.default_rng(seed), obstacle_map=obstacle_map, seed=seed)
     controller = sim.follower() if rule is None else sim.adaptive_sweep(rule)
-    sim.run(controller=controller)
+    phase = None
+    if cells and rule is not None:
+        phase = _run_cells(sim, controller)
+    else:
+        sim.run(controller=controller)
     cov = sim.coverage_map
     lookup = -np.ones(cov.shape, dtype=np.int64)
     lookup[cov.index[:, 0], cov.index[:, 1]] = np.arange(cov.n_cells)
@@ -84,7 +136,7 @@ def sweep(obstacle_map: ObstacleMap, seed: int, nodes: int, rule: AdaptiveConfig
     if localizer is not None:
         rmse, _ = localization_rmse(sim.nodes, localize(sim.finish(), localizer))
     return Outcome(sim.network.coverage_ratio, sim.network.distance_travelled, controller.done,
-                   in_covered, int(kept.sum()) - in_covered, int((~kept).sum()), rmse)
+                   in_covered, int(kept.sum()) - in_covered, int((~kept).sum()), rmse, phase)
 
 
 def coverage_bound(obstacle_map: ObstacleMap, seed: int, nodes: int) -> float:
@@ -152,6 +204,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
     parser.add_argument("--bound", action="store_true",
                         help="also print the coverage of beacons from everywhere the anchor "
                              "can reach (an upper bound)")
+    parser.add_argument("--cells", action="store_true",
+                        help="also print what each rule's cells phase did (CellsPhase)")
     parser.add_argument("--variant", nargs="+", action="append", default=[],
                         metavar="NAME key=value", help="a rule with these fields changed")
     args = parser.parse_args(argv)
@@ -196,8 +250,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
     print("| sweep | coverage |" + rmse_head + " path [m] | path / spiral's | ended by itself | "
           "uncovered nodes: in covered cells / in open cells / outside the map's cells |")
     print("|---|---|" + "---|" * bool(rmse_head) + "---|---|---|---|")
-    table.update({name: [sweep(m, s, args.nodes, rule, args.localizer) for m, s in episodes]
-                  for name, rule in variants.items()})
+    table.update({name: [sweep(m, s, args.nodes, rule, args.localizer, args.cells)
+                         for m, s in episodes] for name, rule in variants.items()})
     for name, outcomes in table.items():
         cov = np.mean([o.coverage for o in outcomes])
         path = np.mean([o.path for o in outcomes])
@@ -221,6 +275,22 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
             cells.append(f"{np.mean([o.coverage for o, _ in pick]):.2%} / "
                          f"{np.mean([o.path / s.path for o, s in pick]):.3f}{rmse}")
         print(f"| {name} | " + " | ".join(cells) + " |")
+    if args.cells:
+        print("\nthe cells phase, per sweep: cells headed for / of them covered when the sweep "
+              "turned from them / covered by the sweep's end / coverable from where the anchor "
+              "can reach; path heading for them (m) / of it to the cells no reachable beacon "
+              "covers\n")
+        print("| sweep | cells | covered then | covered at the end | coverable | path [m] | "
+              "to uncoverable cells [m] |")
+        print("|---|---|---|---|---|---|---|")
+        for name, outcomes in table.items():
+            if name == SPIRAL:
+                continue
+            mean = {k: np.mean([getattr(o.cells, k) for o in outcomes])
+                    for k in CellsPhase.__dataclass_fields__}
+            print(f"| {name} | {mean['visits']:.1f} | {mean['covered_then']:.1f} | "
+                  f"{mean['covered_at_end']:.1f} | {mean['coverable']:.1f} | "
+                  f"{mean['path']:.0f} | {mean['path_uncoverable']:.0f} |")
     if args.bound:
         bound = np.array([coverage_bound(m, s, args.nodes) for m, s in episodes])
         print("| reachable bound (coverage) | " + " | ".join(

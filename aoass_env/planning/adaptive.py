@@ -75,16 +75,17 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from aoass_env.config import AOASSConfig
+from aoass_env.network import lambda_min
 from aoass_env.planning.coverage import CoverageMap
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import Skip, WaypointFollower
 from aoass_env.planning.pruning import PrunedPlan, cached_plan, plan_sites, prune_spiral
 from aoass_env.planning.square_spiral import config_spacing
-from aoass_env.network import lambda_min
 from aoass_env.radio import Radio
 from aoass_env.validators import ValidatedConfig, param
 
-__all__ = ["AdaptiveConfig", "AdaptiveSweep", "SweepKnobs", "site_radio", "sweep_config"]
+__all__ = ["AdaptiveConfig", "AdaptiveSweep", "SweepKnobs", "coverable", "site_radio",
+           "sweep_config"]
 
 #: Open waypoints (nearest first) whose way the planner measures to choose the next densify run.
 DENSIFY_CANDIDATES = 5
@@ -199,11 +200,6 @@ class AdaptiveConfig(ValidatedConfig):
     cell_hop: float = param(1e4, "a lacking cell is headed for only when the planner's way "
                             "to it costs at most this (the cells phase ends when none is that "
                             "near)", unit="m", low=0.0, high=1e4, low_open=True)
-    coverable_only: bool = param(False, "the cells phase heads only for the lacking cells "
-                                 "that beacons from every point the anchor can reach would "
-                                 "cover (Eq. 18 over site_radio's lattice, coverable()); the "
-                                 "others, in shadows no reachable beacon completes, are given "
-                                 "up at once", kind="bool")
     end_coverage: float = param(0.995, "the sweep ends when the coverage map's covered share "
                                 "of the free field reaches this", low=0.0, high=1.0,
                                 low_open=True)
@@ -345,6 +341,11 @@ class AdaptiveSweep:
     def done(self) -> bool:
         """True once the map says the field is covered or nothing is left to densify."""
         return self._done
+
+    @property
+    def cell(self) -> int:
+        """The coverage map's cell the cells phase heads for (-1: none)."""
+        return self._cell
 
     @property
     def densifying(self) -> bool:
@@ -604,8 +605,6 @@ class AdaptiveSweep:
                 beyond = self._threshold(self.rule.beyond_need, self.knobs.densify)
                 lacking |= ~self._dropped & ~self.plan.reference & (cov.deficit
                                                                     > max(beyond, 0.0))
-        if self.rule.coverable_only:
-            lacking &= coverable(self.planner, cov, self.config.collinearity_tol)
         todo = np.flatnonzero(lacking)
         if not len(todo):
             self._done = True

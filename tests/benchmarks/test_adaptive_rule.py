@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -125,3 +127,17 @@ def test_the_bound_is_eq18_of_beacons_from_every_reachable_lattice_point(bench, 
     assert b.coverage >= max(o.coverage for name, (o,) in table.items() if name != bench.BOUND)
     with pytest.raises(bench.ConfigError, match="that row name is taken"):
         bench.parse_variants([[bench.BOUND, "cell_need=0.2"]])
+
+
+def test_noting_the_cells_phase_leaves_the_sweep_as_it_was(bench):
+    """--cells steps the sweep itself: the same sweep as Simulator.run, and its visits add up
+    (a dense training map, where the cells phase goes beyond the reference)."""
+    obstacle_map = load_map("train/d0.50_f100_s020")
+    plain = bench.sweep(obstacle_map, 0, 40, AdaptiveConfig())
+    noted = bench.sweep(obstacle_map, 0, 40, AdaptiveConfig(), cells=True)
+    assert plain.cells is None and noted.cells is not None
+    assert dataclasses.replace(noted, cells=None) == plain
+    c = noted.cells
+    assert c.visits > 0 and 0 <= c.covered_then <= c.covered_at_end <= c.visits
+    assert c.coverable <= c.visits and 0.0 <= c.path_uncoverable <= c.path < plain.path
+    assert bench.sweep(obstacle_map, 0, 40, None, cells=True).cells is None    # the spiral
