@@ -5,7 +5,8 @@ Like ``tests/test_episode_fingerprint.py`` for the bare env: seeded random-actio
 the full stack, hashed per part (world state, observation, reward, the safety report). The
 hashes were recorded on the tree before the safety stack's speed-ups of issue 20; a change that
 alters the maths on purpose (e.g. new safety defaults) regenerates them with
-``python3 -m tests.safety.test_safe_fingerprint`` from the repository root and says so.
+``OPENBLAS_CORETYPE=Haswell python3 -m tests.safety.test_safe_fingerprint`` (on x86-64:
+the kernels tests/conftest.py pins) from the repository root and says so.
 """
 
 from __future__ import annotations
