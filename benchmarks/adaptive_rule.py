@@ -101,8 +101,7 @@ def _run_cells(sim: Simulator, controller: AdaptiveSweep) -> CellsPhase:
             cell, since = controller.cell, sim.network.distance_travelled
         sim.step(speed, heading)
     close()
-    sim.finish()
-    able = coverable(sim.planner, sim.coverage_map, sim.config.collinearity_tol)
+    able = coverable(sim.planner, sim.coverage_map, sim.config)
     covered = sim.coverage_map.covered
     return CellsPhase(len(visits), sum(v[2] for v in visits),
                       int(sum(covered[v[0]] for v in visits)),

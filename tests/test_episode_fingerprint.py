@@ -6,8 +6,8 @@ velocity, heading, speed, moving obstacles, rays and d_obs in float64), the obse
 rewards and reward terms, the info counters, the beacon log and the reset's map and nodes.
 One hash per part, so a failure names what changed. The hashes were recorded on the tree before
 the optimisations of issue 20; a change that alters the maths on purpose regenerates them with
-``OPENBLAS_CORETYPE=Haswell python3 -m tests.test_episode_fingerprint`` (on x86-64:
-the kernels tests/conftest.py pins) (from the repository root) and says so in its commit.
+``OPENBLAS_CORETYPE=Haswell python3 -m tests.test_episode_fingerprint`` from the repository root
+(on x86-64, the kernels tests/conftest.py pins) and says so in its commit.
 """
 
 from __future__ import annotations

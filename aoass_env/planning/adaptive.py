@@ -75,7 +75,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from aoass_env.config import AOASSConfig
-from aoass_env.network import lambda_min
+from aoass_env.network import Network
 from aoass_env.planning.coverage import CoverageMap
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import Skip, WaypointFollower
@@ -699,24 +699,20 @@ def site_radio(planner: DetourPlanner, coverage: CoverageMap) -> Radio:
     return per_map[key]
 
 
-def coverable(planner: DetourPlanner, coverage: CoverageMap, tol: float) -> np.ndarray:
+def coverable(planner: DetourPlanner, coverage: CoverageMap, config: AOASSConfig) -> np.ndarray:
     """(C,) bool: the free cells that beacons sent from every point of :func:`site_radio`'s
-    lattice (everywhere the anchor can reach) would cover by Eq. 18: at least three of them
-    heard, their root-sum-square distance to their best line at least ``tol`` (m,
-    ``collinearity_tol``).
-    More beacons never narrow the spread, so a cell that all of them leave uncovered no sweep
-    covers (up to the lattice's spacing). Built once per map."""
+    lattice (everywhere the anchor can reach) would cover by Eq. 18 (the cells' own
+    :class:`~aoass_env.network.Network` test, ``config.collinearity_tol``). More beacons never
+    narrow a cell's spread, so a cell that all of them leave uncovered no sweep covers (up to the
+    lattice's spacing). Built once per map."""
     sites = site_radio(planner, coverage)
     per_map = _SITES[coverage.radio]
-    key = ("coverable", planner.radius, planner.res, tol)
+    key = ("coverable", planner.radius, planner.res, config.collinearity_tol)
     if key not in per_map:
-        able = np.zeros(coverage.n_cells, dtype=bool)
-        for cell, centre in enumerate(coverage.centres):
-            points = sites.nodes[sites.receivers(centre)]
-            if len(points) >= 3:
-                d = points - points.mean(axis=0)
-                scatter = np.array([[d[:, 0] @ d[:, 0], d[:, 0] @ d[:, 1], d[:, 1] @ d[:, 1]]])
-                able[cell] = math.sqrt(float(lambda_min(scatter)[0])) >= tol
+        network = Network(max(coverage.n_cells, 1), config)
+        for point in sites.nodes:
+            network.record_beacon(point, coverage.radio.receivers(point))
+        able = network.covered[:coverage.n_cells].copy()
         able.flags.writeable = False
         per_map[key] = able
     return per_map[key]

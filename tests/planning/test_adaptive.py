@@ -9,7 +9,6 @@ from aoass_env.action import AdaptiveAction, ResidualAction
 from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.env import AOASSEnv
 from aoass_env.maps import ObstacleMap
-from aoass_env.network import Network
 from aoass_env.planning import AdaptiveConfig, SweepKnobs, default_spacing
 from aoass_env.planning.adaptive import AdaptiveSweep, coverable, site_radio
 from aoass_env.planning.coverage import CoverageMap
@@ -378,9 +377,11 @@ def test_a_cell_with_collinear_beacons_is_headed_for_at_a_site_off_their_line(ce
 
 
 def test_a_cell_is_coverable_when_beacons_from_every_reachable_point_would_cover_it():
-    """Oracle: Eq. 18 of the cells (a Network of the cells' virtual nodes) with a beacon sent
-    from every point of the site lattice, heard by the cells' own radio; a pocket behind a gap
-    the anchor cannot pass holds cells that no reachable beacon covers."""
+    """Oracle, cell by cell: the lattice points within the cell's range and sight (the site
+    radio's receivers of its virtual node), at least three, their root-sum-square distance to
+    their best line (the scatter's least eigenvalue, by numpy's eigvalsh) at least
+    collinearity_tol; a pocket behind a gap the anchor cannot pass holds cells that no
+    reachable beacon covers."""
     pocket = ObstacleMap(60.0, 60.0, [
         np.array([[20.0, 29.0], [60.0, 29.0], [60.0, 31.0], [20.0, 31.0]]),
         np.array([[40.0, 44.0], [41.0, 44.0], [41.0, 60.0], [40.0, 60.0]]),
@@ -389,11 +390,15 @@ def test_a_cell_is_coverable_when_beacons_from_every_reachable_point_would_cover
         config = AOASSConfig(**{**OPEN, "map_clearance": 2.0})
         coverage = CoverageMap(obstacle_map, config)
         planner = DetourPlanner(obstacle_map, config.anchor_radius + 0.5)
-        network = Network(coverage.n_cells, config)
-        for point in site_radio(planner, coverage).nodes:
-            network.record_beacon(point, coverage.radio.receivers(point))
-        able = coverable(planner, coverage, config.collinearity_tol)
-        np.testing.assert_array_equal(able, network.covered)
-        assert coverable(planner, coverage, config.collinearity_tol) is able   # once per map
+        sites = site_radio(planner, coverage)
+        expected = np.zeros(coverage.n_cells, dtype=bool)
+        for cell, centre in enumerate(coverage.centres):
+            points = sites.nodes[sites.receivers(centre)]
+            if len(points) >= 3:
+                d = points - points.mean(axis=0)
+                expected[cell] = np.linalg.eigvalsh(d.T @ d)[0] >= config.collinearity_tol ** 2
+        able = coverable(planner, coverage, config)
+        np.testing.assert_array_equal(able, expected)
+        assert coverable(planner, coverage, config) is able   # once per map
         if obstacle_map is pocket:
             assert not able.all() and able.mean() > 0.5
