@@ -97,7 +97,8 @@ def free_travel(starts: np.ndarray, ends: np.ndarray, position: np.ndarray,
     p = np.asarray(position, dtype=np.float64)
     r2 = radius * radius
     best = np.full(len(headings), np.inf)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    # a side met at a grazing heading (|rate| tiny) gives an overflowing, then discarded, time
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         # the end points: |w + t u| = radius with w = p - vertex, entered while w . u < 0
         for vertex in (starts, ends):
             w = p - vertex                                                  # (m, 2)
