@@ -14,7 +14,10 @@ The script prints, per variant, the mean Eq. 18 coverage (share of nodes), the m
 the path as a share of the spiral's on the same episodes, the share of sweeps that ended by
 themselves (before the time limit), and the share of uncovered nodes that
 lie in cells the anchor's coverage map counts as covered, in cells it lacks, and in cells it
-does not keep (inside obstacles); then coverage and path share by density. With
+does not keep (inside obstacles); then, with variants, each one's mean paired difference to
+the configured rule on the same episodes (coverage, path and RMSE, ± the 95 % t interval:
+single-split RMSE gaps under about 0.1 m are often noise, so read the interval); then
+coverage and path share by density. With
 ``--localizer``, every sweep's beacon log is also localized and the Eq. 15 RMSE (m, over the
 localized nodes) is printed beside the coverage, overall and by density. With ``--bound``, a
 last row gives the coverage no sweep of these nodes can much exceed: Eq. 18 on the same nodes
@@ -34,12 +37,14 @@ Run: ``python3 benchmarks/adaptive_rule.py [--split fit | --fresh SEED --maps 4]
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from aoass_env.config import AOASSConfig, ConfigError, config_for_map
+from aoass_env.evaluation.report import ci_stats
 from aoass_env.localization import METHODS, localize
 from aoass_env.maps import MAX_DENSITY, ObstacleMap, generate_map, load_map
 from aoass_env.maps.registry import list_maps, validation_split
@@ -148,6 +153,35 @@ def coverage_bound(obstacle_map: ObstacleMap, seed: int, nodes: int) -> float:
     for point in site_radio(sim.planner, sim.coverage_map).nodes:
         network.record_beacon(point, sim.radio.receivers(point))
     return network.coverage_ratio
+
+
+def paired(outcomes: Sequence[Outcome], reference: Sequence[Outcome],
+           key: str) -> tuple[int, float, float]:
+    """(n, mean, 95 % CI half-width) of the paired differences ``key`` of ``outcomes`` minus
+    ``reference`` on the same episodes (sweeps with a NaN or no value left out)."""
+    n, mean, _, half = ci_stats([getattr(o, key) - getattr(r, key)
+                                 if getattr(o, key) is not None and getattr(r, key) is not None
+                                 else math.nan for o, r in zip(outcomes, reference, strict=True)])
+    return n, mean, half
+
+
+def _print_paired(table: dict[str, list[Outcome]], localized: bool) -> None:
+    """Each variant against the configured rule on the same episodes (:func:`paired`)."""
+    print("\neach variant against the rule on the same episodes: mean paired difference "
+          "± 95 % interval\n")
+    print("| sweep | coverage [points] | path [m] |" + " RMSE [m] |" * localized)
+    print("|---|---|---|" + "---|" * localized)
+    for name, outcomes in table.items():
+        if name in (SPIRAL, "rule"):
+            continue
+        _, cov, cov_half = paired(outcomes, table["rule"], "coverage")
+        _, path, path_half = paired(outcomes, table["rule"], "path")
+        row = (f"| {name} | {100 * cov:+.2f} ± {100 * cov_half:.2f} | "
+               f"{path:+.0f} ± {path_half:.0f} |")
+        if localized:
+            n, rmse, rmse_half = paired(outcomes, table["rule"], "rmse")
+            row += f" {rmse:+.3f} ± {rmse_half:.3f} (n = {n}) |"
+        print(row)
 
 
 def _mean_rmse(outcomes: Sequence[Outcome]) -> float:
@@ -261,6 +295,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
         rmse = f" {_mean_rmse(outcomes):.3f} |" if rmse_head else ""
         print(f"| {name} | {cov:.2%} |{rmse} {path:.0f} | {share:.3f} | {ended:.0%} | "
               f"{where[0]} / {where[1]} / {where[2]} |")
+    if len(table) > 2:
+        _print_paired(table, bool(rmse_head))
     levels = sorted(set(density))
     print(f"\ncoverage / path share of the spiral's{' / RMSE (m)' * bool(rmse_head)}, "
           "by density\n")

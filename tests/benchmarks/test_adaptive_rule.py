@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from aoass_env.config import AOASSConfig, config_for_map
 from aoass_env.maps import load_map
@@ -141,3 +142,33 @@ def test_noting_the_cells_phase_leaves_the_sweep_as_it_was(bench):
     assert c.visits > 0 and 0 <= c.covered_then <= c.covered_at_end <= c.visits
     assert c.coverable <= c.visits and 0.0 <= c.path_uncoverable <= c.path < plain.path
     assert bench.sweep(obstacle_map, 0, 40, None, cells=True).cells is None    # the spiral
+
+
+def test_paired_differences_are_the_variants_minus_the_rule_on_each_episode(bench, capsys):
+    """The paired table: the mean of the per-episode differences and its t interval; a sweep
+    without an RMSE is left out of the RMSE's pairs only."""
+    rule = [bench.Outcome(0.90, 100.0, True, 0, 0, 0, 1.0),
+            bench.Outcome(0.80, 200.0, True, 0, 0, 0, 2.0),
+            bench.Outcome(0.70, 300.0, True, 0, 0, 0, 3.0)]
+    variant = [bench.Outcome(0.91, 90.0, True, 0, 0, 0, 1.5),
+               bench.Outcome(0.83, 150.0, True, 0, 0, 0, None),
+               bench.Outcome(0.70, 330.0, True, 0, 0, 0, 3.1)]
+    n, mean, half = bench.paired(variant, rule, "path")
+    d = np.array([-10.0, -50.0, 30.0])
+    assert n == 3 and mean == pytest.approx(d.mean())
+    assert half == pytest.approx(stats.t.ppf(0.975, 2) * d.std(ddof=1) / np.sqrt(3))
+    n, mean, half = bench.paired(variant, rule, "rmse")
+    assert n == 2 and mean == pytest.approx(0.3)
+    bench._print_paired({"plain spiral": rule, "rule": rule, "v": variant}, True)
+    out = capsys.readouterr().out
+    assert "| v | +1.33 ±" in out and "| -10 ±" in out and "+0.300 ±" in out and "(n = 2)" in out
+    assert "| rule |" not in out and "| plain spiral |" not in out
+
+
+def test_variants_print_their_paired_differences_to_the_rule(bench, capsys):
+    table = bench.main(["--densities", "0.1", "--seeds", "1", "--nodes", "40", "--limit", "1",
+                        "--variant", "no plan", "prune=false"])
+    out = capsys.readouterr().out
+    gap = table["no plan"][0].path - table["rule"][0].path
+    assert f"| no plan | {100 * (table['no plan'][0].coverage - table['rule'][0].coverage):+.2f}" \
+        f" ± nan | {gap:+.0f} ± nan |" in out
