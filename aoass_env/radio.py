@@ -21,10 +21,12 @@ at 1 degree resolution, a closed random walk with ``|K_i - K_{i-1}| <= doi`` (al
 
 from __future__ import annotations
 
+import math
 import weakref
 from collections.abc import Sequence
 from functools import cached_property
 
+import numba
 import numpy as np
 import shapely
 from scipy.spatial import cKDTree
@@ -75,6 +77,157 @@ def _orientation(dax: np.ndarray, day: np.ndarray, dbx: np.ndarray,
     return det > 0, certain
 
 
+#: Side (m) of the buckets of :class:`LineOfSight`'s edge grid.
+_GRID_CELL = 4.0
+#: Slack (m) of the edge grid: an edge is bucketed, and a segment looks, this far past its
+#: extent, so that rounding at a bucket's border never hides an edge that meets a segment.
+_GRID_SLACK = 1e-6
+
+#: What :func:`_sight` says of a segment: nothing met (the start point's side decides), a
+#: proper crossing of an edge (blocked), or a contact only shapely's exact test settles.
+_CLEAR, _CROSSES, _CONTACT = 0, 1, 2
+
+
+@numba.njit(cache=True)
+def _certain_positive(dax: float, day: float, dbx: float, dby: float) -> tuple[bool, bool]:
+    """:func:`_orientation` of one triple, the same floating-point operations."""
+    left = dax * dby
+    right = day * dbx
+    det = left - right
+    return det > 0, abs(det) > _ORIENT_ERRBOUND * (abs(left) + abs(right))
+
+
+@numba.njit(cache=True)
+def _segment(sx: float, sy: float, ex: float, ey: float, px: np.ndarray, py: np.ndarray,
+             qx: np.ndarray, qy: np.ndarray, x0: float, y0: float, cell: float, nx: int,
+             ny: int, first: np.ndarray, members: np.ndarray, seen: np.ndarray,
+             tag: int) -> int:
+    """:data:`_CLEAR`, :data:`_CROSSES` or :data:`_CONTACT` of the segment (sx, sy) -> (ex, ey)
+    (m) against the edges ``p[e] -> q[e]`` its buckets of the edge grid hold (``nx`` x ``ny``
+    buckets of side ``cell`` from ``(x0, y0)``; bucket ``j nx + i`` holds
+    ``members[first[k]:first[k + 1]]``), each edge tested once (``seen[e] == tag`` once
+    tested) by the orientation test with Shewchuk's error bound (:func:`_orientation`, the
+    same floating-point operations). The buckets are those of each grid row's stretch of the
+    segment, :data:`_GRID_SLACK` wider."""
+    ylo, yhi = min(sy, ey), max(sy, ey)
+    j0 = min(max(int(math.floor((ylo - _GRID_SLACK - y0) / cell)), 0), ny - 1)
+    j1 = min(max(int(math.floor((yhi + _GRID_SLACK - y0) / cell)), 0), ny - 1)
+    status = _CLEAR
+    for j in range(j0, j1 + 1):
+        lo = max(ylo, y0 + j * cell - _GRID_SLACK)
+        hi = min(yhi, y0 + (j + 1) * cell + _GRID_SLACK)
+        if lo > hi:
+            continue
+        if sy == ey:
+            xa, xb = sx, ex
+        else:
+            xa = sx + (lo - sy) / (ey - sy) * (ex - sx)
+            xb = sx + (hi - sy) / (ey - sy) * (ex - sx)
+        i0 = min(max(int(math.floor((min(xa, xb) - _GRID_SLACK - x0) / cell)), 0), nx - 1)
+        i1 = min(max(int(math.floor((max(xa, xb) + _GRID_SLACK - x0) / cell)), 0), nx - 1)
+        for i in range(i0, i1 + 1):
+            bucket = j * nx + i
+            for slot in range(first[bucket], first[bucket + 1]):
+                e = members[slot]
+                if seen[e] == tag:
+                    continue
+                seen[e] = tag
+                apx, apy, aqx, aqy = sx - px[e], sy - py[e], sx - qx[e], sy - qy[e]
+                bpx, bpy, bqx, bqy = ex - px[e], ey - py[e], ex - qx[e], ey - qy[e]
+                s1, c1 = _certain_positive(apx, apy, bpx, bpy)    # p against line a-b
+                s2, c2 = _certain_positive(aqx, aqy, bqx, bqy)    # q against line a-b
+                s3, c3 = _certain_positive(apx, apy, aqx, aqy)    # a against line p-q
+                s4, c4 = _certain_positive(bpx, bpy, bqx, bqy)    # b against line p-q
+                if c1 and c2 and c3 and c4 and s1 != s2 and s3 != s4:
+                    return _CROSSES
+                if not ((c1 and c2 and s1 == s2) or (c3 and c4 and s3 == s4)):
+                    status = _CONTACT
+    return status
+
+
+@numba.njit(cache=True)
+def _sight(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray, px: np.ndarray,
+           py: np.ndarray, qx: np.ndarray, qy: np.ndarray, x0: float, y0: float, cell: float,
+           nx: int, ny: int, first: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """(M,) int8 :func:`_segment` of each segment ``a[m] -> b[m]`` (m)."""
+    out = np.empty(len(ax), dtype=np.int8)
+    seen = np.full(len(px), -1, dtype=np.int64)
+    for k in range(len(ax)):
+        out[k] = _segment(ax[k], ay[k], bx[k], by[k], px, py, qx, qy, x0, y0, cell, nx, ny,
+                          first, members, seen, k)
+    return out
+
+
+@numba.njit(cache=True)
+def _within(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, x: float, y: float,
+            reach2: float) -> np.ndarray:
+    """Sorted int64 indices of the points (``xs``, ``ys``) that ``among`` marks whose squared
+    distance to (``x``, ``y``) is at most ``reach2`` (m^2): ``dx * dx + dy * dy <= reach2``
+    with ``dx = xs - x``, as :meth:`Radio._in_range` computes it."""
+    out = np.empty(len(xs), dtype=np.int64)
+    n = 0
+    for i in range(len(xs)):
+        if among[i]:
+            dx = xs[i] - x
+            dy = ys[i] - y
+            if dx * dx + dy * dy <= reach2:
+                out[n] = i
+                n += 1
+    return out[:n]
+
+
+@numba.njit(cache=True)
+def _hear(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, inside: np.ndarray, x: float,
+          y: float, reach2: float, px: np.ndarray, py: np.ndarray, qx: np.ndarray,
+          qy: np.ndarray, x0: float, y0: float, cell: float, nx: int, ny: int,
+          first: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(candidates, status) of a beacon at (``x``, ``y``): :func:`_within`'s points, and for
+    each the line of sight from the point to the beacon, :func:`_segment` settled by the
+    point's side (``inside``) where it meets no edge: 0 heard, 1 blocked, 2 a contact for
+    shapely's exact test."""
+    cand = _within(xs, ys, among, x, y, reach2)
+    status = np.empty(len(cand), dtype=np.int8)
+    seen = np.full(len(px), -1, dtype=np.int64)
+    for k in range(len(cand)):
+        i = cand[k]
+        found = _segment(xs[i], ys[i], x, y, px, py, qx, qy, x0, y0, cell, nx, ny, first,
+                         members, seen, k)
+        if found == _CLEAR:
+            status[k] = 1 if inside[i] else 0
+        else:
+            status[k] = 1 if found == _CROSSES else 2
+    return cand, status
+
+
+def _edge_grid(edges: np.ndarray) -> tuple[float, float, float, int, int, np.ndarray,
+                                           np.ndarray]:
+    """(x0, y0, cell, nx, ny, first, members): the edges (E, 2, 2) bucketed by the cells of
+    side :data:`_GRID_CELL` their bounding box, :data:`_GRID_SLACK` wider, overlaps (CSR:
+    bucket ``j nx + i`` holds ``members[first[k]:first[k + 1]]``)."""
+    cell = _GRID_CELL
+    if not len(edges):
+        return 0.0, 0.0, cell, 1, 1, np.zeros(2, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    lo = edges.min(axis=1) - _GRID_SLACK               # (E, 2) each edge's box
+    hi = edges.max(axis=1) + _GRID_SLACK
+    x0, y0 = float(lo[:, 0].min()), float(lo[:, 1].min())
+    nx = int(math.floor((hi[:, 0].max() - x0) / cell)) + 1
+    ny = int(math.floor((hi[:, 1].max() - y0) / cell)) + 1
+    i0 = np.floor((lo[:, 0] - x0) / cell).astype(np.int64)
+    i1 = np.minimum(np.floor((hi[:, 0] - x0) / cell).astype(np.int64), nx - 1)
+    j0 = np.floor((lo[:, 1] - y0) / cell).astype(np.int64)
+    j1 = np.minimum(np.floor((hi[:, 1] - y0) / cell).astype(np.int64), ny - 1)
+    buckets, owners = [], []
+    for e in range(len(edges)):
+        ii, jj = np.meshgrid(np.arange(i0[e], i1[e] + 1), np.arange(j0[e], j1[e] + 1))
+        buckets.append((jj * nx + ii).ravel())
+        owners.append(np.full(ii.size, e, dtype=np.int64))
+    bucket, owner = np.concatenate(buckets), np.concatenate(owners)
+    order = np.argsort(bucket, kind="stable")
+    first = np.zeros(nx * ny + 1, dtype=np.int64)
+    np.cumsum(np.bincount(bucket, minlength=nx * ny), out=first[1:])
+    return x0, y0, cell, nx, ny, first, owner[order]
+
+
 class LineOfSight:
     """Exact, vectorised line-of-sight test against the obstacles of one map.
 
@@ -88,7 +241,8 @@ class LineOfSight:
         edges = obstacle_map.edges
         self._px, self._py = edges[:, 0, 0].copy(), edges[:, 0, 1].copy()
         self._qx, self._qy = edges[:, 1, 0].copy(), edges[:, 1, 1].copy()
-        self._edge_tree = shapely.STRtree(shapely.linestrings(edges))
+        #: the edges and their grid, as :func:`_sight` and :func:`_hear` take them
+        self._edge_args = (self._px, self._py, self._qx, self._qy, *_edge_grid(edges))
         self._polygons = obstacle_map.shapes
         self._polygon_tree = shapely.STRtree(self._polygons)
 
@@ -142,31 +296,18 @@ class LineOfSight:
         m = len(a)
         if m == 0 or len(self._polygons) == 0:
             return np.zeros(m, dtype=bool)
-        segs = np.empty((m, 2, 2))          # np.stack([a, b], axis=1), without its wrappers
-        segs[:, 0] = a
-        segs[:, 1] = b
-        seg, edge = self._edge_tree.query(shapely.linestrings(segs))
-        ax, ay, bx, by = a[seg, 0], a[seg, 1], b[seg, 0], b[seg, 1]
-        px, py, qx, qy = self._px[edge], self._py[edge], self._qx[edge], self._qy[edge]
-        apx, apy, aqx, aqy = ax - px, ay - py, ax - qx, ay - qy
-        bpx, bpy, bqx, bqy = bx - px, by - py, bx - qx, by - qy
-        s1, c1 = _orientation(apx, apy, bpx, bpy)   # p relative to line a-b
-        s2, c2 = _orientation(aqx, aqy, bqx, bqy)   # q relative to line a-b
-        s3, c3 = _orientation(apx, apy, aqx, aqy)   # a relative to line p-q
-        s4, c4 = _orientation(bpx, bpy, bqx, bqy)   # b relative to line p-q
-        cross = c1 & c2 & c3 & c4 & (s1 != s2) & (s3 != s4)
-        apart = (c1 & c2 & (s1 == s2)) | (c3 & c4 & (s3 == s4))
-        blocked = np.zeros(m, dtype=bool)
-        blocked[seg[cross]] = True
-        contact = np.zeros(m, dtype=bool)
-        contact[seg[~cross & ~apart]] = True
-        contact &= ~blocked
+        status = _sight(np.ascontiguousarray(a[:, 0]), np.ascontiguousarray(a[:, 1]),
+                        np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1]),
+                        *self._edge_args)
         # No contact with any edge: the closed segment lies wholly inside or outside each
         # obstacle, like its start point.
-        clean = ~blocked & ~contact
-        blocked[clean] = a_inside[clean]
+        blocked = np.where(status == _CLEAR, a_inside, status == _CROSSES)
+        contact = status == _CONTACT
         if contact.any():
-            blocked[contact] = self._blocked_exact(segs[contact])
+            segs = np.empty((int(contact.sum()), 2, 2))
+            segs[:, 0] = a[contact]
+            segs[:, 1] = b[contact]
+            blocked[contact] = self._blocked_exact(segs)
         return blocked
 
     def _blocked_exact(self, segs: np.ndarray) -> np.ndarray:
@@ -253,6 +394,8 @@ class Radio:
             if pattern is not None:
                 pattern.flags.writeable = False
         self._tree = cKDTree(pts)
+        self._xs, self._ys = pts[:, 0].copy(), pts[:, 1].copy()
+        self._all = np.ones(len(pts), dtype=bool)
         self._los = LineOfSight.for_map(obstacle_map) if self.line_of_sight else None
         self._node_inside = self._los.inside(pts) if self._los is not None else None
 
@@ -271,30 +414,50 @@ class Radio:
     def receivers(self, point: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
         """Sorted int64 indices of the nodes that hear a beacon broadcast at ``point`` (2,) [m];
         with ``among`` (N,) bool, only of the nodes it marks (the others are not tested)."""
-        p = _points(point, "point", single=True)
-        return self._in_sight(p, self._in_range(p, among))
+        return self._receivers(_points(point, "point", single=True), among)
 
     def receivers_many(self, points: np.ndarray) -> list[np.ndarray]:
-        """:meth:`receivers` of a beacon at each of ``points`` (K, 2) [m]: the line of sight of
-        all their candidates is tested in one call (a segment's answer does not depend on the
-        others tested with it), which saves that call's fixed cost per point."""
-        pts = _points(points, "points")
-        found = [self._in_range(p, None) for p in pts]
-        if self._los is None or not found:
-            return found
-        cand = np.concatenate(found)
-        ends = np.repeat(pts, [len(c) for c in found], axis=0)
-        heard = ~self._los._blocked(self.nodes[cand], ends, self._node_inside[cand])
-        split = np.cumsum([len(c) for c in found])[:-1]
-        return [c[part] for c, part in zip(found, np.split(heard, split), strict=True)]
+        """:meth:`receivers` of a beacon at each of ``points`` (K, 2) [m]."""
+        return [self._receivers(p, None) for p in _points(points, "points")]
+
+    def _among(self, among: np.ndarray | None) -> np.ndarray:
+        """``among`` checked: a bool flag per node (all of them when None)."""
+        if among is None:
+            return self._all
+        if (not isinstance(among, np.ndarray) or among.dtype != bool
+                or among.shape != self._all.shape):
+            raise ValueError(f"among must be a bool array of shape {self._all.shape} (one flag "
+                             f"per node), got {getattr(among, 'dtype', type(among))} "
+                             f"{getattr(among, 'shape', '')}")
+        return among
+
+    def _receivers(self, p: np.ndarray, among: np.ndarray | None) -> np.ndarray:
+        """:meth:`receivers` of the checked point ``p`` (2,) [m]: without irregularity, range
+        and sight in one compiled pass (:func:`_hear`; the few contacts only shapely settles
+        go to :meth:`LineOfSight._blocked_exact`)."""
+        if self.doi > 0.0 or self._los is None:
+            return self._in_sight(p, self._in_range(p, among))
+        cand, status = _hear(self._xs, self._ys, self._among(among), self._node_inside,
+                             float(p[0]), float(p[1]), self.radio_range * self.radio_range,
+                             *self._los._edge_args)
+        contact = status == 2
+        if contact.any():
+            segs = np.empty((int(contact.sum()), 2, 2))
+            segs[:, 0] = self.nodes[cand[contact]]
+            segs[:, 1] = p
+            status[contact] = self._los._blocked_exact(segs)
+        return cand[status == 0]
 
     def _in_range(self, p: np.ndarray, among: np.ndarray | None) -> np.ndarray:
         """Sorted int64 indices of the nodes (of ``among``) within the anchor's range
         R K(theta) of the checked point ``p`` (2,) [m], line of sight not yet tested."""
+        among = self._among(among)
+        if self.doi == 0.0:
+            return _within(self._xs, self._ys, among, float(p[0]), float(p[1]),
+                           self.radio_range * self.radio_range)
         cand = np.array(self._tree.query_ball_point(p, self.max_range * (1 + _QUERY_SLACK),
                                                     return_sorted=True), dtype=np.int64)
-        if among is not None:
-            cand = cand[among[cand]]
+        cand = cand[among[cand]]
         d = self.nodes[cand] - p
         dx, dy = d[:, 0], d[:, 1]
         reach = self.radio_range
@@ -342,24 +505,6 @@ def receivers_at(point: np.ndarray,
                  queries: Sequence[tuple[Radio, np.ndarray | None]]) -> list[np.ndarray]:
     """:meth:`Radio.receivers` ``(point, among)`` of each ``(radio, among)`` of ``queries``: the
     receivers of one beacon at ``point`` (2,) [m] in several radios (the nodes' and the
-    coverage map's). When the radios test line of sight with one map's
-    :class:`LineOfSight`, their links are tested in one call (a segment's answer does not
-    depend on the others tested with it), which saves that call's fixed cost per radio."""
+    coverage map's), the point checked once."""
     p = _points(point, "point", single=True)
-    found = [radio._in_range(p, among) for radio, among in queries]
-    los = queries[0][0]._los if queries else None
-    if los is None or any(radio._los is not los for radio, _ in queries):
-        return [radio._in_sight(p, cand) for (radio, _), cand in zip(queries, found,
-                                                                     strict=True)]
-    start = np.concatenate([radio.nodes[cand] for (radio, _), cand in zip(queries, found,
-                                                                        strict=True)])
-    inside = np.concatenate([radio._node_inside[cand] for (radio, _), cand in zip(
-        queries, found, strict=True)])
-    end = np.empty(start.shape)             # the beacon point on every row
-    end[:] = p
-    heard = ~los._blocked(start, end, inside)
-    out, first = [], 0
-    for cand in found:                      # heard split by radio
-        out.append(cand[heard[first:first + len(cand)]])
-        first += len(cand)
-    return out
+    return [radio._receivers(p, among) for radio, among in queries]

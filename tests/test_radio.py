@@ -363,6 +363,15 @@ def test_radio_bad_input():
         radio.receivers(np.zeros(3))
     with pytest.raises(ValueError, match="point must be finite"):
         radio.receivers(np.array([np.nan, 1.0]))
+    # ``among``: one bool flag per node (the compiled range test reads it by node)
+    for doi in (0.0, 0.2):
+        radio = Radio(np.zeros((3, 2)), m, 5.0, doi=doi, rng=np.random.default_rng(0))
+        for bad in (np.ones(2, dtype=bool), np.ones(4, dtype=bool), np.ones(3, dtype=int),
+                    [True, True, True], np.ones((3, 1), dtype=bool)):
+            with pytest.raises(ValueError, match=r"among must be a bool array of shape \(3,\)"):
+                radio.receivers(np.array([1.0, 1.0]), bad)
+            with pytest.raises(ValueError, match="among must be a bool array"):
+                receivers_at(np.array([1.0, 1.0]), [(radio, bad)])
 
 
 # --- radio irregularity -----------------------------------------------------------------------
@@ -459,9 +468,10 @@ LATTICE = np.array([(x, y) for x in range(0, 61, 3) for y in range(0, 61, 3)], d
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), doi=st.sampled_from([0.0, 0.3]),
        counts=st.tuples(st.integers(0, 60), st.integers(0, 200), st.integers(0, 40)))
-def test_receivers_at_one_point_are_each_radios_receivers(seed, doi, counts):
-    # radios on one map test their links together; on another map, or without line of sight,
-    # apart: each answer is the radio's own, node for node
+def test_receivers_at_one_point_are_each_radios_range_then_sight(seed, doi, counts):
+    """The one compiled pass (range and sight together, contacts settled by shapely) is the
+    two stages apart: the nodes in range, then the line of sight of their segments, node for
+    node; on the lattice, where GEOS is exact, also the brute-force reference."""
     rng = np.random.default_rng(seed)
     lattice = counts[1] % 2 == 1
     obstacle_map = LATTICE_MAP if lattice else random_map(rng)
@@ -482,6 +492,11 @@ def test_receivers_at_one_point_are_each_radios_receivers(seed, doi, counts):
             for (radio, mask), heard in zip(queries, got, strict=True):
                 assert heard.dtype == np.int64
                 np.testing.assert_array_equal(heard, radio.receivers(point, mask))
+                np.testing.assert_array_equal(heard, radio._in_sight(point, radio._in_range(
+                    point, mask)))
+                if lattice and radio is radios[1] and np.all(point == np.round(point)):
+                    brute = brute_receivers(radio, point)    # every coordinate on the lattice
+                    np.testing.assert_array_equal(heard, brute[mask[brute]])
 
 
 @settings(max_examples=30, deadline=None)

@@ -137,7 +137,7 @@ class CoverageMap:
         """(radio, among) for :func:`~aoass_env.radio.receivers_at`: the cells' radio and the
         cells a beacon is tested for now. Covered cells stay covered: only the others are
         tested (their counts then freeze)."""
-        return self._radio, ~self._network.covered
+        return self._radio, ~self.covered
 
     def add_beacon(self, position: np.ndarray, cells: np.ndarray | None = None) -> int:
         """Record a beacon broadcast at ``position`` (2,) (m); the number of cells it made
