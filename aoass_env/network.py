@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from aoass_env.config import AOASSConfig
@@ -27,8 +28,38 @@ from aoass_env.validators import integer, real
 
 __all__ = ["Network", "lambda_min", "residual_after"]
 
-#: Columns of d_old and d_new whose products update Sxx, Sxy, Syy (Welford's recurrence).
-_OLD_COLS, _NEW_COLS = np.array([0, 0, 1]), np.array([0, 1, 1])
+
+
+@numba.njit(cache=True)
+def _welford(idx: np.ndarray, x: float, y: float, heard: np.ndarray, mean: np.ndarray,
+             scatter: np.ndarray, covered: np.ndarray, min_scatter: float) -> int:
+    """Add a beacon at (``x``, ``y``) [m] to the nodes ``idx``: Welford's update of their
+    counts, means and scatters in place (module docstring), and the nodes it makes covered
+    (n >= 3, :func:`lambda_min` >= ``min_scatter``) marked; returns how many. The operations
+    of NumPy's array form, node by node, so the floats are the same."""
+    fresh = 0
+    for k in range(len(idx)):
+        i = idx[k]
+        n = heard[i] + 1
+        dox = x - mean[i, 0]
+        doy = y - mean[i, 1]
+        mx = mean[i, 0] + dox / n
+        my = mean[i, 1] + doy / n
+        dnx = x - mx
+        dny = y - my
+        scatter[i, 0] += dox * dnx
+        scatter[i, 1] += dox * dny
+        scatter[i, 2] += doy * dny
+        mean[i, 0] = mx
+        mean[i, 1] = my
+        heard[i] = n
+        if not covered[i] and n >= 3:
+            sxx, sxy, syy = scatter[i, 0], scatter[i, 1], scatter[i, 2]
+            lam = max(0.5 * (sxx + syy) - math.hypot(0.5 * (sxx - syy), sxy), 0.0)
+            if lam >= min_scatter:
+                covered[i] = True
+                fresh += 1
+    return fresh
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:
@@ -118,20 +149,10 @@ class Network:
         if idx.size == 0:
             return 0
         self._receptions += idx.size
-        n = self._heard[idx] + 1
-        mean = self._mean[idx]
-        d_old = p - mean
-        mean += d_old / n[:, None]
-        d_new = p - mean
-        self._scatter[idx] += d_old[:, _OLD_COLS] * d_new[:, _NEW_COLS]
-        self._mean[idx] = mean
-        self._heard[idx] = n
-        fresh = idx[~self._covered[idx] & (n >= 3)]
-        if fresh.size:
-            fresh = fresh[lambda_min(self._scatter[fresh]) >= self._min_scatter]
-            self._covered[fresh] = True
-            self._n_covered += fresh.size
-        return int(fresh.size)
+        fresh = _welford(idx, float(p[0]), float(p[1]), self._heard, self._mean,
+                         self._scatter, self._covered, self._min_scatter)
+        self._n_covered += fresh
+        return fresh
 
     def charge_motion(self, distance: float) -> None:
         """Account ``distance`` [m] >= 0 travelled by the anchor."""

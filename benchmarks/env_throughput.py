@@ -175,6 +175,8 @@ def main() -> None:
         parser.error("--steps and --resets must be positive")
     field = {"field_size": args.field} if args.field != 100.0 else {}
     throughput(gym.make("Pendulum-v1"), 2_000)       # warm-up (imports, CPU clock)
+    # first-use costs of AOASS (lazy imports, compiled kernels loaded from numba's cache)
+    throughput(gym.make("AOASS-Safe-v0", **field), 200)
     ref, _, _, ref_cpu = throughput(gym.make("Pendulum-v1"), args.steps)
     print(f"{'env':34s} {'steps/s':>9s} {'us/step':>8s} {'CPU us':>7s} {'episodes':>8s} "
           f"{'reset s':>8s} {'ratio':>6s} {'CPU':>6s}  against")

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig
-from aoass_env.network import Network, residual_after
+from aoass_env.network import Network, lambda_min, residual_after
 
 CONFIG = AOASSConfig()
 
@@ -209,3 +209,49 @@ def test_bad_input():
         with pytest.raises(ValueError, match="distance"):
             net.charge_motion(bad)
     assert net.beacons_sent == 0 and net.distance_travelled == 0.0
+
+
+def _array_form(state: dict, p: np.ndarray, idx: np.ndarray, min_scatter: float) -> int:
+    """The NumPy array form of Welford's update that ``Network.record_beacon`` ran before its
+    compiled loop (kept as the reference, applied to ``state`` in place)."""
+    old_cols, new_cols = np.array([0, 0, 1]), np.array([0, 1, 1])
+    n = state["heard"][idx] + 1
+    mean = state["mean"][idx]
+    d_old = p - mean
+    mean += d_old / n[:, None]
+    d_new = p - mean
+    state["scatter"][idx] += d_old[:, old_cols] * d_new[:, new_cols]
+    state["mean"][idx] = mean
+    state["heard"][idx] = n
+    fresh = idx[~state["covered"][idx] & (n >= 3)]
+    fresh = fresh[lambda_min(state["scatter"][fresh]) >= min_scatter]
+    state["covered"][fresh] = True
+    return int(fresh.size)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n_nodes=st.integers(1, 40),
+       scale=st.sampled_from([1e-3, 1.0, 100.0, 1e6]), tol=st.sampled_from([1e-9, 0.5, 1.0]))
+def test_the_compiled_update_is_the_array_form_bit_for_bit(seed, n_nodes, scale, tol):
+    """Counts, means, scatters and coverage after every beacon equal, by their bits, the NumPy
+    array form's; beacons at nodes' means, repeated and collinear ones included."""
+    rng = np.random.default_rng(seed)
+    config = AOASSConfig(collinearity_tol=tol)
+    net = Network(n_nodes, config)
+    state = {"heard": np.zeros(n_nodes, dtype=np.int64), "mean": np.zeros((n_nodes, 2)),
+             "scatter": np.zeros((n_nodes, 3)), "covered": np.zeros(n_nodes, dtype=bool)}
+    for k in range(60):
+        if k % 7 == 3:
+            p = np.array([k * scale / 60.0, 2.0 * k * scale / 60.0])      # collinear run
+        elif k % 11 == 5:
+            p = state["mean"][0].copy()                                    # on a mean
+        else:
+            p = rng.uniform(-scale, scale, 2)
+        idx = np.flatnonzero(rng.random(n_nodes) < 0.6)
+        got = net.record_beacon(p, idx)
+        assert got == _array_form(state, p, idx, tol * tol)
+        assert net.heard.tobytes() == state["heard"].tobytes()
+        assert net.beacon_centroid.tobytes() == state["mean"].tobytes()
+        assert net.scatter.tobytes() == state["scatter"].tobytes()
+        assert net.covered.tobytes() == state["covered"].tobytes()
+        assert net.n_covered == int(state["covered"].sum())
