@@ -8,10 +8,13 @@ obstacle polygon, i.e. shapely's ``relate(segment, polygon)`` matches ``'T******
 generic case this means the segment properly crosses an obstacle edge. Touching a vertex from
 outside, running along an edge, or ending on an obstacle's boundary does not block; a segment
 through an obstacle from vertex to vertex (a square's diagonal) or lying inside an obstacle does.
-:class:`LineOfSight` decides this exactly: an STRtree over the edges gives candidate
-(segment, edge) pairs, an orientation test with Shewchuk's floating-point error bound settles
-every pair whose signs are certain, and the rare segments with an uncertain or degenerate contact
-(a vertex on the segment, collinear overlap) are handed to shapely's exact ``relate``.
+:class:`LineOfSight` decides this exactly: a grid of buckets over the edges gives each segment
+the edges of the buckets it passes (a superset of those it meets), an orientation test with
+Shewchuk's floating-point error bound settles every pair whose signs are certain, and the rare
+segments with an uncertain or degenerate contact (a vertex on the segment, collinear overlap) are
+handed to shapely's exact ``relate``. The grid walk, the orientation tests and the range test
+run compiled (numba, :func:`_segment`, :func:`_hear`); the answer does not depend on which
+candidate edges are tested beyond those the segment meets, so it is the exact one.
 
 **Radio irregularity** (DOI model, He et al. 2003): each transmitter has range factors K(theta)
 at 1 degree resolution, a closed random walk with ``|K_i - K_{i-1}| <= doi`` (also from 359 to
@@ -232,7 +235,8 @@ class LineOfSight:
     """Exact, vectorised line-of-sight test against the obstacles of one map.
 
     Args:
-        obstacle_map: the static obstacles; its edges and polygons are indexed once (STRtree).
+        obstacle_map: the static obstacles; its edges (a grid of buckets) and polygons
+            (STRtree, for the exact contacts) are indexed once.
     """
 
     def __init__(self, obstacle_map: ObstacleMap) -> None:
