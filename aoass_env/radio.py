@@ -202,6 +202,27 @@ def _hear(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, inside: np.ndarray,
     return cand, status
 
 
+@numba.njit(cache=True)
+def _bucket(i0: np.ndarray, i1: np.ndarray, j0: np.ndarray, j1: np.ndarray,
+            nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
+    """(first, members): edge e in every bucket (i, j) with i0[e] <= i <= i1[e] and
+    j0[e] <= j <= j1[e], in CSR form, each bucket's edges in increasing order."""
+    count = np.zeros(nx * ny + 1, dtype=np.int64)
+    for e in range(len(i0)):
+        for j in range(j0[e], j1[e] + 1):
+            for i in range(i0[e], i1[e] + 1):
+                count[j * nx + i + 1] += 1
+    first = np.cumsum(count)
+    fill = first[:-1].copy()
+    members = np.empty(first[-1], dtype=np.int64)
+    for e in range(len(i0)):
+        for j in range(j0[e], j1[e] + 1):
+            for i in range(i0[e], i1[e] + 1):
+                members[fill[j * nx + i]] = e
+                fill[j * nx + i] += 1
+    return first, members
+
+
 def _edge_grid(edges: np.ndarray) -> tuple[float, float, float, int, int, np.ndarray,
                                            np.ndarray]:
     """(x0, y0, cell, nx, ny, first, members): the edges (E, 2, 2) bucketed by the cells of
@@ -219,16 +240,7 @@ def _edge_grid(edges: np.ndarray) -> tuple[float, float, float, int, int, np.nda
     i1 = np.minimum(np.floor((hi[:, 0] - x0) / cell).astype(np.int64), nx - 1)
     j0 = np.floor((lo[:, 1] - y0) / cell).astype(np.int64)
     j1 = np.minimum(np.floor((hi[:, 1] - y0) / cell).astype(np.int64), ny - 1)
-    buckets, owners = [], []
-    for e in range(len(edges)):
-        ii, jj = np.meshgrid(np.arange(i0[e], i1[e] + 1), np.arange(j0[e], j1[e] + 1))
-        buckets.append((jj * nx + ii).ravel())
-        owners.append(np.full(ii.size, e, dtype=np.int64))
-    bucket, owner = np.concatenate(buckets), np.concatenate(owners)
-    order = np.argsort(bucket, kind="stable")
-    first = np.zeros(nx * ny + 1, dtype=np.int64)
-    np.cumsum(np.bincount(bucket, minlength=nx * ny), out=first[1:])
-    return x0, y0, cell, nx, ny, first, owner[order]
+    return (x0, y0, cell, nx, ny, *_bucket(i0, i1, j0, j1, nx, ny))
 
 
 class LineOfSight:
