@@ -66,20 +66,6 @@ def _points(value: object, name: str, *, single: bool = False) -> np.ndarray:
     return pts
 
 
-def _orientation(dax: np.ndarray, day: np.ndarray, dbx: np.ndarray,
-                 dby: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Sign-certain orientation of (a, b, c) from the differences a - c and b - c.
-
-    Returns ``(positive, certain)``: ``det > 0`` and whether that sign (and non-zeroness) is
-    exact under Shewchuk's error bound. An exactly zero determinant is never certain.
-    """
-    left = dax * dby
-    right = day * dbx
-    det = left - right
-    certain = np.abs(det) > _ORIENT_ERRBOUND * (np.abs(left) + np.abs(right))
-    return det > 0, certain
-
-
 #: Side (m) of the buckets of :class:`LineOfSight`'s edge grid.
 _GRID_CELL = 4.0
 #: Slack (m) of the edge grid: an edge is bucketed, and a segment looks, this far past its
@@ -92,8 +78,12 @@ _CLEAR, _CROSSES, _CONTACT = 0, 1, 2
 
 
 @numba.njit(cache=True)
-def _certain_positive(dax: float, day: float, dbx: float, dby: float) -> tuple[bool, bool]:
-    """:func:`_orientation` of one triple, the same floating-point operations."""
+def _orientation(dax: float, day: float, dbx: float, dby: float) -> tuple[bool, bool]:
+    """Sign-certain orientation of (a, b, c) from the differences a - c and b - c.
+
+    Returns ``(positive, certain)``: ``det > 0`` and whether that sign (and non-zeroness) is
+    exact under Shewchuk's error bound. An exactly zero determinant is never certain.
+    """
     left = dax * dby
     right = day * dbx
     det = left - right
@@ -109,9 +99,8 @@ def _segment(sx: float, sy: float, ex: float, ey: float, px: np.ndarray, py: np.
     (m) against the edges ``p[e] -> q[e]`` its buckets of the edge grid hold (``nx`` x ``ny``
     buckets of side ``cell`` from ``(x0, y0)``; bucket ``j nx + i`` holds
     ``members[first[k]:first[k + 1]]``), each edge tested once (``seen[e] == tag`` once
-    tested) by the orientation test with Shewchuk's error bound (:func:`_orientation`, the
-    same floating-point operations). The buckets are those of each grid row's stretch of the
-    segment, :data:`_GRID_SLACK` wider."""
+    tested) by the orientation test with Shewchuk's error bound (:func:`_orientation`). The
+    buckets are those of each grid row's stretch of the segment, :data:`_GRID_SLACK` wider."""
     ylo, yhi = min(sy, ey), max(sy, ey)
     j0 = min(max(int(math.floor((ylo - _GRID_SLACK - y0) / cell)), 0), ny - 1)
     j1 = min(max(int(math.floor((yhi + _GRID_SLACK - y0) / cell)), 0), ny - 1)
@@ -137,10 +126,10 @@ def _segment(sx: float, sy: float, ex: float, ey: float, px: np.ndarray, py: np.
                 seen[e] = tag
                 apx, apy, aqx, aqy = sx - px[e], sy - py[e], sx - qx[e], sy - qy[e]
                 bpx, bpy, bqx, bqy = ex - px[e], ey - py[e], ex - qx[e], ey - qy[e]
-                s1, c1 = _certain_positive(apx, apy, bpx, bpy)    # p against line a-b
-                s2, c2 = _certain_positive(aqx, aqy, bqx, bqy)    # q against line a-b
-                s3, c3 = _certain_positive(apx, apy, aqx, aqy)    # a against line p-q
-                s4, c4 = _certain_positive(bpx, bpy, bqx, bqy)    # b against line p-q
+                s1, c1 = _orientation(apx, apy, bpx, bpy)    # p against line a-b
+                s2, c2 = _orientation(aqx, aqy, bqx, bqy)    # q against line a-b
+                s3, c3 = _orientation(apx, apy, aqx, aqy)    # a against line p-q
+                s4, c4 = _orientation(bpx, bpy, bqx, bqy)    # b against line p-q
                 if c1 and c2 and c3 and c4 and s1 != s2 and s3 != s4:
                     return _CROSSES
                 if not ((c1 and c2 and s1 == s2) or (c3 and c4 and s3 == s4)):
