@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 import weakref
 
+import numba
 import numpy as np
 import shapely
 
@@ -55,6 +56,43 @@ def cell_range(config: AOASSConfig) -> float:
             f"{config.radio_range:g} m and doi={config.doi:g}: the guaranteed range R (1 - doi) "
             f"- cell / sqrt(2) must exceed one cell")
     return reach
+
+
+@numba.njit(cache=True)
+def _offsets_within(cx: np.ndarray, cy: np.ndarray, x: float, y: float,
+                    r2: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(dx, dy, cells): the offsets ``cx - x``, ``cy - y`` (m) of the points within squared
+    distance ``r2`` (m^2) of (x, y), ``dx * dx + dy * dy <= r2``, and their indices, in order."""
+    dx = np.empty(len(cx))
+    dy = np.empty(len(cx))
+    cells = np.empty(len(cx), dtype=np.int64)
+    n = 0
+    for i in range(len(cx)):
+        ox = cx[i] - x
+        oy = cy[i] - y
+        if ox * ox + oy * oy <= r2:
+            dx[n], dy[n], cells[n] = ox, oy, i
+            n += 1
+    return dx[:n], dy[:n], cells[:n]
+
+
+@numba.njit(cache=True)
+def _sector_means(turned: np.ndarray, values: np.ndarray, cells: np.ndarray,
+                  n_sectors: int) -> np.ndarray:
+    """(n_sectors,) mean of ``values[cells]`` by sector ``floor(turned / 2 pi n_sectors)`` (at
+    most the last) of their bearings ``turned`` in [0, 2 pi], summed in order; 0 where
+    empty."""
+    total = np.zeros(n_sectors)
+    count = np.zeros(n_sectors, dtype=np.int64)
+    for k in range(len(turned)):
+        sector = min(int(math.floor(turned[k] / (2.0 * math.pi) * n_sectors)), n_sectors - 1)
+        total[sector] += values[cells[k]]
+        count[sector] += 1
+    out = np.zeros(n_sectors)
+    for sector in range(n_sectors):
+        if count[sector] > 0:
+            out[sector] = total[sector] / count[sector]
+    return out
 
 
 def _free_points(obstacle_map: ObstacleMap, index: np.ndarray, cell: float) -> np.ndarray:
@@ -132,6 +170,7 @@ class CoverageMap:
         self._network = Network(max(len(self.centres), 1), config)
         self._tol = config.collinearity_tol
         self._deficit: np.ndarray | None = None      # of every free cell, until a beacon
+        self._cx, self._cy = self.centres[:, 0].copy(), self.centres[:, 1].copy()
 
     def listeners(self) -> tuple[Radio, np.ndarray]:
         """(radio, among) for :func:`~aoass_env.radio.receivers_at`: the cells' radio and the
@@ -220,14 +259,12 @@ class CoverageMap:
         bearing sector relative to ``heading`` (rad): sector k spans [k, k + 1) x 2π /
         n_sectors counter-clockwise from straight ahead. An empty sector (all obstacle or
         outside the field) reads 0: nothing to cover there."""
-        d = self.centres - np.asarray(position, dtype=np.float64)
-        inside = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] <= radius * radius
-        bearing = np.arctan2(d[inside, 1], d[inside, 0]) - heading
-        sector = np.floor(np.mod(bearing, 2.0 * math.pi) / (2.0 * math.pi) * n_sectors)
-        sector = np.minimum(sector.astype(np.int64), n_sectors - 1)
-        total = np.bincount(sector, weights=self.deficit[inside], minlength=n_sectors)
-        count = np.bincount(sector, minlength=n_sectors)
-        return np.divide(total, count, out=np.zeros(n_sectors), where=count > 0)
+        p = np.asarray(position, dtype=np.float64)
+        dx, dy, cells = _offsets_within(self._cx, self._cy, float(p[0]), float(p[1]),
+                                        radius * radius)
+        # the bearings by NumPy (its arctan2 and mod), the sectors' sums compiled, in order
+        turned = np.mod(np.arctan2(dy, dx) - heading, 2.0 * math.pi)
+        return _sector_means(turned, self.deficit, cells, int(n_sectors))
 
     def raster(self) -> np.ndarray:
         """(nx, ny) deficit per cell, NaN for cells inside obstacles (for drawing)."""

@@ -174,3 +174,39 @@ def test_free_points_of_cells_inside_obstacles_follow_their_definition():
     got = _free_points(obstacle_map, index, cell)
     assert np.isnan(got).any() and np.isfinite(got).any()
     np.testing.assert_array_equal(got, expected)
+
+
+def _sector_array_form(cov: CoverageMap, position: np.ndarray, heading: float, n_sectors: int,
+                       radius: float) -> np.ndarray:
+    """The NumPy array form of ``sector_deficits`` before its sums were compiled (kept as the
+    reference)."""
+    d = cov.centres - np.asarray(position, dtype=np.float64)
+    inside = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] <= radius * radius
+    bearing = np.arctan2(d[inside, 1], d[inside, 0]) - heading
+    sector = np.floor(np.mod(bearing, 2.0 * math.pi) / (2.0 * math.pi) * n_sectors)
+    sector = np.minimum(sector.astype(np.int64), n_sectors - 1)
+    total = np.bincount(sector, weights=cov.deficit[inside], minlength=n_sectors)
+    count = np.bincount(sector, minlength=n_sectors)
+    return np.divide(total, count, out=np.zeros(n_sectors), where=count > 0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n_sectors=st.sampled_from([1, 3, 4, 8, 16]))
+def test_sector_deficits_are_the_array_forms_bit_for_bit(seed, n_sectors):
+    """On a generated map with beacons laid, at random points, on cell centres and on the
+    radius, headings along the axes and the diagonals (bearings on sector borders) and random
+    ones: the same floats as the array form, by their bytes."""
+    rng = np.random.default_rng(seed)
+    obstacle_map = generate_map(40.0, 0.3, rng)
+    cov = CoverageMap(obstacle_map, CONFIG)
+    for b in obstacle_map.sample_free_points(int(rng.integers(0, 30)), rng):
+        cov.add_beacon(b)
+    points = [rng.uniform(-5, 45, 2) for _ in range(6)] + [cov.centres[0].copy()]
+    headings = [0.0, math.pi / 2, -math.pi, math.pi / 4, 2 * math.pi, float(rng.uniform(-9, 9))]
+    for p in points:
+        for heading in headings:
+            for radius in (3.0, float(np.hypot(*(cov.centres[-1] - p))), 60.0):
+                got = cov.sector_deficits(p, heading, n_sectors, radius)
+                want = _sector_array_form(cov, p, heading, n_sectors, radius)
+                assert got.dtype == want.dtype and got.shape == want.shape
+                assert got.tobytes() == want.tobytes()
