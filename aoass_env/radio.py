@@ -12,9 +12,9 @@ through an obstacle from vertex to vertex (a square's diagonal) or lying inside 
 the edges of the buckets it passes (a superset of those it meets), an orientation test with
 Shewchuk's floating-point error bound settles every pair whose signs are certain, and the rare
 segments with an uncertain or degenerate contact (a vertex on the segment, collinear overlap) are
-handed to shapely's exact ``relate``. The grid walk, the orientation tests and the range test
-run compiled (numba, :func:`_segment`, :func:`_hear`); the answer does not depend on which
-candidate edges are tested beyond those the segment meets, so it is the exact one.
+handed to shapely's exact ``relate`` (:mod:`aoass_env.segments`). The grid walk, the
+orientation tests and the range test run compiled (numba, :func:`_hear`); the answer does not
+depend on which candidate edges are tested beyond those the segment meets, so it is exact.
 
 **Radio irregularity** (DOI model, He et al. 2003): each transmitter has range factors K(theta)
 at 1 degree resolution, a closed random walk with ``|K_i - K_{i-1}| <= doi`` (also from 359 to
@@ -24,7 +24,6 @@ at 1 degree resolution, a closed random walk with ``|K_i - K_{i-1}| <= doi`` (al
 
 from __future__ import annotations
 
-import math
 import weakref
 from collections.abc import Sequence
 from functools import cached_property
@@ -36,14 +35,10 @@ from scipy.spatial import cKDTree
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
+from aoass_env.segments import CLEAR, CONTACT, CROSSES, EdgeGrid, segment_status
 from aoass_env.validators import integer, positive, real
 
 __all__ = ["LineOfSight", "Radio", "doi_pattern", "range_factor", "receivers_at"]
-
-_UNIT_ROUNDOFF = np.finfo(np.float64).eps / 2
-#: Shewchuk's static error bound for the 2D orientation determinant (ccwerrboundA): when
-#: |det| exceeds this times (|detleft| + |detright|), the sign of the float determinant is exact.
-_ORIENT_ERRBOUND = (3.0 + 16.0 * _UNIT_ROUNDOFF) * _UNIT_ROUNDOFF
 
 #: Relative slack of kd-tree queries; candidates are then filtered with the exact criterion.
 _QUERY_SLACK = 1e-9
@@ -64,90 +59,6 @@ def _points(value: object, name: str, *, single: bool = False) -> np.ndarray:
     if not np.all(np.isfinite(pts)):
         raise ValueError(f"{name} must be finite coordinates in metres")
     return pts
-
-
-#: Side (m) of the buckets of :class:`LineOfSight`'s edge grid.
-_GRID_CELL = 4.0
-#: Slack (m) of the edge grid: an edge is bucketed, and a segment looks, this far past its
-#: extent, so that rounding at a bucket's border never hides an edge that meets a segment.
-_GRID_SLACK = 1e-6
-
-#: What :func:`_sight` says of a segment: nothing met (the start point's side decides), a
-#: proper crossing of an edge (blocked), or a contact only shapely's exact test settles.
-_CLEAR, _CROSSES, _CONTACT = 0, 1, 2
-
-
-@numba.njit(cache=True)
-def _orientation(dax: float, day: float, dbx: float, dby: float) -> tuple[bool, bool]:
-    """Sign-certain orientation of (a, b, c) from the differences a - c and b - c.
-
-    Returns ``(positive, certain)``: ``det > 0`` and whether that sign (and non-zeroness) is
-    exact under Shewchuk's error bound. An exactly zero determinant is never certain.
-    """
-    left = dax * dby
-    right = day * dbx
-    det = left - right
-    return det > 0, abs(det) > _ORIENT_ERRBOUND * (abs(left) + abs(right))
-
-
-@numba.njit(cache=True)
-def _segment(sx: float, sy: float, ex: float, ey: float, px: np.ndarray, py: np.ndarray,
-             qx: np.ndarray, qy: np.ndarray, x0: float, y0: float, cell: float, nx: int,
-             ny: int, first: np.ndarray, members: np.ndarray, seen: np.ndarray,
-             tag: int) -> int:
-    """:data:`_CLEAR`, :data:`_CROSSES` or :data:`_CONTACT` of the segment (sx, sy) -> (ex, ey)
-    (m) against the edges ``p[e] -> q[e]`` its buckets of the edge grid hold (``nx`` x ``ny``
-    buckets of side ``cell`` from ``(x0, y0)``; bucket ``j nx + i`` holds
-    ``members[first[k]:first[k + 1]]``), each edge tested once (``seen[e] == tag`` once
-    tested) by the orientation test with Shewchuk's error bound (:func:`_orientation`). The
-    buckets are those of each grid row's stretch of the segment, :data:`_GRID_SLACK` wider."""
-    ylo, yhi = min(sy, ey), max(sy, ey)
-    j0 = min(max(int(math.floor((ylo - _GRID_SLACK - y0) / cell)), 0), ny - 1)
-    j1 = min(max(int(math.floor((yhi + _GRID_SLACK - y0) / cell)), 0), ny - 1)
-    status = _CLEAR
-    for j in range(j0, j1 + 1):
-        lo = max(ylo, y0 + j * cell - _GRID_SLACK)
-        hi = min(yhi, y0 + (j + 1) * cell + _GRID_SLACK)
-        if lo > hi:
-            continue
-        if sy == ey:
-            xa, xb = sx, ex
-        else:
-            xa = sx + (lo - sy) / (ey - sy) * (ex - sx)
-            xb = sx + (hi - sy) / (ey - sy) * (ex - sx)
-        i0 = min(max(int(math.floor((min(xa, xb) - _GRID_SLACK - x0) / cell)), 0), nx - 1)
-        i1 = min(max(int(math.floor((max(xa, xb) + _GRID_SLACK - x0) / cell)), 0), nx - 1)
-        for i in range(i0, i1 + 1):
-            bucket = j * nx + i
-            for slot in range(first[bucket], first[bucket + 1]):
-                e = members[slot]
-                if seen[e] == tag:
-                    continue
-                seen[e] = tag
-                apx, apy, aqx, aqy = sx - px[e], sy - py[e], sx - qx[e], sy - qy[e]
-                bpx, bpy, bqx, bqy = ex - px[e], ey - py[e], ex - qx[e], ey - qy[e]
-                s1, c1 = _orientation(apx, apy, bpx, bpy)    # p against line a-b
-                s2, c2 = _orientation(aqx, aqy, bqx, bqy)    # q against line a-b
-                s3, c3 = _orientation(apx, apy, aqx, aqy)    # a against line p-q
-                s4, c4 = _orientation(bpx, bpy, bqx, bqy)    # b against line p-q
-                if c1 and c2 and c3 and c4 and s1 != s2 and s3 != s4:
-                    return _CROSSES
-                if not ((c1 and c2 and s1 == s2) or (c3 and c4 and s3 == s4)):
-                    status = _CONTACT
-    return status
-
-
-@numba.njit(cache=True)
-def _sight(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray, px: np.ndarray,
-           py: np.ndarray, qx: np.ndarray, qy: np.ndarray, x0: float, y0: float, cell: float,
-           nx: int, ny: int, first: np.ndarray, members: np.ndarray) -> np.ndarray:
-    """(M,) int8 :func:`_segment` of each segment ``a[m] -> b[m]`` (m)."""
-    out = np.empty(len(ax), dtype=np.int8)
-    seen = np.full(len(px), -1, dtype=np.int64)
-    for k in range(len(ax)):
-        out[k] = _segment(ax[k], ay[k], bx[k], by[k], px, py, qx, qy, x0, y0, cell, nx, ny,
-                          first, members, seen, k)
-    return out
 
 
 @numba.njit(cache=True)
@@ -174,62 +85,21 @@ def _hear(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, inside: np.ndarray,
           qy: np.ndarray, x0: float, y0: float, cell: float, nx: int, ny: int,
           first: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(candidates, status) of a beacon at (``x``, ``y``): :func:`_within`'s points, and for
-    each the line of sight from the point to the beacon, :func:`_segment` settled by the
-    point's side (``inside``) where it meets no edge: 0 heard, 1 blocked, 2 a contact for
-    shapely's exact test."""
+    each the line of sight from the point to the beacon (:func:`~aoass_env.segments.
+    segment_status`), settled by the point's side (``inside``) where it meets no edge: 0 heard,
+    1 blocked, 2 a contact for shapely's exact test."""
     cand = _within(xs, ys, among, x, y, reach2)
     status = np.empty(len(cand), dtype=np.int8)
     seen = np.full(len(px), -1, dtype=np.int64)
     for k in range(len(cand)):
         i = cand[k]
-        found = _segment(xs[i], ys[i], x, y, px, py, qx, qy, x0, y0, cell, nx, ny, first,
+        found = segment_status(xs[i], ys[i], x, y, px, py, qx, qy, x0, y0, cell, nx, ny, first,
                          members, seen, k)
-        if found == _CLEAR:
+        if found == CLEAR:
             status[k] = 1 if inside[i] else 0
         else:
-            status[k] = 1 if found == _CROSSES else 2
+            status[k] = 1 if found == CROSSES else 2
     return cand, status
-
-
-@numba.njit(cache=True)
-def _bucket(i0: np.ndarray, i1: np.ndarray, j0: np.ndarray, j1: np.ndarray,
-            nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
-    """(first, members): edge e in every bucket (i, j) with i0[e] <= i <= i1[e] and
-    j0[e] <= j <= j1[e], in CSR form, each bucket's edges in increasing order."""
-    count = np.zeros(nx * ny + 1, dtype=np.int64)
-    for e in range(len(i0)):
-        for j in range(j0[e], j1[e] + 1):
-            for i in range(i0[e], i1[e] + 1):
-                count[j * nx + i + 1] += 1
-    first = np.cumsum(count)
-    fill = first[:-1].copy()
-    members = np.empty(first[-1], dtype=np.int64)
-    for e in range(len(i0)):
-        for j in range(j0[e], j1[e] + 1):
-            for i in range(i0[e], i1[e] + 1):
-                members[fill[j * nx + i]] = e
-                fill[j * nx + i] += 1
-    return first, members
-
-
-def _edge_grid(edges: np.ndarray) -> tuple[float, float, float, int, int, np.ndarray,
-                                           np.ndarray]:
-    """(x0, y0, cell, nx, ny, first, members): the edges (E, 2, 2) bucketed by the cells of
-    side :data:`_GRID_CELL` their bounding box, :data:`_GRID_SLACK` wider, overlaps (CSR:
-    bucket ``j nx + i`` holds ``members[first[k]:first[k + 1]]``)."""
-    cell = _GRID_CELL
-    if not len(edges):
-        return 0.0, 0.0, cell, 1, 1, np.zeros(2, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    lo = edges.min(axis=1) - _GRID_SLACK               # (E, 2) each edge's box
-    hi = edges.max(axis=1) + _GRID_SLACK
-    x0, y0 = float(lo[:, 0].min()), float(lo[:, 1].min())
-    nx = int(math.floor((hi[:, 0].max() - x0) / cell)) + 1
-    ny = int(math.floor((hi[:, 1].max() - y0) / cell)) + 1
-    i0 = np.floor((lo[:, 0] - x0) / cell).astype(np.int64)
-    i1 = np.minimum(np.floor((hi[:, 0] - x0) / cell).astype(np.int64), nx - 1)
-    j0 = np.floor((lo[:, 1] - y0) / cell).astype(np.int64)
-    j1 = np.minimum(np.floor((hi[:, 1] - y0) / cell).astype(np.int64), ny - 1)
-    return (x0, y0, cell, nx, ny, *_bucket(i0, i1, j0, j1, nx, ny))
 
 
 class LineOfSight:
@@ -243,11 +113,7 @@ class LineOfSight:
     def __init__(self, obstacle_map: ObstacleMap) -> None:
         if not isinstance(obstacle_map, ObstacleMap):
             raise TypeError(f"obstacle_map must be an ObstacleMap, got {type(obstacle_map)!r}")
-        edges = obstacle_map.edges
-        self._px, self._py = edges[:, 0, 0].copy(), edges[:, 0, 1].copy()
-        self._qx, self._qy = edges[:, 1, 0].copy(), edges[:, 1, 1].copy()
-        #: the edges and their grid, as :func:`_sight` and :func:`_hear` take them
-        self._edge_args = (self._px, self._py, self._qx, self._qy, *_edge_grid(edges))
+        self._grid = EdgeGrid(obstacle_map.edges)
         self._polygons = obstacle_map.shapes
         self._polygon_tree = shapely.STRtree(self._polygons)
 
@@ -301,13 +167,11 @@ class LineOfSight:
         m = len(a)
         if m == 0 or len(self._polygons) == 0:
             return np.zeros(m, dtype=bool)
-        status = _sight(np.ascontiguousarray(a[:, 0]), np.ascontiguousarray(a[:, 1]),
-                        np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1]),
-                        *self._edge_args)
+        status = self._grid.statuses(a, b)
         # No contact with any edge: the closed segment lies wholly inside or outside each
         # obstacle, like its start point.
-        blocked = np.where(status == _CLEAR, a_inside, status == _CROSSES)
-        contact = status == _CONTACT
+        blocked = np.where(status == CLEAR, a_inside, status == CROSSES)
+        contact = status == CONTACT
         if contact.any():
             segs = np.empty((int(contact.sum()), 2, 2))
             segs[:, 0] = a[contact]
@@ -444,7 +308,7 @@ class Radio:
             return self._in_sight(p, self._in_range(p, among))
         cand, status = _hear(self._xs, self._ys, self._among(among), self._node_inside,
                              float(p[0]), float(p[1]), self.radio_range * self.radio_range,
-                             *self._los._edge_args)
+                             *self._los._grid.args)
         contact = status == 2
         if contact.any():
             segs = np.empty((int(contact.sum()), 2, 2))

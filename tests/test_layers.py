@@ -21,7 +21,7 @@ PACKAGES = ("aoass_env", "agents")
 LAYERS = {
     "aoass_env.atomic": 0, "aoass_env.metrics": 0, "aoass_env.trajectory": 0,
     "aoass_env.backends": 0, "aoass_env.data": 0, "aoass_env.safety": 0, "aoass_env.validators": 0,
-    "aoass_env.trig": 0,
+    "aoass_env.trig": 0, "aoass_env.segments": 0,
     "aoass_env.localization.multilateration": 0, "aoass_env.localization.ragged": 0,
     "aoass_env.config": 1,
     "aoass_env.maps": 2, "aoass_env.clearance": 2, "aoass_env.radio": 2, "aoass_env.world": 2,

@@ -518,30 +518,3 @@ def test_receivers_of_many_points_are_each_points_receivers(seed, doi, counts, l
     for point, heard in zip(points, got, strict=True):
         assert heard.dtype == np.int64
         np.testing.assert_array_equal(heard, radio.receivers(point))
-
-
-@settings(max_examples=30, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 40))
-def test_the_edge_grid_buckets_each_edge_where_its_widened_box_lies(seed, n):
-    """Bucket (i, j) holds exactly the edges whose bounding box, _GRID_SLACK wider, overlaps
-    the cell [x0 + i cell, x0 + (i + 1) cell] x [y0 + j cell, ...], each once; every edge's
-    box lies in the grid."""
-    from aoass_env.radio import _GRID_SLACK, _edge_grid
-    rng = np.random.default_rng(seed)
-    edges = rng.uniform(-30, 90, (n, 2, 2))
-    edges[: n // 3] = np.round(edges[: n // 3] / 4.0) * 4.0     # ends on bucket borders
-    x0, y0, cell, nx, ny, first, members = _edge_grid(edges)
-    assert len(first) == nx * ny + 1 and first[0] == 0 and first[-1] == len(members)
-    lo, hi = edges.min(axis=1) - _GRID_SLACK, edges.max(axis=1) + _GRID_SLACK
-    if n:
-        assert lo[:, 0].min() >= x0 and lo[:, 1].min() >= y0
-        assert hi[:, 0].max() < x0 + nx * cell and hi[:, 1].max() < y0 + ny * cell
-    for j in range(ny):
-        for i in range(nx):
-            k = j * nx + i
-            held = members[first[k]:first[k + 1]].tolist()
-            def spans(e: int, axis: int, k: int, start: float) -> bool:
-                return (math.floor((lo[e, axis] - start) / cell) <= k
-                        <= math.floor((hi[e, axis] - start) / cell))
-            want = [e for e in range(n) if spans(e, 0, i, x0) and spans(e, 1, j, y0)]
-            assert held == want

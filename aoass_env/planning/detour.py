@@ -33,6 +33,7 @@ from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from aoass_env.maps import ObstacleMap
+from aoass_env.segments import CLEAR, CROSSES, EdgeGrid
 
 #: A detour search first explores paths of cost up to SEARCH_FACTOR x the straight distance +
 #: SEARCH_SLACK (m; cost = length x (1 + 1/clearance), at most about twice the length), and
@@ -97,6 +98,7 @@ class DetourPlanner:
         self._obstacles = obstacle_map.union if obstacle_map.polygons else shapely.Polygon()
         self._blocker = shapely.buffer(self._obstacles, radius)
         shapely.prepare(self._blocker)
+        self._blocker_edges = EdgeGrid(_ring_edges(self._blocker))
         self._degree = int(np.diff(self._graph.indptr).max(initial=0))   # at most 8
         # (start cell, limit) of the kept shortest-path tree, and its (dist, pred) arrays once a
         # search has needed them (a forced quick path needs no tree)
@@ -228,9 +230,20 @@ class DetourPlanner:
         return bool(np.any(far & (labels == labels[start])))
 
     def visible(self, a: np.ndarray, b: np.ndarray) -> bool:
-        """True when a disc of the planner's radius can move straight from ``a`` to ``b``."""
-        if a[0] == b[0] and a[1] == b[1]:
-            return not shapely.intersects_xy(self._blocker, a[0], a[1])
+        """True when a disc of the planner's radius can move straight from ``a`` to ``b``: the
+        segment does not meet the obstacles grown by the radius (shapely's ``intersects``).
+        The exact segment test against the grown obstacles' edges
+        (:class:`~aoass_env.segments.EdgeGrid`) settles most segments: a crossing meets them,
+        and a segment clear of every edge meets them when ``a`` does; contacts go to
+        shapely."""
+        ax, ay, bx, by = float(a[0]), float(a[1]), float(b[0]), float(b[1])
+        status = self._blocker_edges.status(ax, ay, bx, by)
+        if status == CROSSES:
+            return False
+        if status == CLEAR:
+            return not shapely.intersects_xy(self._blocker, ax, ay)
+        if ax == bx and ay == by:
+            return not shapely.intersects_xy(self._blocker, ax, ay)
         return not shapely.intersects(self._blocker, shapely.linestrings([a, b]))
 
     def path(self, start: np.ndarray, goal: np.ndarray, keepout: np.ndarray | None = None,
@@ -389,3 +402,13 @@ class DetourPlanner:
             out.append(pts[j])
             i = j
         return np.array(out)
+
+
+def _ring_edges(area: shapely.Geometry) -> np.ndarray:
+    """(E, 2, 2) the edges (m) of every ring, outer and inner, of the polygons of ``area``."""
+    parts = shapely.get_parts(area)
+    rings = shapely.get_rings(parts[~shapely.is_empty(parts)]) if len(parts) else parts
+    coords, ring = shapely.get_coordinates(rings, return_index=True)
+    same = ring[:-1] == ring[1:]
+    return np.stack([coords[:-1], coords[1:]], axis=1)[same] if len(coords) \
+        else np.zeros((0, 2, 2))

@@ -283,3 +283,28 @@ def test_a_forced_path_is_the_path_of_every_search_limit():
     assert forced > 10
     a, b = m.sample_free_points(2, rng)
     assert p._quick(p._graph, p._cell(a), p._cell(b), 0.1, 1.0) is None    # beyond the limit
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), density=st.sampled_from([0.0, 0.1, 0.3, 0.5]))
+def test_visible_is_shapelys_intersects_with_the_grown_obstacles(seed, density):
+    """The exact segment test with shapely settling the contacts gives shapely's answer on
+    random segments, short ones, points, and segments along, onto and between the grown
+    obstacles' vertices."""
+    rng = np.random.default_rng(seed)
+    obstacle_map = generate_map(60.0, density, rng)
+    planner = DetourPlanner(obstacle_map, 0.75)
+    a, b = rng.uniform(-2, 62, (150, 2)), rng.uniform(-2, 62, (150, 2))
+    b[:40] = a[:40] + rng.normal(0.0, 2.0, (40, 2))
+    b[40:50] = a[40:50]                                          # points
+    vertices = shapely.get_coordinates(planner._blocker)
+    if len(vertices):
+        k = rng.integers(len(vertices), size=(2, 50))
+        a[50:100], b[50:100] = vertices[k[0]], vertices[k[1]]    # vertex to vertex
+        b[100:125] = vertices[np.minimum(k[0, :25] + 1, len(vertices) - 1)]
+        a[100:125] = vertices[k[0, :25]]                         # along an edge
+        a[125:] = vertices[k[1, :25]]                            # from a vertex outward
+    for p, q in zip(a, b, strict=True):
+        want = not (shapely.intersects_xy(planner._blocker, *p) if np.array_equal(p, q) else
+                    shapely.intersects(planner._blocker, shapely.linestrings([p, q])))
+        assert planner.visible(p, q) is want
