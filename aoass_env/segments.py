@@ -64,9 +64,11 @@ def segment_status(sx: float, sy: float, ex: float, ey: float, px: np.ndarray, p
     """:data:`CLEAR`, :data:`CROSSES` or :data:`CONTACT` of the segment (sx, sy) -> (ex, ey)
     (m) against the edges ``p[e] -> q[e]`` its buckets of the edge grid hold (``nx`` x ``ny``
     buckets of side ``cell`` from ``(x0, y0)``; bucket ``j nx + i`` holds
-    ``members[first[k]:first[k + 1]]``), each edge tested once (``seen[e] == tag`` once
-    tested) by the orientation test with Shewchuk's error bound (:func:`_orientation`). The
-    buckets are those of each grid row's stretch of the segment, :data:`GRID_SLACK` wider."""
+    ``members[first[k]:first[k + 1]]``) by the orientation test with Shewchuk's error bound
+    (:func:`_orientation`). The buckets are those of each grid row's stretch of the segment,
+    :data:`GRID_SLACK` wider. With ``tag >= 0`` each edge is tested once (``seen[e] == tag``
+    once tested, ``seen`` one mark per edge); with ``tag < 0`` (``seen`` unread) an edge in
+    several of the buckets is tested again, to the same answer."""
     ylo, yhi = min(sy, ey), max(sy, ey)
     j0 = min(max(int(math.floor((ylo - GRID_SLACK - y0) / cell)), 0), ny - 1)
     j1 = min(max(int(math.floor((yhi + GRID_SLACK - y0) / cell)), 0), ny - 1)
@@ -87,9 +89,10 @@ def segment_status(sx: float, sy: float, ex: float, ey: float, px: np.ndarray, p
             bucket = j * nx + i
             for slot in range(first[bucket], first[bucket + 1]):
                 e = members[slot]
-                if seen[e] == tag:
-                    continue
-                seen[e] = tag
+                if tag >= 0:
+                    if seen[e] == tag:
+                        continue
+                    seen[e] = tag
                 apx, apy, aqx, aqy = sx - px[e], sy - py[e], sx - qx[e], sy - qy[e]
                 bpx, bpy, bqx, bqy = ex - px[e], ey - py[e], ex - qx[e], ey - qy[e]
                 s1, c1 = _orientation(apx, apy, bpx, bpy)    # p against line a-b
@@ -156,6 +159,11 @@ def _grid(edges: np.ndarray) -> tuple[float, float, float, int, int, np.ndarray,
     return (x0, y0, cell, nx, ny, *_bucket(i0, i1, j0, j1, nx, ny))
 
 
+#: ``seen`` of one-segment queries, which test an edge in several buckets again: nothing
+#: mutable is shared, so threads may query one grid at once.
+_NO_MARKS = np.zeros(0, dtype=np.int64)
+
+
 class EdgeGrid:
     """Edges bucketed for :func:`segment_status` (module docstring).
 
@@ -171,8 +179,6 @@ class EdgeGrid:
         edges = np.asarray(edges, dtype=np.float64).reshape(-1, 2, 2)
         self.args = (edges[:, 0, 0].copy(), edges[:, 0, 1].copy(), edges[:, 1, 0].copy(),
                      edges[:, 1, 1].copy(), *_grid(edges))
-        self._seen = np.full(len(edges), -1, dtype=np.int64)    # one-segment queries' marks
-        self._tag = 0
 
     def statuses(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(M,) int8 :func:`segment_status` of the segments ``a[m] -> b[m]`` ((M, 2) each, m)."""
@@ -181,5 +187,4 @@ class EdgeGrid:
 
     def status(self, ax: float, ay: float, bx: float, by: float) -> int:
         """:func:`segment_status` of the one segment (ax, ay) -> (bx, by) (m)."""
-        self._tag += 1
-        return segment_status(ax, ay, bx, by, *self.args, self._seen, self._tag)
+        return segment_status(ax, ay, bx, by, *self.args, _NO_MARKS, -1)
