@@ -36,7 +36,7 @@ import shapely
 
 from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.maps import ObstacleMap
-from aoass_env.network import Network, residual_after
+from aoass_env.network import Network, lambda_min, residual_after
 from aoass_env.radio import Radio
 
 __all__ = ["PARTIAL_CELL_SHARE", "CoverageMap", "cell_range"]
@@ -235,7 +235,9 @@ class CoverageMap:
         """The deficit (module docstring) of the free cells ``cells`` (indices)."""
         net = self._network
         missing = np.maximum(0, 3 - net.heard[cells])
-        spread = 1.0 - np.minimum(1.0, net.line_residual[cells] / self._tol)
+        # the line residual of these cells only (Network.line_residual, element by element)
+        residual = np.sqrt(lambda_min(net.scatter[cells]))
+        spread = 1.0 - np.minimum(1.0, residual / self._tol)
         return np.where(net.covered[cells], 0.0, (missing + spread) / 4.0)
 
     def residual_after(self, cell: int, points: np.ndarray) -> np.ndarray:

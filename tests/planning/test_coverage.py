@@ -210,3 +210,22 @@ def test_sector_deficits_are_the_array_forms_bit_for_bit(seed, n_sectors):
                 want = _sector_array_form(cov, p, heading, n_sectors, radius)
                 assert got.dtype == want.dtype and got.shape == want.shape
                 assert got.tobytes() == want.tobytes()
+
+
+def test_deficits_of_some_cells_are_those_of_all_cells_picked():
+    """deficit_at of a subset (its cells' residuals alone) equals, by its bytes, the deficit of
+    every cell (the network's line residual of all of them) at those cells, in any order."""
+    rng = np.random.default_rng(5)
+    obstacle_map = generate_map(40.0, 0.3, rng)
+    cov = CoverageMap(obstacle_map, CONFIG)
+    for b in obstacle_map.sample_free_points(25, rng):
+        cov.add_beacon(b)
+        every = cov.deficit
+        net = cov._network
+        reference = np.where(net.covered[:cov.n_cells], 0.0, (np.maximum(
+            0, 3 - net.heard[:cov.n_cells]) + 1.0 - np.minimum(
+                1.0, net.line_residual[:cov.n_cells] / CONFIG.collinearity_tol)) / 4.0)
+        assert every.tobytes() == reference.tobytes()
+        pick = rng.permutation(cov.n_cells)[:40]
+        assert cov.deficit_at(pick).tobytes() == reference[pick].tobytes()
+    assert 0.0 < cov.deficit.mean() < 1.0
