@@ -29,7 +29,6 @@ from aoass_env.validators import integer, real
 __all__ = ["Network", "lambda_min", "residual_after"]
 
 
-
 @numba.njit(cache=True)
 def _welford(idx: np.ndarray, x: float, y: float, heard: np.ndarray, mean: np.ndarray,
              scatter: np.ndarray, covered: np.ndarray, min_scatter: float) -> int:

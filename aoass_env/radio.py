@@ -38,7 +38,8 @@ from aoass_env.maps import ObstacleMap
 from aoass_env.segments import CLEAR, CONTACT, CROSSES, EdgeGrid, segment_status
 from aoass_env.validators import integer, positive, real
 
-__all__ = ["LineOfSight", "Radio", "doi_pattern", "range_factor", "receivers_at"]
+__all__ = ["LineOfSight", "Radio", "doi_pattern", "points_within", "range_factor",
+           "receivers_at"]
 
 #: Relative slack of kd-tree queries; candidates are then filtered with the exact criterion.
 _QUERY_SLACK = 1e-9
@@ -61,12 +62,16 @@ def _points(value: object, name: str, *, single: bool = False) -> np.ndarray:
     return pts
 
 
+#: What :func:`_hear` says of a candidate beyond :data:`~aoass_env.segments.CONTACT`.
+_HEARD, _BLOCKED = 0, 1
+
+
 @numba.njit(cache=True)
-def _within(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, x: float, y: float,
-            reach2: float) -> np.ndarray:
-    """Sorted int64 indices of the points (``xs``, ``ys``) that ``among`` marks whose squared
-    distance to (``x``, ``y``) is at most ``reach2`` (m^2): ``dx * dx + dy * dy <= reach2``
-    with ``dx = xs - x``, as :meth:`Radio._in_range` computes it."""
+def points_within(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, x: float, y: float,
+                  reach2: float) -> np.ndarray:
+    """Sorted int64 indices of the points (``xs``, ``ys``) (m) that ``among`` marks whose
+    squared distance to (``x``, ``y``) is at most ``reach2`` (m^2), by
+    ``dx * dx + dy * dy <= reach2`` with ``dx = xs - x`` (compiled)."""
     out = np.empty(len(xs), dtype=np.int64)
     n = 0
     for i in range(len(xs)):
@@ -84,21 +89,22 @@ def _hear(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, inside: np.ndarray,
           y: float, reach2: float, px: np.ndarray, py: np.ndarray, qx: np.ndarray,
           qy: np.ndarray, x0: float, y0: float, cell: float, nx: int, ny: int,
           first: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(candidates, status) of a beacon at (``x``, ``y``): :func:`_within`'s points, and for
-    each the line of sight from the point to the beacon (:func:`~aoass_env.segments.
-    segment_status`), settled by the point's side (``inside``) where it meets no edge: 0 heard,
-    1 blocked, 2 a contact for shapely's exact test."""
-    cand = _within(xs, ys, among, x, y, reach2)
+    """(candidates, status) of a beacon at (``x``, ``y``): :func:`points_within`'s points, and
+    for each the line of sight from the point to the beacon (:func:`~aoass_env.segments.
+    segment_status`), settled by the point's side (``inside``) where it meets no edge:
+    :data:`_HEARD`, :data:`_BLOCKED`, or :data:`~aoass_env.segments.CONTACT` for shapely's
+    exact test."""
+    cand = points_within(xs, ys, among, x, y, reach2)
     status = np.empty(len(cand), dtype=np.int8)
     seen = np.full(len(px), -1, dtype=np.int64)
     for k in range(len(cand)):
         i = cand[k]
-        found = segment_status(xs[i], ys[i], x, y, px, py, qx, qy, x0, y0, cell, nx, ny, first,
-                         members, seen, k)
+        found = segment_status(xs[i], ys[i], x, y, px, py, qx, qy, x0, y0, cell, nx, ny,
+                               first, members, seen, k)
         if found == CLEAR:
-            status[k] = 1 if inside[i] else 0
+            status[k] = _BLOCKED if inside[i] else _HEARD
         else:
-            status[k] = 1 if found == CROSSES else 2
+            status[k] = _BLOCKED if found == CROSSES else CONTACT
     return cand, status
 
 
@@ -173,14 +179,15 @@ class LineOfSight:
         blocked = np.where(status == CLEAR, a_inside, status == CROSSES)
         contact = status == CONTACT
         if contact.any():
-            segs = np.empty((int(contact.sum()), 2, 2))
-            segs[:, 0] = a[contact]
-            segs[:, 1] = b[contact]
-            blocked[contact] = self._blocked_exact(segs)
+            blocked[contact] = self._blocked_exact(a[contact], b[contact])
         return blocked
 
-    def _blocked_exact(self, segs: np.ndarray) -> np.ndarray:
-        """shapely's exact answer for the few segments (K, 2, 2) with a degenerate contact."""
+    def _blocked_exact(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """shapely's exact answer for the few segments ``a[k] -> b[k]`` ((K, 2), or ``b`` one
+        point (2,) they share) with a degenerate contact."""
+        segs = np.empty((len(a), 2, 2))
+        segs[:, 0] = a
+        segs[:, 1] = b
         point = np.all(segs[:, 0] == segs[:, 1], axis=1)
         geoms = np.where(point, shapely.points(segs[:, 0]), shapely.linestrings(segs))
         seg, poly = self._polygon_tree.query(geoms)
@@ -309,21 +316,18 @@ class Radio:
         cand, status = _hear(self._xs, self._ys, self._among(among), self._node_inside,
                              float(p[0]), float(p[1]), self.radio_range * self.radio_range,
                              *self._los._grid.args)
-        contact = status == 2
+        contact = status == CONTACT
         if contact.any():
-            segs = np.empty((int(contact.sum()), 2, 2))
-            segs[:, 0] = self.nodes[cand[contact]]
-            segs[:, 1] = p
-            status[contact] = self._los._blocked_exact(segs)
-        return cand[status == 0]
+            status[contact] = self._los._blocked_exact(self.nodes[cand[contact]], p)
+        return cand[status == _HEARD]
 
     def _in_range(self, p: np.ndarray, among: np.ndarray | None) -> np.ndarray:
         """Sorted int64 indices of the nodes (of ``among``) within the anchor's range
         R K(theta) of the checked point ``p`` (2,) [m], line of sight not yet tested."""
         among = self._among(among)
         if self.doi == 0.0:
-            return _within(self._xs, self._ys, among, float(p[0]), float(p[1]),
-                           self.radio_range * self.radio_range)
+            return points_within(self._xs, self._ys, among, float(p[0]), float(p[1]),
+                                 self.radio_range * self.radio_range)
         cand = np.array(self._tree.query_ball_point(p, self.max_range * (1 + _QUERY_SLACK),
                                                     return_sorted=True), dtype=np.int64)
         cand = cand[among[cand]]

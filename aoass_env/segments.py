@@ -57,10 +57,10 @@ def _orientation(dax: float, day: float, dbx: float, dby: float) -> tuple[bool, 
 
 
 @numba.njit(cache=True)
-def segment_status(sx: float, sy: float, ex: float, ey: float, px: np.ndarray, py: np.ndarray,
-             qx: np.ndarray, qy: np.ndarray, x0: float, y0: float, cell: float, nx: int,
-             ny: int, first: np.ndarray, members: np.ndarray, seen: np.ndarray,
-             tag: int) -> int:
+def segment_status(sx: float, sy: float, ex: float, ey: float, px: np.ndarray,
+                   py: np.ndarray, qx: np.ndarray, qy: np.ndarray, x0: float, y0: float,
+                   cell: float, nx: int, ny: int, first: np.ndarray, members: np.ndarray,
+                   seen: np.ndarray, tag: int) -> int:
     """:data:`CLEAR`, :data:`CROSSES` or :data:`CONTACT` of the segment (sx, sy) -> (ex, ey)
     (m) against the edges ``p[e] -> q[e]`` its buckets of the edge grid hold (``nx`` x ``ny``
     buckets of side ``cell`` from ``(x0, y0)``; bucket ``j nx + i`` holds
@@ -114,8 +114,8 @@ def statuses(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray, px:
     out = np.empty(len(ax), dtype=np.int8)
     seen = np.full(len(px), -1, dtype=np.int64)
     for k in range(len(ax)):
-        out[k] = segment_status(ax[k], ay[k], bx[k], by[k], px, py, qx, qy, x0, y0, cell, nx, ny,
-                          first, members, seen, k)
+        out[k] = segment_status(ax[k], ay[k], bx[k], by[k], px, py, qx, qy, x0, y0, cell, nx,
+                                ny, first, members, seen, k)
     return out
 
 

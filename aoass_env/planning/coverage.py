@@ -37,7 +37,7 @@ import shapely
 from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network, lambda_min, residual_after
-from aoass_env.radio import Radio
+from aoass_env.radio import Radio, points_within
 
 __all__ = ["PARTIAL_CELL_SHARE", "CoverageMap", "cell_range"]
 
@@ -56,24 +56,6 @@ def cell_range(config: AOASSConfig) -> float:
             f"{config.radio_range:g} m and doi={config.doi:g}: the guaranteed range R (1 - doi) "
             f"- cell / sqrt(2) must exceed one cell")
     return reach
-
-
-@numba.njit(cache=True)
-def _offsets_within(cx: np.ndarray, cy: np.ndarray, x: float, y: float,
-                    r2: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(dx, dy, cells): the offsets ``cx - x``, ``cy - y`` (m) of the points within squared
-    distance ``r2`` (m^2) of (x, y), ``dx * dx + dy * dy <= r2``, and their indices, in order."""
-    dx = np.empty(len(cx))
-    dy = np.empty(len(cx))
-    cells = np.empty(len(cx), dtype=np.int64)
-    n = 0
-    for i in range(len(cx)):
-        ox = cx[i] - x
-        oy = cy[i] - y
-        if ox * ox + oy * oy <= r2:
-            dx[n], dy[n], cells[n] = ox, oy, i
-            n += 1
-    return dx[:n], dy[:n], cells[:n]
 
 
 @numba.njit(cache=True)
@@ -171,6 +153,7 @@ class CoverageMap:
         self._tol = config.collinearity_tol
         self._deficit: np.ndarray | None = None      # of every free cell, until a beacon
         self._cx, self._cy = self.centres[:, 0].copy(), self.centres[:, 1].copy()
+        self._every = np.ones(len(self.centres), dtype=bool)
 
     def listeners(self) -> tuple[Radio, np.ndarray]:
         """(radio, among) for :func:`~aoass_env.radio.receivers_at`: the cells' radio and the
@@ -261,11 +244,11 @@ class CoverageMap:
         bearing sector relative to ``heading`` (rad): sector k spans [k, k + 1) x 2π /
         n_sectors counter-clockwise from straight ahead. An empty sector (all obstacle or
         outside the field) reads 0: nothing to cover there."""
-        p = np.asarray(position, dtype=np.float64)
-        dx, dy, cells = _offsets_within(self._cx, self._cy, float(p[0]), float(p[1]),
-                                        radius * radius)
+        x, y = (float(v) for v in np.asarray(position, dtype=np.float64))
+        cells = points_within(self._cx, self._cy, self._every, x, y, radius * radius)
         # the bearings by NumPy (its arctan2 and mod), the sectors' sums compiled, in order
-        turned = np.mod(np.arctan2(dy, dx) - heading, 2.0 * math.pi)
+        turned = np.mod(np.arctan2(self._cy[cells] - y, self._cx[cells] - x) - heading,
+                        2.0 * math.pi)
         return _sector_means(turned, self.deficit, cells, int(n_sectors))
 
     def raster(self) -> np.ndarray:
