@@ -27,13 +27,13 @@ blocks of 1024 points (about 15 us per point). ``benchmarks/fuzzy.py`` prints th
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -57,6 +57,64 @@ def membership(x: ArrayLike, params: tuple[float, ...]) -> np.ndarray:
         rise = np.where(x >= b, 1.0, (x - a) / (b - a)) if b > a else (x >= a).astype(float)
         fall = np.where(x <= c, 1.0, (d - x) / (d - c)) if d > c else (x <= d).astype(float)
     return np.clip(np.minimum(rise, fall), 0.0, 1.0)
+
+
+@numba.njit(cache=True)
+def _memberships(x: float, inner: np.ndarray, rows: np.ndarray, lo: float,
+                 hi: float) -> np.ndarray:
+    """Memberships of one crisp value by exact piecewise-linear interpolation (the vectorised
+    :meth:`FuzzyController._fuzzify`'s arithmetic; Python's ``min(max(x, lo), hi)`` clip)."""
+    if lo > x:
+        x = lo
+    if hi < x:
+        x = hi
+    k = np.searchsorted(inner, x, side="right")
+    n = (rows.shape[1] - 1) // 2
+    dx = x - rows[k, 2 * n]
+    mu = np.empty(n)
+    for t in range(n):
+        mu[t] = rows[k, t] + rows[k, n + t] * dx
+    return mu
+
+
+@numba.njit(cache=True)
+def _aggregate(d: float, h: float, d_inner: np.ndarray, d_rows: np.ndarray, d_lo: float,
+               d_hi: float, h_inner: np.ndarray, h_rows: np.ndarray, h_lo: float, h_hi: float,
+               table: np.ndarray, grid: np.ndarray, nt: int) -> tuple[np.ndarray, np.ndarray]:
+    """The aggregated turn and speed sets (each (n,), on the output grid) of one d (m) and one
+    wrapped dtheta (rad): AND = min, implication = min, aggregation = max.
+
+    Only the rules whose two memberships are both positive are evaluated: any other rule has a
+    strength min(mu_d, mu_h) <= 0, which never raises an output term's strength (they start at
+    0). Every operation is a comparison, so the sets are those of the array code.
+    """
+    mu_d = _memberships(d, d_inner, d_rows, d_lo, d_hi)
+    mu_h = _memberships(h, h_inner, h_rows, h_lo, h_hi)
+    n_out, n = grid.shape
+    out = np.zeros(n_out)
+    for i in range(len(mu_d)):
+        md = mu_d[i]
+        if md > 0.0:
+            for j in range(len(mu_h)):
+                mh = mu_h[j]
+                if mh > 0.0:
+                    w = mh if mh < md else md
+                    t, s = table[i, j, 0], table[i, j, 1]
+                    if w > out[t]:
+                        out[t] = w
+                    if w > out[s]:
+                        out[s] = w
+    turn = np.zeros(n)
+    speed = np.zeros(n)
+    for r in range(n_out):
+        strength = out[r]
+        target = turn if r < nt else speed
+        for k in range(n):
+            g = grid[r, k]
+            clipped = strength if strength < g else g
+            if r == 0 or r == nt or clipped > target[k]:
+                target[k] = clipped
+    return turn, speed
 
 
 @dataclass(frozen=True)
@@ -307,19 +365,21 @@ class FuzzyController:
                 r = i * len(hnames) + j
                 consequent[r, tnames.index(tterm)] = 1.0
                 consequent[r, nt + snames.index(sterm)] = 1.0
-        # Plain-Python copies for the scalar path: (inner corners, rows of (fp, slope, left)).
-        scalar_inputs = [(inner.tolist(), [(f, sl, x0) for f, sl, x0 in
-                                           zip(fp.T.tolist(), slope.T.tolist(), left.tolist(),
-                                               strict=True)], lo, hi)
-                         for inner, fp, slope, left, lo, hi in inputs]
-        # [distance term][heading term] -> (turn column, speed column)
-        scalar_table = [[(tnames.index(rules[(dt, ht)][0]), nt + snames.index(rules[(dt, ht)][1]))
-                         for ht in hnames] for dt in dnames]
+        # The scalar path's compiled tables (:func:`_aggregate`): per input, the inner corners,
+        # rows [fp (T), slope (T), left corner] per interval, and the universe's ends; the rule
+        # table [distance term, heading term] -> (turn row, speed row); the output grids.
+        compiled = []
+        for inner, fp, slope, left, lo, hi in inputs:
+            compiled += [inner, np.ascontiguousarray(np.concatenate(
+                [fp.T, slope.T, left[:, None]], axis=1)), float(lo), float(hi)]
+        table = np.array([[(tnames.index(rules[(dt, ht)][0]),
+                            nt + snames.index(rules[(dt, ht)][1])) for ht in hnames]
+                          for dt in dnames], dtype=np.int64)
         grid = np.ascontiguousarray(np.concatenate(grids))                # C order: fast
-        return {"inputs": inputs, "grid": grid[:, None, :], "grid2d": grid,
-                "moments": moments, "nt": nt, "consequent": consequent,
-                "rules": len(dnames) * len(hnames), "scalar_inputs": scalar_inputs,
-                "scalar_table": scalar_table, "n_out": grid.shape[0]}
+        compiled += [table, grid, nt]
+        return {"inputs": inputs, "grid": grid[:, None, :], "moments": moments, "nt": nt,
+                "consequent": consequent, "rules": len(dnames) * len(hnames),
+                "compiled": tuple(compiled)}
 
     @staticmethod
     def _fuzzify(x: np.ndarray, table: tuple) -> np.ndarray:
@@ -329,43 +389,17 @@ class FuzzyController:
         k = np.searchsorted(inner, x, side="right")
         return fp[:, k] + slope[:, k] * (x - left[k])
 
-    @staticmethod
-    def _fuzzify_scalar(x: float, table: tuple) -> list[float]:
-        """Memberships of one crisp value, the same arithmetic as :meth:`_fuzzify`."""
-        inner, rows, lo, hi = table
-        x = min(max(x, lo), hi)
-        fp, slope, left = rows[bisect.bisect_right(inner, x)]
-        dx = x - left
-        return [f + s * dx for f, s in zip(fp, slope, strict=True)]
-
     def _infer_scalar(self, d: float, h: float) -> tuple[float, float]:
         """[omega fraction, speed fraction] for one d (m) and one wrapped dtheta (rad).
 
-        Only the rules whose two memberships are both positive are evaluated: any other rule
-        has a strength min(mu_d, mu_h) <= 0, which never raises an output term's strength
-        (they start at 0), so the strengths are those of the loop over every rule. The
-        centroid's areas and moments come back from their products as Python floats, whose
+        The memberships, the rules and the aggregation run compiled (:func:`_aggregate`); the
+        centroid's areas and moments are NumPy's products of the aggregated sets, whose
         division and clipping round as NumPy's float64 scalars do (NumPy divides a zero area).
         """
         tab = self._tables
-        mu_d = self._fuzzify_scalar(d, tab["scalar_inputs"][0])
-        mu_h = self._fuzzify_scalar(h, tab["scalar_inputs"][1])
-        out = [0.0] * tab["n_out"]
-        fired = [j for j, m in enumerate(mu_h) if m > 0.0]
-        for i, md in enumerate(mu_d):
-            if md > 0.0:
-                consequents = tab["scalar_table"][i]
-                for j in fired:
-                    w = min(md, mu_h[j])
-                    t, s = consequents[j]
-                    if w > out[t]:
-                        out[t] = w
-                    if w > out[s]:
-                        out[s] = w
-        clipped = np.minimum(np.array(out)[:, None], tab["grid2d"])
-        nt = tab["nt"]
-        ta, tm = (clipped[:nt].max(axis=0) @ tab["moments"][0]).tolist()
-        sa, sm = (clipped[nt:].max(axis=0) @ tab["moments"][1]).tolist()
+        turn, speed = _aggregate(d, h, *tab["compiled"])
+        ta, tm = (turn @ tab["moments"][0]).tolist()
+        sa, sm = (speed @ tab["moments"][1]).tolist()
         if not (ta and sa):     # an area underflowed to 0: NumPy's inf or nan (and warning)
             ta, sa = np.float64(ta), np.float64(sa)
         return min(max(tm / ta, -1.0), 1.0), min(max(sm / sa, 0.0), 1.0)

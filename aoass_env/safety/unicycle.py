@@ -26,9 +26,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
-from aoass_env.trig import SCALAR_TRIG
+from aoass_env.trig import SCALAR_TRIG, compiled_trig
 
 __all__ = ["BrakingEnvelope", "braking_speed", "clearance", "free_travel", "speed_bounds",
            "turn_headings", "unicycle_command"]
@@ -212,7 +213,8 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
     if envelope is not None and len(envelope.starts):
         gap = _clearance_floats(envelope.starts.tolist(), envelope.ends.tolist(),
                                 float(envelope.position[0]), float(envelope.position[1]))
-    if envelope is None or _envelope_floor(envelope, gap) >= max(wanted, floor, _TINY):
+    if (envelope is None or _envelope_floor(envelope, gap) >= max(wanted, floor, _TINY)) \
+            and compiled_trig():
         # no cap of the envelope can bind (notes below): the ORCA lines alone decide
         command = _command_on_lines(wanted, target, heading, max_turn, floor, points,
                                     directions)
@@ -222,10 +224,11 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
                               envelope, gap)
 
 
-# --- the same command in Python floats -----------------------------------------------------
-# `unicycle_command` computes on float lists what `_command_on_arrays` computes on arrays:
-# the same operations in the same order (tests/safety/test_unicycle.py checks them equal bit
-# for bit against the array code). Two shortcuts keep the answer:
+# --- the same command in Python floats and compiled ---------------------------------------
+# `unicycle_command` computes on float lists, or compiled on the lines' arrays element by
+# element (`_reach_on_lines`), what `_command_on_arrays` computes on arrays: the same
+# operations in the same order (tests/safety/test_unicycle.py checks them equal bit for bit
+# against the array code). Two shortcuts keep the answer:
 #
 # - The safe speed is non-increasing along the arc (a running minimum), so the headings past
 #   the first one whose safe speed falls short of the floor are never looked at: the command
@@ -323,29 +326,52 @@ def _argmax(values: list[float]) -> int:
     return best
 
 
-def _command_on_lines(wanted: float, target: float, heading: float, max_turn: float,
-                      floor: float, points: np.ndarray, directions: np.ndarray
-                      ) -> tuple[float, float] | None:
-    """:func:`unicycle_command` without an envelope, in floats (``math.cos``/``sin`` must be
-    NumPy's), looking only at the headings up to the first that falls short (notes above);
-    None when the anchor must brake (the caller decides on all headings)."""
-    arc = _arc(heading, target, max_turn)
-    lines = _lines(points, directions)
+@numba.njit(cache=True)
+def _reach_on_lines(heading: float, turn: float, floor: float, points: np.ndarray,
+                    directions: np.ndarray) -> tuple[int, float]:
+    """(k, safe speed) of :func:`_command_on_lines`: the last heading of the arc ``heading +
+    turn * i / 8`` (i = 0..8) reached before the running minimum of :func:`_bound` falls short
+    of ``floor`` (-1: the first does), and that minimum there (m/s). Compiled, with the float
+    code's operations in its order (``math.cos``/``sin`` must be compiled_trig's)."""
     reach = math.inf
+    last = 0.0
     k = -1
-    for h in arc:
-        bound = _bound(lines, math.cos(h), math.sin(h))
+    for i in range(9):
+        h = heading + turn * (i / 8.0)     # _FRACTIONS[i], exactly i / 8
+        ch, sh = math.cos(h), math.sin(h)
+        bound = math.inf
+        for j in range(points.shape[0]):
+            px, py = points[j, 0], points[j, 1]
+            dx, dy = directions[j, 0], directions[j, 1]
+            c = dx * py - dy * px
+            along = dx * sh - dy * ch
+            if along < 0.0:
+                b = (c - _LINE_SLACK) / along if c <= 0.0 else 0.0
+                if b < bound:
+                    bound = b
         if not reach < bound:
             reach = bound
         if reach + 1e-9 < floor:
             break
         k += 1
         last = reach
+    return k, last
+
+
+def _command_on_lines(wanted: float, target: float, heading: float, max_turn: float,
+                      floor: float, points: np.ndarray, directions: np.ndarray
+                      ) -> tuple[float, float] | None:
+    """:func:`unicycle_command` without an envelope (compiled: :func:`_reach_on_lines`),
+    looking only at the headings up to the first that falls short (notes above); None when
+    the anchor must brake (the caller decides on all headings)."""
+    turn = math.remainder(target - heading, 2.0 * math.pi)
+    clipped = min(max(turn, -max_turn), max_turn)            # as _arc
+    k, last = _reach_on_lines(heading, clipped, floor, points, directions)
     if k < 0:
         return None
-    command = target if k == len(arc) - 1 else arc[k]
-    if abs(math.remainder(target - heading, 2.0 * math.pi)) > math.pi - _OPPOSITE:
-        command = arc[k]      # see _command_on_arrays
+    command = target if k == len(_FRACTIONS) - 1 else heading + clipped * _FRACTIONS[k]
+    if abs(turn) > math.pi - _OPPOSITE:
+        command = heading + clipped * _FRACTIONS[k]      # see _command_on_arrays
     return float(min(wanted, last)), float(command)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import math
 
@@ -259,9 +260,18 @@ def test_matches_scikit_fuzzy():
         assert v == pytest.approx(sim.output["speed"], abs=5e-4), (d, h)
 
 
+def _old_fuzzify_scalar(x: float, table: tuple) -> list[float]:
+    """The scalar memberships before issue 20's ninth round: Python floats, ``bisect``."""
+    inner, fp, slope, left, lo, hi = table
+    x = min(max(x, lo), hi)
+    k = bisect.bisect_right(inner.tolist(), x)
+    dx = x - left.tolist()[k]
+    return [f + s * dx for f, s in zip(fp[:, k].tolist(), slope[:, k].tolist(), strict=True)]
+
+
 def _old_infer_scalar(controller: FuzzyController, d: float, h: float) -> tuple[float, float]:
-    """``_infer_scalar`` before issue 20's seventh round (the oracle): every rule, NumPy
-    scalars for the centroid."""
+    """``_infer_scalar`` before issue 20's seventh round (the oracle): every rule in Python
+    floats, NumPy for the clipping, the aggregation and the centroid."""
     tab = controller._tables
     names = [list(var.terms) for var in (controller.distance, controller.heading,
                                          controller.turn, controller.speed)]
@@ -269,16 +279,17 @@ def _old_infer_scalar(controller: FuzzyController, d: float, h: float) -> tuple[
     rules = [(i, j, names[2].index(controller.rules[(dt, ht)][0]),
               nt + names[3].index(controller.rules[(dt, ht)][1]))
              for i, dt in enumerate(names[0]) for j, ht in enumerate(names[1])]
-    mu_d = controller._fuzzify_scalar(d, tab["scalar_inputs"][0])
-    mu_h = controller._fuzzify_scalar(h, tab["scalar_inputs"][1])
-    out = [0.0] * tab["n_out"]
+    mu_d = _old_fuzzify_scalar(d, tab["inputs"][0])
+    mu_h = _old_fuzzify_scalar(h, tab["inputs"][1])
+    grid = tab["grid"][:, 0, :]
+    out = [0.0] * len(grid)
     for i, j, t, s in rules:
         w = min(mu_d[i], mu_h[j])
         if w > out[t]:
             out[t] = w
         if w > out[s]:
             out[s] = w
-    clipped = np.minimum(np.array(out)[:, None], tab["grid2d"])
+    clipped = np.minimum(np.array(out)[:, None], grid)
     ta, tm = clipped[:nt].max(axis=0) @ tab["moments"][0]
     sa, sm = clipped[nt:].max(axis=0) @ tab["moments"][1]
     return min(max(tm / ta, -1.0), 1.0), min(max(sm / sa, 0.0), 1.0)

@@ -310,13 +310,18 @@ def _random_case(rng):
             0.5, points, directions, float(rng.uniform(-math.pi, math.pi)), envelope)
 
 
-@pytest.mark.parametrize("scalar_trig", [True, False])
-def test_the_float_path_commands_what_the_array_code_commands(monkeypatch, scalar_trig):
-    """Bit for bit, over random cases that take every path: the ORCA lines alone (envelope
-    floor clear of the speeds), the caps from the arrays, and braking with and without them."""
+@pytest.mark.parametrize("path", ["compiled", "floats", "arrays"])
+def test_the_float_path_commands_what_the_array_code_commands(monkeypatch, path):
+    """Bit for bit, over random cases that take every path: the ORCA lines alone, compiled
+    (envelope floor clear of the speeds), the caps from the arrays, and braking with and
+    without them; with the compiled path off (compiled trig unlike math's), the float path
+    decides those cases; with the float path off, the array code decides all."""
     import aoass_env.safety.unicycle as unicycle
+    scalar_trig = path != "arrays"
     if not scalar_trig:
         monkeypatch.setattr(unicycle, "SCALAR_TRIG", False)
+    if path == "floats":
+        monkeypatch.setattr(unicycle, "compiled_trig", lambda: False)
     rng = np.random.default_rng(20)
     paths = {"lines": 0, "caps": 0, "braking": 0}
     lines_only, with_caps = unicycle._command_on_lines, unicycle._command_with_caps
@@ -338,8 +343,10 @@ def test_the_float_path_commands_what_the_array_code_commands(monkeypatch, scala
         want = _reference_command(*args)
         assert got == want and all(type(x) is float for x in got), args
         assert [math.copysign(1.0, x) for x in got] == [math.copysign(1.0, x) for x in want]
-    if scalar_trig and unicycle.SCALAR_TRIG:
+    if path == "compiled" and unicycle.compiled_trig():
         assert min(paths.values()) > 100, paths
+    elif path == "floats" and unicycle.SCALAR_TRIG:
+        assert paths["lines"] == 0 and min(paths["caps"], paths["braking"]) > 100, paths
 
 
 @settings(max_examples=300, deadline=None)
