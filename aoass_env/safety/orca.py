@@ -67,11 +67,13 @@ against another version of this module, in the same run).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -113,17 +115,21 @@ def _vec2(name: str, value: Any, unit: str) -> tuple[float, float]:
     return vec2(name, value, unit)
 
 
-def _moving(value: Any) -> list[list[float]]:
-    """Moving obstacles as rows [x, y, vx, vy, radius] of Python floats."""
+#: No moving obstacles, as the compiled lines read them.
+_NO_MOVING = np.zeros((0, 5))
+
+
+def _moving(value: Any) -> np.ndarray:
+    """Moving obstacles as a checked (k, 5) float64 array of rows [x, y, vx, vy, radius]."""
     if value is None:
-        return []
+        return _NO_MOVING
     try:
         rows = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError("moving_obstacles must be None or an (n, 5) array of "
                          "[x, y, vx, vy, radius] (m, m/s, m)") from None
     if rows.size == 0:
-        return []
+        return _NO_MOVING
     if rows.ndim != 2 or rows.shape[1] != 5:
         raise ValueError(f"moving_obstacles must have shape (n, 5) [x, y, vx, vy, radius], "
                          f"got {rows.shape}")
@@ -132,7 +138,7 @@ def _moving(value: Any) -> list[list[float]]:
     if (rows[:, 4] < 0.0).any():
         raise ValueError(f"moving_obstacles radii (column 4) must be >= 0 (m), got "
                          f"{rows[:, 4].min()}")
-    return rows.tolist()
+    return rows
 
 
 # --------------------------------------------------------------------------------------------
@@ -189,6 +195,9 @@ class _EdgeCache:
     local: dict = field(default_factory=dict, repr=False)
     #: :meth:`StaticObstacles.segments_near`'s read-only (starts, ends) arrays by edge list
     segments: dict = field(default_factory=dict, repr=False)
+    #: the compiled lines' edge tables (:func:`_compiled_lines`): (V, 9) rows [ax, ay, bx, by,
+    #: ex, ey, inv_len2, dx, dy], (V, 3) rows [next, prev, convex] and the bbox as an array
+    packed: tuple = field(default=(), repr=False)
 
     @classmethod
     def build(cls, point: np.ndarray, direction: np.ndarray, nxt: np.ndarray, prv: np.ndarray,
@@ -203,11 +212,17 @@ class _EdgeCache:
         lo, hi = ((point.min(axis=0), point.max(axis=0)) if len(point)
                   else (np.zeros(2), np.zeros(2)))
         inv_len2 = 1.0 / len2
-        return cls(ax, ay, point[nxt, 0], point[nxt, 1], ex, ey, inv_len2,
+        bx, by = point[nxt, 0], point[nxt, 1]
+        packed = (np.column_stack([ax, ay, bx, by, ex, ey, inv_len2, direction]).reshape(-1, 9),
+                  np.column_stack([nxt, prv, convex]).astype(np.int64).reshape(-1, 3),
+                  np.array([*lo.tolist(), *hi.tolist()]))
+        for array in packed:
+            array.flags.writeable = False
+        return cls(ax, ay, bx, by, ex, ey, inv_len2,
                    (*lo.tolist(), *hi.tolist()), ax.tolist(), ay.tolist(),
                    direction[:, 0].tolist(), direction[:, 1].tolist(), nxt.tolist(),
-                   prv.tolist(), convex.tolist(), point[nxt, 0].tolist(),
-                   point[nxt, 1].tolist(), ex.tolist(), ey.tolist(), inv_len2.tolist())
+                   prv.tolist(), convex.tolist(), bx.tolist(), by.tolist(), ex.tolist(),
+                   ey.tolist(), inv_len2.tolist(), packed=packed)
 
     def near(self, px: float, py: float, reach: float) -> list[int]:
         """:meth:`StaticObstacles.edges_near` on checked floats (m), as a list.
@@ -788,10 +803,15 @@ def _moving_lines(rows: list[list[float]], px: float, py: float, vx: float, vy: 
         lines.append((vx + share * ux, vy + share * uy, dx, dy))
 
 
+#: No static obstacles, as the compiled lines read them.
+_NO_STATIC = StaticObstacles.empty()
+
+
 def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obstacles: Any,
            moving_obstacles: Any, time_horizon: Any, time_horizon_obst: Any, time_step: Any,
-           responsibility: Any) -> tuple[list[_Line], int, float]:
-    """Checked inputs -> (lines, n_static, max_speed)."""
+           responsibility: Any) -> tuple[list[_Line], int, float, np.ndarray | None]:
+    """Checked inputs -> (lines, n_static, max_speed, the lines' (n, 4) array when they were
+    compiled, else None)."""
     px, py = _vec2("position", position, "m")
     vx, vy = _vec2("velocity", velocity, "m/s")
     radius = _positive("radius", radius, "m")
@@ -801,14 +821,19 @@ def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obs
     step = _positive("time_step", time_step, "s")
     share = _positive("responsibility", responsibility, "fraction", high=1.0)
     static = _static(static_obstacles)
-    rows = _moving(moving_obstacles)
+    moving = _moving(moving_obstacles)
+    if compiled_hypot():
+        edges, links, bbox = (static if static is not None else _NO_STATIC)._cache.packed
+        array, n_static = _compiled_lines(edges, links, bbox, px, py, vx, vy, radius,
+                                          max_speed, tau_obst, moving, tau, step, share)
+        return list(map(tuple, array.tolist())), n_static, max_speed, array
     lines: list[_Line] = []
     if static is not None:
         _static_lines(static._cache, px, py, vx, vy, radius, max_speed, tau_obst, lines)
     n_static = len(lines)
-    if rows:
-        _moving_lines(rows, px, py, vx, vy, radius, tau, step, share, lines)
-    return lines, n_static, max_speed
+    if len(moving):
+        _moving_lines(moving.tolist(), px, py, vx, vy, radius, tau, step, share, lines)
+    return lines, n_static, max_speed, None
 
 
 def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_speed: float, *,
@@ -833,11 +858,12 @@ def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_spee
         responsibility: the anchor's share of the avoidance of moving obstacles, in (0, 1]
             (RVO2's agent-agent case: 0.5).
     """
-    lines, n_static, _ = _build(position, velocity, radius, max_speed, static_obstacles,
-                                moving_obstacles, time_horizon, time_horizon_obst, time_step,
-                                responsibility)
+    lines, n_static, _, array = _build(position, velocity, radius, max_speed, static_obstacles,
+                                       moving_obstacles, time_horizon, time_horizon_obst,
+                                       time_step, responsibility)
     if lines:
-        array = np.array(lines, dtype=np.float64)
+        if array is None:
+            array = np.array(lines, dtype=np.float64)
         array.flags.writeable = False           # rows below stay the arrays' floats
         point, direction = array[:, :2], array[:, 2:]
     else:
@@ -1003,8 +1029,330 @@ def orca_velocity(position: ArrayLike, velocity: ArrayLike, preferred_velocity: 
     """= solve_velocity(orca_lines(...), preferred_velocity, max_speed). Returns (2,) float64
     m/s. Arguments as in :func:`orca_lines`; ``preferred_velocity`` (2,) in m/s."""
     ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
-    lines, n_static, max_speed = _build(position, velocity, radius, max_speed, static_obstacles,
-                                        moving_obstacles, time_horizon, time_horizon_obst,
-                                        time_step, responsibility)
+    lines, n_static, max_speed, _ = _build(position, velocity, radius, max_speed,
+                                           static_obstacles, moving_obstacles, time_horizon,
+                                           time_horizon_obst, time_step, responsibility)
     x, y = _solve(lines, n_static, ox, oy, max_speed)
     return np.array([x, y])
+
+
+# --------------------------------------------------------------------------------------------
+# the lines, compiled (issue 20)
+# --------------------------------------------------------------------------------------------
+# `_compiled_lines` computes what `_build` computes after its checks, element by element with
+# the same operations in the same order (tests/safety/test_orca.py compares them bit for bit):
+# the edge query is `_EdgeCache.near_array`'s, the loop `_static_lines`' and the moving discs
+# `_moving_lines`'. Python's `math.hypot` is correctly rounded (since Python 3.11) and the C
+# library's, which numba calls, is not, so the compiled lines take their norms from
+# `_hypot`, correctly rounded as well; the compiled path is taken only when a probe finds the
+# two equal (`compiled_hypot`).
+
+#: Veltkamp's splitter for doubles, 2^27 + 1: splits a float into two halves of 26 bits.
+_SPLITTER = 134217729.0
+
+
+@numba.njit(cache=True)
+def _exact_square(a: float) -> tuple[float, float]:
+    """(p, e) with p = fl(a * a) and p + e = a * a exactly (Dekker's product, no FMA), for
+    |a| < 1 and not tiny enough to underflow."""
+    p = a * a
+    t = _SPLITTER * a
+    hi = t - (t - a)
+    lo = a - hi
+    return p, ((hi * hi - p) + 2.0 * hi * lo) + lo * lo
+
+
+@numba.njit(cache=True)
+def _hypot(x: float, y: float) -> float:
+    """sqrt(x^2 + y^2), correctly rounded but in cases within about 2^-100 of a tie.
+
+    Both are scaled by the power of two that brings the larger into [0.5, 1); the sum of the
+    squares is kept exactly as two floats (Dekker's products, then a two-sum); the square
+    root of its leading float is corrected by one Newton step on the residual, which is
+    computed exactly. A ratio below 2^-30 leaves the larger unchanged after rounding.
+    """
+    x, y = abs(x), abs(y)
+    if x == math.inf or y == math.inf:
+        return math.inf
+    if x != x or y != y:
+        return math.nan
+    big, small = (x, y) if x >= y else (y, x)
+    if small == 0.0 or small < big * 9.313225746154785e-10:        # 2^-30
+        return big
+    _, e = math.frexp(big)
+    a, b = math.ldexp(big, -e), math.ldexp(small, -e)
+    a2, a2e = _exact_square(a)
+    b2, b2e = _exact_square(b)
+    s = a2 + b2
+    lo = ((a2 - s) + b2) + (a2e + b2e)        # a2 >= b2: the two-sum's error is exact
+    h = math.sqrt(s)
+    h2, h2e = _exact_square(h)
+    h += (((s - h2) - h2e) + lo) / (2.0 * h)
+    return math.ldexp(h, e)
+
+
+@numba.njit(cache=True)
+def _hypots(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """:func:`_hypot` of each pair."""
+    out = np.empty(len(x))
+    for i in range(len(x)):
+        out[i] = _hypot(x[i], y[i])
+    return out
+
+
+@functools.cache
+def compiled_hypot() -> bool:
+    """Whether :func:`_hypot` gives ``math.hypot``'s floats on a probe of 200 000 pairs of
+    scales from 1e-6 to 1e6 (and of exact sides), once per process: the compiled lines are
+    taken only then."""
+    rng = np.random.default_rng(0)
+    scale = 10.0 ** rng.uniform(-6.0, 6.0, (200_000, 1))
+    pairs = rng.normal(0.0, 1.0, (200_000, 2)) * scale
+    pairs[:6] = [[3.0, 4.0], [0.0, -2.0], [-0.0, 0.0], [5e-324, 1e-300], [1e300, 1e300],
+                 [1.0, 1e-12]]
+    got = _hypots(pairs[:, 0], pairs[:, 1])
+    return got.tolist() == [math.hypot(x, y) for x, y in pairs.tolist()]
+
+
+@numba.njit(cache=True)
+def _near_compiled(edges: np.ndarray, bbox: np.ndarray, px: float, py: float,
+                   reach: float) -> np.ndarray:
+    """:meth:`_EdgeCache.near_array` on the packed edge rows (:attr:`_EdgeCache.packed`)."""
+    if (edges.shape[0] == 0 or px < bbox[0] - reach or px > bbox[2] + reach
+            or py < bbox[1] - reach or py > bbox[3] + reach):
+        return np.empty(0, dtype=np.int64)
+    n = edges.shape[0]
+    s = np.empty(n)
+    dist2 = np.empty(n)
+    for i in range(n):
+        ax, ay, ex, ey = edges[i, 0], edges[i, 1], edges[i, 4], edges[i, 5]
+        rx, ry = px - ax, py - ay
+        si = (rx * ex + ry * ey) * edges[i, 6]
+        si = min(max(si, 0.0), 1.0)
+        rx -= si * ex
+        ry -= si * ey
+        s[i] = si
+        dist2[i] = rx * rx + ry * ry
+    hits = np.flatnonzero(dist2 < reach * reach)
+    if len(hits) > 1:
+        for i in hits:
+            if s[i] >= 1.0:
+                qx, qy = px - edges[i, 2], py - edges[i, 3]
+                dist2[i] = qx * qx + qy * qy
+        hits = hits[np.argsort(dist2[hits], kind="mergesort")]
+    return hits
+
+
+@numba.njit(cache=True)
+def _leg(x: float, y: float, dist2: float, radius: float, rad2: float,
+         left: bool) -> tuple[float, float]:
+    """:func:`_left_leg` (``left``) or :func:`_right_leg`."""
+    leg = math.sqrt(max(dist2 - rad2, 0.0))
+    if left:
+        return (x * leg - y * radius) / dist2, (x * radius + y * leg) / dist2
+    return (x * leg + y * radius) / dist2, (y * leg - x * radius) / dist2
+
+
+@numba.njit(cache=True)
+def _push(lines: np.ndarray, n: int, px: float, py: float, dx: float, dy: float) -> int:
+    lines[n, 0], lines[n, 1], lines[n, 2], lines[n, 3] = px, py, dx, dy
+    return n + 1
+
+
+@numba.njit(cache=True)
+def _on_circle_compiled(lines: np.ndarray, n: int, wx: float, wy: float, cx: float,
+                        cy: float, rad: float) -> int:
+    """:func:`_on_circle`, appended."""
+    norm = _hypot(wx, wy)
+    if norm > 0.0:
+        ux, uy = wx / norm, wy / norm
+    else:
+        norm = _hypot(cx, cy)
+        if norm > 0.0:
+            ux, uy = -cx / norm, -cy / norm
+        else:
+            ux, uy = -1.0, 0.0
+    return _push(lines, n, cx + rad * ux, cy + rad * uy, uy, -ux)
+
+
+@numba.njit(cache=True)
+def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, px: float,
+                    py: float, vx: float, vy: float, radius: float, max_speed: float,
+                    tau_obst: float, moving: np.ndarray, tau: float, step: float,
+                    share: float) -> tuple[np.ndarray, int]:
+    """(lines (n, 4) as (px, py, dx, dy) rows, n_static) of :func:`_build`, whose checked
+    floats these are; ``edges``/``links``/``bbox``: :attr:`_EdgeCache.packed` (an empty
+    (0, 9) array for no static obstacles), ``moving``: (k, 5) rows."""
+    near = _near_compiled(edges, bbox, px, py, tau_obst * max_speed + radius)
+    lines = np.empty((len(near) + moving.shape[0], 4))
+    n = 0
+    inv_tau = 1.0 / tau_obst
+    rad2 = radius * radius
+    rad_tau = radius * inv_tau
+    for first in near:
+        second = links[first, 0]
+        x1, y1 = edges[first, 0] - px, edges[first, 1] - py
+        x2, y2 = edges[second, 0] - px, edges[second, 1] - py
+        ex, ey = x2 - x1, y2 - y1
+        if x1 * ey - y1 * ex >= 0.0:
+            continue
+        # _already_covered
+        c1x, c1y, c2x, c2y = x1 * inv_tau, y1 * inv_tau, x2 * inv_tau, y2 * inv_tau
+        covered = False
+        for k in range(n):
+            lx, ly, ldx, ldy = lines[k, 0], lines[k, 1], lines[k, 2], lines[k, 3]
+            if ((c1x - lx) * ldy - (c1y - ly) * ldx - rad_tau >= -_EPS
+                    and (c2x - lx) * ldy - (c2y - ly) * ldx - rad_tau >= -_EPS):
+                covered = True
+                break
+        if covered:
+            continue
+        dist2_1 = x1 * x1 + y1 * y1
+        dist2_2 = x2 * x2 + y2 * y2
+        s = -(x1 * ex + y1 * ey) / (ex * ex + ey * ey)
+        fx, fy = -x1 - s * ex, -y1 - s * ey
+        dist2_line = fx * fx + fy * fy
+        if s < 0.0 and dist2_1 <= rad2:
+            if links[first, 2]:
+                norm = math.sqrt(dist2_1)
+                n = _push(lines, n, 0.0, 0.0, -y1 / norm, x1 / norm)
+            continue
+        if s >= 1.0 and dist2_2 <= rad2:
+            if links[second, 2] and x2 * edges[second, 8] - y2 * edges[second, 7] >= 0.0:
+                norm = math.sqrt(dist2_2)
+                n = _push(lines, n, 0.0, 0.0, -y2 / norm, x2 / norm)
+            continue
+        if 0.0 <= s < 1.0 and dist2_line <= rad2:
+            n = _push(lines, n, 0.0, 0.0, -edges[first, 7], -edges[first, 8])
+            continue
+        # _legs
+        if s < 0.0 and dist2_line <= rad2:
+            if not links[first, 2]:
+                continue
+            left = right = first
+            llx, lly = _leg(x1, y1, dist2_1, radius, rad2, True)
+            rlx, rly = _leg(x1, y1, dist2_1, radius, rad2, False)
+        elif s > 1.0 and dist2_line <= rad2:
+            if not links[second, 2]:
+                continue
+            left = right = second
+            llx, lly = _leg(x2, y2, dist2_2, radius, rad2, True)
+            rlx, rly = _leg(x2, y2, dist2_2, radius, rad2, False)
+        else:
+            left, right = first, second
+            if links[first, 2]:
+                llx, lly = _leg(x1, y1, dist2_1, radius, rad2, True)
+            else:
+                llx, lly = -edges[first, 7], -edges[first, 8]
+            if links[second, 2]:
+                rlx, rly = _leg(x2, y2, dist2_2, radius, rad2, False)
+            else:
+                rlx, rly = edges[first, 7], edges[first, 8]
+        # _foreign_legs
+        left_foreign = right_foreign = False
+        before = links[left, 1]
+        if links[left, 2] and llx * -edges[before, 8] - lly * -edges[before, 7] >= 0.0:
+            llx, lly = -edges[before, 7], -edges[before, 8]
+            left_foreign = True
+        if links[right, 2] and rlx * edges[right, 8] - rly * edges[right, 7] <= 0.0:
+            rlx, rly = edges[right, 7], edges[right, 8]
+            right_foreign = True
+        # _cutoff_projection
+        lcx, lcy = (edges[left, 0] - px) * inv_tau, (edges[left, 1] - py) * inv_tau
+        rcx, rcy = (edges[right, 0] - px) * inv_tau, (edges[right, 1] - py) * inv_tau
+        cx, cy = rcx - lcx, rcy - lcy
+        single = left == right
+        wlx, wly = vx - lcx, vy - lcy
+        t = 0.5 if single else (wlx * cx + wly * cy) / (cx * cx + cy * cy)
+        t_left = wlx * llx + wly * lly
+        wrx, wry = vx - rcx, vy - rcy
+        t_right = wrx * rlx + wry * rly
+        if (t < 0.0 and t_left < 0.0) or (single and t_left < 0.0 and t_right < 0.0):
+            n = _on_circle_compiled(lines, n, wlx, wly, lcx, lcy, rad_tau)
+            continue
+        if t > 1.0 and t_right < 0.0:
+            n = _on_circle_compiled(lines, n, wrx, wry, rcx, rcy, rad_tau)
+            continue
+        if t < 0.0 or t > 1.0 or single:
+            d2_cut = math.inf
+        else:
+            qx, qy = wlx - t * cx, wly - t * cy
+            d2_cut = qx * qx + qy * qy
+        if t_left < 0.0:
+            d2_left = math.inf
+        else:
+            qx, qy = wlx - t_left * llx, wly - t_left * lly
+            d2_left = qx * qx + qy * qy
+        if t_right < 0.0:
+            d2_right = math.inf
+        else:
+            qx, qy = wrx - t_right * rlx, wry - t_right * rly
+            d2_right = qx * qx + qy * qy
+        if d2_cut <= d2_left and d2_cut <= d2_right:
+            dx, dy = -edges[left, 7], -edges[left, 8]
+            n = _push(lines, n, lcx - rad_tau * dy, lcy + rad_tau * dx, dx, dy)
+        elif d2_left <= d2_right:
+            if not left_foreign:
+                n = _push(lines, n, lcx - rad_tau * lly, lcy + rad_tau * llx, llx, lly)
+        elif not right_foreign:
+            dx, dy = -rlx, -rly
+            n = _push(lines, n, rcx - rad_tau * dy, rcy + rad_tau * dx, dx, dy)
+    n_static = n
+    if moving.shape[0]:
+        n = _moving_compiled(lines, n, moving, px, py, vx, vy, radius, tau, step, share)
+    return lines[:n], n_static
+
+
+@numba.njit(cache=True)
+def _moving_compiled(lines: np.ndarray, n: int, moving: np.ndarray, px: float, py: float,
+                     vx: float, vy: float, radius: float, tau: float, step: float,
+                     share: float) -> int:
+    """:func:`_moving_lines`, appended."""
+    inv_tau = 1.0 / tau
+    k = moving.shape[0]
+    dist2s = np.empty(k)
+    for i in range(k):
+        rx, ry = moving[i, 0] - px, moving[i, 1] - py
+        dist2s[i] = rx * rx + ry * ry
+    for i in np.argsort(dist2s, kind="mergesort"):
+        ox, oy, ovx, ovy, orad = moving[i, 0], moving[i, 1], moving[i, 2], moving[i, 3], \
+            moving[i, 4]
+        rx, ry = ox - px, oy - py
+        dist2 = dist2s[i]
+        wvx, wvy, rad = vx - ovx, vy - ovy, radius + orad
+        rad2 = rad * rad
+        if dist2 > rad2:
+            wx, wy = wvx - rx * inv_tau, wvy - ry * inv_tau
+            w2 = wx * wx + wy * wy
+            dot = wx * rx + wy * ry
+            if dot < 0.0 and dot * dot > rad2 * w2:
+                w_len = math.sqrt(w2)
+                ux, uy = wx / w_len, wy / w_len
+                dx, dy = uy, -ux
+                grow = rad * inv_tau - w_len
+                ux, uy = grow * ux, grow * uy
+            else:
+                leg = math.sqrt(dist2 - rad2)
+                if rx * wy - ry * wx > 0.0:
+                    dx, dy = (rx * leg - ry * rad) / dist2, (rx * rad + ry * leg) / dist2
+                else:
+                    dx, dy = -(rx * leg + ry * rad) / dist2, (rx * rad - ry * leg) / dist2
+                along = wvx * dx + wvy * dy
+                ux, uy = along * dx - wvx, along * dy - wvy
+        else:
+            inv_step = 1.0 / step
+            wx, wy = wvx - rx * inv_step, wvy - ry * inv_step
+            w_len = _hypot(wx, wy)
+            if w_len > 0.0:
+                ux, uy = wx / w_len, wy / w_len
+            else:
+                norm = _hypot(rx, ry)
+                if norm > 0.0:
+                    ux, uy = -rx / norm, -ry / norm
+                else:
+                    ux, uy = -1.0, 0.0
+            dx, dy = uy, -ux
+            grow = rad * inv_step - w_len
+            ux, uy = grow * ux, grow * uy
+        n = _push(lines, n, vx + share * ux, vy + share * uy, dx, dy)
+    return n

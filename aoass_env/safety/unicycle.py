@@ -211,8 +211,8 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
                                   envelope)
     gap = math.inf
     if envelope is not None and len(envelope.starts):
-        gap = _clearance_floats(envelope.starts.tolist(), envelope.ends.tolist(),
-                                float(envelope.position[0]), float(envelope.position[1]))
+        gap = _clearance_compiled(envelope.starts, envelope.ends,
+                                  float(envelope.position[0]), float(envelope.position[1]))
     if (envelope is None or _envelope_floor(envelope, gap) >= max(wanted, floor, _TINY)) \
             and compiled_trig():
         # no cap of the envelope can bind (notes below): the ORCA lines alone decide
@@ -254,13 +254,17 @@ _TINY = 1e-300
 _FRACTIONS = tuple(np.linspace(0.0, 1.0, 9).tolist())
 
 
-def _clearance_floats(starts: list, ends: list, px: float, py: float) -> float:
-    """:func:`clearance` of the point (px, py) to float lists of segments (the same float)."""
+@numba.njit(cache=True)
+def _clearance_compiled(starts: np.ndarray, ends: np.ndarray, px: float, py: float) -> float:
+    """:func:`clearance` of the point (px, py) (m), compiled edge by edge with its operations
+    (the same float)."""
     best = math.inf
-    for (ax, ay), (bx, by) in zip(starts, ends, strict=True):
-        ex, ey = bx - ax, by - ay
+    for i in range(starts.shape[0]):
+        ax, ay = starts[i, 0], starts[i, 1]
+        ex, ey = ends[i, 0] - ax, ends[i, 1] - ay
         wx, wy = px - ax, py - ay
-        s = min(max((wx * ex + wy * ey) / (ex * ex + ey * ey), 0.0), 1.0)
+        s = (wx * ex + wy * ey) / (ex * ex + ey * ey)
+        s = min(max(s, 0.0), 1.0)
         gx, gy = wx - s * ex, wy - s * ey
         d2 = gx * gx + gy * gy
         if d2 < best:

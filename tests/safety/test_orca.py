@@ -525,3 +525,95 @@ def test_agent_gets_around_a_polygon_without_touching_it(polygon, start_y, goal_
         pos = pos + dt * vel
         assert solid.distance(shapely.Point(pos)) >= radius - 1e-6
     assert np.hypot(*(goal - pos)) < 1e-6
+
+
+# --------------------------------------------------------------------------------------------
+# the compiled lines (issue 20): the float code's lines bit for bit
+# --------------------------------------------------------------------------------------------
+
+def _bits(rows) -> list[tuple[int, ...]]:
+    return [tuple(np.array(row, dtype=np.float64).view(np.int64).tolist()) for row in rows]
+
+
+def _both_paths(monkeypatch, **kwargs) -> tuple[tuple, tuple]:
+    """(compiled, float code) of orca.py's _build on the same arguments."""
+    from aoass_env.safety import orca
+    args = [kwargs[k] for k in ("position", "velocity", "radius", "max_speed",
+                                "static_obstacles", "moving_obstacles", "time_horizon",
+                                "time_horizon_obst", "time_step", "responsibility")]
+    compiled = orca._build(*args)
+    with monkeypatch.context() as patch:
+        patch.setattr(orca, "compiled_hypot", lambda: False)
+        floats = orca._build(*args)
+    return compiled, floats
+
+
+@pytest.mark.skipif(not __import__("aoass_env.safety.orca", fromlist=["x"]).compiled_hypot(),
+                    reason="math.hypot is not correctly rounded here (Python < 3.11)")
+def test_the_compiled_hypot_is_pythons():
+    """Random pairs over 24 decades, exact sides, zeros, subnormals, huge and infinite sides."""
+    from aoass_env.safety.orca import _hypots
+    rng = np.random.default_rng(11)
+    scale = 10.0 ** rng.uniform(-12.0, 12.0, (300_000, 1))
+    pairs = rng.normal(0.0, 1.0, (300_000, 2)) * scale
+    pairs[:, 1] *= rng.uniform(0.0, 1.0, 300_000) ** 4
+    special = [[3.0, 4.0], [0.0, 0.0], [-0.0, 5.0], [5e-324, 5e-324], [1e-310, 3e-310],
+               [1e308, 1e308], [math.inf, math.nan], [math.nan, 1.0], [-math.inf, 2.0],
+               [1.0, 1e-9], [1.0, 2.0 ** -30], [1.0, 2.0 ** -31], [0.1, 0.2]]
+    pairs = np.concatenate([np.array(special), pairs])
+    got = _hypots(pairs[:, 0], pairs[:, 1]).tolist()
+    want = [math.hypot(x, y) for x, y in pairs.tolist()]
+    assert [g if g == g else "nan" for g in got] == [w if w == w else "nan" for w in want]
+
+
+def test_the_compiled_lines_are_the_float_codes(monkeypatch):
+    """Along random walks on a generated map (near and inside obstacles, with discs near,
+    overlapping and concentric), and on the hypothesis-style scenes' shapes, the compiled lines
+    equal the float code's, bit for bit and in order, with the same n_static; every kind of
+    line is met."""
+    from aoass_env.maps import generate_map
+    from aoass_env.safety import orca
+    if not orca.compiled_hypot():
+        pytest.skip("math.hypot is not correctly rounded here (Python < 3.11)")
+    static = StaticObstacles.from_loops(generate_map(40.0, 0.5, np.random.default_rng(8))
+                                        .free_space_loops)
+    rng = np.random.default_rng(9)
+    p = np.array([20.0, 20.0])
+    kinds = {"through origin": 0, "static": 0, "moving": 0, "overlap": 0}
+    for step in range(2500):
+        p = rng.uniform(0.0, 40.0, 2) if step % 100 == 0 else p + rng.uniform(-0.6, 0.6, 2)
+        k = int(rng.integers(0, 4))
+        discs = np.column_stack([p + rng.normal(0.0, 2.0, (k, 2)), rng.normal(0.0, 1.0, (k, 2)),
+                                 rng.uniform(0.1, 1.0, k)])
+        if k and step % 7 == 0:
+            discs[0, :2] = p                                # concentric
+        velocity = rng.normal(0.0, 1.0, 2)
+        if step % 11 == 0:
+            velocity[:] = 0.0
+        kwargs = dict(position=p.copy(), velocity=velocity, radius=float(rng.uniform(0.3, 1.5)),
+                      max_speed=float(rng.uniform(0.5, 2.5)), static_obstacles=static,
+                      moving_obstacles=discs if k else None,
+                      time_horizon=float(rng.uniform(0.5, 4.0)),
+                      time_horizon_obst=float(rng.choice([0.5, 2.0, 4.0])), time_step=0.5,
+                      responsibility=float(rng.choice([0.5, 1.0])))
+        (lines, n_static, speed, array), (want, want_static, want_speed, none) = \
+            _both_paths(monkeypatch, **kwargs)
+        assert none is None and array is not None and speed == want_speed
+        assert n_static == want_static and _bits(lines) == _bits(want), step
+        assert _bits(array.tolist()) == _bits(want)
+        kinds["through origin"] += sum(x == 0.0 and y == 0.0 for x, y, _, _ in want[:n_static])
+        kinds["static"] += n_static
+        kinds["moving"] += len(want) - n_static
+        kinds["overlap"] += int(k > 0 and (np.hypot(*(discs[:, :2] - p).T)
+                                          <= discs[:, 4] + kwargs["radius"]).any())
+    assert min(kinds.values()) > 50, kinds
+    # no static obstacles, no discs, and loops given as a sequence
+    for static_obstacles in (None, [ELL, BORDER], [WALL]):
+        for moving in (None, np.array([[0.5, 0.5, 0.1, 0.0, 0.3]])):
+            kwargs = dict(position=(0.5, 2.0), velocity=(0.3, 0.1), radius=0.4, max_speed=1.0,
+                          static_obstacles=static_obstacles, moving_obstacles=moving,
+                          time_horizon=2.0, time_horizon_obst=2.0, time_step=0.5,
+                          responsibility=1.0)
+            (lines, n_static, _, _), (want, want_static, _, _) = \
+                _both_paths(monkeypatch, **kwargs)
+            assert n_static == want_static and _bits(lines) == _bits(want)

@@ -355,7 +355,7 @@ def test_the_float_path_commands_what_the_array_code_commands(monkeypatch, path)
        st.floats(-100, 100), st.floats(-100, 100), st.floats(0.0, 1.0),
        st.floats(-4.0, 4.0), st.floats(0.0, 1.0))
 def test_the_envelope_floor_is_below_every_cap(segments, x, y, radius, heading, skew):
-    """The clearance in floats is clearance()'s float; the envelope's floor lies below its cap
+    """The compiled clearance is clearance()'s float; the envelope's floor lies below its cap
     on any heading, straight at an end point (where the round-off of free_travel is largest)
     included."""
     import aoass_env.safety.unicycle as unicycle
@@ -365,7 +365,7 @@ def test_the_envelope_floor_is_below_every_cap(segments, x, y, radius, heading, 
     if np.any(np.hypot(*(ends - starts).T) < 1e-6):
         return
     gap = clearance(starts, ends, position)
-    assert unicycle._clearance_floats(starts.tolist(), ends.tolist(), x, y) == gap
+    assert unicycle._clearance_compiled(starts, ends, x, y) == gap
     envelope = BrakingEnvelope(starts, ends, position, radius, 1.0, 0.5)
     vertex = starts[0] - position
     headings = np.array([heading, math.atan2(vertex[1], vertex[0]) + 1e-9 * skew])
