@@ -145,11 +145,6 @@ def _moving(value: Any) -> np.ndarray:
 # static obstacles
 # --------------------------------------------------------------------------------------------
 
-#: Slack (m) of :meth:`_EdgeCache.near`'s local edge lists: a list serves query points up to
-#: this far from where it was made (the anchor moves at most 1 m per period by default).
-LOCAL_PAD = 2.0
-
-
 @dataclass(frozen=True, eq=False)
 class _EdgeCache:
     """What the per-call geometry of :class:`StaticObstacles` reads, built once per obstacle set.
@@ -166,8 +161,9 @@ class _EdgeCache:
         dx, dy: unit edge directions as Python floats.
         next, prev: neighbouring vertex indices as Python ints.
         convex: RVO2's ``isConvex_`` as Python bools.
-        bx_list, by_list, ex_list, ey_list, inv_len2_list: ``bx`` ... ``inv_len2`` as Python
-            floats (:meth:`near`'s local path).
+        packed: the compiled code's tables (:func:`_compiled_lines`, :meth:`near`): (V, 9) rows
+            [ax, ay, bx, by, ex, ey, inv_len2, dx, dy], (V, 3) int64 rows [next, prev,
+            convex] and ``bbox`` as an array, read-only.
     """
 
     ax: np.ndarray
@@ -185,19 +181,9 @@ class _EdgeCache:
     next: list[int]
     prev: list[int]
     convex: list[bool]
-    bx_list: list[float]
-    by_list: list[float]
-    ex_list: list[float]
-    ey_list: list[float]
-    inv_len2_list: list[float]
-    #: the edges near a recent query point, by reach: reach -> (x, y, cap, indices, edge
-    #: rows), every edge closer than ``cap`` (m) to (x, y) (see :meth:`near`)
-    local: dict = field(default_factory=dict, repr=False)
+    packed: tuple[np.ndarray, np.ndarray, np.ndarray] = field(repr=False)
     #: :meth:`StaticObstacles.segments_near`'s read-only (starts, ends) arrays by edge list
     segments: dict = field(default_factory=dict, repr=False)
-    #: the compiled lines' edge tables (:func:`_compiled_lines`): (V, 9) rows [ax, ay, bx, by,
-    #: ex, ey, inv_len2, dx, dy], (V, 3) rows [next, prev, convex] and the bbox as an array
-    packed: tuple = field(default=(), repr=False)
 
     @classmethod
     def build(cls, point: np.ndarray, direction: np.ndarray, nxt: np.ndarray, prv: np.ndarray,
@@ -221,61 +207,13 @@ class _EdgeCache:
         return cls(ax, ay, bx, by, ex, ey, inv_len2,
                    (*lo.tolist(), *hi.tolist()), ax.tolist(), ay.tolist(),
                    direction[:, 0].tolist(), direction[:, 1].tolist(), nxt.tolist(),
-                   prv.tolist(), convex.tolist(), bx.tolist(), by.tolist(), ex.tolist(),
-                   ey.tolist(), inv_len2.tolist(), packed=packed)
+                   prv.tolist(), convex.tolist(), packed)
 
     def near(self, px: float, py: float, reach: float) -> list[int]:
-        """:meth:`StaticObstacles.edges_near` on checked floats (m), as a list.
-
-        The anchor queries the same reach from points a fraction of a metre apart, one
-        period after the other: the edges within ``reach + LOCAL_PAD`` of a query point are
-        kept, and while a query point stays within ``LOCAL_PAD`` (less 1 µm) of it, only those
-        are measured, in Python floats with the same operations as the array code below (an
-        edge nearer than ``reach`` to the new point is nearer than ``reach + LOCAL_PAD`` to
-        the old one); the answer is the same list.
-        """
-        x0, y0, x1, y1 = self.bbox
-        if (len(self.x) == 0 or px < x0 - reach or px > x1 + reach or py < y0 - reach
-                or py > y1 + reach):
-            return []
-        entry = self.local.get(reach)
-        if entry is not None:
-            cx, cy, cap, rows = entry
-            dx, dy = px - cx, py - cy
-            if math.sqrt(dx * dx + dy * dy) + reach > cap - 1e-6:
-                entry = None
-        if entry is None:
-            cap = reach + LOCAL_PAD
-            rows = [(i, self.x[i], self.y[i], self.bx_list[i], self.by_list[i],
-                     self.ex_list[i], self.ey_list[i], self.inv_len2_list[i])
-                    for i in self._within(px, py, cap).tolist()]
-            if len(self.local) >= 8:
-                self.local.clear()
-            self.local[reach] = (px, py, cap, rows)
-        reach2 = reach * reach
-        hits = []
-        for i, ax, ay, bx, by, ex, ey, inv_len2 in rows:
-            rx, ry = px - ax, py - ay
-            s = (rx * ex + ry * ey) * inv_len2
-            if s < 0.0:
-                s = 0.0
-            elif s > 1.0:
-                s = 1.0
-            rx, ry = rx - s * ex, ry - s * ey
-            dist2 = rx * rx + ry * ry
-            if dist2 < reach2:
-                hits.append((dist2, i, s, bx, by))
-        if len(hits) > 1:
-            # as below: an edge nearest at its end vertex is measured from that vertex
-            keyed = []
-            for dist2, i, s, bx, by in hits:
-                if s >= 1.0:
-                    qx, qy = px - bx, py - by
-                    dist2 = qx * qx + qy * qy
-                keyed.append((dist2, i))
-            keyed.sort()
-            return [i for _, i in keyed]
-        return [hit[1] for hit in hits]
+        """:meth:`StaticObstacles.edges_near` on checked floats (m), as a list: every edge
+        measured compiled (:func:`_near_compiled`), with :meth:`near_array`'s operations."""
+        edges, _, bbox = self.packed
+        return _near_compiled(edges, bbox, px, py, reach).tolist()
 
     def _projection(self, px: float, py: float) -> tuple[np.ndarray, np.ndarray]:
         """Each edge's parameter of the point nearest to (px, py), clipped to [0, 1], and the
@@ -294,7 +232,7 @@ class _EdgeCache:
         return np.flatnonzero(self._projection(px, py)[1] < reach * reach)
 
     def near_array(self, px: float, py: float, reach: float) -> list[int]:
-        """:meth:`near` on every edge with NumPy (the reference of the local path)."""
+        """:meth:`near` with NumPy (the reference of the compiled query)."""
         x0, y0, x1, y1 = self.bbox
         if (len(self.x) == 0 or px < x0 - reach or px > x1 + reach or py < y0 - reach
                 or py > y1 + reach):
