@@ -17,6 +17,9 @@ How each term is computed during an episode (docs/env.md, "Rewards"):
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 from aoass_env.config import AOASSConfig
@@ -37,11 +40,71 @@ def energy_imbalance(node_energy: np.ndarray) -> float:
 
 
 def online_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndarray) -> float:
-    """RMSE (m, Eq. 15) of ``estimate_xy`` over the ``localized`` nodes; 0 when there are none."""
+    """RMSE (m, Eq. 15) of ``estimate_xy`` over the ``localized`` nodes; 0 when there are none.
+
+    (N, 2) float64 positions and an (N,) bool mask (the env's) go through a compiled pass with
+    :func:`~aoass_env.metrics.localization_rmse`'s floats (:func:`_masked_rmse`); any other
+    input through that function itself."""
+    if (type(true_xy) is np.ndarray and type(estimate_xy) is np.ndarray
+            and type(localized) is np.ndarray and true_xy.dtype == estimate_xy.dtype == np.float64
+            and localized.dtype == np.bool_ and true_xy.ndim == 2 and true_xy.shape[1] == 2
+            and true_xy.shape == estimate_xy.shape and localized.shape == true_xy.shape[:1]):
+        return _masked_rmse(true_xy, estimate_xy, localized)
     mask = np.asarray(localized, dtype=bool)
     if not mask.any():
         return 0.0
     return localization_rmse(np.asarray(true_xy)[mask], np.asarray(estimate_xy)[mask])[0]
+
+
+@numba.njit(cache=True)
+def _pairwise_sum(a: np.ndarray, start: int, n: int) -> float:
+    """The sum of ``a[start:start + n]`` in NumPy's order for a contiguous float64 array
+    (``np.add.reduce``'s pairwise summation: halves cut at multiples of 8 down to blocks of
+    at most 128, each summed by 8 interleaved accumulators, then the rest in turn; fewer than
+    8 in turn from 0)."""
+    if n < 8:
+        total = 0.0
+        for i in range(start, start + n):
+            total += a[i]
+        return total
+    if n <= 128:
+        acc = a[start:start + 8].copy()
+        i = 8
+        while i < n - n % 8:
+            for j in range(8):
+                acc[j] += a[start + i + j]
+            i += 8
+        total = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]))
+        while i < n:
+            total += a[start + i]
+            i += 1
+        return total
+    half = n // 2
+    half -= half % 8
+    return _pairwise_sum(a, start, half) + _pairwise_sum(a, start + half, n - half)
+
+
+@numba.njit(cache=True)
+def _masked_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndarray) -> float:
+    """``localization_rmse(true_xy[localized], estimate_xy[localized])[0]``, 0 without a
+    localized node: the squared errors (dx^2 + dy^2) of the rows with a finite estimate, their
+    sum in NumPy's order (:func:`_pairwise_sum`) over their count, its square root."""
+    err2 = np.empty(len(localized))
+    count = 0
+    any_localized = False
+    for i in range(len(localized)):
+        if localized[i]:
+            any_localized = True
+            ex, ey = estimate_xy[i, 0], estimate_xy[i, 1]
+            if math.isfinite(ex) and math.isfinite(ey):
+                dx, dy = true_xy[i, 0] - ex, true_xy[i, 1] - ey
+                err2[count] = dx * dx + dy * dy
+                count += 1
+    if not any_localized:
+        return 0.0
+    if count == 0:
+        return math.nan
+    return math.sqrt(_pairwise_sum(err2, 0, count) / count)
 
 
 def reward_terms(config: AOASSConfig, *, delta_coverage: float, imbalance: float, rmse: float,

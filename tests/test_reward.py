@@ -57,3 +57,28 @@ def test_default_weights_and_no_shaping():
     assert terms["energy_balance"] == pytest.approx(-0.02)
     assert terms["localization"] == pytest.approx(-0.02)
     assert terms["collision"] == 0.0
+
+
+def test_the_compiled_online_rmse_is_the_metrics_float():
+    """The env's arrays go through the compiled pass: the float of localization_rmse over the
+    localized rows (NumPy's pairwise summation order, every block size up to thousands of
+    nodes, NaN estimates left out, none localized, none finite), bit for bit; lists go
+    through the metric itself."""
+    from aoass_env.metrics import localization_rmse
+    rng = np.random.default_rng(21)
+    sizes = [*range(1, 300), *rng.integers(300, 5000, 60).tolist()]
+    for n in sizes:
+        true = rng.uniform(0.0, 100.0, (n, 2))
+        est = true + rng.normal(0.0, 10.0 ** rng.uniform(-3, 2), (n, 2))
+        est[rng.random(n) < 0.1] = np.nan
+        mask = rng.random(n) < rng.uniform(0.05, 1.0)
+        got = online_rmse(true, est, mask)
+        if not mask.any():
+            assert got == 0.0
+            continue
+        want = localization_rmse(true[mask], est[mask])[0]
+        assert (got == want) or (math.isnan(got) and math.isnan(want)), n
+    assert math.isnan(online_rmse(np.zeros((2, 2)), np.full((2, 2), np.nan),
+                                  np.array([True, False])))
+    assert online_rmse([[0.0, 0.0], [1.0, 1.0]], [[3.0, 4.0], [1.0, 1.0]], [True, True]) == \
+        pytest.approx(math.sqrt(12.5))
