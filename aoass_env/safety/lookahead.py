@@ -42,9 +42,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
-from aoass_env.trig import SCALAR_TRIG
+from aoass_env.trig import SCALAR_TRIG, compiled_trig
 
 __all__ = ["Escape", "EscapeBudget", "candidate_commands", "escape_velocity", "look_ahead_horizon",
            "obstacle_radii", "position_std", "predict_obstacles", "rollout",
@@ -78,14 +79,29 @@ def position_std(covariances: np.ndarray, times: np.ndarray) -> np.ndarray:
     eigenvalue of the position block of F(t) P F(t)', F(t) = [[I, t I], [0, I]], for each
     (4, 4) covariance ``P`` of ``covariances`` (m, 4, 4) (m^2, m^2/s, m^2/s^2)."""
     p = np.asarray(covariances, dtype=np.float64).reshape(-1, 4, 4)
-    t = np.asarray(times, dtype=np.float64)[None, :]
-    pv = p[:, :2, 2:] + p[:, 2:, :2].transpose(0, 2, 1)            # P_pv + P_vp'
-    a = p[:, 0, 0, None] + t * pv[:, 0, 0, None] + t * t * p[:, 2, 2, None]
-    c = p[:, 1, 1, None] + t * pv[:, 1, 1, None] + t * t * p[:, 3, 3, None]
-    b = (p[:, 0, 1, None] + 0.5 * t * (pv[:, 0, 1, None] + pv[:, 1, 0, None])
-         + t * t * p[:, 2, 3, None])
-    largest = 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + b * b)
-    return np.sqrt(np.maximum(largest, 0.0))
+    return _position_std(p, np.asarray(times, dtype=np.float64).reshape(-1))
+
+
+@numba.njit(cache=True)
+def _position_std(p: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """:func:`position_std`, compiled element by element with the array form's operations
+    (with P_pv + P_vp' = pv): a = P_xx + t pv_xx + t^2 P_vxvx, c likewise in y, b = P_xy +
+    0.5 t (pv_xy + pv_yx) + t^2 P_vxvy, and the largest eigenvalue 0.5 (a + c) + sqrt(0.25
+    (a - c)^2 + b^2), floored at 0."""
+    out = np.empty((p.shape[0], len(times)))
+    for i in range(p.shape[0]):
+        q = p[i]
+        pv00, pv11 = q[0, 2] + q[2, 0], q[1, 3] + q[3, 1]
+        pv01, pv10 = q[0, 3] + q[3, 0], q[1, 2] + q[2, 1]
+        for j in range(len(times)):
+            t = times[j]
+            a = q[0, 0] + t * pv00 + t * t * q[2, 2]
+            c = q[1, 1] + t * pv11 + t * t * q[3, 3]
+            b = q[0, 1] + 0.5 * t * (pv01 + pv10) + t * t * q[2, 3]
+            d = a - c
+            largest = 0.5 * (a + c) + math.sqrt(0.25 * (d * d) + b * b)
+            out[i, j] = math.sqrt(largest if largest > 0.0 else 0.0)
+    return out
 
 
 def obstacle_radii(radii: np.ndarray, speeds: np.ndarray, std: np.ndarray,
@@ -118,7 +134,8 @@ class _Segments:
     """Segments ``starts`` -> ``ends`` prepared for distance queries of batches of points
     (:meth:`distances`, what :func:`segment_distances` computes) and of single points, with the
     same floats as :meth:`distances` and :func:`_nearest_on_segments` (per point they are the
-    same elementwise operations and an exact min)."""
+    same elementwise operations and an exact min). The queries run compiled
+    (:func:`_nearest_compiled`)."""
 
     __slots__ = ("ee", "ex", "ey", "sx", "sy")
 
@@ -131,31 +148,45 @@ class _Segments:
 
     def distances(self, points: np.ndarray) -> np.ndarray:
         """(k,) distance (m) from each of ``points`` (k, 2) (m) to the nearest segment."""
-        wx = points[:, 0, None] - self.sx                                 # (k, e)
-        wy = points[:, 1, None] - self.sy
-        # np.clip(., 0, 1)'s values but for the sign of a zero s, which no distance sees
-        # (g = w - s e, and (w - 0.0)^2 == (w + 0.0)^2); without np.clip's Python wrappers
-        s = np.minimum(np.maximum((wx * self.ex + wy * self.ey) / self.ee, 0.0), 1.0)
-        gx, gy = wx - s * self.ex, wy - s * self.ey
-        return np.sqrt((gx * gx + gy * gy).min(axis=1))
-
-    def _offsets(self, x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
-        wx, wy = x - self.sx, y - self.sy
-        s = np.minimum(np.maximum((wx * self.ex + wy * self.ey) / self.ee, 0.0), 1.0)
-        return wx - s * self.ex, wy - s * self.ey
+        return _distances_compiled(self.sx, self.sy, self.ex, self.ey, self.ee,
+                                   np.asarray(points, dtype=np.float64))
 
     def distance(self, x: float, y: float) -> float:
         """Distance (m) from (x, y) to the nearest segment: ``segment_distances``'s value."""
-        gx, gy = self._offsets(x, y)
-        return math.sqrt(float((gx * gx + gy * gy).min()))
+        return math.sqrt(_nearest_compiled(self.sx, self.sy, self.ex, self.ey, self.ee, x, y)[0])
 
     def nearest(self, x: float, y: float) -> tuple[float, float, float]:
         """(distance, dx, dy) of (x, y) from the nearest segment's nearest point:
         ``_nearest_on_segments``'s values."""
-        gx, gy = self._offsets(x, y)
+        d2, gx, gy = _nearest_compiled(self.sx, self.sy, self.ex, self.ey, self.ee, x, y)
+        return math.sqrt(d2), gx, gy
+
+
+@numba.njit(cache=True)
+def _nearest_compiled(sx: np.ndarray, sy: np.ndarray, ex: np.ndarray, ey: np.ndarray,
+                      ee: np.ndarray, x: float, y: float) -> tuple[float, float, float]:
+    """(squared distance, dx, dy) of (x, y) from the nearest of the segments (the first of
+    equals): per segment the array code's operations, the projection clipped to [0, 1] (a
+    zero's sign aside, which no distance sees: (w - 0.0)^2 == (w + 0.0)^2)."""
+    best, bx, by = math.inf, 0.0, 0.0
+    for j in range(len(sx)):
+        wx, wy = x - sx[j], y - sy[j]
+        s = min(max((wx * ex[j] + wy * ey[j]) / ee[j], 0.0), 1.0)
+        gx, gy = wx - s * ex[j], wy - s * ey[j]
         d2 = gx * gx + gy * gy
-        j = int(d2.argmin())
-        return math.sqrt(float(d2[j])), float(gx[j]), float(gy[j])
+        if d2 < best:
+            best, bx, by = d2, gx, gy
+    return best, bx, by
+
+
+@numba.njit(cache=True)
+def _distances_compiled(sx: np.ndarray, sy: np.ndarray, ex: np.ndarray, ey: np.ndarray,
+                        ee: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """:meth:`_Segments.distances` of each point."""
+    out = np.empty(points.shape[0])
+    for i in range(points.shape[0]):
+        out[i] = math.sqrt(_nearest_compiled(sx, sy, ex, ey, ee, points[i, 0], points[i, 1])[0])
+    return out
 
 
 def _nearest_on_segments(points: np.ndarray, starts: np.ndarray, ends: np.ndarray
@@ -198,10 +229,11 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
     near = np.flatnonzero(gaps - travel <= radii + 1e-9)
     if len(near) == 0:
         return out
-    if SCALAR_TRIG:
+    if SCALAR_TRIG:     # no trigonometry: compiled (:func:`_predict_one`)
         for j, gap in zip(near.tolist(), gaps[near].tolist(), strict=True):
-            out[j] = _predict_one(*xy[j].tolist(), *v[j].tolist(), float(radii[j]), gap, step,
-                                  n_steps, segments)
+            out[j] = _predict_one(*xy[j].tolist(), *v[j].tolist(), float(radii[j]), gap,
+                                  float(step), n_steps, segments.sx, segments.sy, segments.ex,
+                                  segments.ey, segments.ee)
         return out
     xy, v, radii = xy[near], v[near], radii[near]
     for i in range(n_steps):
@@ -217,21 +249,24 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
     return out
 
 
+@numba.njit(cache=True)
 def _predict_one(x: float, y: float, vx: float, vy: float, radius: float, gap: float,
-                 step: float, n_steps: int, segments: _Segments) -> list[tuple[float, float]]:
-    """One obstacle of :func:`predict_obstacles`'s step loop in Python floats (the same
-    operations in the same order), starting at (x, y) whose distance to the segments is
-    ``gap``. The edge test of a step is skipped when a clearance certificate (the exact
-    distance of an earlier point, less the way from there) shows the disc clear of every edge:
-    then it cannot bounce."""
+                 step: float, n_steps: int, sx: np.ndarray, sy: np.ndarray, ex: np.ndarray,
+                 ey: np.ndarray, ee: np.ndarray) -> np.ndarray:
+    """(n_steps, 2): one obstacle of :func:`predict_obstacles`'s step loop, compiled (the same
+    operations in the same order), starting at (x, y) whose distance to the segments (a
+    :class:`_Segments`' arrays) is ``gap``. The edge test of a step is skipped when a
+    clearance certificate (the exact distance of an earlier point, less the way from there)
+    shows the disc clear of every edge: then it cannot bounce."""
     cx, cy, cg = x, y, gap                      # certificate: point and its exact distance
     limit = radius + CERTIFICATE_SLACK
-    out = []
-    for _ in range(n_steps):
+    out = np.empty((n_steps, 2))
+    for i in range(n_steps):
         mx, my = x + step * vx, y + step * vy
         dx, dy = mx - cx, my - cy
         if cg - math.sqrt(dx * dx + dy * dy) < limit:
-            g, ox, oy = segments.nearest(mx, my)
+            d2, ox, oy = _nearest_compiled(sx, sy, ex, ey, ee, mx, my)
+            g = math.sqrt(d2)
             cx, cy, cg = mx, my, g
             if g < radius:
                 g = max(g, 1e-12)
@@ -241,25 +276,28 @@ def _predict_one(x: float, y: float, vx: float, vy: float, radius: float, gap: f
                     vx, vy = vx - 2.0 * along * nx, vy - 2.0 * along * ny
                     mx, my = x + step * vx, y + step * vy
         x, y = mx, my
-        out.append((x, y))
+        out[i, 0] = x
+        out[i, 1] = y
     return out
 
 
+@numba.njit(cache=True)
 def _rollout_one(x: float, y: float, heading: float, speed: float, target_heading: float,
                  target_speed: float, max_dh: float, max_dv: float, step: float,
-                 n_steps: int, segments: _Segments | None, radius: float, gap: float
-                 ) -> np.ndarray:
-    """One candidate of :func:`rollout` in Python floats: the same operations in the same
-    order (``np.clip`` as a min/max, the remainder as Python's ``%``, which rounds alike).
-    ``segments`` None: no edge test (the rollout cannot reach an edge). The edge test of a
-    step is skipped when a clearance certificate shows the new point ``radius`` clear of every
-    edge (it is taken then); the distance of the current point, which a refused step compares
-    with, is computed when needed."""
+                 n_steps: int, walls: bool, sx: np.ndarray, sy: np.ndarray, ex: np.ndarray,
+                 ey: np.ndarray, ee: np.ndarray, radius: float, gap: float) -> np.ndarray:
+    """One candidate of :func:`rollout`, compiled: the same operations in the same order
+    (``np.clip`` as a min/max, ``np.remainder`` as Python's ``%``, which rounds alike).
+    ``walls`` False: no edge test (the rollout cannot reach an edge); else against the
+    segments of a :class:`_Segments`' arrays. The edge test of a step is skipped when a
+    clearance certificate shows the new point ``radius`` clear of every edge (it is taken
+    then); the distance of the current point, which a refused step compares with, is computed
+    when needed."""
     two_pi = 2.0 * math.pi
     theta, v = heading, speed
     out = np.empty((n_steps, 2))
     cx, cy, cg = x, y, gap                      # certificate: point and its exact distance
-    here = gap                                  # exact distance of (x, y); None: not known
+    here, known = gap, True                     # exact distance of (x, y), if known
     limit = radius + CERTIFICATE_SLACK
     for i in range(n_steps):
         turn = (target_heading - theta + math.pi) % two_pi - math.pi
@@ -268,15 +306,16 @@ def _rollout_one(x: float, y: float, heading: float, speed: float, target_headin
         v = v + (-max_dv if dv < -max_dv else max_dv if dv > max_dv else dv)
         mx = x + (v * step) * math.cos(theta)
         my = y + (v * step) * math.sin(theta)
-        if segments is not None:
+        if walls:
             dx, dy = mx - cx, my - cy
             if cg - math.sqrt(dx * dx + dy * dy) >= limit:
-                x, y, here = mx, my, None
+                x, y, known = mx, my, False
             else:
-                new_gap = segments.distance(mx, my)
+                new_gap = math.sqrt(_nearest_compiled(sx, sy, ex, ey, ee, mx, my)[0])
                 cx, cy, cg = mx, my, new_gap
-                if here is None:
-                    here = segments.distance(x, y)
+                if not known:
+                    here = math.sqrt(_nearest_compiled(sx, sy, ex, ey, ee, x, y)[0])
+                    known = True
                 if new_gap >= radius or new_gap >= here:
                     x, y, here = mx, my, new_gap
                 else:
@@ -305,15 +344,16 @@ def rollout(position: np.ndarray, heading: float, speed: float, headings: np.nda
     target_speed = np.asarray(speeds, dtype=np.float64)
     k = len(headings)
     max_dh, max_dv = max_turn_rate * step, max_accel * step
-    if k == 1 and SCALAR_TRIG:
+    if k == 1 and SCALAR_TRIG and compiled_trig():
         px, py = np.asarray(position, dtype=np.float64).tolist()
-        segments = _Segments(starts, ends) if len(starts) else None
-        gap0 = segments.distance(px, py) if segments is not None else math.inf
+        segments = _Segments(starts, ends)
+        gap0 = segments.distance(px, py) if len(starts) else math.inf
         travel = max(abs(float(speed)), abs(float(target_speed[0]))) * step * n_steps
         return _rollout_one(px, py, float(heading), float(speed), float(headings[0]),
                             float(target_speed[0]), max_dh, max_dv, float(step), n_steps,
-                            segments if gap0 - travel < radius + 1e-9 else None,
-                            float(radius), gap0)[None]
+                            bool(len(starts)) and gap0 - travel < radius + 1e-9, segments.sx,
+                            segments.sy, segments.ex, segments.ey, segments.ee, float(radius),
+                            gap0)[None]
     xy = np.tile(np.asarray(position, dtype=np.float64), (k, 1))
     theta = np.full(k, float(heading))
     v = np.full(k, float(speed))

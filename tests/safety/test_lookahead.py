@@ -440,3 +440,31 @@ def test_many_candidates_near_walls_match_the_step_by_step_model():
         np.testing.assert_array_equal(fast, slow)
         held += int((np.diff(slow, axis=1) == 0.0).all(axis=2).any(axis=1)[:-1].sum())
     assert held > 100                     # refused steps were exercised
+
+
+def _position_std_arrays(covariances, times):
+    """position_std before issue 20's ninth round (the array form; the oracle)."""
+    p = np.asarray(covariances, dtype=np.float64).reshape(-1, 4, 4)
+    t = np.asarray(times, dtype=np.float64)[None, :]
+    pv = p[:, :2, 2:] + p[:, 2:, :2].transpose(0, 2, 1)
+    a = p[:, 0, 0, None] + t * pv[:, 0, 0, None] + t * t * p[:, 2, 2, None]
+    c = p[:, 1, 1, None] + t * pv[:, 1, 1, None] + t * t * p[:, 3, 3, None]
+    b = (p[:, 0, 1, None] + 0.5 * t * (pv[:, 0, 1, None] + pv[:, 1, 0, None])
+         + t * t * p[:, 2, 3, None])
+    largest = 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + b * b)
+    return np.sqrt(np.maximum(largest, 0.0))
+
+
+def test_position_std_is_the_array_form_bit_for_bit():
+    """The compiled position_std against the array form: tracker-like covariances (small,
+    symmetric, positive definite), asymmetric and indefinite ones (a floored eigenvalue), at
+    the look-ahead's times and at 0."""
+    rng = np.random.default_rng(12)
+    for _ in range(300):
+        m = int(rng.integers(0, 5))
+        a = rng.normal(size=(m, 4, 4)) * 10.0 ** rng.uniform(-3, 1)
+        p = a @ a.transpose(0, 2, 1) + 1e-4 * np.eye(4) if rng.random() < 0.7 else a
+        times = np.concatenate([[0.0], 0.25 * np.arange(1, 19)]) if rng.random() < 0.5 \
+            else rng.uniform(0.0, 10.0, int(rng.integers(1, 20)))
+        got, want = position_std(p, times), _position_std_arrays(p, times)
+        assert got.shape == want.shape and got.tobytes() == want.tobytes()
