@@ -24,6 +24,7 @@ import numpy as np
 
 from aoass_env.config import AOASSConfig
 from aoass_env.metrics import localization_rmse
+from aoass_env.pairwise import pairwise_sum
 
 __all__ = ["REWARD_TERMS", "energy_imbalance", "online_rmse", "reward_terms"]
 
@@ -57,66 +58,10 @@ def online_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndar
 
 
 @numba.njit(cache=True)
-def _block_sum(a: np.ndarray, start: int, n: int) -> float:
-    """NumPy's sum of a run of at most 128 (:func:`_pairwise_sum`): fewer than 8 in turn from
-    0, else 8 interleaved accumulators added pairwise, then the rest in turn."""
-    if n < 8:
-        total = 0.0
-        for i in range(start, start + n):
-            total += a[i]
-        return total
-    acc = a[start:start + 8].copy()
-    i = 8
-    while i < n - n % 8:
-        for j in range(8):
-            acc[j] += a[start + i + j]
-        i += 8
-    total = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]))
-    while i < n:
-        total += a[start + i]
-        i += 1
-    return total
-
-
-@numba.njit(cache=True)
-def _pairwise_sum(a: np.ndarray, start: int, n: int) -> float:
-    """The sum of ``a[start:start + n]`` in NumPy's order for a contiguous float64 array
-    (``np.add.reduce``'s pairwise summation): a run longer than 128 is cut in two at a multiple
-    of 8 near its middle and the halves' sums added, left + right; :func:`_block_sum` sums the
-    runs. The recursion runs on an explicit stack (numba's cache does not load recursive
-    functions safely)."""
-    starts = np.empty(64, dtype=np.int64)
-    lengths = np.empty(64, dtype=np.int64)
-    lefts = np.empty(64)
-    right_next = np.zeros(64, dtype=np.bool_)    # the left half's sum is in lefts
-    top = 0
-    starts[0], lengths[0] = start, n
-    while True:
-        s, m = starts[top], lengths[top]
-        if m > 128:                                  # descend into the left half
-            half = m // 2 - (m // 2) % 8
-            top += 1
-            starts[top], lengths[top], right_next[top] = s, half, False
-            continue
-        value = _block_sum(a, s, m)
-        top -= 1
-        while top >= 0 and right_next[top]:         # a right half: its parent is summed
-            value = lefts[top] + value
-            top -= 1
-        if top < 0:
-            return value
-        lefts[top], right_next[top] = value, True    # a left half: on to the right one
-        half = lengths[top] // 2 - (lengths[top] // 2) % 8
-        starts[top + 1], lengths[top + 1], right_next[top + 1] = \
-            starts[top] + half, lengths[top] - half, False
-        top += 1
-
-
-@numba.njit(cache=True)
 def _masked_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndarray) -> float:
     """``localization_rmse(true_xy[localized], estimate_xy[localized])[0]``, 0 without a
     localized node: the squared errors (dx^2 + dy^2) of the rows with a finite estimate, their
-    sum in NumPy's order (:func:`_pairwise_sum`) over their count, its square root."""
+    sum in NumPy's order (:func:`~aoass_env.pairwise.pairwise_sum`) over their count, its square root."""
     err2 = np.empty(len(localized))
     count = 0
     any_localized = False
@@ -132,7 +77,7 @@ def _masked_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.nda
         return 0.0
     if count == 0:
         return math.nan
-    return math.sqrt(_pairwise_sum(err2, 0, count) / count)
+    return math.sqrt(pairwise_sum(err2, 0, count) / count)
 
 
 def reward_terms(config: AOASSConfig, *, delta_coverage: float, imbalance: float, rmse: float,
