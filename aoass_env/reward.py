@@ -61,7 +61,8 @@ def online_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndar
 def _masked_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndarray) -> float:
     """``localization_rmse(true_xy[localized], estimate_xy[localized])[0]``, 0 without a
     localized node: the squared errors (dx^2 + dy^2) of the rows with a finite estimate, their
-    sum in NumPy's order (:func:`~aoass_env.pairwise.pairwise_sum`) over their count, its square root."""
+    sum in NumPy's order (:func:`~aoass_env.pairwise.pairwise_sum`) over their count, its
+    square root."""
     err2 = np.empty(len(localized))
     count = 0
     any_localized = False
