@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from aoass_env.pairwise import pairwise_sum
 from aoass_env.trig import SCALAR_TRIG, compiled_trig
 
 __all__ = ["Escape", "EscapeBudget", "candidate_commands", "escape_velocity", "look_ahead_horizon",
@@ -390,21 +391,36 @@ def violation(paths: np.ndarray, centres: np.ndarray, radii: np.ndarray,
     ``clearance`` (m): sum over the steps of max(0, clearance - min over obstacles of
     (|path - centre| - radius)). ``paths`` (k, S, 2), ``centres`` (m, S, 2), ``radii`` (m, S),
     all m; 0 for every path without obstacles."""
+    paths = np.asarray(paths, dtype=np.float64)
     if len(centres) == 0:
         return np.zeros(len(paths))
-    return _shortfall(_distances(paths, centres), radii, clearance)
+    return _shortfalls(paths, np.asarray(centres, dtype=np.float64),
+                       np.asarray(radii, dtype=np.float64), float(clearance), paths.shape[1])
 
 
-def _distances(paths: np.ndarray, centres: np.ndarray) -> np.ndarray:
-    """(k, m, S) distance (m) of each path's centre from each obstacle's, step by step."""
-    d = paths[:, None, :, :] - centres[None, :, :, :]                   # (k, m, S, 2)
-    return np.sqrt((d * d).sum(axis=3))
-
-
-def _shortfall(distances: np.ndarray, radii: np.ndarray, clearance: float) -> np.ndarray:
-    """:func:`violation` from the :func:`_distances` of the paths (the same floats)."""
-    gap = distances - radii[None, :, :]                                 # (k, m, S)
-    return np.maximum(clearance - gap.min(axis=1), 0.0).sum(axis=1)
+@numba.njit(cache=True)
+def _shortfalls(paths: np.ndarray, centres: np.ndarray, radii: np.ndarray, clearance: float,
+                steps: int) -> np.ndarray:
+    """(k,) :func:`violation` over the first ``steps`` steps, compiled with the array code's
+    operations: per step the distance sqrt(dx^2 + dy^2) to each centre less its radius, the
+    least over the obstacles, max(clearance - it, 0); the steps summed in NumPy's order
+    (:func:`~aoass_env.pairwise.pairwise_sum`)."""
+    k, m = paths.shape[0], centres.shape[0]
+    out = np.empty(k)
+    row = np.empty(steps)
+    for c in range(k):
+        for t in range(steps):
+            px, py = paths[c, t, 0], paths[c, t, 1]
+            least = math.inf
+            for i in range(m):
+                dx, dy = px - centres[i, t, 0], py - centres[i, t, 1]
+                gap = math.sqrt(dx * dx + dy * dy) - radii[i, t]
+                if gap < least:
+                    least = gap
+            short = clearance - least
+            row[t] = short if short > 0.0 else 0.0
+        out[c] = pairwise_sum(row, 0, steps)
+    return out
 
 
 def candidate_commands(heading: float, max_speed: float, n_headings: int = 16,
@@ -503,16 +519,16 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     position = np.asarray(position, dtype=np.float64)
 
     def score(headings: np.ndarray, speeds: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(moving-obstacle cost (k,), paths, contact (k,), distances) of the candidates."""
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(moving-obstacle cost (k,), paths, contact (k,)) of the candidates."""
         paths = rollout(position, heading, speed, headings, speeds, max_turn_rate, max_accel,
                         step, n_steps, starts, ends, radius)
         # a predicted contact with the bare disc weighs CONTACT_WEIGHT times a shortfall of
-        # the grown one (both violation()s, from one set of distances)
-        distances = _distances(paths, centres)
-        contact = _shortfall(distances, bare, 0.0)
-        moving = CONTACT_WEIGHT * contact + _shortfall(distances, radii, clearance)
-        return moving, paths, contact, distances
+        # the grown one (both violation()s)
+        contact = _shortfalls(paths, centres, bare, 0.0, n_steps)
+        moving = CONTACT_WEIGHT * contact + _shortfalls(paths, centres, radii, clearance,
+                                                        n_steps)
+        return moving, paths, contact
 
     def open_space(paths: np.ndarray) -> np.ndarray:
         """(k,) the price of the paths' ends: pressed against a wall (no way on), less the
@@ -524,7 +540,7 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
 
     wanted = float(np.hypot(*velocity))
     own = math.atan2(velocity[1], velocity[0]) if wanted > 1e-9 else heading
-    base_moving, base_paths, contact, distances = score(np.array([own]), np.array([wanted]))
+    base_moving, base_paths, contact = score(np.array([own]), np.array([wanted]))
     base = float(base_moving[0])
     if base <= 0.0:
         return Escape(velocity, False, 0.0, 0.0)
@@ -534,10 +550,10 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         # estimates; a trigger on the discs grown by the covariance alone escaped more and
         # completed fewer zero-action sweeps on the tuning seeds, for about the same contacts
         # under random actions)
-        soon = max(int(math.ceil(react / step - 1e-9)), 1)
+        soon = min(max(int(math.ceil(react / step - 1e-9)), 1), n_steps)
         # violation(paths[:, :soon], centres[:, :soon], radii[:, :soon], clearance) and
-        # violation(paths, centres, bare, 0.0) of the base path, from its distances
-        imminent = (_shortfall(distances[:, :, :soon], radii[:, :soon], clearance)[0] > 0.0
+        # violation(paths, centres, bare, 0.0) of the base path
+        imminent = (_shortfalls(base_paths, centres, radii, clearance, soon)[0] > 0.0
                     or contact[0] > 0.0)
         if not imminent:
             return Escape(velocity, False, base, base)
@@ -554,7 +570,7 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     # between it and an escape with different rules made the anchor alternate between them
     headings = np.concatenate([[own], headings])
     speeds = np.concatenate([[wanted], speeds])
-    moving, paths, _, _ = score(headings[1:], speeds[1:])
+    moving, paths, _ = score(headings[1:], speeds[1:])
     shortfall = np.concatenate([[base], moving])
     walls = np.concatenate([open_space(base_paths), open_space(paths)])
     candidates = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=1)

@@ -468,3 +468,35 @@ def test_position_std_is_the_array_form_bit_for_bit():
             else rng.uniform(0.0, 10.0, int(rng.integers(1, 20)))
         got, want = position_std(p, times), _position_std_arrays(p, times)
         assert got.shape == want.shape and got.tobytes() == want.tobytes()
+
+
+def _violation_arrays(paths, centres, radii, clearance):
+    """violation before issue 20's ninth round (NumPy's arrays; the oracle)."""
+    d = paths[:, None, :, :] - centres[None, :, :, :]
+    gap = np.sqrt((d * d).sum(axis=3)) - radii[None, :, :]
+    return np.maximum(clearance - gap.min(axis=1), 0.0).sum(axis=1)
+
+
+def test_violation_is_the_array_form_bit_for_bit():
+    """The compiled shortfalls against the array form: the look-ahead's 52 candidates of 18
+    steps and other shapes, clearances 0 (contacts) and positive, obstacles near and far (all
+    shortfalls zero, some, all positive), and over the first steps only (imminence)."""
+    from aoass_env.safety.lookahead import _shortfalls
+    rng = np.random.default_rng(13)
+    positive = 0
+    for i in range(400):
+        k = 52 if i % 3 == 0 else int(rng.integers(1, 12))
+        s = 18 if i % 2 == 0 else int(rng.integers(1, 140))
+        m = int(rng.integers(1, 5))
+        paths = rng.normal(0.0, 2.0, (k, s, 2))
+        centres = rng.normal(0.0, float(rng.choice([1.0, 3.0, 30.0])), (m, s, 2))
+        radii = rng.uniform(0.5, 2.5, (m, s))
+        clearance = float(rng.choice([0.0, 0.5, 1.0]))
+        want = _violation_arrays(paths, centres, radii, clearance)
+        got = violation(paths, centres, radii, clearance)
+        assert got.tobytes() == want.tobytes()
+        soon = int(rng.integers(1, s + 1))
+        want = _violation_arrays(paths[:, :soon], centres[:, :soon], radii[:, :soon], clearance)
+        assert _shortfalls(paths, centres, radii, clearance, soon).tobytes() == want.tobytes()
+        positive += int((want > 0.0).sum())
+    assert positive > 1000
