@@ -216,6 +216,10 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
     a first-order model of the bounce)."""
     states = np.asarray(states, dtype=np.float64).reshape(-1, 4)
     radii = np.broadcast_to(np.asarray(radii, dtype=np.float64), (len(states),))
+    if SCALAR_TRIG:     # the float path (no trigonometry), compiled
+        segments = _Segments(starts, ends)
+        return _predict_all(states, np.ascontiguousarray(radii), float(step), n_steps,
+                            segments.sx, segments.sy, segments.ex, segments.ey, segments.ee)
     xy, v = states[:, :2].copy(), states[:, 2:].copy()
     # straight on: the same additions, step by step, as the loop below makes (cumsum adds in
     # order); an obstacle that cannot come within its radius of an edge over the horizon
@@ -230,12 +234,6 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
     near = np.flatnonzero(gaps - travel <= radii + 1e-9)
     if len(near) == 0:
         return out
-    if SCALAR_TRIG:     # no trigonometry: compiled (:func:`_predict_one`)
-        for j, gap in zip(near.tolist(), gaps[near].tolist(), strict=True):
-            out[j] = _predict_one(*xy[j].tolist(), *v[j].tolist(), float(radii[j]), gap,
-                                  float(step), n_steps, segments.sx, segments.sy, segments.ex,
-                                  segments.ey, segments.ee)
-        return out
     xy, v, radii = xy[near], v[near], radii[near]
     for i in range(n_steps):
         moved = xy + step * v
@@ -247,6 +245,32 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
         moved = np.where(hit[:, None], xy + step * v, moved)
         xy = moved
         out[near, i] = xy
+    return out
+
+
+@numba.njit(cache=True)
+def _predict_all(states: np.ndarray, radii: np.ndarray, step: float, n_steps: int,
+                 sx: np.ndarray, sy: np.ndarray, ex: np.ndarray, ey: np.ndarray,
+                 ee: np.ndarray) -> np.ndarray:
+    """:func:`predict_obstacles`, compiled with the array code's operations: straight on, the
+    same additions step by step as NumPy's cumsum, unless the obstacle's travel over the
+    horizon can bring it within its radius of an edge (``np.hypot`` is the C library's, as
+    numba's); then :func:`_predict_one`."""
+    m = states.shape[0]
+    out = np.empty((m, n_steps, 2))
+    for j in range(m):
+        x, y, vx, vy = states[j, 0], states[j, 1], states[j, 2], states[j, 3]
+        if len(sx):
+            gap = math.sqrt(_nearest_compiled(sx, sy, ex, ey, ee, x, y)[0])
+            if gap - math.hypot(vx, vy) * (step * n_steps) <= radii[j] + 1e-9:
+                out[j] = _predict_one(x, y, vx, vy, radii[j], gap, step, n_steps, sx, sy, ex,
+                                      ey, ee)
+                continue
+        dx, dy = step * vx, step * vy
+        for i in range(n_steps):
+            x, y = x + dx, y + dy
+            out[j, i, 0] = x
+            out[j, i, 1] = y
     return out
 
 
@@ -328,6 +352,19 @@ def _rollout_one(x: float, y: float, heading: float, speed: float, target_headin
     return out
 
 
+@numba.njit(cache=True)
+def _rollout_many(x: float, y: float, heading: float, speed: float, headings: np.ndarray,
+                  speeds: np.ndarray, max_dh: float, max_dv: float, step: float, n_steps: int,
+                  walls: bool, sx: np.ndarray, sy: np.ndarray, ex: np.ndarray, ey: np.ndarray,
+                  ee: np.ndarray, radius: float, gap: float) -> np.ndarray:
+    """(k, n_steps, 2): :func:`_rollout_one` of each candidate (target heading, speed)."""
+    out = np.empty((len(headings), n_steps, 2))
+    for c in range(len(headings)):
+        out[c] = _rollout_one(x, y, heading, speed, headings[c], speeds[c], max_dh, max_dv,
+                              step, n_steps, walls, sx, sy, ex, ey, ee, radius, gap)
+    return out
+
+
 def rollout(position: np.ndarray, heading: float, speed: float, headings: np.ndarray,
             speeds: np.ndarray, max_turn_rate: float, max_accel: float, step: float,
             n_steps: int, starts: np.ndarray, ends: np.ndarray, radius: float) -> np.ndarray:
@@ -345,16 +382,19 @@ def rollout(position: np.ndarray, heading: float, speed: float, headings: np.nda
     target_speed = np.asarray(speeds, dtype=np.float64)
     k = len(headings)
     max_dh, max_dv = max_turn_rate * step, max_accel * step
-    if k == 1 and SCALAR_TRIG and compiled_trig():
+    if SCALAR_TRIG and compiled_trig():
+        # compiled, candidate by candidate: each row of the array code below is one
+        # candidate's own loop; with the edge tests decided for all at once
         px, py = np.asarray(position, dtype=np.float64).tolist()
         segments = _Segments(starts, ends)
         gap0 = segments.distance(px, py) if len(starts) else math.inf
-        travel = max(abs(float(speed)), abs(float(target_speed[0]))) * step * n_steps
-        return _rollout_one(px, py, float(heading), float(speed), float(headings[0]),
-                            float(target_speed[0]), max_dh, max_dv, float(step), n_steps,
-                            bool(len(starts)) and gap0 - travel < radius + 1e-9, segments.sx,
-                            segments.sy, segments.ex, segments.ey, segments.ee, float(radius),
-                            gap0)[None]
+        travel = max(abs(float(speed)), float(np.abs(target_speed).max(initial=0.0))) \
+            * step * n_steps
+        return _rollout_many(px, py, float(heading), float(speed), headings, target_speed,
+                             max_dh, max_dv, float(step), n_steps,
+                             bool(len(starts)) and gap0 - travel < radius + 1e-9, segments.sx,
+                             segments.sy, segments.ex, segments.ey, segments.ee,
+                             float(radius), gap0)
     xy = np.tile(np.asarray(position, dtype=np.float64), (k, 1))
     theta = np.full(k, float(heading))
     v = np.full(k, float(speed))
