@@ -58,8 +58,10 @@ kd-tree's order; that tree also splits edges crossing its partition lines, which
 does not need). A double-precision transcription of RVO2's ``Agent.cpp`` gave the same lines
 on 12,000 random scenes and the same velocities except where its round-off gave up (above).
 
-Speed: the per-line geometry and the linear programs run on Python floats (numpy scalar
-arithmetic costs about a microsecond per operation); numpy only filters the static edges.
+Speed: the lines are built compiled (numba: the edge query, RVO2's cases and the moving discs,
+:func:`_compiled_lines`) with the same operations as the Python-float code beside it, which
+runs where Python's ``math.hypot`` is not correctly rounded (before Python 3.11) and serves as
+the reference; the linear programs run on Python floats.
 Build :class:`StaticObstacles` once per map and pass it in; a sequence of loops is converted
 on every call. ``python3 benchmarks/orca.py`` prints microseconds per call (``--reference FILE``:
 against another version of this module, in the same run).
