@@ -761,8 +761,12 @@ def _cheapest_after(pruner: _Pruner, order: list[int], site: int, cost: _Costs) 
     the planner's costs; None when ``site`` is kept already or unreachable."""
     if site in pruner.prev or site == pruner.first or not np.isfinite(cost(order[0], site)):
         return None
-    extra = [cost(a, site) + (cost(site, b) - cost(a, b) if b is not None else 0.0)
-             for a, b in zip(order, [*order[1:], None], strict=True)]
+    # cost(a, site) + (cost(site, b) - cost(a, b)) for each kept a and its successor b (cost(a,
+    # site) + 0.0 for the last), on arrays: the same floats (min of two costs, then the sums)
+    at = np.array(order)
+    to_site = np.minimum(np.array([cost.row(a)[site] for a in order]), cost.row(site)[at])
+    legs = np.array([cost(a, b) for a, b in zip(order, order[1:], strict=False)])
+    extra = to_site + np.append(to_site[1:] - legs, 0.0)
     return order[int(np.argmin(extra))]
 
 
