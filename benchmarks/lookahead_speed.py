@@ -126,9 +126,10 @@ def main() -> None:
     caches = {}
     for cache, *_ in queries:
         if id(cache) not in caches:
+            edges, links = cache.edges, cache.links      # rows [ax, ay, ..., dx, dy]
             caches[id(cache)] = old_orca._EdgeCache.build(
-                np.column_stack([cache.ax, cache.ay]), np.column_stack([cache.dx, cache.dy]),
-                np.asarray(cache.next), np.asarray(cache.prev), np.asarray(cache.convex))
+                edges[:, :2].copy(), edges[:, 7:9].copy(), links[:, 0].copy(),
+                links[:, 1].copy(), links[:, 2].astype(bool))
     old_queries = [((caches[id(c)], x, y, r), {}) for c, x, y, r in queries]
     new_queries = [((c, x, y, r), {}) for c, x, y, r in queries]
     print(f"recorded {len(calls)} escape_velocity calls and {len(queries)} edge queries in "

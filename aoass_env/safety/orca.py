@@ -59,9 +59,8 @@ does not need). A double-precision transcription of RVO2's ``Agent.cpp`` gave th
 on 12,000 random scenes and the same velocities except where its round-off gave up (above).
 
 Speed: the lines are built compiled (numba: the edge query, RVO2's cases and the moving discs,
-:func:`_compiled_lines`) with the same operations as the Python-float code beside it, which
-runs where Python's ``math.hypot`` is not correctly rounded (before Python 3.11) and serves as
-the reference; the linear programs run on Python floats.
+:func:`_compiled_lines`, the floats of the Python code it replaced); the linear programs run
+on Python floats.
 Build :class:`StaticObstacles` once per map and pass it in; a sequence of loops is converted
 on every call. ``python3 benchmarks/orca.py`` prints microseconds per call (``--reference FILE``:
 against another version of this module, in the same run).
@@ -69,7 +68,6 @@ against another version of this module, in the same run).
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -149,41 +147,22 @@ def _moving(value: Any) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class _EdgeCache:
-    """What the per-call geometry of :class:`StaticObstacles` reads, built once per obstacle set.
+    """What the per-call geometry of :class:`StaticObstacles` reads, built once per obstacle set:
+    the compiled code's tables (:func:`_compiled_lines`, :meth:`near`), read-only.
 
     Vertex i starts edge i, which ends at vertex ``next[i]``; coordinates in m.
 
     Attributes:
-        ax, ay: (V,) float64 start of every edge (the vectorised edge filter).
-        bx, by: (V,) float64 end of every edge.
-        ex, ey: (V,) float64 edge vector, end - start.
-        inv_len2: (V,) float64 1 / |edge|^2 (1/m^2).
-        bbox: (x0, y0, x1, y1) bounding box of the vertices ((0, 0, 0, 0) when empty).
-        x, y: vertex coordinates as Python floats (the per-line geometry).
-        dx, dy: unit edge directions as Python floats.
-        next, prev: neighbouring vertex indices as Python ints.
-        convex: RVO2's ``isConvex_`` as Python bools.
-        packed: the compiled code's tables (:func:`_compiled_lines`, :meth:`near`): (V, 9) rows
-            [ax, ay, bx, by, ex, ey, inv_len2, dx, dy], (V, 3) int64 rows [next, prev,
-            convex] and ``bbox`` as an array, read-only.
+        edges: (V, 9) rows [ax, ay, bx, by, ex, ey, inv_len2, dx, dy]: each edge's start and
+            end, its vector end - start, 1 / its squared length (1/m^2) and its unit direction.
+        links: (V, 3) int64 rows [next, prev, convex]: the neighbouring vertices and RVO2's
+            ``isConvex_``.
+        bbox: (4,) bounding box (x0, y0, x1, y1) of the vertices (zeros when empty).
     """
 
-    ax: np.ndarray
-    ay: np.ndarray
-    bx: np.ndarray
-    by: np.ndarray
-    ex: np.ndarray
-    ey: np.ndarray
-    inv_len2: np.ndarray
-    bbox: tuple[float, float, float, float]
-    x: list[float]
-    y: list[float]
-    dx: list[float]
-    dy: list[float]
-    next: list[int]
-    prev: list[int]
-    convex: list[bool]
-    packed: tuple[np.ndarray, np.ndarray, np.ndarray] = field(repr=False)
+    edges: np.ndarray
+    links: np.ndarray
+    bbox: np.ndarray
     #: :meth:`StaticObstacles.segments_near`'s read-only (starts, ends) arrays by edge list
     segments: dict = field(default_factory=dict, repr=False)
 
@@ -192,64 +171,25 @@ class _EdgeCache:
               convex: np.ndarray) -> _EdgeCache:
         """From checked (V, 2) points (m), unit directions, (V,) next/prev indices and convexity;
         a ValueError when an edge has zero length."""
-        ax, ay = point[:, 0].copy(), point[:, 1].copy()
+        ax, ay = point[:, 0], point[:, 1]
         ex, ey = point[nxt, 0] - ax, point[nxt, 1] - ay
         len2 = ex * ex + ey * ey
         if (len2 <= 0.0).any():
             raise ValueError("StaticObstacles has a zero-length edge (a vertex repeated)")
         lo, hi = ((point.min(axis=0), point.max(axis=0)) if len(point)
                   else (np.zeros(2), np.zeros(2)))
-        inv_len2 = 1.0 / len2
-        bx, by = point[nxt, 0], point[nxt, 1]
-        packed = (np.column_stack([ax, ay, bx, by, ex, ey, inv_len2, direction]).reshape(-1, 9),
-                  np.column_stack([nxt, prv, convex]).astype(np.int64).reshape(-1, 3),
-                  np.array([*lo.tolist(), *hi.tolist()]))
-        for array in packed:
+        cache = cls(np.column_stack([ax, ay, point[nxt, 0], point[nxt, 1], ex, ey, 1.0 / len2,
+                                     direction]).reshape(-1, 9),
+                    np.column_stack([nxt, prv, convex]).astype(np.int64).reshape(-1, 3),
+                    np.concatenate([lo, hi]))
+        for array in (cache.edges, cache.links, cache.bbox):
             array.flags.writeable = False
-        return cls(ax, ay, bx, by, ex, ey, inv_len2,
-                   (*lo.tolist(), *hi.tolist()), ax.tolist(), ay.tolist(),
-                   direction[:, 0].tolist(), direction[:, 1].tolist(), nxt.tolist(),
-                   prv.tolist(), convex.tolist(), packed)
+        return cache
 
     def near(self, px: float, py: float, reach: float) -> list[int]:
-        """:meth:`StaticObstacles.edges_near` on checked floats (m), as a list: every edge
-        measured compiled (:func:`_near_compiled`), with :meth:`near_array`'s operations."""
-        edges, _, bbox = self.packed
-        return _near_compiled(edges, bbox, px, py, reach).tolist()
-
-    def _projection(self, px: float, py: float) -> tuple[np.ndarray, np.ndarray]:
-        """Each edge's parameter of the point nearest to (px, py), clipped to [0, 1], and the
-        squared distance (m^2) to it."""
-        rx = px - self.ax
-        ry = py - self.ay
-        ex, ey = self.ex, self.ey
-        s = (rx * ex + ry * ey) * self.inv_len2
-        np.clip(s, 0.0, 1.0, out=s)
-        rx -= s * ex
-        ry -= s * ey
-        return s, rx * rx + ry * ry
-
-    def _within(self, px: float, py: float, reach: float) -> np.ndarray:
-        """Indices (ascending) of the edges closer than ``reach`` (m) to (px, py)."""
-        return np.flatnonzero(self._projection(px, py)[1] < reach * reach)
-
-    def near_array(self, px: float, py: float, reach: float) -> list[int]:
-        """:meth:`near` with NumPy (the reference of the compiled query)."""
-        x0, y0, x1, y1 = self.bbox
-        if (len(self.x) == 0 or px < x0 - reach or px > x1 + reach or py < y0 - reach
-                or py > y1 + reach):
-            return []
-        s, dist2 = self._projection(px, py)
-        hits = np.flatnonzero(dist2 < reach * reach)
-        if len(hits) > 1:
-            # nearest at the end vertex: measure from that vertex itself, so that two edges
-            # nearest at their shared vertex tie exactly and keep index order
-            ends = hits[s[hits] >= 1.0]
-            if len(ends):
-                qx, qy = px - self.bx[ends], py - self.by[ends]
-                dist2[ends] = qx * qx + qy * qy
-            hits = hits[np.argsort(dist2[hits], kind="stable")]
-        return hits.tolist()
+        """:meth:`StaticObstacles.edges_near` on checked floats (m), as a list
+        (:func:`_near_compiled`)."""
+        return _near_compiled(self.edges, self.bbox, px, py, reach).tolist()
 
 
 @dataclass(frozen=True, eq=False)
@@ -459,299 +399,15 @@ class OrcaLines:
         return len(self.point)
 
 
-def _static_lines(edges: _EdgeCache, px: float, py: float, vx: float, vy: float,
-                  radius: float, max_speed: float, tau: float, lines: list[_Line]) -> None:
-    """Append RVO2's obstacle lines for the edges near (px, py) (m) to ``lines``.
-
-    RVO2's ``Agent::computeNewVelocity``, obstacle part: the edges within
-    ``tau * max_speed + radius`` (m), nearest first, seen from their free side, go through
-    the cases below in RVO2's order. The tests of each case stay here, inline, and only the
-    case that applies is called: the loop is the hot path of the safety stack.
-    """
-    near = edges.near(px, py, tau * max_speed + radius)
-    if not near:
-        return
-    xs, ys, nxt = edges.x, edges.y, edges.next
-    inv_tau = 1.0 / tau
-    rad2 = radius * radius
-    rad_tau = radius * inv_tau  # cut-off radius (m/s)
-
-    for first in near:
-        second = nxt[first]
-        # positions of the edge's end vertices relative to the anchor (m)
-        x1, y1 = xs[first] - px, ys[first] - py
-        x2, y2 = xs[second] - px, ys[second] - py
-        ex, ey = x2 - x1, y2 - y1
-        # back-face culling (RVO2's kd-tree query): the anchor must lie right of the edge
-        if x1 * ey - y1 * ex >= 0.0:
-            continue
-        if lines and _already_covered(lines, x1 * inv_tau, y1 * inv_tau, x2 * inv_tau,
-                                      y2 * inv_tau, rad_tau):
-            continue
-
-        dist2_1 = x1 * x1 + y1 * y1
-        dist2_2 = x2 * x2 + y2 * y2
-        # s: where the anchor projects on the edge (0 at the first vertex, 1 at the second)
-        s = -(x1 * ex + y1 * ey) / (ex * ex + ey * ey)
-        fx, fy = -x1 - s * ex, -y1 - s * ey
-        dist2_line = fx * fx + fy * fy
-
-        # the anchor already overlaps the edge: forbid moving deeper
-        if s < 0.0 and dist2_1 <= rad2:
-            _left_vertex_collision(edges, first, x1, y1, dist2_1, lines)
-            continue
-        if s >= 1.0 and dist2_2 <= rad2:
-            _right_vertex_collision(edges, second, x2, y2, dist2_2, lines)
-            continue
-        if 0.0 <= s < 1.0 and dist2_line <= rad2:
-            _segment_collision(edges, first, lines)
-            continue
-
-        # no collision: the velocity obstacle's legs, then the projection on it
-        legs = _legs(edges, first, second, x1, y1, x2, y2, s, dist2_1, dist2_2, dist2_line,
-                     radius, rad2)
-        if legs is not None:
-            _cutoff_projection(edges, *_foreign_legs(edges, *legs), px, py, vx, vy, inv_tau,
-                               rad_tau, lines)
-
-
-def _already_covered(lines: list[_Line], c1x: float, c1y: float, c2x: float, c2y: float,
-                     rad_tau: float) -> bool:
-    """RVO2's "already covered" test: do earlier lines forbid both cut-off discs (centres
-    (c1x, c1y), (c2x, c2y), radius ``rad_tau``, m/s) of the edge entirely?"""
-    for lx, ly, ldx, ldy in lines:
-        if ((c1x - lx) * ldy - (c1y - ly) * ldx - rad_tau >= -_EPS
-                and (c2x - lx) * ldy - (c2y - ly) * ldx - rad_tau >= -_EPS):
-            return True
-    return False
-
-
-def _left_vertex_collision(edges: _EdgeCache, first: int, x1: float, y1: float,
-                           dist2_1: float, lines: list[_Line]) -> None:
-    """RVO2's "collision with left vertex": the anchor overlaps the edge's first vertex (at
-    (x1, y1) m from it, squared distance ``dist2_1``); a line through the origin forbids moving
-    toward the vertex, unless it is non-convex (then it adds nothing)."""
-    if edges.convex[first]:
-        norm = math.sqrt(dist2_1)
-        lines.append((0.0, 0.0, -y1 / norm, x1 / norm))
-
-
-def _right_vertex_collision(edges: _EdgeCache, second: int, x2: float, y2: float,
-                            dist2_2: float, lines: list[_Line]) -> None:
-    """RVO2's "collision with right vertex": the anchor overlaps the edge's second vertex (at
-    (x2, y2) m); as the left-vertex case, but a non-convex vertex, or one the next edge handles,
-    adds nothing."""
-    if edges.convex[second] and x2 * edges.dy[second] - y2 * edges.dx[second] >= 0.0:
-        norm = math.sqrt(dist2_2)
-        lines.append((0.0, 0.0, -y2 / norm, x2 / norm))
-
-
-def _segment_collision(edges: _EdgeCache, first: int, lines: list[_Line]) -> None:
-    """RVO2's "collision with obstacle segment": the anchor overlaps the edge's interior; a line
-    through the origin along the reversed edge forbids moving toward it."""
-    lines.append((0.0, 0.0, -edges.dx[first], -edges.dy[first]))
-
-
-def _left_leg(x: float, y: float, dist2: float, radius: float,
-              rad2: float) -> tuple[float, float]:
-    """Unit direction of the left leg: from the anchor, tangent on the left to the disc of
-    ``radius`` (m) around the vertex at (x, y) m (squared distance ``dist2``)."""
-    leg = math.sqrt(max(dist2 - rad2, 0.0))
-    return (x * leg - y * radius) / dist2, (x * radius + y * leg) / dist2
-
-
-def _right_leg(x: float, y: float, dist2: float, radius: float,
-               rad2: float) -> tuple[float, float]:
-    """Unit direction of the right leg, tangent on the right (as :func:`_left_leg`)."""
-    leg = math.sqrt(max(dist2 - rad2, 0.0))
-    return (x * leg + y * radius) / dist2, (y * leg - x * radius) / dist2
-
-
-def _legs(edges: _EdgeCache, first: int, second: int, x1: float, y1: float, x2: float,
-          y2: float, s: float, dist2_1: float, dist2_2: float, dist2_line: float, radius: float,
-          rad2: float) -> tuple[int, int, float, float, float, float] | None:
-    """RVO2's legs computation: (left vertex, right vertex, left leg, right leg) of the
-    velocity obstacle, or None when the edge adds no line.
-
-    "Obstacle viewed obliquely": when the anchor is within ``radius`` of the edge's line but
-    projects beyond one end, that vertex alone defines the velocity obstacle (both legs are its
-    tangents; a non-convex one gives None). "Usual situation": the left leg comes from the first
-    vertex, the right leg from the second; at a non-convex vertex the leg continues the cut-off
-    line (the edge's direction).
-    """
-    convex = edges.convex
-    if s < 0.0 and dist2_line <= rad2:
-        if not convex[first]:
-            return None
-        return (first, first, *_left_leg(x1, y1, dist2_1, radius, rad2),
-                *_right_leg(x1, y1, dist2_1, radius, rad2))
-    if s > 1.0 and dist2_line <= rad2:
-        if not convex[second]:
-            return None
-        return (second, second, *_left_leg(x2, y2, dist2_2, radius, rad2),
-                *_right_leg(x2, y2, dist2_2, radius, rad2))
-    if convex[first]:
-        llx, lly = _left_leg(x1, y1, dist2_1, radius, rad2)
-    else:
-        llx, lly = -edges.dx[first], -edges.dy[first]
-    if convex[second]:
-        rlx, rly = _right_leg(x2, y2, dist2_2, radius, rad2)
-    else:
-        rlx, rly = edges.dx[first], edges.dy[first]
-    return first, second, llx, lly, rlx, rly
-
-
-def _foreign_legs(edges: _EdgeCache, left: int, right: int, llx: float, lly: float, rlx: float,
-                  rly: float) -> tuple[int, int, float, float, float, float, bool, bool]:
-    """RVO2's foreign-leg checks: a leg at a convex vertex may not point into the neighbouring
-    edge; that edge's direction replaces it ("foreign" leg; projecting on it adds no line).
-
-    Returns (left, right, left leg, right leg, left_foreign, right_foreign).
-    """
-    convex, dxs, dys = edges.convex, edges.dx, edges.dy
-    left_foreign = right_foreign = False
-    before = edges.prev[left]
-    if convex[left] and llx * -dys[before] - lly * -dxs[before] >= 0.0:
-        llx, lly = -dxs[before], -dys[before]
-        left_foreign = True
-    if convex[right] and rlx * dys[right] - rly * dxs[right] <= 0.0:
-        rlx, rly = dxs[right], dys[right]
-        right_foreign = True
-    return left, right, llx, lly, rlx, rly, left_foreign, right_foreign
-
-
-def _cutoff_projection(edges: _EdgeCache, left: int, right: int, llx: float, lly: float,
-                       rlx: float, rly: float, left_foreign: bool, right_foreign: bool,
-                       px: float, py: float, vx: float, vy: float, inv_tau: float,
-                       rad_tau: float, lines: list[_Line]) -> None:
-    """RVO2's projection of the current velocity (vx, vy) (m/s) on the velocity obstacle.
-
-    The cut-off centres are the left and right vertices over ``tau`` (m/s), with radius
-    ``rad_tau``. The velocity projects on a cut-off circle when it lies behind the cut-off
-    segment and behind the legs. Otherwise it projects on the nearest of the cut-off line, the
-    left leg and the right leg; a foreign leg adds no line.
-    """
-    xs, ys = edges.x, edges.y
-    # cut-off centres (m/s) and the cut-off segment between them
-    lcx, lcy = (xs[left] - px) * inv_tau, (ys[left] - py) * inv_tau
-    rcx, rcy = (xs[right] - px) * inv_tau, (ys[right] - py) * inv_tau
-    cx, cy = rcx - lcx, rcy - lcy
-    single = left == right
-    wlx, wly = vx - lcx, vy - lcy
-    t = 0.5 if single else (wlx * cx + wly * cy) / (cx * cx + cy * cy)
-    t_left = wlx * llx + wly * lly
-    wrx, wry = vx - rcx, vy - rcy
-    t_right = wrx * rlx + wry * rly
-
-    # project the current velocity on the velocity obstacle's boundary
-    if (t < 0.0 and t_left < 0.0) or (single and t_left < 0.0 and t_right < 0.0):
-        lines.append(_on_circle(wlx, wly, lcx, lcy, rad_tau))
-        return
-    if t > 1.0 and t_right < 0.0:
-        lines.append(_on_circle(wrx, wry, rcx, rcy, rad_tau))
-        return
-
-    inf = math.inf
-    if t < 0.0 or t > 1.0 or single:
-        d2_cut = inf
-    else:
-        qx, qy = wlx - t * cx, wly - t * cy
-        d2_cut = qx * qx + qy * qy
-    if t_left < 0.0:
-        d2_left = inf
-    else:
-        qx, qy = wlx - t_left * llx, wly - t_left * lly
-        d2_left = qx * qx + qy * qy
-    if t_right < 0.0:
-        d2_right = inf
-    else:
-        qx, qy = wrx - t_right * rlx, wry - t_right * rly
-        d2_right = qx * qx + qy * qy
-
-    if d2_cut <= d2_left and d2_cut <= d2_right:
-        # the cut-off line, shifted by the cut-off radius toward the anchor
-        dx, dy = -edges.dx[left], -edges.dy[left]
-        lines.append((lcx - rad_tau * dy, lcy + rad_tau * dx, dx, dy))
-    elif d2_left <= d2_right:
-        if not left_foreign:
-            lines.append((lcx - rad_tau * lly, lcy + rad_tau * llx, llx, lly))
-    elif not right_foreign:
-        dx, dy = -rlx, -rly
-        lines.append((rcx - rad_tau * dy, rcy + rad_tau * dx, dx, dy))
-
-
-def _on_circle(wx: float, wy: float, cx: float, cy: float, rad: float) -> _Line:
-    """Line tangent to the cut-off circle (centre (cx, cy), radius ``rad``, m/s) at the point
-    nearest the velocity (cx + wx, cy + wy)."""
-    norm = math.hypot(wx, wy)
-    if norm > 0.0:
-        ux, uy = wx / norm, wy / norm
-    else:
-        # velocity exactly at the centre (RVO2 divides by zero): the side facing the origin
-        norm = math.hypot(cx, cy)
-        ux, uy = (-cx / norm, -cy / norm) if norm > 0.0 else (-1.0, 0.0)
-    return (cx + rad * ux, cy + rad * uy, uy, -ux)
-
-
-def _moving_lines(rows: list[list[float]], px: float, py: float, vx: float, vy: float,
-                  radius: float, tau: float, time_step: float, share: float,
-                  lines: list[_Line]) -> None:
-    """Append RVO2's agent lines for moving discs (nearest first) to ``lines``."""
-    inv_tau = 1.0 / tau
-    entries = []
-    for ox, oy, ovx, ovy, orad in rows:
-        rx, ry = ox - px, oy - py
-        entries.append((rx * rx + ry * ry, rx, ry, vx - ovx, vy - ovy, radius + orad))
-    entries.sort(key=lambda entry: entry[0])
-    for dist2, rx, ry, wvx, wvy, rad in entries:
-        rad2 = rad * rad
-        if dist2 > rad2:
-            # w: from the cut-off centre to the relative velocity
-            wx, wy = wvx - rx * inv_tau, wvy - ry * inv_tau
-            w2 = wx * wx + wy * wy
-            dot = wx * rx + wy * ry
-            if dot < 0.0 and dot * dot > rad2 * w2:
-                # nearest boundary point on the cut-off circle
-                w_len = math.sqrt(w2)
-                ux, uy = wx / w_len, wy / w_len
-                dx, dy = uy, -ux
-                grow = rad * inv_tau - w_len
-                ux, uy = grow * ux, grow * uy
-            else:
-                # nearest boundary point on a leg
-                leg = math.sqrt(dist2 - rad2)
-                if rx * wy - ry * wx > 0.0:
-                    dx, dy = (rx * leg - ry * rad) / dist2, (rx * rad + ry * leg) / dist2
-                else:
-                    dx, dy = -(rx * leg + ry * rad) / dist2, (rx * rad - ry * leg) / dist2
-                along = wvx * dx + wvy * dy
-                ux, uy = along * dx - wvx, along * dy - wvy
-        else:
-            # overlapping: leave the cut-off circle of time time_step
-            inv_step = 1.0 / time_step
-            wx, wy = wvx - rx * inv_step, wvy - ry * inv_step
-            w_len = math.hypot(wx, wy)
-            if w_len > 0.0:
-                ux, uy = wx / w_len, wy / w_len
-            else:
-                # relative velocity exactly at the centre: push straight away from the disc
-                norm = math.hypot(rx, ry)
-                ux, uy = (-rx / norm, -ry / norm) if norm > 0.0 else (-1.0, 0.0)
-            dx, dy = uy, -ux
-            grow = rad * inv_step - w_len
-            ux, uy = grow * ux, grow * uy
-        lines.append((vx + share * ux, vy + share * uy, dx, dy))
-
-
 #: No static obstacles, as the compiled lines read them.
 _NO_STATIC = StaticObstacles.empty()
 
 
 def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obstacles: Any,
            moving_obstacles: Any, time_horizon: Any, time_horizon_obst: Any, time_step: Any,
-           responsibility: Any) -> tuple[list[_Line], int, float, np.ndarray | None]:
-    """Checked inputs -> (lines, n_static, max_speed, the lines' (n, 4) array when they were
-    compiled, else None)."""
+           responsibility: Any) -> tuple[list[_Line], int, float, np.ndarray]:
+    """Checked inputs -> (lines as (px, py, dx, dy) tuples, n_static, max_speed, the lines'
+    (n, 4) array)."""
     px, py = _vec2("position", position, "m")
     vx, vy = _vec2("velocity", velocity, "m/s")
     radius = _positive("radius", radius, "m")
@@ -761,19 +417,11 @@ def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obs
     step = _positive("time_step", time_step, "s")
     share = _positive("responsibility", responsibility, "fraction", high=1.0)
     static = _static(static_obstacles)
-    moving = _moving(moving_obstacles)
-    if compiled_hypot():
-        edges, links, bbox = (static if static is not None else _NO_STATIC)._cache.packed
-        array, n_static = _compiled_lines(edges, links, bbox, px, py, vx, vy, radius,
-                                          max_speed, tau_obst, moving, tau, step, share)
-        return list(map(tuple, array.tolist())), n_static, max_speed, array
-    lines: list[_Line] = []
-    if static is not None:
-        _static_lines(static._cache, px, py, vx, vy, radius, max_speed, tau_obst, lines)
-    n_static = len(lines)
-    if len(moving):
-        _moving_lines(moving.tolist(), px, py, vx, vy, radius, tau, step, share, lines)
-    return lines, n_static, max_speed, None
+    cache = (static if static is not None else _NO_STATIC)._cache
+    array, n_static = _compiled_lines(cache.edges, cache.links, cache.bbox, px, py, vx, vy,
+                                      radius, max_speed, tau_obst, _moving(moving_obstacles),
+                                      tau, step, share)
+    return list(map(tuple, array.tolist())), n_static, max_speed, array
 
 
 def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_speed: float, *,
@@ -802,8 +450,6 @@ def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_spee
                                        moving_obstacles, time_horizon, time_horizon_obst,
                                        time_step, responsibility)
     if lines:
-        if array is None:
-            array = np.array(lines, dtype=np.float64)
         array.flags.writeable = False           # rows below stay the arrays' floats
         point, direction = array[:, :2], array[:, 2:]
     else:
@@ -977,15 +623,14 @@ def orca_velocity(position: ArrayLike, velocity: ArrayLike, preferred_velocity: 
 
 
 # --------------------------------------------------------------------------------------------
-# the lines, compiled (issue 20)
+# the lines (Eq. 8-9), compiled
 # --------------------------------------------------------------------------------------------
-# `_compiled_lines` computes what `_build` computes after its checks, element by element with
-# the same operations in the same order (tests/safety/test_orca.py compares them bit for bit):
-# the edge query is `_EdgeCache.near_array`'s, the loop `_static_lines`' and the moving discs
-# `_moving_lines`'. Python's `math.hypot` is correctly rounded (since Python 3.11) and the C
-# library's, which numba calls, is not, so the compiled lines take their norms from
-# `_hypot`, correctly rounded as well; the compiled path is taken only when a probe finds the
-# two equal (`compiled_hypot`).
+# `_compiled_lines` is RVO2's `Agent::computeNewVelocity` case by case, compiled with numba.
+# Until issue 20's ninth round it ran on Python floats; that code is the tests' oracle
+# (tests/safety/orca_floats.py), whose floats the compiled lines give bit for bit. The norms it
+# took from Python's `math.hypot`, correctly rounded since Python 3.11, come from `_hypot`,
+# correctly rounded as well (the C library's hypot, which numba would call, is not): the lines
+# are the same on every Python version.
 
 #: Veltkamp's splitter for doubles, 2^27 + 1: splits a float into two halves of 26 bits.
 _SPLITTER = 134217729.0
@@ -1032,32 +677,13 @@ def _hypot(x: float, y: float) -> float:
 
 
 @numba.njit(cache=True)
-def _hypots(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """:func:`_hypot` of each pair."""
-    out = np.empty(len(x))
-    for i in range(len(x)):
-        out[i] = _hypot(x[i], y[i])
-    return out
-
-
-@functools.cache
-def compiled_hypot() -> bool:
-    """Whether :func:`_hypot` gives ``math.hypot``'s floats on a probe of 200 000 pairs of
-    scales from 1e-6 to 1e6 (and of exact sides), once per process: the compiled lines are
-    taken only then."""
-    rng = np.random.default_rng(0)
-    scale = 10.0 ** rng.uniform(-6.0, 6.0, (200_000, 1))
-    pairs = rng.normal(0.0, 1.0, (200_000, 2)) * scale
-    pairs[:6] = [[3.0, 4.0], [0.0, -2.0], [-0.0, 0.0], [5e-324, 1e-300], [1e300, 1e300],
-                 [1.0, 1e-12]]
-    got = _hypots(pairs[:, 0], pairs[:, 1])
-    return got.tolist() == [math.hypot(x, y) for x, y in pairs.tolist()]
-
-
-@numba.njit(cache=True)
 def _near_compiled(edges: np.ndarray, bbox: np.ndarray, px: float, py: float,
                    reach: float) -> np.ndarray:
-    """:meth:`_EdgeCache.near_array` on the packed edge rows (:attr:`_EdgeCache.packed`)."""
+    """Indices of the edges closer than ``reach`` (m) to (px, py), nearest first, from the
+    :class:`_EdgeCache` rows: each edge's parameter of its point nearest the query (clipped to
+    [0, 1]) and the squared distance to it. With two or more, an edge nearest at its end vertex
+    is measured from that vertex itself, so that two edges nearest at their shared vertex tie
+    exactly and keep index order (a stable sort)."""
     if (edges.shape[0] == 0 or px < bbox[0] - reach or px > bbox[2] + reach
             or py < bbox[1] - reach or py > bbox[3] + reach):
         return np.empty(0, dtype=np.int64)
@@ -1086,7 +712,9 @@ def _near_compiled(edges: np.ndarray, bbox: np.ndarray, px: float, py: float,
 @numba.njit(cache=True)
 def _leg(x: float, y: float, dist2: float, radius: float, rad2: float,
          left: bool) -> tuple[float, float]:
-    """:func:`_left_leg` (``left``) or :func:`_right_leg`."""
+    """Unit direction of the left leg (``left``) or the right one: from the anchor, tangent on
+    that side to the disc of ``radius`` (m) around the vertex at (x, y) m (squared distance
+    ``dist2``)."""
     leg = math.sqrt(max(dist2 - rad2, 0.0))
     if left:
         return (x * leg - y * radius) / dist2, (x * radius + y * leg) / dist2
@@ -1102,7 +730,9 @@ def _push(lines: np.ndarray, n: int, px: float, py: float, dx: float, dy: float)
 @numba.njit(cache=True)
 def _on_circle_compiled(lines: np.ndarray, n: int, wx: float, wy: float, cx: float,
                         cy: float, rad: float) -> int:
-    """:func:`_on_circle`, appended."""
+    """Append the line tangent to the cut-off circle (centre (cx, cy), radius ``rad``, m/s) at
+    the point nearest the velocity (cx + wx, cy + wy); a velocity exactly at the centre (RVO2
+    divides by zero) takes the side facing the origin. Returns the line count."""
     norm = _hypot(wx, wy)
     if norm > 0.0:
         ux, uy = wx / norm, wy / norm
@@ -1120,9 +750,19 @@ def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, px: 
                     py: float, vx: float, vy: float, radius: float, max_speed: float,
                     tau_obst: float, moving: np.ndarray, tau: float, step: float,
                     share: float) -> tuple[np.ndarray, int]:
-    """(lines (n, 4) as (px, py, dx, dy) rows, n_static) of :func:`_build`, whose checked
-    floats these are; ``edges``/``links``/``bbox``: :attr:`_EdgeCache.packed` (an empty
-    (0, 9) array for no static obstacles), ``moving``: (k, 5) rows."""
+    """(lines (n, 4) as (px, py, dx, dy) rows, n_static): the anchor's ORCA lines, static ones
+    first, for :func:`_build`'s checked floats; ``edges``, ``links``, ``bbox``: an
+    :class:`_EdgeCache`'s tables (empty for no static obstacles), ``moving``: (k, 5) rows.
+
+    RVO2's obstacle part: the edges within ``tau_obst * max_speed + radius`` (m), nearest
+    first, seen from their free side only (back-face culling), skipped when earlier lines
+    forbid both their cut-off discs already; an anchor overlapping a vertex or the edge gets a
+    line through the origin that forbids going deeper (none at a non-convex vertex, or one the
+    next edge handles); otherwise the velocity obstacle's legs (one vertex's legs when the edge
+    is seen obliquely, the cut-off line's extension at a non-convex vertex, a neighbouring
+    edge's direction for a "foreign" leg pointing into it) and the projection of the velocity
+    on its boundary: a cut-off circle, the cut-off line or a leg (a foreign leg adds no line).
+    Then the moving discs (:func:`_moving_compiled`)."""
     near = _near_compiled(edges, bbox, px, py, tau_obst * max_speed + radius)
     lines = np.empty((len(near) + moving.shape[0], 4))
     n = 0
@@ -1134,9 +774,9 @@ def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, px: 
         x1, y1 = edges[first, 0] - px, edges[first, 1] - py
         x2, y2 = edges[second, 0] - px, edges[second, 1] - py
         ex, ey = x2 - x1, y2 - y1
-        if x1 * ey - y1 * ex >= 0.0:
+        if x1 * ey - y1 * ex >= 0.0:           # back-face culling: the anchor must lie right
             continue
-        # _already_covered
+        # RVO2's "already covered": earlier lines forbid both cut-off discs entirely
         c1x, c1y, c2x, c2y = x1 * inv_tau, y1 * inv_tau, x2 * inv_tau, y2 * inv_tau
         covered = False
         for k in range(n):
@@ -1152,6 +792,7 @@ def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, px: 
         s = -(x1 * ex + y1 * ey) / (ex * ex + ey * ey)
         fx, fy = -x1 - s * ex, -y1 - s * ey
         dist2_line = fx * fx + fy * fy
+        # the anchor already overlaps the edge: forbid moving deeper
         if s < 0.0 and dist2_1 <= rad2:
             if links[first, 2]:
                 norm = math.sqrt(dist2_1)
@@ -1165,7 +806,7 @@ def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, px: 
         if 0.0 <= s < 1.0 and dist2_line <= rad2:
             n = _push(lines, n, 0.0, 0.0, -edges[first, 7], -edges[first, 8])
             continue
-        # _legs
+        # no collision: the legs ("obliquely": one vertex's two tangents), then the projection
         if s < 0.0 and dist2_line <= rad2:
             if not links[first, 2]:
                 continue
@@ -1188,7 +829,7 @@ def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, px: 
                 rlx, rly = _leg(x2, y2, dist2_2, radius, rad2, False)
             else:
                 rlx, rly = edges[first, 7], edges[first, 8]
-        # _foreign_legs
+        # a leg at a convex vertex may not point into the neighbouring edge ("foreign")
         left_foreign = right_foreign = False
         before = links[left, 1]
         if links[left, 2] and llx * -edges[before, 8] - lly * -edges[before, 7] >= 0.0:
@@ -1197,7 +838,8 @@ def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, px: 
         if links[right, 2] and rlx * edges[right, 8] - rly * edges[right, 7] <= 0.0:
             rlx, rly = edges[right, 7], edges[right, 8]
             right_foreign = True
-        # _cutoff_projection
+        # project the velocity on the velocity obstacle's boundary: the cut-off centres are
+        # the vertices over tau (m/s), with radius rad_tau
         lcx, lcy = (edges[left, 0] - px) * inv_tau, (edges[left, 1] - py) * inv_tau
         rcx, rcy = (edges[right, 0] - px) * inv_tau, (edges[right, 1] - py) * inv_tau
         cx, cy = rcx - lcx, rcy - lcy
@@ -1247,7 +889,12 @@ def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, px: 
 def _moving_compiled(lines: np.ndarray, n: int, moving: np.ndarray, px: float, py: float,
                      vx: float, vy: float, radius: float, tau: float, step: float,
                      share: float) -> int:
-    """:func:`_moving_lines`, appended."""
+    """Append RVO2's agent lines for the moving discs ``moving`` (k, 5) [x, y, vx, vy,
+    radius], nearest first (ties in row order): the relative velocity projected on the cut-off
+    circle or on a leg of the velocity obstacle of horizon ``tau`` (s); a disc already
+    overlapping: on the cut-off circle of time ``step`` (a velocity that separates them within
+    one step; a relative velocity exactly at the centre pushes straight away). The anchor takes
+    ``share`` of the avoidance. Returns the line count."""
     inv_tau = 1.0 / tau
     k = moving.shape[0]
     dist2s = np.empty(k)

@@ -9,7 +9,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+import sys
 
+import numba
 import numpy as np
 import pytest
 import shapely
@@ -19,10 +21,12 @@ from hypothesis import strategies as st
 from aoass_env.safety.orca import (
     OrcaLines,
     StaticObstacles,
+    _hypot,
     orca_lines,
     orca_velocity,
     solve_velocity,
 )
+from tests.safety.orca_floats import ReferenceEdges, reference_lines
 
 # a long wall 2 m above the origin (a CCW box: solid)
 WALL = [(-10.0, 2.0), (10.0, 2.0), (10.0, 3.0), (-10.0, 3.0)]
@@ -328,19 +332,19 @@ def test_the_compiled_edge_query_answers_as_the_array_code():
 
     so = StaticObstacles.from_loops(generate_map(60.0, 0.4, np.random.default_rng(3))
                                     .free_space_loops)
-    cache = so._cache
+    cache, reference = so._cache, ReferenceEdges(so)
     rng = np.random.default_rng(4)
     p = np.array([30.0, 30.0])
     answered = beside = 0
     for step in range(3000):
         p = rng.uniform(-5.0, 65.0, 2) if step % 200 == 0 else p + rng.uniform(-1.2, 1.2, 2)
         for reach in (2.7, 3.7, 9.7):
-            expected = cache.near_array(float(p[0]), float(p[1]), reach)
+            expected = reference.near_array(float(p[0]), float(p[1]), reach)
             assert cache.near(float(p[0]), float(p[1]), reach) == expected
             answered += len(expected) > 1
     for x, y in so.point[::7].tolist():
         for reach in (2.7, 3.7):
-            expected = cache.near_array(x + 0.3, y, reach)
+            expected = reference.near_array(x + 0.3, y, reach)
             assert cache.near(x + 0.3, y, reach) == expected
             beside += len(expected) > 1
     assert answered > 1000 and beside > 20
@@ -536,24 +540,38 @@ def _bits(rows) -> list[tuple[int, ...]]:
     return [tuple(np.array(row, dtype=np.float64).view(np.int64).tolist()) for row in rows]
 
 
-def _both_paths(monkeypatch, **kwargs) -> tuple[tuple, tuple]:
-    """(compiled, float code) of orca.py's _build on the same arguments."""
+def _both_paths(**kwargs) -> tuple[tuple, tuple]:
+    """(compiled, float code) lines of the same arguments: orca.py's _build and the oracle's
+    reference_lines (tests/safety/orca_floats.py) on _build's checked floats."""
     from aoass_env.safety import orca
     args = [kwargs[k] for k in ("position", "velocity", "radius", "max_speed",
                                 "static_obstacles", "moving_obstacles", "time_horizon",
                                 "time_horizon_obst", "time_step", "responsibility")]
     compiled = orca._build(*args)
-    with monkeypatch.context() as patch:
-        patch.setattr(orca, "compiled_hypot", lambda: False)
-        floats = orca._build(*args)
+    (px, py), (vx, vy) = map(tuple, np.asarray(args[:2], dtype=np.float64).tolist())
+    moving = orca._moving(kwargs["moving_obstacles"])
+    floats = reference_lines(orca._static(kwargs["static_obstacles"]), moving, px, py, vx, vy,
+                             float(kwargs["radius"]), float(kwargs["max_speed"]),
+                             float(kwargs["time_horizon_obst"]), float(kwargs["time_horizon"]),
+                             float(kwargs["time_step"]), float(kwargs["responsibility"]))
     return compiled, floats
 
 
-@pytest.mark.skipif(not __import__("aoass_env.safety.orca", fromlist=["x"]).compiled_hypot(),
-                    reason="math.hypot is not correctly rounded here (Python < 3.11)")
+_CORRECT_HYPOT = sys.version_info >= (3, 11)
+_NOT_CORRECT = "math.hypot is correctly rounded since Python 3.11 only"
+
+
+@numba.njit
+def _hypots(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    out = np.empty(len(x))
+    for i in range(len(x)):
+        out[i] = _hypot(x[i], y[i])
+    return out
+
+
+@pytest.mark.skipif(not _CORRECT_HYPOT, reason=_NOT_CORRECT)
 def test_the_compiled_hypot_is_pythons():
     """Random pairs over 24 decades, exact sides, zeros, subnormals, huge and infinite sides."""
-    from aoass_env.safety.orca import _hypots
     rng = np.random.default_rng(11)
     scale = 10.0 ** rng.uniform(-12.0, 12.0, (300_000, 1))
     pairs = rng.normal(0.0, 1.0, (300_000, 2)) * scale
@@ -567,15 +585,13 @@ def test_the_compiled_hypot_is_pythons():
     assert [g if g == g else "nan" for g in got] == [w if w == w else "nan" for w in want]
 
 
-def test_the_compiled_lines_are_the_float_codes(monkeypatch):
+@pytest.mark.skipif(not _CORRECT_HYPOT, reason=_NOT_CORRECT)
+def test_the_compiled_lines_are_the_float_codes():
     """Along random walks on a generated map (near and inside obstacles, with discs near,
     overlapping and concentric), and on the hypothesis-style scenes' shapes, the compiled lines
     equal the float code's, bit for bit and in order, with the same n_static; every kind of
     line is met."""
     from aoass_env.maps import generate_map
-    from aoass_env.safety import orca
-    if not orca.compiled_hypot():
-        pytest.skip("math.hypot is not correctly rounded here (Python < 3.11)")
     static = StaticObstacles.from_loops(generate_map(40.0, 0.5, np.random.default_rng(8))
                                         .free_space_loops)
     rng = np.random.default_rng(9)
@@ -597,9 +613,7 @@ def test_the_compiled_lines_are_the_float_codes(monkeypatch):
                       time_horizon=float(rng.uniform(0.5, 4.0)),
                       time_horizon_obst=float(rng.choice([0.5, 2.0, 4.0])), time_step=0.5,
                       responsibility=float(rng.choice([0.5, 1.0])))
-        (lines, n_static, speed, array), (want, want_static, want_speed, none) = \
-            _both_paths(monkeypatch, **kwargs)
-        assert none is None and array is not None and speed == want_speed
+        (lines, n_static, _, array), (want, want_static) = _both_paths(**kwargs)
         assert n_static == want_static and _bits(lines) == _bits(want), step
         assert _bits(array.tolist()) == _bits(want)
         kinds["through origin"] += sum(x == 0.0 and y == 0.0 for x, y, _, _ in want[:n_static])
@@ -615,6 +629,5 @@ def test_the_compiled_lines_are_the_float_codes(monkeypatch):
                           static_obstacles=static_obstacles, moving_obstacles=moving,
                           time_horizon=2.0, time_horizon_obst=2.0, time_step=0.5,
                           responsibility=1.0)
-            (lines, n_static, _, _), (want, want_static, _, _) = \
-                _both_paths(monkeypatch, **kwargs)
+            (lines, n_static, _, _), (want, want_static) = _both_paths(**kwargs)
             assert n_static == want_static and _bits(lines) == _bits(want)
