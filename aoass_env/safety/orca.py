@@ -733,16 +733,22 @@ def _on_circle_compiled(lines: np.ndarray, n: int, wx: float, wy: float, cx: flo
     """Append the line tangent to the cut-off circle (centre (cx, cy), radius ``rad``, m/s) at
     the point nearest the velocity (cx + wx, cy + wy); a velocity exactly at the centre (RVO2
     divides by zero) takes the side facing the origin. Returns the line count."""
+    ux, uy, _ = _unit_or_away(wx, wy, cx, cy)
+    return _push(lines, n, cx + rad * ux, cy + rad * uy, uy, -ux)
+
+
+@numba.njit(cache=True)
+def _unit_or_away(wx: float, wy: float, cx: float, cy: float) -> tuple[float, float, float]:
+    """(ux, uy, |w|): the unit vector along (wx, wy); for w = 0, the one along -(cx, cy), the
+    way away from a centre at (cx, cy) (RVO2 divides by zero there), or (-1, 0) when that is 0
+    too."""
     norm = _hypot(wx, wy)
     if norm > 0.0:
-        ux, uy = wx / norm, wy / norm
-    else:
-        norm = _hypot(cx, cy)
-        if norm > 0.0:
-            ux, uy = -cx / norm, -cy / norm
-        else:
-            ux, uy = -1.0, 0.0
-    return _push(lines, n, cx + rad * ux, cy + rad * uy, uy, -ux)
+        return wx / norm, wy / norm, norm
+    away = _hypot(cx, cy)
+    if away > 0.0:
+        return -cx / away, -cy / away, norm
+    return -1.0, 0.0, norm
 
 
 @numba.njit(cache=True)
@@ -929,15 +935,7 @@ def _moving_compiled(lines: np.ndarray, n: int, moving: np.ndarray, px: float, p
         else:
             inv_step = 1.0 / step
             wx, wy = wvx - rx * inv_step, wvy - ry * inv_step
-            w_len = _hypot(wx, wy)
-            if w_len > 0.0:
-                ux, uy = wx / w_len, wy / w_len
-            else:
-                norm = _hypot(rx, ry)
-                if norm > 0.0:
-                    ux, uy = -rx / norm, -ry / norm
-                else:
-                    ux, uy = -1.0, 0.0
+            ux, uy, w_len = _unit_or_away(wx, wy, rx, ry)
             dx, dy = uy, -ux
             grow = rad * inv_step - w_len
             ux, uy = grow * ux, grow * uy
