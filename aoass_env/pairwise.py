@@ -40,7 +40,9 @@ def pairwise_sum(a: np.ndarray, start: int, n: int) -> float:
     (``np.add.reduce``'s pairwise summation): a run longer than 128 is cut in two at a multiple
     of 8 near its middle and the halves' sums added, left + right; :func:`_block_sum` sums the
     runs. The recursion runs on an explicit stack (numba's cache does not load recursive
-    functions safely)."""
+    functions safely). ValueError when the run leaves ``a``."""
+    if start < 0 or n < 0 or start + n > len(a):
+        raise ValueError("pairwise_sum: the run a[start:start + n] must lie inside a")
     starts = np.empty(64, dtype=np.int64)
     lengths = np.empty(64, dtype=np.int64)
     lefts = np.empty(64)

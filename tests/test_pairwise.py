@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from aoass_env.pairwise import pairwise_sum
 
@@ -36,3 +37,11 @@ def test_rows_sum_as_numpy_row_sums():
             want = block.sum(axis=1)
             got = [pairwise_sum(np.ascontiguousarray(row), 0, len(row)) for row in block]
             assert np.array_equal(got, want)
+
+
+def test_a_run_outside_the_array_is_an_error():
+    a = np.ones(10)
+    assert pairwise_sum(a, 2, 8) == 8.0
+    for start, n in ((3, 8), (-1, 2), (0, -1), (11, 0)):
+        with pytest.raises(ValueError, match="must lie inside a"):
+            pairwise_sum(a, start, n)

@@ -380,6 +380,9 @@ def rollout(position: np.ndarray, heading: float, speed: float, headings: np.nda
     """
     headings = np.asarray(headings, dtype=np.float64)
     target_speed = np.asarray(speeds, dtype=np.float64)
+    if headings.ndim != 1 or target_speed.shape != headings.shape:
+        raise ValueError(f"headings and speeds must be (k,) arrays of one candidate each, got "
+                         f"shapes {headings.shape} and {target_speed.shape}")
     k = len(headings)
     max_dh, max_dv = max_turn_rate * step, max_accel * step
     if SCALAR_TRIG and compiled_trig():
@@ -432,10 +435,17 @@ def violation(paths: np.ndarray, centres: np.ndarray, radii: np.ndarray,
     (|path - centre| - radius)). ``paths`` (k, S, 2), ``centres`` (m, S, 2), ``radii`` (m, S),
     all m; 0 for every path without obstacles."""
     paths = np.asarray(paths, dtype=np.float64)
+    centres = np.asarray(centres, dtype=np.float64)
+    radii = np.asarray(radii, dtype=np.float64)
+    if paths.ndim != 3 or paths.shape[2] != 2:
+        raise ValueError(f"paths must be a (k, S, 2) array (m), got shape {paths.shape}")
     if len(centres) == 0:
         return np.zeros(len(paths))
-    return _shortfalls(paths, np.asarray(centres, dtype=np.float64),
-                       np.asarray(radii, dtype=np.float64), float(clearance), paths.shape[1])
+    steps = paths.shape[1]
+    if centres.shape != (len(centres), steps, 2) or radii.shape != centres.shape[:2]:
+        raise ValueError(f"centres must be (m, {steps}, 2) and radii (m, {steps}) for paths of "
+                         f"{steps} steps, got shapes {centres.shape} and {radii.shape}")
+    return _shortfalls(paths, centres, radii, float(clearance), steps)
 
 
 @numba.njit(cache=True)

@@ -202,6 +202,12 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
         fallback_heading: heading (rad) to turn toward when ``v_star`` is (almost) zero.
         envelope: further speed caps by heading (the static edges' braking envelope).
     """
+    if points.shape != directions.shape or points.shape[1:] != (2,):
+        raise ValueError(f"points and directions must be (n, 2) arrays of the same ORCA lines, "
+                         f"got shapes {points.shape} and {directions.shape}")
+    if envelope is not None and envelope.starts.shape != envelope.ends.shape:
+        raise ValueError(f"the envelope's starts and ends must be (m, 2) arrays of the same "
+                         f"edges, got shapes {envelope.starts.shape} and {envelope.ends.shape}")
     vx, vy = float(v_star[0]), float(v_star[1])
     wanted = math.hypot(vx, vy)
     target = math.atan2(vy, vx) if wanted > _STILL else fallback_heading

@@ -500,3 +500,17 @@ def test_violation_is_the_array_form_bit_for_bit():
         assert _shortfalls(paths, centres, radii, clearance, soon).tobytes() == want.tobytes()
         positive += int((want > 0.0).sum())
     assert positive > 1000
+
+
+def test_mismatched_candidates_or_obstacles_name_the_arrays():
+    """The compiled loops read the arrays by index: mismatched shapes are a clear error."""
+    with pytest.raises(ValueError, match="headings and speeds"):
+        rollout(np.zeros(2), 0.0, 1.0, np.zeros(3), np.zeros(2), 1.0, 1.0, 0.25, 18,
+                np.zeros((0, 2)), np.zeros((0, 2)), 0.5)
+    paths = np.zeros((2, 18, 2))
+    with pytest.raises(ValueError, match="centres must be"):
+        violation(paths, np.zeros((1, 17, 2)), np.zeros((1, 17)), 1.0)
+    with pytest.raises(ValueError, match="centres must be"):
+        violation(paths, np.zeros((1, 18, 2)), np.zeros((2, 18)), 1.0)
+    with pytest.raises(ValueError, match="paths must be"):
+        violation(np.zeros((2, 18)), np.zeros((1, 18, 2)), np.zeros((1, 18)), 1.0)

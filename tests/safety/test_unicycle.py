@@ -370,3 +370,18 @@ def test_the_envelope_floor_is_below_every_cap(segments, x, y, radius, heading, 
     vertex = starts[0] - position
     headings = np.array([heading, math.atan2(vertex[1], vertex[0]) + 1e-9 * skew])
     assert np.all(unicycle._envelope_floor(envelope, gap) <= envelope(headings))
+
+
+def test_mismatched_lines_or_edges_name_the_arrays():
+    """The compiled loops read the arrays by index: mismatched shapes are a clear error, never
+    a read past an array."""
+    lines = np.array([[0.0, 1.0]]), np.array([[1.0, 0.0]])
+    with pytest.raises(ValueError, match="points and directions must be"):
+        unicycle_command(np.array([1.0, 0.0]), 0.0, 0.5, 0.5, 0.5, lines[0],
+                         np.zeros((2, 2)), 0.0)
+    with pytest.raises(ValueError, match="points and directions must be"):
+        unicycle_command(np.array([1.0, 0.0]), 0.0, 0.5, 0.5, 0.5, np.zeros((1, 3)),
+                         np.zeros((1, 3)), 0.0)
+    envelope = BrakingEnvelope(np.zeros((2, 2)), np.ones((1, 2)), np.zeros(2), 0.5, 1.0, 0.5)
+    with pytest.raises(ValueError, match="the envelope's starts and ends"):
+        unicycle_command(np.array([1.0, 0.0]), 0.0, 0.5, 0.5, 0.5, *lines, 0.0, envelope)
