@@ -24,3 +24,16 @@ def test_a_passed_probe_holds_on_other_angles():
                              2.0 * math.pi * np.arange(64) / 64])
     assert np.cos(angles).tolist() == [math.cos(a) for a in angles.tolist()]
     assert np.sin(angles).tolist() == [math.sin(a) for a in angles.tolist()]
+
+
+def test_a_passed_compiled_probe_holds_on_other_angles():
+    """compiled_trig() is a bool, probed once; when it holds, numba's cos and sin give math's
+    floats on angles the probe did not see."""
+    assert isinstance(trig.compiled_trig(), bool)
+    if not trig.compiled_trig():
+        pytest.skip("numba's cos/sin differ from math's here")
+    angles = np.concatenate([np.random.default_rng(3).uniform(-50.0, 50.0, 20000),
+                             np.random.default_rng(4).uniform(-1e6, 1e6, 2000)])
+    cos, sin = trig._compiled_cos_sin(angles)
+    assert cos.tolist() == [math.cos(a) for a in angles.tolist()]
+    assert sin.tolist() == [math.sin(a) for a in angles.tolist()]
