@@ -263,8 +263,8 @@ def _predict_all(states: np.ndarray, radii: np.ndarray, step: float, n_steps: in
         if len(sx):
             gap = math.sqrt(_nearest_compiled(sx, sy, ex, ey, ee, x, y)[0])
             if gap - math.hypot(vx, vy) * (step * n_steps) <= radii[j] + 1e-9:
-                out[j] = _predict_one(x, y, vx, vy, radii[j], gap, step, n_steps, sx, sy, ex,
-                                      ey, ee)
+                _predict_one(x, y, vx, vy, radii[j], gap, step, n_steps, sx, sy, ex, ey, ee,
+                             out[j])
                 continue
         dx, dy = step * vx, step * vy
         for i in range(n_steps):
@@ -277,15 +277,14 @@ def _predict_all(states: np.ndarray, radii: np.ndarray, step: float, n_steps: in
 @numba.njit(cache=True)
 def _predict_one(x: float, y: float, vx: float, vy: float, radius: float, gap: float,
                  step: float, n_steps: int, sx: np.ndarray, sy: np.ndarray, ex: np.ndarray,
-                 ey: np.ndarray, ee: np.ndarray) -> np.ndarray:
-    """(n_steps, 2): one obstacle of :func:`predict_obstacles`'s step loop, compiled (the same
+                 ey: np.ndarray, ee: np.ndarray, out: np.ndarray) -> None:
+    """Into ``out`` (n_steps, 2): one obstacle of :func:`predict_obstacles`'s step loop, compiled (the same
     operations in the same order), starting at (x, y) whose distance to the segments (a
     :class:`_Segments`' arrays) is ``gap``. The edge test of a step is skipped when a
     clearance certificate (the exact distance of an earlier point, less the way from there)
     shows the disc clear of every edge: then it cannot bounce."""
     cx, cy, cg = x, y, gap                      # certificate: point and its exact distance
     limit = radius + CERTIFICATE_SLACK
-    out = np.empty((n_steps, 2))
     for i in range(n_steps):
         mx, my = x + step * vx, y + step * vy
         dx, dy = mx - cx, my - cy
@@ -303,15 +302,15 @@ def _predict_one(x: float, y: float, vx: float, vy: float, radius: float, gap: f
         x, y = mx, my
         out[i, 0] = x
         out[i, 1] = y
-    return out
 
 
 @numba.njit(cache=True)
 def _rollout_one(x: float, y: float, heading: float, speed: float, target_heading: float,
                  target_speed: float, max_dh: float, max_dv: float, step: float,
                  n_steps: int, walls: bool, sx: np.ndarray, sy: np.ndarray, ex: np.ndarray,
-                 ey: np.ndarray, ee: np.ndarray, radius: float, gap: float) -> np.ndarray:
-    """One candidate of :func:`rollout`, compiled: the same operations in the same order
+                 ey: np.ndarray, ee: np.ndarray, radius: float, gap: float,
+                 out: np.ndarray) -> None:
+    """One candidate of :func:`rollout` into ``out`` (n_steps, 2), compiled: the same operations in the same order
     (``np.clip`` as a min/max, ``np.remainder`` as Python's ``%``, which rounds alike).
     ``walls`` False: no edge test (the rollout cannot reach an edge); else against the
     segments of a :class:`_Segments`' arrays. The edge test of a step is skipped when a
@@ -320,7 +319,6 @@ def _rollout_one(x: float, y: float, heading: float, speed: float, target_headin
     when needed."""
     two_pi = 2.0 * math.pi
     theta, v = heading, speed
-    out = np.empty((n_steps, 2))
     cx, cy, cg = x, y, gap                      # certificate: point and its exact distance
     here, known = gap, True                     # exact distance of (x, y), if known
     limit = radius + CERTIFICATE_SLACK
@@ -349,7 +347,6 @@ def _rollout_one(x: float, y: float, heading: float, speed: float, target_headin
             x, y = mx, my
         out[i, 0] = x
         out[i, 1] = y
-    return out
 
 
 @numba.njit(cache=True)
@@ -360,8 +357,8 @@ def _rollout_many(x: float, y: float, heading: float, speed: float, headings: np
     """(k, n_steps, 2): :func:`_rollout_one` of each candidate (target heading, speed)."""
     out = np.empty((len(headings), n_steps, 2))
     for c in range(len(headings)):
-        out[c] = _rollout_one(x, y, heading, speed, headings[c], speeds[c], max_dh, max_dv,
-                              step, n_steps, walls, sx, sy, ex, ey, ee, radius, gap)
+        _rollout_one(x, y, heading, speed, headings[c], speeds[c], max_dh, max_dv, step,
+                     n_steps, walls, sx, sy, ex, ey, ee, radius, gap, out[c])
     return out
 
 

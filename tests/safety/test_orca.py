@@ -631,3 +631,15 @@ def test_the_compiled_lines_are_the_float_codes():
                           responsibility=1.0)
             (lines, n_static, _, _), (want, want_static) = _both_paths(**kwargs)
             assert n_static == want_static and _bits(lines) == _bits(want)
+
+
+def test_the_stable_order_is_numpys_stable_argsort():
+    """Random keys with many ties, sorted and reversed runs, one key and none."""
+    from aoass_env.safety.orca import _stable_order
+    rng = np.random.default_rng(14)
+    cases = [np.zeros(0), np.ones(1), np.arange(30.0), np.arange(30.0)[::-1].copy(),
+             np.full(17, 2.5)]
+    cases += [rng.integers(0, 5, int(rng.integers(2, 80))).astype(float) for _ in range(200)]
+    cases += [rng.normal(size=int(rng.integers(2, 300))) for _ in range(50)]
+    for keys in cases:
+        assert _stable_order(keys).tolist() == np.argsort(keys, kind="stable").tolist()
