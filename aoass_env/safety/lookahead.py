@@ -278,10 +278,10 @@ def _predict_all(states: np.ndarray, radii: np.ndarray, step: float, n_steps: in
 def _predict_one(x: float, y: float, vx: float, vy: float, radius: float, gap: float,
                  step: float, n_steps: int, sx: np.ndarray, sy: np.ndarray, ex: np.ndarray,
                  ey: np.ndarray, ee: np.ndarray, out: np.ndarray) -> None:
-    """Into ``out`` (n_steps, 2): one obstacle of :func:`predict_obstacles`'s step loop, compiled (the same
-    operations in the same order), starting at (x, y) whose distance to the segments (a
-    :class:`_Segments`' arrays) is ``gap``. The edge test of a step is skipped when a
-    clearance certificate (the exact distance of an earlier point, less the way from there)
+    """Into ``out`` (n_steps, 2): one obstacle of :func:`predict_obstacles`'s step loop,
+    compiled (the same operations in the same order), starting at (x, y) whose distance to the
+    segments (a :class:`_Segments`' arrays) is ``gap``. The edge test of a step is skipped when
+    a clearance certificate (the exact distance of an earlier point, less the way from there)
     shows the disc clear of every edge: then it cannot bounce."""
     cx, cy, cg = x, y, gap                      # certificate: point and its exact distance
     limit = radius + CERTIFICATE_SLACK
@@ -310,13 +310,13 @@ def _rollout_one(x: float, y: float, heading: float, speed: float, target_headin
                  n_steps: int, walls: bool, sx: np.ndarray, sy: np.ndarray, ex: np.ndarray,
                  ey: np.ndarray, ee: np.ndarray, radius: float, gap: float,
                  out: np.ndarray) -> None:
-    """One candidate of :func:`rollout` into ``out`` (n_steps, 2), compiled: the same operations in the same order
-    (``np.clip`` as a min/max, ``np.remainder`` as Python's ``%``, which rounds alike).
-    ``walls`` False: no edge test (the rollout cannot reach an edge); else against the
-    segments of a :class:`_Segments`' arrays. The edge test of a step is skipped when a
-    clearance certificate shows the new point ``radius`` clear of every edge (it is taken
-    then); the distance of the current point, which a refused step compares with, is computed
-    when needed."""
+    """One candidate of :func:`rollout` into ``out`` (n_steps, 2), compiled: the same
+    operations in the same order (``np.clip`` as a min/max, ``np.remainder`` as Python's ``%``,
+    which rounds alike). ``walls`` False: no edge test (the rollout cannot reach an edge); else
+    against the segments of a :class:`_Segments`' arrays. The edge test of a step is skipped
+    when a clearance certificate shows the new point ``radius`` clear of every edge (it is
+    taken then); the distance of the current point, which a refused step compares with, is
+    computed when needed."""
     two_pi = 2.0 * math.pi
     theta, v = heading, speed
     cx, cy, cg = x, y, gap                      # certificate: point and its exact distance
