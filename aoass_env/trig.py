@@ -6,9 +6,9 @@ C library's, which ``math`` calls. The hot paths that replace small NumPy arrays
 floats (the world's rays, the look-ahead's one-path rollout, the unicycle step) take their
 float path only when a probe at import finds the two equal, and their array code otherwise.
 Compiled code calls the C library through LLVM (or a vector library, if numba finds one), so
-the paths that run trigonometry compiled (the unicycle's arc) are taken only when the same
-probe finds numba's equal as well (:func:`compiled_trig`, probed on first use: loading
-numba's compiled code costs a fraction of a second).
+the paths that run trigonometry compiled (the unicycle's arc, the look-ahead's rollouts) are
+taken only when the same probe finds numba's equal as well (:func:`compiled_trig`, probed on
+first use: loading numba's compiled code costs a fraction of a second).
 """
 
 from __future__ import annotations
@@ -28,11 +28,16 @@ def _probe() -> np.ndarray:
                            np.linspace(-7.0, 7.0, 9)])
 
 
+def _maths(cos: np.ndarray, sin: np.ndarray, probe: np.ndarray) -> bool:
+    """Whether ``cos`` and ``sin`` of the ``probe`` are ``math``'s, bit for bit."""
+    return (np.array_equal(cos, [math.cos(x) for x in probe])
+            and np.array_equal(sin, [math.sin(x) for x in probe]))
+
+
 def _scalar_trig_is_numpys() -> bool:
     """The probe (:func:`_probe`) through ``math`` and NumPy."""
     probe = _probe()
-    return (np.array_equal(np.cos(probe), [math.cos(x) for x in probe])
-            and np.array_equal(np.sin(probe), [math.sin(x) for x in probe]))
+    return _maths(np.cos(probe), np.sin(probe), probe)
 
 
 #: see :func:`_scalar_trig_is_numpys`
@@ -56,6 +61,4 @@ def compiled_trig() -> bool:
     if not SCALAR_TRIG:
         return False
     probe = _probe()
-    cos, sin = _compiled_cos_sin(probe)
-    return (np.array_equal(cos, [math.cos(x) for x in probe])
-            and np.array_equal(sin, [math.sin(x) for x in probe]))
+    return _maths(*_compiled_cos_sin(probe), probe)

@@ -120,6 +120,8 @@ def segment_distances(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) 
     """(k,) distance (m) from each of ``points`` (k, 2) to the nearest of the segments
     ``starts`` -> ``ends`` ((e, 2) each, m); inf without segments."""
     points = np.asarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 2:
+        raise ValueError(f"points must be a (k, 2) array (m), got shape {points.shape}")
     if len(starts) == 0:
         return np.full(len(points), np.inf)
     return _Segments(starts, ends).distances(points)

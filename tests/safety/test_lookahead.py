@@ -514,3 +514,5 @@ def test_mismatched_candidates_or_obstacles_name_the_arrays():
         violation(paths, np.zeros((1, 18, 2)), np.zeros((2, 18)), 1.0)
     with pytest.raises(ValueError, match="paths must be"):
         violation(np.zeros((2, 18)), np.zeros((1, 18, 2)), np.zeros((1, 18)), 1.0)
+    with pytest.raises(ValueError, match="points must be"):
+        segment_distances(np.zeros(2), np.zeros((1, 2)), np.ones((1, 2)))
