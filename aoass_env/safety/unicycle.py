@@ -127,13 +127,13 @@ def free_travel(starts: np.ndarray, ends: np.ndarray, position: np.ndarray,
 def clearance(starts: np.ndarray, ends: np.ndarray, point: np.ndarray) -> float:
     """Distance (m) from ``point`` (2,) to the nearest of the segments ``starts`` -> ``ends``
     ((m, 2) each, m); inf without segments."""
-    if len(starts) == 0:
-        return math.inf
-    e = ends - starts
-    w = np.asarray(point, dtype=np.float64) - starts
-    s = np.clip((w * e).sum(axis=1) / (e * e).sum(axis=1), 0.0, 1.0)
-    gap = w - s[:, None] * e
-    return float(np.sqrt((gap * gap).sum(axis=1)).min())
+    starts = np.asarray(starts, dtype=np.float64)
+    ends = np.asarray(ends, dtype=np.float64)
+    if starts.shape != ends.shape or starts.shape[1:] != (2,):
+        raise ValueError(f"starts and ends must be (m, 2) arrays of the same segments, got "
+                         f"shapes {starts.shape} and {ends.shape}")
+    x, y = np.asarray(point, dtype=np.float64).tolist()
+    return _clearance_compiled(starts, ends, x, y)
 
 
 def braking_speed(distance: np.ndarray, max_accel: float, dt: float) -> np.ndarray:
@@ -262,8 +262,7 @@ _FRACTIONS = tuple(np.linspace(0.0, 1.0, 9).tolist())
 
 @numba.njit(cache=True)
 def _clearance_compiled(starts: np.ndarray, ends: np.ndarray, px: float, py: float) -> float:
-    """:func:`clearance` of the point (px, py) (m), compiled edge by edge with its operations
-    (the same float)."""
+    """:func:`clearance` of the point (px, py) (m), edge by edge; inf without edges."""
     best = math.inf
     for i in range(starts.shape[0]):
         ax, ay = starts[i, 0], starts[i, 1]
