@@ -94,34 +94,71 @@ def free_travel(starts: np.ndarray, ends: np.ndarray, position: np.ndarray,
     headings = np.asarray(headings, dtype=np.float64)
     if len(starts) == 0:
         return np.full(len(headings), np.inf)
+    return _travel_compiled(*_products(starts, ends, position, headings), radius * radius,
+                            radius)
+
+
+def _products(starts: np.ndarray, ends: np.ndarray, position: np.ndarray,
+              headings: np.ndarray) -> tuple[np.ndarray, ...]:
+    """:func:`free_travel`'s arrays and its matrix products, in NumPy: BLAS computes the
+    products with fused multiply-adds, in an order that depends on the shapes and the CPU,
+    which compiled loops cannot reproduce; the rest is element by element
+    (:func:`_travel_compiled`)."""
     u = np.stack([np.cos(headings), np.sin(headings)], axis=1)            # (k, 2)
     p = np.asarray(position, dtype=np.float64)
-    r2 = radius * radius
-    best = np.full(len(headings), np.inf)
-    # a side met at a grazing heading (|rate| tiny) gives an overflowing, then discarded, time
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        # the end points: |w + t u| = radius with w = p - vertex, entered while w . u < 0
-        for vertex in (starts, ends):
-            w = p - vertex                                                  # (m, 2)
-            wu = u @ w.T                                                    # (k, m)
-            ww = (w * w).sum(axis=1)
-            disc = wu * wu - (ww - r2)
-            t = np.where(ww > r2, -wu - np.sqrt(disc), 0.0)
-            t = np.where((wu < 0.0) & (disc >= 0.0), t, np.inf)
-            best = np.minimum(best, t.min(axis=1))
-        # the segments' sides: the disc's centre reaches the line offset by radius
-        e = ends - starts
-        length = np.hypot(e[:, 0], e[:, 1])
+    w_start, w_end = p - starts, p - ends                                  # (m, 2)
+    e = ends - starts
+    length = np.hypot(e[:, 0], e[:, 1])
+    with np.errstate(invalid="ignore", divide="ignore"):   # a zero-length edge: no normal
         n = np.stack([-e[:, 1], e[:, 0]], axis=1) / length[:, None]        # (m, 2) unit normals
-        side = ((p - starts) * n).sum(axis=1)                              # signed distance
-        rate = u @ n.T                                                      # (k, m)
-        approach = side[None, :] * rate < -_PARALLEL      # moving toward the side
-        t = np.maximum(np.abs(side)[None, :] - radius, 0.0) / np.abs(rate)
-        along = ((p - starts) * e).sum(axis=1)[None, :] + t * (u @ e.T)      # (k, m)
-        inside = (along >= 0.0) & (along <= length * length)
-        t = np.where(approach & inside, t, np.inf)
-        best = np.minimum(best, t.min(axis=1))
+    return (w_start, u @ w_start.T, w_end, u @ w_end.T, e, length, n, u @ n.T, u @ e.T)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _travel_compiled(w_start: np.ndarray, wu_start: np.ndarray, w_end: np.ndarray,
+                     wu_end: np.ndarray, e: np.ndarray, length: np.ndarray, n: np.ndarray,
+                     rate: np.ndarray, ue: np.ndarray, r2: float, radius: float) -> np.ndarray:
+    """:func:`free_travel` from its arrays and products (:func:`_products`, ``r2`` = radius
+    squared), element by element with the array code's operations in its order (the array
+    code is the tests' oracle)."""
+    k, m = wu_start.shape
+    best = np.full(k, math.inf)
+    for i in range(k):
+        b = math.inf
+        for j in range(m):
+            # the end points: |w + t u| = radius with w = p - vertex, entered while w . u < 0
+            for end in range(2):
+                w = w_start if end == 0 else w_end
+                wu = wu_start[i, j] if end == 0 else wu_end[i, j]
+                ww = w[j, 0] * w[j, 0] + w[j, 1] * w[j, 1]
+                disc = wu * wu - (ww - r2)
+                if wu < 0.0 and disc >= 0.0:
+                    t = (-wu) - math.sqrt(disc) if ww > r2 else 0.0
+                    if t < b:
+                        b = t
+            # the segment's side: the disc's centre reaches the line offset by radius
+            side = w_start[j, 0] * n[j, 0] + w_start[j, 1] * n[j, 1]      # signed distance
+            if side * rate[i, j] < -_PARALLEL:                           # moving toward it
+                gap = abs(side) - radius
+                t = (gap if gap >= 0.0 else 0.0) / abs(rate[i, j])
+                along = (w_start[j, 0] * e[j, 0] + w_start[j, 1] * e[j, 1]) + t * ue[i, j]
+                if along >= 0.0 and along <= length[j] * length[j] and t < b:
+                    b = t
+        best[i] = b
     return best
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _braking_compiled(travel: np.ndarray, max_accel: float, dt: float) -> np.ndarray:
+    """:func:`braking_speed` of a (k,) array, element by element (its operations)."""
+    out = np.empty(travel.shape[0])
+    for i in range(travel.shape[0]):
+        d = travel[i] if travel[i] >= 0.0 else 0.0
+        if math.isinf(d):
+            out[i] = math.inf
+        else:
+            out[i] = max_accel * (math.sqrt(dt * dt + 2.0 * d / max_accel) - dt)
+    return out
 
 
 def clearance(starts: np.ndarray, ends: np.ndarray, point: np.ndarray) -> float:
@@ -176,7 +213,7 @@ class BrakingEnvelope:
         """(k,) the speed cap on each heading (rad), the anchor's clearance being ``gap`` (m)."""
         radius = min(self.radius, gap - _HELD)
         travel = free_travel(self.starts, self.ends, self.position, headings, max(radius, 0.0))
-        return braking_speed(travel, self.max_accel, self.dt)
+        return _braking_compiled(travel, self.max_accel, self.dt)
 
 
 def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn: float,
@@ -244,10 +281,11 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
 #   `_CERTIFICATE_SLACK` for round-off. When that floor is at least both |v*| and the speed
 #   floor, a cap changes neither which branch is taken, nor the heading (every cap clears the
 #   floor), nor the speed (min(|v*|, cap) = |v*|), so it is not computed. Otherwise, and when
-#   the anchor must brake (the braking branch reads the caps themselves), the caps come from
-#   the envelope's arrays (`_command_with_caps`): `free_travel` keeps NumPy's matrix products,
-#   which BLAS computes with fused multiply-adds (an order that depends on the shapes and the
-#   CPU) that Python floats cannot reproduce.
+#   the anchor must brake (the braking branch reads the caps themselves), the caps are computed
+#   (`_command_with_caps`): `free_travel` keeps NumPy's matrix products (`_products`), which
+#   BLAS computes with fused multiply-adds (an order that depends on the shapes and the CPU)
+#   that compiled loops cannot reproduce, and computes the rest compiled (`_travel_compiled`,
+#   `_braking_compiled`); the lines' bounds on the arc are compiled too (`_arc_bounds`).
 
 #: How far (m) the computed free travel may fall short of (clearance - radius) by round-off.
 #: The worst case is a disc of radius 0 heading straight at an end point W metres away, where
@@ -290,13 +328,6 @@ def _envelope_floor(envelope: BrakingEnvelope, gap: float) -> float:
     return a * (math.sqrt(dt * dt + 2.0 * travel / a) - dt)
 
 
-def _arc(heading: float, target: float, max_turn: float) -> list[float]:
-    """:func:`turn_headings` with ``n=8`` as a list of floats (the same floats)."""
-    turn = math.remainder(target - heading, 2.0 * math.pi)
-    turn = min(max(turn, -max_turn), max_turn)
-    return [heading + turn * f for f in _FRACTIONS]
-
-
 def _lines(points: np.ndarray, directions: np.ndarray) -> list[tuple[float, float, float]]:
     """(det(d, p), d_x, d_y) of each ORCA line, as :func:`speed_bounds` computes det(d, p)."""
     return [(dx * py - dy * px, dx, dy) for (px, py), (dx, dy) in
@@ -336,6 +367,35 @@ def _argmax(values: list[float]) -> int:
 
 
 @numba.njit(cache=True)
+def _heading_bound(h: float, points: np.ndarray, directions: np.ndarray) -> float:
+    """:func:`_bound` on the heading ``h`` (rad), compiled (``math.cos``/``sin`` must be
+    compiled_trig's)."""
+    ch, sh = math.cos(h), math.sin(h)
+    bound = math.inf
+    for j in range(points.shape[0]):
+        px, py = points[j, 0], points[j, 1]
+        dx, dy = directions[j, 0], directions[j, 1]
+        c = dx * py - dy * px
+        along = dx * sh - dy * ch
+        if along < 0.0:
+            b = (c - _LINE_SLACK) / along if c <= 0.0 else 0.0
+            if b < bound:
+                bound = b
+    return bound
+
+
+@numba.njit(cache=True)
+def _arc_bounds(heading: float, turn: float, points: np.ndarray,
+                directions: np.ndarray) -> np.ndarray:
+    """(9,) :func:`_bound` on each heading of the arc ``heading + turn * i / 8`` (i = 0..8),
+    compiled."""
+    out = np.empty(9)
+    for i in range(9):
+        out[i] = _heading_bound(heading + turn * (i / 8.0), points, directions)
+    return out
+
+
+@numba.njit(cache=True)
 def _reach_on_lines(heading: float, turn: float, floor: float, points: np.ndarray,
                     directions: np.ndarray) -> tuple[int, float]:
     """(k, safe speed) of :func:`_command_on_lines`: the last heading of the arc ``heading +
@@ -346,18 +406,7 @@ def _reach_on_lines(heading: float, turn: float, floor: float, points: np.ndarra
     last = 0.0
     k = -1
     for i in range(9):
-        h = heading + turn * (i / 8.0)     # _FRACTIONS[i], exactly i / 8
-        ch, sh = math.cos(h), math.sin(h)
-        bound = math.inf
-        for j in range(points.shape[0]):
-            px, py = points[j, 0], points[j, 1]
-            dx, dy = directions[j, 0], directions[j, 1]
-            c = dx * py - dy * px
-            along = dx * sh - dy * ch
-            if along < 0.0:
-                b = (c - _LINE_SLACK) / along if c <= 0.0 else 0.0
-                if b < bound:
-                    bound = b
+        bound = _heading_bound(heading + turn * (i / 8.0), points, directions)
         if not reach < bound:
             reach = bound
         if reach + 1e-9 < floor:
@@ -389,9 +438,14 @@ def _command_with_caps(wanted: float, target: float, heading: float, max_turn: f
                        envelope: BrakingEnvelope | None, gap: float) -> tuple[float, float]:
     """:func:`_command_on_arrays` with the ORCA lines' bounds and the decisions in floats; the
     envelope's caps from its arrays (``gap``: the anchor's clearance to its edges, m)."""
-    arc = _arc(heading, target, max_turn)
-    lines = _lines(points, directions)
-    bounds = [_bound(lines, math.cos(h), math.sin(h)) for h in arc]
+    turn = math.remainder(target - heading, 2.0 * math.pi)
+    clipped = min(max(turn, -max_turn), max_turn)            # as _arc
+    arc = [heading + clipped * f for f in _FRACTIONS]
+    if compiled_trig():
+        bounds = _arc_bounds(heading, clipped, points, directions).tolist()
+    else:
+        lines = _lines(points, directions)
+        bounds = [_bound(lines, math.cos(h), math.sin(h)) for h in arc]
     if envelope is not None:
         caps = envelope._caps(np.array(arc), gap).tolist()
         bounds = [b if b < c else c for b, c in zip(bounds, caps, strict=True)]
@@ -408,7 +462,7 @@ def _command_with_caps(wanted: float, target: float, heading: float, max_turn: f
                                        for b, ok in zip(bounds, stoppable, strict=True)])])
     k = max(i for i, r in enumerate(reach) if r + 1e-9 >= floor)
     command = target if k == len(arc) - 1 else float(arc[k])
-    if abs(math.remainder(target - heading, 2.0 * math.pi)) > math.pi - _OPPOSITE:
+    if abs(turn) > math.pi - _OPPOSITE:
         command = float(arc[k])      # see _command_on_arrays
     return float(min(wanted, reach[k])), command
 

@@ -256,6 +256,86 @@ def test_an_opposite_target_is_commanded_as_the_checked_arc():
 
 
 # --- the float path against the array code (issue 20) -------------------------------------
+def _free_travel_arrays(starts, ends, position, headings, radius):
+    """free_travel before issue 20's tenth round, on NumPy's arrays (the oracle)."""
+    headings = np.asarray(headings, dtype=np.float64)
+    if len(starts) == 0:
+        return np.full(len(headings), np.inf)
+    u = np.stack([np.cos(headings), np.sin(headings)], axis=1)
+    p = np.asarray(position, dtype=np.float64)
+    r2 = radius * radius
+    best = np.full(len(headings), np.inf)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        for vertex in (starts, ends):
+            w = p - vertex
+            wu = u @ w.T
+            ww = (w * w).sum(axis=1)
+            disc = wu * wu - (ww - r2)
+            t = np.where(ww > r2, -wu - np.sqrt(disc), 0.0)
+            t = np.where((wu < 0.0) & (disc >= 0.0), t, np.inf)
+            best = np.minimum(best, t.min(axis=1))
+        e = ends - starts
+        length = np.hypot(e[:, 0], e[:, 1])
+        n = np.stack([-e[:, 1], e[:, 0]], axis=1) / length[:, None]
+        side = ((p - starts) * n).sum(axis=1)
+        rate = u @ n.T
+        approach = side[None, :] * rate < -1e-12
+        t = np.maximum(np.abs(side)[None, :] - radius, 0.0) / np.abs(rate)
+        along = ((p - starts) * e).sum(axis=1)[None, :] + t * (u @ e.T)
+        inside = (along >= 0.0) & (along <= length * length)
+        t = np.where(approach & inside, t, np.inf)
+        best = np.minimum(best, t.min(axis=1))
+    return best
+
+
+def _caps_arrays(envelope, headings):
+    """BrakingEnvelope(headings) on NumPy's arrays (the oracle): braking_speed of
+    _free_travel_arrays at the radius the anchor's clearance allows."""
+    if len(envelope.starts):
+        gap = _clearance_arrays(envelope.starts, envelope.ends, envelope.position)
+    else:
+        gap = math.inf
+    radius = max(min(envelope.radius, gap - 1e-3), 0.0)
+    travel = _free_travel_arrays(envelope.starts, envelope.ends, envelope.position, headings,
+                                 radius)
+    return braking_speed(travel, envelope.max_accel, envelope.dt)
+
+
+def _bytes(values):
+    return np.asarray(values, dtype=np.float64).tobytes()
+
+
+def test_compiled_free_travel_and_caps_are_the_array_code_bit_for_bit():
+    """Random edges around the anchor (some touching it, some of zero length, some behind),
+    on random headings and ones straight at end points and along edges: the compiled free
+    travel and the envelope's caps are the array code's floats, signs of zeros included."""
+    rng = np.random.default_rng(32)
+    for case in range(3000):
+        m = int(rng.integers(0, 9))
+        position = rng.uniform(-60.0, 60.0, 2)
+        starts = position + rng.uniform(-5.0, 5.0, (m, 2))
+        ends = starts + rng.uniform(-7.0, 7.0, (m, 2))
+        if m and case % 7 == 0:
+            ends[0] = starts[0]                                  # a zero-length edge
+        if m and case % 5 == 0:                                   # an edge through the disc
+            starts[-1] = position + [-3.0, 0.3 * rng.random()]
+            ends[-1] = position + [3.0, 0.3 * rng.random()]
+        k = int(rng.integers(1, 12))
+        headings = rng.uniform(-4.0, 4.0, k)
+        if m:
+            toward = np.concatenate([starts - position, ends - starts])
+            headings = np.concatenate([headings, np.arctan2(toward[:, 1], toward[:, 0])])
+        radius = float(rng.choice([0.0, 0.3, 0.7, rng.uniform(0.0, 3.0)]))
+        got = free_travel(starts, ends, position, headings, radius)
+        assert _bytes(got) == _bytes(_free_travel_arrays(starts, ends, position, headings,
+                                                         radius)), case
+        if m and case % 7 == 0:
+            continue                 # the envelope's clearance rejects a zero-length edge
+        envelope = BrakingEnvelope(starts, ends, position, 0.7, float(rng.choice([1.0, 2.5])),
+                                   0.5)
+        assert _bytes(envelope(headings)) == _bytes(_caps_arrays(envelope, headings)), case
+
+
 def _reference_command(v_star, heading, speed, max_turn, max_dv, points, directions,
                        fallback_heading, envelope=None):
     """unicycle_command as it was before its float path (commit 3fdd7e9), on the arrays."""
@@ -266,7 +346,7 @@ def _reference_command(v_star, heading, speed, max_turn, max_dv, points, directi
     bounds = speed_bounds(points, directions, arc)
     floor = max(speed - max_dv, 0.0)
     if envelope is not None:
-        caps = envelope(arc)
+        caps = _caps_arrays(envelope, arc)
         bounds = np.minimum(bounds, caps)
     reach = np.minimum.accumulate(bounds)
     if reach[0] + 1e-9 < floor:
