@@ -47,7 +47,13 @@ from aoass_env.safety.lookahead import (
     look_ahead_horizon,
     position_std,
 )
-from aoass_env.safety.orca import OrcaLines, StaticObstacles, orca_lines, solve_velocity
+from aoass_env.safety.orca import (
+    OrcaLines,
+    StaticObstacles,
+    active_constraints,
+    orca_lines,
+    solve_velocity,
+)
 from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
 from aoass_env.validators import real
 from aoass_env.world import wrap_angle
@@ -405,25 +411,22 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                 # the rollouts chose among the moving obstacles: the static lines stay hard
                 lines = OrcaLines(lines.point[:lines.n_static],
                                   lines.direction[:lines.n_static], lines.n_static,
-                                  lines.rows[:lines.n_static])
+                                  lines.table[:lines.n_static])
                 v_star = solve_velocity(lines, escape.velocity, c.anchor_max_speed)
         speed_cmd, heading_cmd = unicycle_command(
             v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
             lines.direction, heading_pref, self._braking_envelope(anchor.position))
         executed = base.action_type.action(speed_cmd, heading_cmd, nominal, knobs)
 
-        # constraints active at v*: on the line (within 1e-6 m/s) or violated; the slack
-        # det(d, p - v*) in Python floats (orca_lines' rows: the arrays' floats), the same
-        # operations as on the arrays
+        # constraints active at v*: on the line (within 1e-6 m/s) or violated
         sx, sy = v_star.tolist()
-        active = [dx * (py - sy) - dy * (px - sx) > -1e-6 for px, py, dx, dy in lines.rows]
+        active, active_static = active_constraints(lines, v_star, 1e-6)
         report = {"intervention": float(np.hypot(sx - v_des[0], sy - v_des[1])),
                   "orca_correction": float(np.hypot(sx - pref[0], sy - pref[1])),
                   "flc_turn": float(turn), "flc_speed": float(slow),
                   "speed_cmd": speed_cmd, "heading_cmd": heading_cmd,
-                  "constraints": len(active), "static": lines.n_static,
-                  "active": sum(active),
-                  "active_static": sum(active[:lines.n_static]),
+                  "constraints": len(lines), "static": lines.n_static,
+                  "active": active, "active_static": active_static,
                   "escaping": bool(escape is not None and escape.escaping),
                   "look_ahead_shortfall": 0.0 if escape is None else escape.shortfall,
                   "yielding": self.escape_budget.yielding}

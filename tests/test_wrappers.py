@@ -376,7 +376,7 @@ def _old_filter(self, action):
         escape = self._look_ahead(v_star, v_pref)
         if escape.escaping:
             lines = OrcaLines(lines.point[:lines.n_static], lines.direction[:lines.n_static],
-                              lines.n_static, lines.rows[:lines.n_static])
+                              lines.n_static)
             v_star = solve_velocity(lines, escape.velocity, c.anchor_max_speed)
     speed_cmd, heading_cmd = unicycle_command(
         v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,

@@ -79,7 +79,8 @@ from numpy.typing import ArrayLike
 
 from aoass_env.validators import positive, real, vec2
 
-__all__ = ["OrcaLines", "StaticObstacles", "orca_lines", "orca_velocity", "solve_velocity"]
+__all__ = ["OrcaLines", "StaticObstacles", "active_constraints", "orca_lines", "orca_velocity",
+           "solve_velocity"]
 
 #: RVO2's RVO_EPSILON: slack of the "already covered" test (m/s) and the parallel-line
 #: tolerance of the 3-D LP's projection (a |det| of unit vectors).
@@ -389,11 +390,10 @@ class OrcaLines:
     point: np.ndarray
     direction: np.ndarray
     n_static: int
-    #: the lines as (px, py, dx, dy) tuples of the floats in ``point`` and ``direction``, kept
-    #: by :func:`orca_lines` (whose arrays are read-only) so that :func:`solve_velocity` need
-    #: not check and convert them again; None: built elsewhere, checked by the solver
-    rows: tuple[tuple[float, float, float, float], ...] | None = field(
-        default=None, repr=False, compare=False)
+    #: the (n, 4) rows [px, py, dx, dy] whose views ``point`` and ``direction`` are, kept (read
+    #: only) by :func:`orca_lines` so that :func:`solve_velocity` need not check and copy them
+    #: again; None: built elsewhere, checked by the solver
+    table: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __len__(self) -> int:
         return len(self.point)
@@ -405,9 +405,9 @@ _NO_STATIC = StaticObstacles.empty()
 
 def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obstacles: Any,
            moving_obstacles: Any, time_horizon: Any, time_horizon_obst: Any, time_step: Any,
-           responsibility: Any) -> tuple[list[_Line], int, float, np.ndarray]:
-    """Checked inputs -> (lines as (px, py, dx, dy) tuples, n_static, max_speed, the lines'
-    (n, 4) array)."""
+           responsibility: Any) -> tuple[np.ndarray, int, float]:
+    """Checked inputs -> (the lines' read-only (n, 4) rows [px, py, dx, dy], n_static,
+    max_speed)."""
     px, py = _vec2("position", position, "m")
     vx, vy = _vec2("velocity", velocity, "m/s")
     radius = _positive("radius", radius, "m")
@@ -421,7 +421,8 @@ def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obs
     array, n_static = _compiled_lines(cache.edges, cache.links, cache.bbox, px, py, vx, vy,
                                       radius, max_speed, tau_obst, _moving(moving_obstacles),
                                       tau, step, share)
-    return list(map(tuple, array.tolist())), n_static, max_speed, array
+    array.flags.writeable = False           # the views and the solver's rows stay these floats
+    return array, n_static, max_speed
 
 
 def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_speed: float, *,
@@ -446,39 +447,41 @@ def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_spee
         responsibility: the anchor's share of the avoidance of moving obstacles, in (0, 1]
             (RVO2's agent-agent case: 0.5).
     """
-    lines, n_static, _, array = _build(position, velocity, radius, max_speed, static_obstacles,
-                                       moving_obstacles, time_horizon, time_horizon_obst,
-                                       time_step, responsibility)
-    if lines:
-        array.flags.writeable = False           # rows below stay the arrays' floats
-        point, direction = array[:, :2], array[:, 2:]
-    else:
-        point, direction = np.zeros((0, 2)), np.zeros((0, 2))
-    return OrcaLines(point, direction, n_static, tuple(lines))
+    array, n_static, _ = _build(position, velocity, radius, max_speed, static_obstacles,
+                                moving_obstacles, time_horizon, time_horizon_obst, time_step,
+                                responsibility)
+    return OrcaLines(array[:, :2], array[:, 2:], n_static, array)
 
 
 # --------------------------------------------------------------------------------------------
 # linear programs (Eq. 10)
 # --------------------------------------------------------------------------------------------
 
-def _lp1(lines: list[_Line], k: int, speed: float, ox: float, oy: float,
-         along_direction: bool) -> tuple[float, float] | None:
-    """Best point on line k inside the speed disc and lines 0..k-1 (None if there is none):
-    the extreme along (ox, oy) when ``along_direction``, else the nearest to (ox, oy)."""
-    px, py, dx, dy = lines[k]
+# RVO2's linear programs, compiled on the lines' (n, 4) rows [px, py, dx, dy]. Until issue 20's
+# tenth round they ran on Python floats; that code is the tests' oracle
+# (tests/safety/orca_floats.py, ``reference_solve``), whose floats these give bit for bit (the
+# norms from the correctly rounded ``_hypot``, as Python's ``math.hypot`` since 3.11).
+
+@numba.njit(cache=True)
+def _lp1(lines: np.ndarray, k: int, speed: float, ox: float, oy: float,
+         along_direction: bool) -> tuple[bool, float, float]:
+    """(found, x, y): the best point on line k inside the speed disc and lines 0..k-1 (found
+    False if there is none): the extreme along (ox, oy) when ``along_direction``, else the
+    nearest to (ox, oy)."""
+    px, py, dx, dy = lines[k, 0], lines[k, 1], lines[k, 2], lines[k, 3]
     mid = px * dx + py * dy
     disc = mid * mid + speed * speed - (px * px + py * py)
     if disc < 0.0:
-        return None  # the speed disc misses the line
+        return False, 0.0, 0.0  # the speed disc misses the line
     half = math.sqrt(disc)
     lo, hi = -mid - half, -mid + half
     for i in range(k):
-        qx, qy, ex, ey = lines[i]
+        qx, qy, ex, ey = lines[i, 0], lines[i, 1], lines[i, 2], lines[i, 3]
         cross = dx * ey - dy * ex           # det(d_k, d_i)
         gap = ex * (py - qy) - ey * (px - qx)  # det(d_i, p_k - p_i)
         if -_PARALLEL <= cross <= _PARALLEL:
             if gap < -_SLACK:
-                return None  # parallel, and line k lies entirely in line i's forbidden side
+                return False, 0.0, 0.0  # parallel, and line k lies in line i's forbidden side
             continue
         cut = gap / cross
         if cross > 0.0:
@@ -492,53 +495,57 @@ def _lp1(lines: list[_Line], k: int, speed: float, ox: float, oy: float,
         t = 0.5 * (lo + hi)
         x, y = px + t * dx, py + t * dy
         for i in range(k):
-            qx, qy, ex, ey = lines[i]
+            qx, qy, ex, ey = lines[i, 0], lines[i, 1], lines[i, 2], lines[i, 3]
             if ex * (qy - y) - ey * (qx - x) > _SLACK:
-                return None
-        return x, y
+                return False, 0.0, 0.0
+        return True, x, y
     if along_direction:
         t = hi if ox * dx + oy * dy > 0.0 else lo
     else:
         t = dx * (ox - px) + dy * (oy - py)
         t = lo if t < lo else hi if t > hi else t
-    return px + t * dx, py + t * dy
+    return True, px + t * dx, py + t * dy
 
 
-def _lp2(lines: list[_Line], speed: float, ox: float, oy: float,
+@numba.njit(cache=True)
+def _lp2(lines: np.ndarray, count: int, speed: float, ox: float, oy: float,
          along_direction: bool) -> tuple[int, float, float]:
-    """RVO2's linearProgram2: (index of the first line that cannot be met, or len(lines); x, y).
-    On failure (x, y) is the optimum of the lines before that index."""
+    """RVO2's linearProgram2 on the first ``count`` lines: (index of the first line that
+    cannot be met, or ``count``; x, y). On failure (x, y) is the optimum of the lines before
+    that index."""
     if along_direction:
         rx, ry = ox * speed, oy * speed
     elif ox * ox + oy * oy > speed * speed:
-        scale = speed / math.hypot(ox, oy)
+        scale = speed / _hypot(ox, oy)
         rx, ry = ox * scale, oy * scale
     else:
         rx, ry = ox, oy
-    for k in range(len(lines)):
-        px, py, dx, dy = lines[k]
+    for k in range(count):
+        px, py, dx, dy = lines[k, 0], lines[k, 1], lines[k, 2], lines[k, 3]
         if dx * (py - ry) - dy * (px - rx) > 0.0:
-            better = _lp1(lines, k, speed, ox, oy, along_direction)
-            if better is None:
+            found, x, y = _lp1(lines, k, speed, ox, oy, along_direction)
+            if not found:
                 return k, rx, ry
-            rx, ry = better
-    return len(lines), rx, ry
+            rx, ry = x, y
+    return count, rx, ry
 
 
-def _lp3(lines: list[_Line], n_static: int, begin: int, speed: float, rx: float,
+@numba.njit(cache=True)
+def _lp3(lines: np.ndarray, n_static: int, begin: int, speed: float, rx: float,
          ry: float) -> tuple[float, float]:
     """RVO2's linearProgram3: keep lines[:n_static] hard and minimise the largest violation of
     the others, starting from line ``begin`` with the partial result (rx, ry)."""
     depth = 0.0
-    hard = lines[:n_static]
-    for i in range(begin, len(lines)):
-        px, py, dx, dy = lines[i]
+    projected = np.empty(lines.shape)
+    projected[:n_static] = lines[:n_static]
+    for i in range(begin, lines.shape[0]):
+        px, py, dx, dy = lines[i, 0], lines[i, 1], lines[i, 2], lines[i, 3]
         if dx * (py - ry) - dy * (px - rx) <= depth:
             continue
         # lines of equal violation of line i and each earlier relaxed line j
-        projected = list(hard)
+        count = n_static
         for j in range(n_static, i):
-            qx, qy, ex, ey = lines[j]
+            qx, qy, ex, ey = lines[j, 0], lines[j, 1], lines[j, 2], lines[j, 3]
             cross = dx * ey - dy * ex
             if -_EPS <= cross <= _EPS:
                 if dx * ex + dy * ey > 0.0:
@@ -548,22 +555,42 @@ def _lp3(lines: list[_Line], n_static: int, begin: int, speed: float, rx: float,
                 along = (ex * (py - qy) - ey * (px - qx)) / cross
                 mx, my = px + along * dx, py + along * dy
             nx, ny = ex - dx, ey - dy
-            norm = math.hypot(nx, ny)
-            projected.append((mx, my, nx / norm, ny / norm))
-        fail, sx, sy = _lp2(projected, speed, -dy, dx, True)
-        if fail == len(projected):
+            norm = _hypot(nx, ny)
+            projected[count, 0] = mx
+            projected[count, 1] = my
+            projected[count, 2] = nx / norm
+            projected[count, 3] = ny / norm
+            count += 1
+        fail, sx, sy = _lp2(projected, count, speed, -dy, dx, True)
+        if fail == count:
             rx, ry = sx, sy
         # else: round-off; keep the current result (as RVO2)
         depth = dx * (py - ry) - dy * (px - rx)
     return rx, ry
 
 
-def _solve(lines: list[_Line], n_static: int, px: float, py: float,
+@numba.njit(cache=True)
+def _solve(lines: np.ndarray, n_static: int, px: float, py: float,
            max_speed: float) -> tuple[float, float]:
-    fail, x, y = _lp2(lines, max_speed, px, py, False)
-    if fail < len(lines):
+    """Eq. 10 on the (n, 4) rows ``lines``: linearProgram2, then 3 when it fails."""
+    fail, x, y = _lp2(lines, lines.shape[0], max_speed, px, py, False)
+    if fail < lines.shape[0]:
         x, y = _lp3(lines, n_static, fail, max_speed, x, y)
     return x, y
+
+
+@numba.njit(cache=True)
+def _active(lines: np.ndarray, n_static: int, vx: float, vy: float,
+            slack: float) -> tuple[int, int]:
+    """(lines, static lines) that ``(vx, vy)`` lies on (within ``slack``, m/s) or violates:
+    ``det(d, p - v) > -slack``."""
+    active = active_static = 0
+    for i in range(lines.shape[0]):
+        if lines[i, 2] * (lines[i, 1] - vy) - lines[i, 3] * (lines[i, 0] - vx) > -slack:
+            active += 1
+            if i < n_static:
+                active_static += 1
+    return active, active_static
 
 
 def solve_velocity(lines: OrcaLines, preferred_velocity: ArrayLike,
@@ -578,14 +605,33 @@ def solve_velocity(lines: OrcaLines, preferred_velocity: ArrayLike,
     Returns:
         (2,) float64 velocity (m/s).
     """
+    table = _table(lines)
+    ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
+    max_speed = _positive("max_speed", max_speed, "m/s")
+    x, y = _solve(table, lines.n_static, ox, oy, max_speed)
+    return np.array([x, y])
+
+
+def active_constraints(lines: OrcaLines, velocity: ArrayLike,
+                       slack: float = 1e-6) -> tuple[int, int]:
+    """(all, static): how many of ``lines`` the velocity (2,) (m/s) lies on, within ``slack``
+    (m/s), or violates (``det(direction, point - v) > -slack``), and how many of those are
+    static lines."""
+    table = _table(lines)
+    vx, vy = _vec2("velocity", velocity, "m/s")
+    if not (isinstance(slack, float) and 0.0 <= slack < math.inf):
+        slack = real("slack", slack, "m/s", low=0.0)
+    return _active(table, lines.n_static, vx, vy, slack)
+
+
+def _table(lines: OrcaLines) -> np.ndarray:
+    """The checked (n, 4) rows [px, py, dx, dy] of ``lines`` (read only): orca_lines' own, or
+    built from ``point`` and ``direction`` after checking them and ``n_static``."""
     if not isinstance(lines, OrcaLines):
         raise ValueError(f"lines must be an OrcaLines (from orca_lines), got "
                          f"{type(lines).__name__}")
-    ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
-    max_speed = _positive("max_speed", max_speed, "m/s")
-    if lines.rows is not None:      # orca_lines' own (checked, read-only): its tuples
-        x, y = _solve(lines.rows, lines.n_static, ox, oy, max_speed)
-        return np.array([x, y])
+    if lines.table is not None:     # orca_lines' own (checked, read-only)
+        return lines.table
     point = np.asarray(lines.point, dtype=np.float64)
     direction = np.asarray(lines.direction, dtype=np.float64)
     n = len(point)
@@ -598,12 +644,9 @@ def solve_velocity(lines: OrcaLines, preferred_velocity: ArrayLike,
     if isinstance(n_static, bool) or not isinstance(n_static, (int, np.integer)) \
             or not 0 <= n_static <= n:
         raise ValueError(f"lines.n_static must be an integer in [0, {n}], got {n_static!r}")
-    if n:
-        rows = np.concatenate([point, direction], axis=1).tolist()
-        x, y = _solve([tuple(row) for row in rows], int(n_static), ox, oy, max_speed)
-    else:
-        x, y = _solve([], 0, ox, oy, max_speed)
-    return np.array([x, y])
+    table = np.concatenate([point, direction], axis=1)
+    table.flags.writeable = False
+    return table
 
 
 def orca_velocity(position: ArrayLike, velocity: ArrayLike, preferred_velocity: ArrayLike,
@@ -615,9 +658,9 @@ def orca_velocity(position: ArrayLike, velocity: ArrayLike, preferred_velocity: 
     """= solve_velocity(orca_lines(...), preferred_velocity, max_speed). Returns (2,) float64
     m/s. Arguments as in :func:`orca_lines`; ``preferred_velocity`` (2,) in m/s."""
     ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
-    lines, n_static, max_speed, _ = _build(position, velocity, radius, max_speed,
-                                           static_obstacles, moving_obstacles, time_horizon,
-                                           time_horizon_obst, time_step, responsibility)
+    lines, n_static, max_speed = _build(position, velocity, radius, max_speed,
+                                        static_obstacles, moving_obstacles, time_horizon,
+                                        time_horizon_obst, time_step, responsibility)
     x, y = _solve(lines, n_static, ox, oy, max_speed)
     return np.array([x, y])
 

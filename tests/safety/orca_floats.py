@@ -1,7 +1,8 @@
 """ORCA's lines in Python floats, as aoass_env/safety/orca.py built them before issue 20's ninth
-round compiled them: the oracle of tests/safety/test_orca.py, whose compiled lines must give
-these floats bit for bit (Python's ``math.hypot`` is correctly rounded since Python 3.11, as the
-compiled ``_hypot`` is).
+round compiled them, and its linear programs (Eq. 10) as they ran before the tenth round
+compiled them: the oracle of tests/safety/test_orca.py, whose compiled lines and solver must
+give these floats bit for bit (Python's ``math.hypot`` is correctly rounded since Python 3.11,
+as the compiled ``_hypot`` is).
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import math
 
 import numpy as np
 
-from aoass_env.safety.orca import _EPS, StaticObstacles
+from aoass_env.safety.orca import _EPS, _PARALLEL, _SLACK, StaticObstacles
 
 _Line = tuple[float, float, float, float]
 
@@ -359,3 +360,110 @@ def _moving_lines(rows: list[list[float]], px: float, py: float, vx: float, vy: 
             grow = rad * inv_step - w_len
             ux, uy = grow * ux, grow * uy
         lines.append((vx + share * ux, vy + share * uy, dx, dy))
+
+
+# --- the linear programs (Eq. 10) ---------------------------------------------------------
+def _lp1(lines: list[_Line], k: int, speed: float, ox: float, oy: float,
+         along_direction: bool) -> tuple[float, float] | None:
+    """Best point on line k inside the speed disc and lines 0..k-1 (None if there is none):
+    the extreme along (ox, oy) when ``along_direction``, else the nearest to (ox, oy)."""
+    px, py, dx, dy = lines[k]
+    mid = px * dx + py * dy
+    disc = mid * mid + speed * speed - (px * px + py * py)
+    if disc < 0.0:
+        return None  # the speed disc misses the line
+    half = math.sqrt(disc)
+    lo, hi = -mid - half, -mid + half
+    for i in range(k):
+        qx, qy, ex, ey = lines[i]
+        cross = dx * ey - dy * ex           # det(d_k, d_i)
+        gap = ex * (py - qy) - ey * (px - qx)  # det(d_i, p_k - p_i)
+        if -_PARALLEL <= cross <= _PARALLEL:
+            if gap < -_SLACK:
+                return None  # parallel, and line k lies entirely in line i's forbidden side
+            continue
+        cut = gap / cross
+        if cross > 0.0:
+            if cut < hi:
+                hi = cut
+        elif cut > lo:
+            lo = cut
+    if lo > hi:
+        # empty interval; accept its middle when that is only round-off (a feasible set that
+        # shrank to a point, e.g. lines through the origin), else there is no solution
+        t = 0.5 * (lo + hi)
+        x, y = px + t * dx, py + t * dy
+        for i in range(k):
+            qx, qy, ex, ey = lines[i]
+            if ex * (qy - y) - ey * (qx - x) > _SLACK:
+                return None
+        return x, y
+    if along_direction:
+        t = hi if ox * dx + oy * dy > 0.0 else lo
+    else:
+        t = dx * (ox - px) + dy * (oy - py)
+        t = lo if t < lo else hi if t > hi else t
+    return px + t * dx, py + t * dy
+
+
+def _lp2(lines: list[_Line], speed: float, ox: float, oy: float,
+         along_direction: bool) -> tuple[int, float, float]:
+    """RVO2's linearProgram2: (index of the first line that cannot be met, or len(lines); x, y).
+    On failure (x, y) is the optimum of the lines before that index."""
+    if along_direction:
+        rx, ry = ox * speed, oy * speed
+    elif ox * ox + oy * oy > speed * speed:
+        scale = speed / math.hypot(ox, oy)
+        rx, ry = ox * scale, oy * scale
+    else:
+        rx, ry = ox, oy
+    for k in range(len(lines)):
+        px, py, dx, dy = lines[k]
+        if dx * (py - ry) - dy * (px - rx) > 0.0:
+            better = _lp1(lines, k, speed, ox, oy, along_direction)
+            if better is None:
+                return k, rx, ry
+            rx, ry = better
+    return len(lines), rx, ry
+
+
+def _lp3(lines: list[_Line], n_static: int, begin: int, speed: float, rx: float,
+         ry: float) -> tuple[float, float]:
+    """RVO2's linearProgram3: keep lines[:n_static] hard and minimise the largest violation of
+    the others, starting from line ``begin`` with the partial result (rx, ry)."""
+    depth = 0.0
+    hard = lines[:n_static]
+    for i in range(begin, len(lines)):
+        px, py, dx, dy = lines[i]
+        if dx * (py - ry) - dy * (px - rx) <= depth:
+            continue
+        # lines of equal violation of line i and each earlier relaxed line j
+        projected = list(hard)
+        for j in range(n_static, i):
+            qx, qy, ex, ey = lines[j]
+            cross = dx * ey - dy * ex
+            if -_EPS <= cross <= _EPS:
+                if dx * ex + dy * ey > 0.0:
+                    continue  # same direction: line j adds nothing
+                mx, my = 0.5 * (px + qx), 0.5 * (py + qy)
+            else:
+                along = (ex * (py - qy) - ey * (px - qx)) / cross
+                mx, my = px + along * dx, py + along * dy
+            nx, ny = ex - dx, ey - dy
+            norm = math.hypot(nx, ny)
+            projected.append((mx, my, nx / norm, ny / norm))
+        fail, sx, sy = _lp2(projected, speed, -dy, dx, True)
+        if fail == len(projected):
+            rx, ry = sx, sy
+        # else: round-off; keep the current result (as RVO2)
+        depth = dx * (py - ry) - dy * (px - rx)
+    return rx, ry
+
+
+def reference_solve(lines: list[_Line], n_static: int, px: float, py: float,
+                    max_speed: float) -> tuple[float, float]:
+    """Eq. 10 in Python floats: linearProgram2, then 3 when it fails."""
+    fail, x, y = _lp2(lines, max_speed, px, py, False)
+    if fail < len(lines):
+        x, y = _lp3(lines, n_static, fail, max_speed, x, y)
+    return x, y

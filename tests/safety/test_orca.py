@@ -22,11 +22,13 @@ from aoass_env.safety.orca import (
     OrcaLines,
     StaticObstacles,
     _hypot,
+    active_constraints,
     orca_lines,
     orca_velocity,
     solve_velocity,
 )
-from tests.safety.orca_floats import ReferenceEdges, reference_lines
+from tests.safety.orca_floats import ReferenceEdges, reference_lines, reference_solve
+from tests.safety.orca_floats import _lp2 as reference_lp2
 
 # a long wall 2 m above the origin (a CCW box: solid)
 WALL = [(-10.0, 2.0), (10.0, 2.0), (10.0, 3.0), (-10.0, 3.0)]
@@ -477,11 +479,11 @@ def test_orca_lines_own_rows_solve_as_the_checked_arrays(scene):
     loops, _, discs, state, pref = scene
     lines = orca_lines(static_obstacles=loops, moving_obstacles=discs, **state)
     plain = OrcaLines(lines.point.copy(), lines.direction.copy(), lines.n_static)
-    assert plain.rows is None and (len(lines) == 0 or lines.rows is not None)
+    assert plain.table is None and lines.table is not None
     np.testing.assert_array_equal(solve_velocity(lines, pref, state["max_speed"]),
                                   solve_velocity(plain, pref, state["max_speed"]))
-    if len(lines):
-        assert not lines.point.flags.writeable and not lines.direction.flags.writeable
+    assert not lines.point.flags.writeable and not lines.direction.flags.writeable
+    assert active_constraints(lines, pref) == active_constraints(plain, pref)
 
 
 @settings(max_examples=300, deadline=None)
@@ -589,14 +591,15 @@ def test_the_compiled_hypot_is_pythons():
 def test_the_compiled_lines_are_the_float_codes():
     """Along random walks on a generated map (near and inside obstacles, with discs near,
     overlapping and concentric), and on the hypothesis-style scenes' shapes, the compiled lines
-    equal the float code's, bit for bit and in order, with the same n_static; every kind of
-    line is met."""
+    equal the float code's, bit for bit and in order, with the same n_static, and so does the
+    compiled solver's velocity (linearProgram3 included); every kind of line is met."""
     from aoass_env.maps import generate_map
     static = StaticObstacles.from_loops(generate_map(40.0, 0.5, np.random.default_rng(8))
                                         .free_space_loops)
     rng = np.random.default_rng(9)
     p = np.array([20.0, 20.0])
-    kinds = {"through origin": 0, "static": 0, "moving": 0, "overlap": 0}
+    from aoass_env.safety import orca
+    kinds = {"through origin": 0, "static": 0, "moving": 0, "overlap": 0, "infeasible": 0}
     for step in range(2500):
         p = rng.uniform(0.0, 40.0, 2) if step % 100 == 0 else p + rng.uniform(-0.6, 0.6, 2)
         k = int(rng.integers(0, 4))
@@ -613,9 +616,13 @@ def test_the_compiled_lines_are_the_float_codes():
                       time_horizon=float(rng.uniform(0.5, 4.0)),
                       time_horizon_obst=float(rng.choice([0.5, 2.0, 4.0])), time_step=0.5,
                       responsibility=float(rng.choice([0.5, 1.0])))
-        (lines, n_static, _, array), (want, want_static) = _both_paths(**kwargs)
-        assert n_static == want_static and _bits(lines) == _bits(want), step
-        assert _bits(array.tolist()) == _bits(want)
+        (array, n_static, max_speed), (want, want_static) = _both_paths(**kwargs)
+        assert n_static == want_static and _bits(array.tolist()) == _bits(want), step
+        # the compiled linear programs: the float code's velocity, bit for bit
+        ox, oy = rng.normal(0.0, 1.5, 2).tolist()
+        assert _bits([orca._solve(array, n_static, ox, oy, max_speed)]) == \
+            _bits([reference_solve(want, want_static, ox, oy, max_speed)]), step
+        kinds["infeasible"] += reference_lp2(want, max_speed, ox, oy, False)[0] < len(want)
         kinds["through origin"] += sum(x == 0.0 and y == 0.0 for x, y, _, _ in want[:n_static])
         kinds["static"] += n_static
         kinds["moving"] += len(want) - n_static
@@ -629,8 +636,8 @@ def test_the_compiled_lines_are_the_float_codes():
                           static_obstacles=static_obstacles, moving_obstacles=moving,
                           time_horizon=2.0, time_horizon_obst=2.0, time_step=0.5,
                           responsibility=1.0)
-            (lines, n_static, _, _), (want, want_static) = _both_paths(**kwargs)
-            assert n_static == want_static and _bits(lines) == _bits(want)
+            (array, n_static, _), (want, want_static) = _both_paths(**kwargs)
+            assert n_static == want_static and _bits(array.tolist()) == _bits(want)
 
 
 def test_the_stable_order_is_numpys_stable_argsort():
