@@ -81,13 +81,21 @@ def _memberships(x: float, inner: np.ndarray, rows: np.ndarray, lo: float,
 @numba.njit(cache=True)
 def _aggregate(d: float, h: float, d_inner: np.ndarray, d_rows: np.ndarray, d_lo: float,
                d_hi: float, h_inner: np.ndarray, h_rows: np.ndarray, h_lo: float, h_hi: float,
-               table: np.ndarray, grid: np.ndarray, nt: int) -> tuple[np.ndarray, np.ndarray]:
+               table: np.ndarray, grid: np.ndarray, nt: int,
+               support: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The aggregated turn and speed sets (each (n,), on the output grid) of one d (m) and one
     wrapped dtheta (rad): AND = min, implication = min, aggregation = max.
 
     Only the rules whose two memberships are both positive are evaluated: any other rule has a
     strength min(mu_d, mu_h) <= 0, which never raises an output term's strength (they start at
     0). Every operation is a comparison, so the sets are those of the array code.
+
+    Only the output terms of positive strength are clipped, on their support ``support[r]``
+    (the first and one past the last grid point where the term is positive). The grid holds no
+    negative value and no -0.0 (memberships are clipped to [0, 1]), so elsewhere a term's
+    clipped value is +0.0, which never raises a set that starts at +0.0: the sets are the floats
+    of every term clipped on every point, the first of each output assigned, the others taken
+    where larger.
     """
     mu_d = _memberships(d, d_inner, d_rows, d_lo, d_hi)
     mu_h = _memberships(h, h_inner, h_rows, h_lo, h_hi)
@@ -110,10 +118,12 @@ def _aggregate(d: float, h: float, d_inner: np.ndarray, d_rows: np.ndarray, d_lo
     for r in range(n_out):
         strength = out[r]
         target = turn if r < nt else speed
-        for k in range(n):
+        if not strength > 0.0:
+            continue
+        for k in range(support[r, 0], support[r, 1]):
             g = grid[r, k]
             clipped = strength if strength < g else g
-            if r == 0 or r == nt or clipped > target[k]:
+            if clipped > target[k]:
                 target[k] = clipped
     return turn, speed
 
@@ -377,7 +387,12 @@ class FuzzyController:
                             nt + snames.index(rules[(dt, ht)][1])) for ht in hnames]
                           for dt in dnames], dtype=np.int64)
         grid = np.ascontiguousarray(np.concatenate(grids))                # C order: fast
-        compiled += [table, grid, nt]
+        if np.signbit(grid).any():       # the aggregation's support rests on this
+            raise RuntimeError("a membership grid holds a negative value or -0.0")
+        positive = grid > 0.0            # each term is positive somewhere (checked above)
+        support = np.array([[np.argmax(row), len(row) - np.argmax(row[::-1])]
+                            for row in positive], dtype=np.int64)
+        compiled += [table, grid, nt, support]
         return {"inputs": inputs, "grid": grid[:, None, :], "moments": moments, "nt": nt,
                 "consequent": consequent, "rules": len(dnames) * len(hnames),
                 "compiled": tuple(compiled)}
