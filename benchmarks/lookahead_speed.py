@@ -14,10 +14,13 @@ Run: ``python3 benchmarks/lookahead_speed.py [--ref ab67c18] [--steps 4000] [--r
 from __future__ import annotations
 
 import argparse
+import atexit
 import copy
 import importlib.util
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from types import ModuleType
@@ -42,13 +45,18 @@ EPISODES: tuple[tuple[dict[str, Any], int], ...] = (
 
 
 def reference_module(ref: str, path: str, name: str) -> ModuleType:
-    """The module at ``path`` as of commit ``ref``, imported under ``name``."""
+    """The module at ``path`` as of commit ``ref``, imported under ``name`` from a file in a
+    temporary folder (removed at exit), where numba can cache its compiled functions."""
     source = subprocess.run(["git", "show", f"{ref}:{path}"], cwd=ROOT, check=True,
                             capture_output=True, text=True).stdout
-    spec = importlib.util.spec_from_loader(name, loader=None)
+    folder = Path(tempfile.mkdtemp(prefix="aoass_ref_"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    file = folder / f"{name}.py"
+    file.write_text(source)
+    spec = importlib.util.spec_from_file_location(name, file)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
-    exec(compile(source, f"{ref}:{path}", "exec"), module.__dict__)
+    spec.loader.exec_module(module)
     return module
 
 
