@@ -59,8 +59,8 @@ does not need). A double-precision transcription of RVO2's ``Agent.cpp`` gave th
 on 12,000 random scenes and the same velocities except where its round-off gave up (above).
 
 Speed: the lines are built compiled (numba: the edge query, RVO2's cases and the moving discs,
-:func:`_compiled_lines`, the floats of the Python code it replaced); the linear programs run
-on Python floats.
+:func:`_compiled_lines`), and so are the linear programs (:func:`_solve`), each with the floats
+of the Python code it replaced (kept as the tests' oracle).
 Build :class:`StaticObstacles` once per map and pass it in; a sequence of loops is converted
 on every call. ``python3 benchmarks/orca.py`` prints microseconds per call (``--reference FILE``:
 against another version of this module, in the same run).
