@@ -33,7 +33,7 @@ from gymnasium.envs.registration import EnvSpec
 
 from aoass_env.action import ResidualAction, action_type_named
 from aoass_env.config import AOASSConfig, config_with
-from aoass_env.env import COST_KEYS, AOASSEnv, make_env
+from aoass_env.env import COST_KEYS, AnchorState, AOASSEnv, make_env
 from aoass_env.maps import ObstacleMap, list_maps, load_map, validation_split
 from aoass_env.observation import MOVING_FIELDS, velocity_scale
 from aoass_env.planning import AdaptiveConfig
@@ -342,11 +342,12 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
             tracks[:, 4] += self.config.covariance_sigma * std
         return tracks
 
-    def _look_ahead(self, v_star: np.ndarray, v_pref: np.ndarray) -> Escape:
+    def _look_ahead(self, v_star: np.ndarray, v_pref: np.ndarray, anchor: AnchorState
+                    ) -> Escape:
         """The look-ahead's verdict on ORCA's ``v_star`` (:func:`~aoass_env.safety.lookahead.
-        escape_velocity`): the tracks' prediction and covariance against the anchor's unicycle
-        rolled out among the static edges."""
-        c, cfg, anchor = self._base.config, self.config, self._base.anchor
+        escape_velocity`) for the ``anchor`` as it is this period: the tracks' prediction and
+        covariance against the anchor's unicycle rolled out among the static edges."""
+        c, cfg = self._base.config, self.config
         horizon = cfg.look_ahead_horizon or look_ahead_horizon(
             c.anchor_max_speed, c.anchor_max_accel, c.anchor_max_turn_rate, c.dt)
         tracks = self._tracker.tracked_obstacles
@@ -406,7 +407,7 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
         escape = None
         if cfg.look_ahead and len(lines) > lines.n_static:
-            escape = self._look_ahead(v_star, v_pref)
+            escape = self._look_ahead(v_star, v_pref, anchor)
             if escape.escaping:
                 # the rollouts chose among the moving obstacles: the static lines stay hard
                 lines = OrcaLines(lines.point[:lines.n_static],

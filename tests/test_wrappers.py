@@ -247,9 +247,9 @@ def test_the_look_ahead_takes_the_yielding_tolerance_and_headway_price_while_yie
     env = make_safe_env(safety=cfg, **SMALL)
     env.reset(seed=1)
     v = np.array([1.0, 0.0])
-    env._look_ahead(v, v)
+    env._look_ahead(v, v, env.unwrapped.anchor)
     env.escape_budget.yielding = True
-    env._look_ahead(v, v)
+    env._look_ahead(v, v, env.unwrapped.anchor)
     assert seen == [(1.0, 2.0, 0.5), (3.0, 10.0, 0.0)]
 
 
@@ -373,7 +373,7 @@ def _old_filter(self, action):
     v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
     escape = None
     if cfg.look_ahead and len(lines) > lines.n_static:
-        escape = self._look_ahead(v_star, v_pref)
+        escape = self._look_ahead(v_star, v_pref, anchor)
         if escape.escaping:
             lines = OrcaLines(lines.point[:lines.n_static], lines.direction[:lines.n_static],
                               lines.n_static)

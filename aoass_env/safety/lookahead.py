@@ -39,6 +39,7 @@ All functions are pure (NumPy in, NumPy out); lengths in m, times in s, angles i
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -144,10 +145,11 @@ class _Segments:
 
     def __init__(self, starts: np.ndarray, ends: np.ndarray) -> None:
         starts = np.asarray(starts, dtype=np.float64)
-        e = np.asarray(ends, dtype=np.float64) - starts
-        self.ee = np.maximum((e * e).sum(axis=1), 1e-300)
-        self.ex, self.ey = e[:, 0].copy(), e[:, 1].copy()
-        self.sx, self.sy = starts[:, 0].copy(), starts[:, 1].copy()
+        ends = np.asarray(ends, dtype=np.float64)
+        if starts.shape != ends.shape or starts.ndim != 2 or starts.shape[1] != 2:
+            raise ValueError(f"starts and ends must be (e, 2) arrays of the same segments (m), "
+                             f"got shapes {starts.shape} and {ends.shape}")
+        self.sx, self.sy, self.ex, self.ey, self.ee = _segment_tables(starts, ends)
 
     def distances(self, points: np.ndarray) -> np.ndarray:
         """(k,) distance (m) from each of ``points`` (k, 2) (m) to the nearest segment."""
@@ -163,6 +165,23 @@ class _Segments:
         ``_nearest_on_segments``'s values."""
         d2, gx, gy = _nearest_compiled(self.sx, self.sy, self.ex, self.ey, self.ee, x, y)
         return math.sqrt(d2), gx, gy
+
+
+@numba.njit(cache=True)
+def _segment_tables(starts: np.ndarray, ends: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(sx, sy, ex, ey, ee) of the segments: the starts' coordinates, e = end - start and
+    max(|e|^2, 1e-300), as the array code ``e = ends - starts; np.maximum((e * e).sum(axis=1),
+    1e-300)`` computes them (a NaN kept, as np.maximum keeps it)."""
+    n = starts.shape[0]
+    sx, sy, ex, ey, ee = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    for j in range(n):
+        sx[j], sy[j] = starts[j, 0], starts[j, 1]
+        dx, dy = ends[j, 0] - sx[j], ends[j, 1] - sy[j]
+        ex[j], ey[j] = dx, dy
+        e2 = dx * dx + dy * dy
+        ee[j] = e2 if (e2 >= 1e-300 or e2 != e2) else 1e-300
+    return sx, sy, ex, ey, ee
 
 
 @numba.njit(cache=True)
@@ -217,7 +236,9 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
     moving toward it mirrors its velocity about the segment's normal (at the end of the step,
     a first-order model of the bounce)."""
     states = np.asarray(states, dtype=np.float64).reshape(-1, 4)
-    radii = np.broadcast_to(np.asarray(radii, dtype=np.float64), (len(states),))
+    radii = np.asarray(radii, dtype=np.float64)
+    if radii.shape != (len(states),):
+        radii = np.broadcast_to(radii, (len(states),))
     if SCALAR_TRIG:     # the float path (no trigonometry), compiled
         segments = _Segments(starts, ends)
         return _predict_all(states, np.ascontiguousarray(radii), float(step), n_steps,
@@ -503,6 +524,14 @@ class Escape:
     chosen_shortfall: float
 
 
+@functools.lru_cache(maxsize=8)
+def _times(step: float, n_steps: int) -> np.ndarray:
+    """(n_steps,) the look-ahead's times ``step * [1, 2, ..., n_steps]`` (s), read only."""
+    times = step * np.arange(1, n_steps + 1)
+    times.flags.writeable = False
+    return times
+
+
 def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.ndarray,
                     heading: float, speed: float, obstacles: np.ndarray,
                     covariances: np.ndarray, *, max_speed: float, max_accel: float,
@@ -546,7 +575,7 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     preferred = np.asarray(preferred, dtype=np.float64)
     obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 5)
     n_steps = max(int(math.ceil(horizon / step - 1e-9)), 1)
-    times = step * np.arange(1, n_steps + 1)
+    times = _times(float(step), n_steps)
     # only the obstacles that could come within reach of the anchor within the horizon
     rel = obstacles[:, :2] - np.asarray(position, dtype=np.float64)
     obstacle_speed = np.hypot(obstacles[:, 2], obstacles[:, 3])
@@ -564,7 +593,7 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     std = position_std(np.asarray(covariances)[near], times)
     radii = obstacle_radii(obs[:, 4], obstacle_speed[near], std, times, sigma, maneuver)
 
-    bare = obs[:, 4][:, None] + np.zeros_like(radii)
+    bare = np.repeat(obs[:, 4:5] + 0.0, n_steps, axis=1)       # (m, S): each radius + 0.0
     position = np.asarray(position, dtype=np.float64)
 
     def score(headings: np.ndarray, speeds: np.ndarray
@@ -587,8 +616,9 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         headway = headway_price * ((paths[:, -1] - position) @ along)
         return walls - headway
 
-    wanted = float(np.hypot(*velocity))
-    own = math.atan2(velocity[1], velocity[0]) if wanted > 1e-9 else heading
+    vx, vy = velocity.tolist()
+    wanted = float(np.hypot(vx, vy))        # NumPy's hypot of the floats, as np.hypot(*velocity)
+    own = math.atan2(vy, vx) if wanted > 1e-9 else heading
     base_moving, base_paths, contact = score(np.array([own]), np.array([wanted]))
     base = float(base_moving[0])
     if base <= 0.0:

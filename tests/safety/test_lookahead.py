@@ -331,6 +331,22 @@ def test_segment_distances_are_the_clipped_array_code_bit_for_bit():
                                           want)
 
 
+def test_segment_tables_are_the_array_code_bit_for_bit():
+    """The compiled tables of _Segments: the starts' coordinates, e = end - start and
+    max(|e|^2, 1e-300) as NumPy computes them, for edges of zero, tiny and large lengths."""
+    rng = np.random.default_rng(22)
+    for i in range(300):
+        e = int(rng.integers(0, 12))
+        starts = rng.uniform(-1e3, 1e3, (e, 2))
+        ends = starts + rng.choice([0.0, 1e-160, 1e-9, 1.0, 50.0]) * rng.normal(size=(e, 2))
+        tables = lookahead._Segments(starts, ends)
+        d = ends - starts
+        want = (starts[:, 0], starts[:, 1], d[:, 0], d[:, 1],
+                np.maximum((d * d).sum(axis=1), 1e-300))
+        got = (tables.sx, tables.sy, tables.ex, tables.ey, tables.ee)
+        assert all(g.tobytes() == w.tobytes() for g, w in zip(got, want, strict=True)), i
+
+
 def _rollout_step_by_step(position, heading, speed, headings, speeds, starts, ends, radius,
                           step=0.25, n_steps=18, max_turn_rate=math.pi / 2, max_accel=1.0):
     """rollout's model with the edge test at every step (the oracle of its shortcut for
@@ -516,3 +532,8 @@ def test_mismatched_candidates_or_obstacles_name_the_arrays():
         violation(np.zeros((2, 18)), np.zeros((1, 18, 2)), np.zeros((1, 18)), 1.0)
     with pytest.raises(ValueError, match="points must be"):
         segment_distances(np.zeros(2), np.zeros((1, 2)), np.ones((1, 2)))
+    with pytest.raises(ValueError, match="starts and ends must be"):
+        segment_distances(np.zeros((1, 2)), np.zeros((2, 2)), np.ones((1, 2)))
+    with pytest.raises(ValueError, match="starts and ends must be"):
+        rollout(np.zeros(2), 0.0, 1.0, np.zeros(2), np.zeros(2), 1.0, 1.0, 0.25, 18,
+                np.zeros((1, 3)), np.zeros((1, 3)), 0.5)
