@@ -27,6 +27,7 @@ from copy import deepcopy
 from typing import Any
 
 import gymnasium as gym
+import numba
 import numpy as np
 from gymnasium import spaces
 from gymnasium.envs.registration import EnvSpec
@@ -168,6 +169,7 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
         self._horizon = real("horizon", self.horizon, "s", low=0.0)   # as predict_positions
         self._no_ahead = np.zeros(2 * self._slots, np.float32)   # empty slots' block
         self._no_ahead.flags.writeable = False
+        self._inner_shape = inner.shape
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
@@ -203,6 +205,9 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
         else:                       # no track, no detection: tracker.step() would return at once
             states = ()
         if len(states) == 0:        # no confirmed track: empty slots (the lines below, in short)
+            if observation.dtype == np.float32 and observation.shape == self._inner_shape:
+                return _empty_slots(observation, self._moving.start, self._moving.stop,
+                                    self._low, self._high)
             out = np.concatenate([observation, self._no_ahead])
             out[self._moving] = 0.0
             return self._clipped(out)
@@ -229,6 +234,26 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
         exactly), so the same floats, without the two conversions."""
         return np.minimum(np.maximum(out, self._low), self._high).astype(np.float32,
                                                                          copy=False)
+
+
+@numba.njit(cache=True)
+def _empty_slots(observation: np.ndarray, start: int, stop: int, low: np.ndarray,
+                 high: np.ndarray) -> np.ndarray:
+    """The tracker's observation without a confirmed track, from a float32 ``observation``:
+    ``observation`` and a zero block, the moving-obstacle slots [start, stop) zeroed, clipped to
+    [``low``, ``high``] (float32) as ``np.minimum(np.maximum(out, low), high)`` clips, element
+    by element in float32: a NaN kept, and a tie (+0.0 against -0.0) giving the bound, the
+    second operand, as NumPy's array maximum and minimum give it."""
+    out = np.empty(low.shape[0], np.float32)
+    n = observation.shape[0]
+    for i in range(low.shape[0]):
+        x = observation[i] if i < n and not start <= i < stop else np.float32(0.0)
+        if not (x > low[i] or x != x):
+            x = low[i]
+        if not (x < high[i] or x != x):
+            x = high[i]
+        out[i] = x
+    return out
 
 
 class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):

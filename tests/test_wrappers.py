@@ -12,7 +12,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import aoass_env  # noqa: F401  (registers the environments)
-from aoass_env import AOASSEnv, ConfigError
+from aoass_env import AOASSEnv, ConfigError, wrappers
 from aoass_env.action import ResidualAction
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
@@ -482,4 +482,12 @@ def test_tracker_clips_float32_as_float64():
             out[pick] = bound[pick]
         want = np.minimum(np.maximum(out.astype(np.float64), low), high).astype(np.float32)
         got = tracker._clipped(out)
+        assert got.dtype == np.float32 and got.tobytes() == want.tobytes()
+        # no confirmed track: the compiled empty slots are the array code's floats
+        inner = out[:tracker._inner_shape[0]].copy()
+        empty = np.concatenate([inner, tracker._no_ahead])
+        empty[tracker._moving] = 0.0
+        want = np.minimum(np.maximum(empty.astype(np.float64), low), high).astype(np.float32)
+        got = wrappers._empty_slots(inner, tracker._moving.start, tracker._moving.stop, low,
+                                    high)
         assert got.dtype == np.float32 and got.tobytes() == want.tobytes()
