@@ -524,6 +524,116 @@ class Escape:
     chosen_shortfall: float
 
 
+def _base_arrays(own: float, wanted: float, position: np.ndarray, heading: float, speed: float,
+                 obstacles: np.ndarray, covariances: np.ndarray, max_speed: float,
+                 max_accel: float, max_turn_rate: float, horizon: float, step: float,
+                 n_steps: int, times: np.ndarray, starts: np.ndarray, ends: np.ndarray,
+                 radius: float, sigma: float, maneuver: float, clearance: float,
+                 obstacle_radius: float | None, soon: int
+                 ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, bool]:
+    """What :func:`escape_velocity` reads before a contest of candidates: (whether an obstacle
+    is near; the near obstacles' predicted centres (m, S, 2), grown radii and bare radii
+    (m, S); the given velocity's path (1, S, 2) (heading ``own``, speed ``wanted``); its
+    moving-obstacle cost, a contact counting CONTACT_WEIGHT times a shortfall; whether it falls
+    short within the first ``soon`` steps or meets a bare disc), on NumPy's arrays (compiled:
+    :func:`_base_compiled`)."""
+    # only the obstacles that could come within reach of the anchor within the horizon
+    rel = obstacles[:, :2] - position
+    obstacle_speed = np.hypot(obstacles[:, 2], obstacles[:, 3])
+    reach = (obstacles[:, 4] + clearance + (max_speed + obstacle_speed * (1.0 + maneuver))
+             * horizon + sigma * 3.0)
+    near = np.hypot(rel[:, 0], rel[:, 1]) <= reach
+    empty = np.zeros((0, n_steps))
+    if not near.any():
+        return False, np.zeros((0, n_steps, 2)), empty, empty, np.zeros((0, n_steps, 2)), 0.0, \
+            False
+    obs = obstacles[near]
+    if obstacle_radius is None:
+        centres = obs[:, None, :2] + times[None, :, None] * obs[:, None, 2:4]
+    else:
+        centres = predict_obstacles(obs[:, :4], step, n_steps, starts, ends,
+                                    np.full(len(obs), obstacle_radius))
+    std = position_std(covariances[near], times)
+    radii = obstacle_radii(obs[:, 4], obstacle_speed[near], std, times, sigma, maneuver)
+    bare = np.repeat(obs[:, 4:5] + 0.0, n_steps, axis=1)       # (m, S): each radius + 0.0
+    paths = rollout(position, heading, speed, np.array([own]), np.array([wanted]),
+                    max_turn_rate, max_accel, step, n_steps, starts, ends, radius)
+    contact = _shortfalls(paths, centres, bare, 0.0, n_steps)
+    base = float((CONTACT_WEIGHT * contact + _shortfalls(paths, centres, radii, clearance,
+                                                          n_steps))[0])
+    imminent = bool(soon) and (_shortfalls(paths, centres, radii, clearance, soon)[0] > 0.0
+                               or contact[0] > 0.0)
+    return True, centres, radii, bare, paths, base, imminent
+
+
+@numba.njit(cache=True)
+def _base_compiled(own: float, wanted: float, px: float, py: float, heading: float,
+                   speed: float, obstacles: np.ndarray, covariances: np.ndarray,
+                   max_speed: float, max_accel: float, max_turn_rate: float, horizon: float,
+                   step: float, n_steps: int, times: np.ndarray, sx: np.ndarray,
+                   sy: np.ndarray, ex: np.ndarray, ey: np.ndarray, ee: np.ndarray,
+                   radius: float, sigma: float, maneuver: float, clearance: float,
+                   obstacle_radius: float, soon: int
+                   ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, bool]:
+    """:func:`_base_arrays`, compiled with its operations in its order (``obstacle_radius`` < 0:
+    straight through the edges; ``np.hypot`` is the C library's, as numba's; the rollout's
+    cos and sin must be compiled_trig's)."""
+    m_all = obstacles.shape[0]
+    near = np.empty(m_all, np.bool_)
+    speeds = np.empty(m_all)
+    count = 0
+    for i in range(m_all):
+        speeds[i] = np.hypot(obstacles[i, 2], obstacles[i, 3])
+        reach = (obstacles[i, 4] + clearance + (max_speed + speeds[i] * (1.0 + maneuver))
+                 * horizon + sigma * 3.0)
+        near[i] = np.hypot(obstacles[i, 0] - px, obstacles[i, 1] - py) <= reach
+        count += near[i]
+    states = np.empty((count, 4))
+    own_radii = np.empty(count)
+    own_speeds = np.empty(count)
+    p = np.empty((count, 4, 4))
+    k = 0
+    for i in range(m_all):
+        if near[i]:
+            states[k] = obstacles[i, :4]
+            own_radii[k] = obstacles[i, 4]
+            own_speeds[k] = speeds[i]
+            p[k] = covariances[i]
+            k += 1
+    paths = np.empty((1, n_steps, 2))
+    radii = np.empty((count, n_steps))
+    bare = np.empty((count, n_steps))
+    if count == 0:
+        return False, np.empty((0, n_steps, 2)), radii, bare, paths, 0.0, False
+    if obstacle_radius < 0.0:
+        centres = np.empty((count, n_steps, 2))
+        for i in range(count):
+            for j in range(n_steps):
+                centres[i, j, 0] = states[i, 0] + times[j] * states[i, 2]
+                centres[i, j, 1] = states[i, 1] + times[j] * states[i, 3]
+    else:
+        centres = _predict_all(states, np.full(count, obstacle_radius), step, n_steps, sx, sy,
+                               ex, ey, ee)
+    std = _position_std(p, times)
+    for i in range(count):
+        grow = maneuver * own_speeds[i]
+        for j in range(n_steps):
+            radii[i, j] = own_radii[i] + sigma * std[i, j] + grow * times[j]
+            bare[i, j] = own_radii[i] + 0.0
+    # the given velocity's rollout (rollout()'s arguments)
+    gap = math.sqrt(_nearest_compiled(sx, sy, ex, ey, ee, px, py)[0]) if len(sx) else math.inf
+    fastest = abs(wanted) if abs(wanted) > abs(speed) else abs(speed)
+    travel = fastest * step * n_steps
+    _rollout_one(px, py, heading, speed, own, wanted, max_turn_rate * step, max_accel * step,
+                 step, n_steps, len(sx) > 0 and gap - travel < radius + 1e-9, sx, sy, ex, ey,
+                 ee, radius, gap, paths[0])
+    contact = _shortfalls(paths, centres, bare, 0.0, n_steps)[0]
+    base = CONTACT_WEIGHT * contact + _shortfalls(paths, centres, radii, clearance, n_steps)[0]
+    imminent = soon > 0 and (_shortfalls(paths, centres, radii, clearance, soon)[0] > 0.0
+                             or contact > 0.0)
+    return True, centres, radii, bare, paths, base, imminent
+
+
 @functools.lru_cache(maxsize=8)
 def _times(step: float, n_steps: int) -> np.ndarray:
     """(n_steps,) the look-ahead's times ``step * [1, 2, ..., n_steps]`` (s), read only."""
@@ -574,39 +684,47 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     velocity = np.asarray(velocity, dtype=np.float64)
     preferred = np.asarray(preferred, dtype=np.float64)
     obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 5)
+    covariances = np.asarray(covariances, dtype=np.float64).reshape(-1, 4, 4)
+    if len(covariances) != len(obstacles):
+        raise ValueError(f"covariances must be (m, 4, 4) for the m = {len(obstacles)} "
+                         f"obstacles, got {len(covariances)} of them")
+    position = np.asarray(position, dtype=np.float64)
     n_steps = max(int(math.ceil(horizon / step - 1e-9)), 1)
     times = _times(float(step), n_steps)
-    # only the obstacles that could come within reach of the anchor within the horizon
-    rel = obstacles[:, :2] - np.asarray(position, dtype=np.float64)
-    obstacle_speed = np.hypot(obstacles[:, 2], obstacles[:, 3])
-    reach = (obstacles[:, 4] + clearance + (max_speed + obstacle_speed * (1.0 + maneuver))
-             * horizon + sigma * 3.0)
-    near = np.hypot(rel[:, 0], rel[:, 1]) <= reach
-    if not near.any():
-        return Escape(velocity, False, 0.0, 0.0)
-    obs = obstacles[near]
-    if obstacle_radius is None:
-        centres = obs[:, None, :2] + times[None, :, None] * obs[:, None, 2:4]
+    vx, vy = velocity.tolist()
+    wanted = float(np.hypot(vx, vy))        # NumPy's hypot of the floats, as np.hypot(*velocity)
+    own = math.atan2(vy, vx) if wanted > 1e-9 else heading
+    # imminent only (react): a shortfall from the grown discs within ``react`` seconds, or a
+    # contact with a bare disc at any time of the horizon (a contact on the tracks' estimates;
+    # a trigger on the discs grown by the covariance alone escaped more and completed fewer
+    # zero-action sweeps on the tuning seeds, for about the same contacts under random actions)
+    soon = 0 if react is None else min(max(int(math.ceil(react / step - 1e-9)), 1), n_steps)
+    if SCALAR_TRIG and compiled_trig():
+        segments = _Segments(starts, ends)
+        px, py = position.tolist()
+        found, centres, radii, bare, base_paths, base, imminent = _base_compiled(
+            own, wanted, px, py, float(heading), float(speed), obstacles, covariances,
+            float(max_speed), float(max_accel), float(max_turn_rate), float(horizon),
+            float(step), n_steps, times, segments.sx, segments.sy, segments.ex, segments.ey,
+            segments.ee, float(radius), float(sigma), float(maneuver), float(clearance),
+            -1.0 if obstacle_radius is None else float(obstacle_radius), soon)
     else:
-        centres = predict_obstacles(obs[:, :4], step, n_steps, starts, ends,
-                                    np.full(len(obs), obstacle_radius))
-    std = position_std(np.asarray(covariances)[near], times)
-    radii = obstacle_radii(obs[:, 4], obstacle_speed[near], std, times, sigma, maneuver)
+        found, centres, radii, bare, base_paths, base, imminent = _base_arrays(
+            own, wanted, position, heading, speed, obstacles, covariances, max_speed,
+            max_accel, max_turn_rate, horizon, step, n_steps, times, starts, ends, radius,
+            sigma, maneuver, clearance, obstacle_radius, soon)
+    if not found or base <= 0.0:
+        return Escape(velocity, False, 0.0, 0.0)
+    if soon and not imminent:
+        return Escape(velocity, False, base, base)
 
-    bare = np.repeat(obs[:, 4:5] + 0.0, n_steps, axis=1)       # (m, S): each radius + 0.0
-    position = np.asarray(position, dtype=np.float64)
-
-    def score(headings: np.ndarray, speeds: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(moving-obstacle cost (k,), paths, contact (k,)) of the candidates."""
+    def score(headings: np.ndarray, speeds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(moving-obstacle cost (k,), paths) of the candidates (:func:`_base_arrays`'s)."""
         paths = rollout(position, heading, speed, headings, speeds, max_turn_rate, max_accel,
                         step, n_steps, starts, ends, radius)
-        # a predicted contact with the bare disc weighs CONTACT_WEIGHT times a shortfall of
-        # the grown one (both violation()s)
-        contact = _shortfalls(paths, centres, bare, 0.0, n_steps)
-        moving = CONTACT_WEIGHT * contact + _shortfalls(paths, centres, radii, clearance,
-                                                        n_steps)
-        return moving, paths, contact
+        moving = CONTACT_WEIGHT * _shortfalls(paths, centres, bare, 0.0, n_steps) + \
+            _shortfalls(paths, centres, radii, clearance, n_steps)
+        return moving, paths
 
     def open_space(paths: np.ndarray) -> np.ndarray:
         """(k,) the price of the paths' ends: pressed against a wall (no way on), less the
@@ -616,26 +734,6 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         headway = headway_price * ((paths[:, -1] - position) @ along)
         return walls - headway
 
-    vx, vy = velocity.tolist()
-    wanted = float(np.hypot(vx, vy))        # NumPy's hypot of the floats, as np.hypot(*velocity)
-    own = math.atan2(vy, vx) if wanted > 1e-9 else heading
-    base_moving, base_paths, contact = score(np.array([own]), np.array([wanted]))
-    base = float(base_moving[0])
-    if base <= 0.0:
-        return Escape(velocity, False, 0.0, 0.0)
-    if react is not None:
-        # imminent only: a shortfall from the grown discs within ``react`` seconds, or a
-        # contact with a bare disc at any time of the horizon (a contact on the tracks'
-        # estimates; a trigger on the discs grown by the covariance alone escaped more and
-        # completed fewer zero-action sweeps on the tuning seeds, for about the same contacts
-        # under random actions)
-        soon = min(max(int(math.ceil(react / step - 1e-9)), 1), n_steps)
-        # violation(paths[:, :soon], centres[:, :soon], radii[:, :soon], clearance) and
-        # violation(paths, centres, bare, 0.0) of the base path
-        imminent = (_shortfalls(base_paths, centres, radii, clearance, soon)[0] > 0.0
-                    or contact[0] > 0.0)
-        if not imminent:
-            return Escape(velocity, False, base, base)
     # a contest of candidates: what open_space() reads
     pref_speed = float(np.hypot(*preferred))
     along = preferred / pref_speed if pref_speed > 1e-9 else np.zeros(2)
@@ -649,7 +747,7 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     # between it and an escape with different rules made the anchor alternate between them
     headings = np.concatenate([[own], headings])
     speeds = np.concatenate([[wanted], speeds])
-    moving, paths, _ = score(headings[1:], speeds[1:])
+    moving, paths = score(headings[1:], speeds[1:])
     shortfall = np.concatenate([[base], moving])
     walls = np.concatenate([open_space(base_paths), open_space(paths)])
     candidates = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=1)

@@ -331,6 +331,55 @@ def test_segment_distances_are_the_clipped_array_code_bit_for_bit():
                                           want)
 
 
+def test_the_compiled_base_verdict_is_the_array_code_bit_for_bit():
+    """escape_velocity's first stage (near obstacles, their predicted and grown discs, the
+    given velocity's rollout, its cost and whether it is imminent), compiled, gives the array
+    code's floats on random scenes: obstacles near and far, straight or bouncing off edges,
+    anchors at walls, zero velocities, with and without a reaction time."""
+    if not (lookahead.SCALAR_TRIG and lookahead.compiled_trig()):
+        pytest.skip("the compiled stage runs only where compiled trig is math's")
+    rng = np.random.default_rng(23)
+    kinds = {"found": 0, "none": 0, "imminent": 0, "walls": 0}
+    for case in range(600):
+        m = int(rng.integers(0, 5))
+        position = rng.uniform(-5.0, 5.0, 2)
+        obstacles = np.column_stack([position + rng.uniform(-15.0, 15.0, (m, 2)),
+                                     rng.uniform(-1.5, 1.5, (m, 2)), rng.uniform(0.5, 1.5, m)])
+        a = rng.normal(0.0, 0.3, (m, 4, 4))
+        covariances = a @ a.transpose(0, 2, 1) + 0.01 * np.eye(4)
+        e = int(rng.integers(0, 6))
+        starts = position + rng.uniform(-4.0, 4.0, (e, 2))
+        ends = starts + rng.uniform(-6.0, 6.0, (e, 2))
+        velocity = np.zeros(2) if case % 9 == 0 else rng.uniform(-2.0, 2.0, 2)
+        wanted = float(np.hypot(*velocity))
+        heading = float(rng.uniform(-4.0, 4.0))
+        own = math.atan2(velocity[1], velocity[0]) if wanted > 1e-9 else heading
+        speed = float(rng.uniform(0.0, 2.0))
+        n_steps, step = 18, 0.25
+        times = step * np.arange(1, n_steps + 1)
+        soon = int(rng.choice([0, 1, 7, 18]))
+        obstacle_radius = None if case % 4 == 0 else 0.5
+        sigma, maneuver = float(rng.choice([0.0, 1.0, 1.7])), float(rng.choice([0.0, 0.3, 0.5]))
+        want = lookahead._base_arrays(own, wanted, position, heading, speed, obstacles,
+                                      covariances, 2.0, 1.0, math.pi / 2, 4.5, step, n_steps,
+                                      times, starts, ends, 0.7, sigma, maneuver, 0.3,
+                                      obstacle_radius, soon)
+        segments = lookahead._Segments(starts, ends)
+        got = lookahead._base_compiled(
+            own, wanted, *position.tolist(), heading, speed, obstacles, covariances, 2.0, 1.0,
+            math.pi / 2, 4.5, step, n_steps, times, segments.sx, segments.sy, segments.ex,
+            segments.ey, segments.ee, 0.7, sigma, maneuver, 0.3,
+            -1.0 if obstacle_radius is None else obstacle_radius, soon)
+        assert got[0] == want[0] and got[6] == want[6], case
+        if want[0]:
+            assert all(np.asarray(g).tobytes() == np.asarray(w).tobytes()
+                       for g, w in zip(got[1:6], want[1:6], strict=True)), case
+        kinds["found" if want[0] else "none"] += 1
+        kinds["imminent"] += want[6]
+        kinds["walls"] += bool(e) and want[0]
+    assert min(kinds.values()) > 30, kinds
+
+
 def test_segment_tables_are_the_array_code_bit_for_bit():
     """The compiled tables of _Segments: the starts' coordinates, e = end - start and
     max(|e|^2, 1e-300) as NumPy computes them, for edges of zero, tiny and large lengths."""
