@@ -5,13 +5,15 @@ action space and is reset whenever an episode ends; the time of the resets is in
 script prints steps per second of each (and per CPU second of the process, steadier on a shared
 machine), the ratios AOASS-v0 / Pendulum-v1 (issue 20 target: >= 0.22) and AOASS-Safe-v0 /
 AOASS-v0 (target: >= 0.7), the latter also with the two envs stepped in turn in chunks of 200
-steps (steadier: both meet the same drift), the reset time of AOASS-v0 at density 0.4 on a
-100 m field (target: <= 50 ms) with fresh seeds, repeated seeds and a shipped map, and where a
-random-action step of AOASS-v0 and of AOASS-Safe-v0's safety stack goes: wall time per step of
-their parts, measured by timers around them (a part's time includes the parts it calls; the
-rest is Gymnasium's wrappers, the action, reward and info).
+steps over long runs from three seeds (steadier: both meet the same drift, and the long runs
+average over episodes), the reset time of AOASS-v0 at density 0.4 on a 100 m field (target:
+<= 50 ms) with fresh seeds, repeated seeds and a shipped map, and where a random-action step
+of AOASS-v0 and of AOASS-Safe-v0's safety stack goes: wall time per step of their parts,
+measured by timers around them (a part's time includes the parts it calls; the rest is
+Gymnasium's wrappers, the action, reward and info).
 
-Run: ``python3 benchmarks/env_throughput.py [--steps N] [--nodes 100 1000] [--field 100]``.
+Run: ``python3 benchmarks/env_throughput.py [--steps N] [--nodes 100 1000] [--field 100]
+[--interleaved N]``.
 """
 
 from __future__ import annotations
@@ -96,26 +98,33 @@ def throughput(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int, flo
     return steps / wall, episodes, reset_time, steps / max(cpu, 1e-9)
 
 
-def interleaved(steps: int, chunk: int = 200, **kwargs: Any) -> tuple[float, float]:
-    """(AOASS-v0, AOASS-Safe-v0) CPU microseconds per random step, resets included, the two
-    envs stepped in turn in chunks of ``chunk`` steps until each has taken ``steps``: both
-    meet the same drift of a shared machine, so their ratio is steadier than that of two runs
-    one after the other."""
+def interleaved(steps: int, seed: int, chunk: int = 200, warm_up: int = 1_500,
+                **kwargs: Any) -> tuple[float, float]:
+    """(AOASS-v0, AOASS-Safe-v0) CPU microseconds per random step, resets included: the two
+    envs (seeded with ``seed``) take ``warm_up`` steps each, then are stepped in turn in
+    chunks of ``chunk`` steps until each has taken ``steps`` more. Both meet the same drift of
+    a shared machine, and the long run averages over their episodes, so the ratio is steadier
+    than that of two short runs one after the other."""
     envs = [gym.make(env_id, **kwargs) for env_id in ("AOASS-v0", "AOASS-Safe-v0")]
+
+    def run(env: gym.Env, n: int) -> float:
+        cpu = time.process_time()
+        for _ in range(n):
+            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+            if terminated or truncated:
+                env.reset()
+        return time.process_time() - cpu
+
     for env in envs:
-        env.reset(seed=0)
-        env.action_space.seed(0)
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        run(env, warm_up)
+    rounds = max(steps // chunk, 1)
     spent = [0.0, 0.0]
-    for _ in range(max(steps // chunk, 1)):
+    for _ in range(rounds):
         for i, env in enumerate(envs):
-            cpu = time.process_time()
-            for _ in range(chunk):
-                _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-                if terminated or truncated:
-                    env.reset()
-            spent[i] += time.process_time() - cpu
-    taken = max(steps // chunk, 1) * chunk
-    return 1e6 * spent[0] / taken, 1e6 * spent[1] / taken
+            spent[i] += run(env, chunk)
+    return 1e6 * spent[0] / (rounds * chunk), 1e6 * spent[1] / (rounds * chunk)
 
 
 def reset_ms(resets: int, seeds: list[int] | None = None, **kwargs: Any) -> float:
@@ -207,9 +216,12 @@ def main() -> None:
                         help="AOASS-v0 node counts to measure")
     parser.add_argument("--field", type=float, default=100.0, help="field side (m)")
     parser.add_argument("--resets", type=int, default=15, help="resets timed at density 0.4")
+    parser.add_argument("--interleaved", type=int, default=20_000,
+                        help="steps per env of the interleaved AOASS-Safe-v0 / AOASS-v0 "
+                             "measurement, per seed 0-2 (0: skip it)")
     args = parser.parse_args()
-    if args.steps < 1 or args.resets < 1:
-        parser.error("--steps and --resets must be positive")
+    if args.steps < 1 or args.resets < 1 or args.interleaved < 0:
+        parser.error("--steps and --resets must be positive, --interleaved at least 0")
     field = {"field_size": args.field} if args.field != 100.0 else {}
     throughput(gym.make("Pendulum-v1"), 2_000)       # warm-up (imports, CPU clock)
     # first-use costs of AOASS (lazy imports, compiled kernels loaded from numba's cache, or
@@ -234,10 +246,17 @@ def main() -> None:
     print(f"{'Pendulum-v1 (again)':34s} {again:9.0f} {1e6 / again:8.1f} {1e6 / again_cpu:7.1f}"
           f"   (reference drift {again / ref - 1:+.1%}, CPU {again_cpu / ref_cpu - 1:+.1%}; "
           f"ratios above use the first run; 'CPU': the same from this process's CPU time)")
-    bare_us, safe_us = interleaved(args.steps, n_nodes=args.nodes[0], **field)
-    print(f"AOASS-Safe-v0 against AOASS-v0, stepped in turn in chunks of 200 steps: "
-          f"{safe_us:.1f} against {bare_us:.1f} CPU us per step, ratio {bare_us / safe_us:.3f} "
-          f"(target 0.7)")
+    if args.interleaved:
+        print(f"\nAOASS-Safe-v0 against AOASS-v0, stepped in turn (chunks of 200 steps, "
+              f"{args.interleaved} steps each after 1 500 of warm-up; CPU us per step):")
+        pooled = [0.0, 0.0]
+        for seed in range(3):
+            bare_us, safe_us = interleaved(args.interleaved, seed, n_nodes=args.nodes[0],
+                                           **field)
+            pooled = [pooled[0] + bare_us, pooled[1] + safe_us]
+            print(f"  seed {seed}: {safe_us:.1f} against {bare_us:.1f}, ratio "
+                  f"{bare_us / safe_us:.3f}")
+        print(f"  seeds 0-2 pooled: ratio {pooled[0] / pooled[1]:.3f} (target 0.7)")
     fresh = reset_ms(args.resets, obstacle_density=0.4, **field)
     few = list(range(min(args.resets, 4)))
     again = reset_ms(args.resets, few, obstacle_density=0.4, **field)
