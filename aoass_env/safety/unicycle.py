@@ -256,11 +256,15 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
     if envelope is not None and len(envelope.starts):
         gap = _clearance_compiled(envelope.starts, envelope.ends,
                                   float(envelope.position[0]), float(envelope.position[1]))
-    if (envelope is None or _envelope_floor(envelope, gap) >= max(wanted, floor, _TINY)) \
-            and compiled_trig():
-        # no cap of the envelope can bind (notes below): the ORCA lines alone decide
-        command = _command_on_lines(wanted, target, heading, max_turn, floor, points,
-                                    directions)
+    if compiled_trig():
+        # no cap of the envelope can bind, or none can change the command (notes below): the
+        # ORCA lines alone decide
+        if envelope is None or _envelope_floor(envelope, gap) >= max(wanted, floor, _TINY):
+            command = _command_on_lines(wanted, target, heading, max_turn, floor, points,
+                                        directions)
+        else:
+            command = _command_on_lines(wanted, target, heading, max_turn, floor, points,
+                                        directions, envelope, gap)
         if command is not None:
             return command
     return _command_with_caps(wanted, target, heading, max_turn, floor, points, directions,
@@ -271,7 +275,7 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
 # `unicycle_command` computes on float lists, or compiled on the lines' arrays element by
 # element (`_reach_on_lines`), what `_command_on_arrays` computes on arrays: the same
 # operations in the same order (tests/safety/test_unicycle.py checks them equal bit for bit
-# against the array code). Two shortcuts keep the answer:
+# against the array code). Three shortcuts keep the answer:
 #
 # - The safe speed is non-increasing along the arc (a running minimum), so the headings past
 #   the first one whose safe speed falls short of the floor are never looked at: the command
@@ -282,10 +286,23 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
 #   floor, a cap changes neither which branch is taken, nor the heading (every cap clears the
 #   floor), nor the speed (min(|v*|, cap) = |v*|), so it is not computed. Otherwise, and when
 #   the anchor must brake (the braking branch reads the caps themselves), the caps are computed
-#   (`_command_with_caps`): `free_travel` keeps NumPy's matrix products (`_products`), which
-#   BLAS computes with fused multiply-adds (an order that depends on the shapes and the CPU)
-#   that compiled loops cannot reproduce, and computes the rest compiled (`_travel_compiled`,
-#   `_braking_compiled`); the lines' bounds on the arc are compiled too (`_arc_bounds`).
+#   (`_command_with_caps`), unless the sharper certificate below rules them out.
+# - Per heading: a cap changes nothing on a heading where it exceeds the lines' bound b (the
+#   minimum there is b) or reaches max(|v*|, floor) (where it binds instead of b, the running
+#   minimum that decides the branch and the heading still clears the floor, and the speed is
+#   min(|v*|, .) = |v*|). So when, on every heading up to the one commanded, a lower bound of
+#   the computed cap passes either test, the ORCA lines' command stands (`_reach_on_lines`).
+#   The bound (`_travel_floor`) takes BLAS's products anywhere within `_DOT_SLACK` of their
+#   terms (9 units in the last place; any order, fused or not, errs by 2), keeps every
+#   candidate such a product could make valid, and bounds each time from below; the braking
+#   speed's rounded operations never decrease with the travel. Tested against free_travel on
+#   the headings where its decisions turn on round-off. Of 6 000 recorded calls, 869 computed
+#   the caps before, 12 now.
+#
+# Where the caps are computed, `free_travel` keeps NumPy's matrix products (`_products`), which
+# BLAS computes with fused multiply-adds (an order that depends on the shapes and the CPU) that
+# compiled loops cannot reproduce, and computes the rest compiled (`_travel_compiled`,
+# `_braking_compiled`); the lines' bounds on the arc are compiled too (`_arc_bounds`).
 
 #: How far (m) the computed free travel may fall short of (clearance - radius) by round-off.
 #: The worst case is a disc of radius 0 heading straight at an end point W metres away, where
@@ -395,37 +412,147 @@ def _arc_bounds(heading: float, turn: float, points: np.ndarray,
     return out
 
 
+#: Relative slack of the certificate's bounds on BLAS's 2-term products (about 9 units in the
+#: last place of the terms' magnitudes; any order of the products, fused or not, errs by at most
+#: 2) and on the floats it recomputes (the edges' normals, the sides).
+_DOT_SLACK = 1e-15
+
+
+@numba.njit(cache=True)
+def _travel_floor(h: float, starts: np.ndarray, ends: np.ndarray, px: float, py: float,
+                  radius: float) -> float:
+    """A lower bound (m) of :func:`free_travel` on the heading ``h`` (rad) as NumPy and BLAS
+    compute it (:func:`_products`, :func:`_travel_compiled`): the same candidates with each
+    matrix product (u . w, u . n, u . e) taken anywhere within ``_DOT_SLACK`` of its terms'
+    magnitudes, every decision that such a product could flip counted as taken (a candidate
+    that might be valid is kept), and each time bounded from below, its own rounding included
+    (``math.cos``/``sin`` must be compiled_trig's, so that u is NumPy's)."""
+    ux, uy = math.cos(h), math.sin(h)
+    r2 = radius * radius
+    best = math.inf
+    for j in range(starts.shape[0]):
+        ax, ay, bx, by = starts[j, 0], starts[j, 1], ends[j, 0], ends[j, 1]
+        # the end points: |w + t u| = radius, entered while w . u < 0
+        for end in range(2):
+            wx, wy = (px - ax, py - ay) if end == 0 else (px - bx, py - by)
+            wu = ux * wx + uy * wy
+            slack = _DOT_SLACK * (abs(ux * wx) + abs(uy * wy)) + 1e-300
+            if wu - slack >= 0.0:
+                continue                              # moving away: never entered
+            ww = wx * wx + wy * wy
+            if not ww > r2:
+                return 0.0                            # inside the disc already
+            most = abs(wu) + slack                    # |w . u| at most
+            d = ww - r2
+            disc = most * most * (1.0 + 4.0 * _DOT_SLACK) - d
+            if disc < 0.0:
+                continue                              # the disc's path misses the end point
+            root = math.sqrt(disc) * (1.0 + _DOT_SLACK)
+            t = (abs(wu) - slack) - root - _DOT_SLACK * (abs(wu) + root)
+            if t < best:
+                best = t
+        # the side: the disc's centre reaches the line offset by radius
+        ex, ey = bx - ax, by - ay
+        length = math.hypot(ex, ey)
+        if not length > 0.0:
+            continue                                  # no normal: NumPy's NaN, never taken
+        nx, ny = -ey / length, ex / length
+        wx, wy = px - ax, py - ay
+        side = wx * nx + wy * ny
+        side_slack = 10.0 * _DOT_SLACK * (abs(wx * nx) + abs(wy * ny) + abs(side)) + 1e-300
+        rate = ux * nx + uy * ny
+        rate_slack = 2.0 * _DOT_SLACK * (abs(ux * nx) + abs(uy * ny)) + 1e-300
+        lowest = (side * rate - (abs(side) + side_slack) * rate_slack - abs(rate) * side_slack
+                  - _DOT_SLACK * abs(side * rate))
+        if not lowest < -0.999 * _PARALLEL:          # (the product's own rounding included)
+            continue                                  # not moving toward it
+        gap_lo = max(abs(side) - side_slack - radius, 0.0) * (1.0 - 4.0 * _DOT_SLACK)
+        gap_hi = max(abs(side) + side_slack - radius, 0.0) * (1.0 + 4.0 * _DOT_SLACK)
+        t_lo = gap_lo / (abs(rate) + rate_slack) * (1.0 - 4.0 * _DOT_SLACK)
+        if t_lo >= best:
+            continue                                  # cannot lower the bound
+        slow = abs(rate) - rate_slack
+        t_hi = gap_hi / slow * (1.0 + 4.0 * _DOT_SLACK) if slow > 0.0 else math.inf
+        inside = True
+        if t_hi < math.inf:
+            # where along the edge the centre is then: surely off the edge, or possibly on it
+            ue = ux * ex + uy * ey
+            ue_slack = _DOT_SLACK * (abs(ux * ex) + abs(uy * ey)) + 1e-300
+            pe = wx * ex + wy * ey
+            lo_ue, hi_ue = ue - ue_slack, ue + ue_slack
+            a1, a2, a3, a4 = t_lo * lo_ue, t_lo * hi_ue, t_hi * lo_ue, t_hi * hi_ue
+            lo = min(min(a1, a2), min(a3, a4))
+            hi = max(max(a1, a2), max(a3, a4))
+            pad = 4.0 * _DOT_SLACK * (abs(pe) + max(abs(lo), abs(hi))) + 1e-300
+            l2 = length * length * (1.0 + 4.0 * _DOT_SLACK)
+            inside = not (pe + hi + pad < 0.0 or pe + lo - pad > l2)
+        if inside:
+            best = t_lo
+    return best
+
+
 @numba.njit(cache=True)
 def _reach_on_lines(heading: float, turn: float, floor: float, points: np.ndarray,
-                    directions: np.ndarray) -> tuple[int, float]:
-    """(k, safe speed) of :func:`_command_on_lines`: the last heading of the arc ``heading +
-    turn * i / 8`` (i = 0..8) reached before the running minimum of :func:`_bound` falls short
-    of ``floor`` (-1: the first does), and that minimum there (m/s). Compiled, with the float
-    code's operations in its order (``math.cos``/``sin`` must be compiled_trig's)."""
+                    directions: np.ndarray, need: float, starts: np.ndarray, ends: np.ndarray,
+                    px: float, py: float, radius: float, max_accel: float,
+                    dt: float) -> tuple[int, float, bool]:
+    """(k, safe speed, certified) of :func:`_command_on_lines`: the last heading of the arc
+    ``heading + turn * i / 8`` (i = 0..8) reached before the running minimum of :func:`_bound`
+    falls short of ``floor`` (-1: the first does), and that minimum there (m/s). Compiled, with
+    the float code's operations in its order (``math.cos``/``sin`` must be compiled_trig's).
+
+    ``certified``: whether the braking envelope's caps (edges ``starts`` -> ``ends`` around the
+    anchor at (px, py), disc ``radius``, braking ``max_accel`` over ``dt``; none when there are
+    no edges) provably change nothing: on each heading up to k a lower bound of its cap
+    (:func:`_travel_floor` through the braking speed's operations, which never decrease with
+    the travel) exceeds the lines' bound there, or reaches ``need`` (|v*|, the speed floor and
+    a tiny positive speed; notes above)."""
     reach = math.inf
     last = 0.0
     k = -1
     for i in range(9):
-        bound = _heading_bound(heading + turn * (i / 8.0), points, directions)
+        h = heading + turn * (i / 8.0)
+        bound = _heading_bound(h, points, directions)
         if not reach < bound:
             reach = bound
         if reach + 1e-9 < floor:
             break
+        if starts.shape[0]:
+            travel = _travel_floor(h, starts, ends, px, py, radius)
+            if not math.isinf(travel):
+                d = travel if travel >= 0.0 else 0.0
+                cap = max_accel * (math.sqrt(dt * dt + 2.0 * d / max_accel) - dt)
+                if not (cap > bound or cap >= need):
+                    return k, last, False
         k += 1
         last = reach
-    return k, last
+    return k, last, True
+
+
+#: No edges: the certificate of :func:`_reach_on_lines` has nothing to bound.
+_NO_EDGES = np.zeros((0, 2))
 
 
 def _command_on_lines(wanted: float, target: float, heading: float, max_turn: float,
-                      floor: float, points: np.ndarray, directions: np.ndarray
+                      floor: float, points: np.ndarray, directions: np.ndarray,
+                      envelope: BrakingEnvelope | None = None, gap: float = math.inf
                       ) -> tuple[float, float] | None:
-    """:func:`unicycle_command` without an envelope (compiled: :func:`_reach_on_lines`),
+    """:func:`unicycle_command` on the ORCA lines alone (compiled: :func:`_reach_on_lines`),
     looking only at the headings up to the first that falls short (notes above); None when
-    the anchor must brake (the caller decides on all headings)."""
+    the anchor must brake (the caller decides on all headings) or when the ``envelope``'s
+    caps (the anchor's clearance to its edges being ``gap``, m) might change the command."""
     turn = math.remainder(target - heading, 2.0 * math.pi)
     clipped = min(max(turn, -max_turn), max_turn)            # as _arc
-    k, last = _reach_on_lines(heading, clipped, floor, points, directions)
-    if k < 0:
+    if envelope is None:
+        k, last, certified = _reach_on_lines(heading, clipped, floor, points, directions, 0.0,
+                                             _NO_EDGES, _NO_EDGES, 0.0, 0.0, 0.0, 1.0, 1.0)
+    else:
+        px, py = envelope.position.tolist()
+        k, last, certified = _reach_on_lines(
+            heading, clipped, floor, points, directions, max(wanted, floor, _TINY),
+            envelope.starts, envelope.ends, px, py,
+            max(min(envelope.radius, gap - _HELD), 0.0), envelope.max_accel, envelope.dt)
+    if k < 0 or not certified:
         return None
     command = target if k == len(_FRACTIONS) - 1 else heading + clipped * _FRACTIONS[k]
     if abs(turn) > math.pi - _OPPOSITE:

@@ -336,6 +336,49 @@ def test_compiled_free_travel_and_caps_are_the_array_code_bit_for_bit():
         assert _bytes(envelope(headings)) == _bytes(_caps_arrays(envelope, headings)), case
 
 
+def test_the_certificate_bounds_the_free_travel_from_below():
+    """_travel_floor never exceeds free_travel as NumPy and BLAS compute it: random edges
+    around the anchor, and the headings where a decision of free_travel turns on round-off
+    (straight at end points, tangent to the disc around an end point, along and across
+    edges, grazing a side), radii of 0 and up to the clearance."""
+    import aoass_env.safety.unicycle as unicycle
+    if not unicycle.compiled_trig():
+        pytest.skip("the certificate runs only where compiled trig is math's")
+    rng = np.random.default_rng(33)
+    bound_finite = 0
+    for case in range(1500):
+        m = int(rng.integers(1, 8))
+        position = rng.uniform(-60.0, 60.0, 2)
+        starts = position + rng.uniform(-5.0, 5.0, (m, 2))
+        ends = starts + rng.uniform(-7.0, 7.0, (m, 2))
+        if case % 3 == 0:                               # a wall the anchor slides along
+            y = rng.uniform(0.6, 1.2)
+            starts[0], ends[0] = position + [-6.0, y], position + [6.0, y]
+        gap = clearance(starts, ends, position)
+        radius = float(rng.choice([0.0, 0.5 * gap, max(gap - 1e-3, 0.0), 0.7]))
+        radius = max(min(radius, gap - 1e-3), 0.0)
+        headings = list(rng.uniform(-4.0, 4.0, 6))
+        for vertex in np.concatenate([starts, ends]):
+            w = vertex - position
+            dist, toward = float(np.hypot(*w)), math.atan2(w[1], w[0])
+            headings.append(toward)
+            if dist > radius:                           # tangent to the disc around it
+                tangent = math.asin(radius / dist)
+                headings += [toward + tangent, toward - tangent,
+                             math.nextafter(toward + tangent, 10.0)]
+        for a, b in zip(starts, ends, strict=True):
+            along = math.atan2(*(b - a)[::-1])
+            headings += [along, along + math.pi, math.nextafter(along, 10.0),
+                         along + 1e-13, along + math.pi / 2]
+        headings = np.array(headings)
+        want = free_travel(starts, ends, position, headings, radius)
+        for h, w in zip(headings.tolist(), want.tolist(), strict=True):
+            got = unicycle._travel_floor(h, starts, ends, *position.tolist(), radius)
+            assert got <= w, (case, h, got, w)
+            bound_finite += math.isfinite(got)
+    assert bound_finite > 1000
+
+
 def _reference_command(v_star, heading, speed, max_turn, max_dv, points, directions,
                        fallback_heading, envelope=None):
     """unicycle_command as it was before its float path (commit 3fdd7e9), on the arrays."""
