@@ -593,12 +593,14 @@ def _base_compiled(own: float, wanted: float, px: float, py: float, heading: flo
     own_speeds = np.empty(count)
     p = np.empty((count, 4, 4))
     k = 0
-    for i in range(m_all):
-        if near[i]:
-            states[k] = obstacles[i, :4]
+    for i in range(m_all):          # element by element: a row assignment would make numba
+        if near[i]:                 # compile its shape-error formatting (seconds)
+            for c in range(4):
+                states[k, c] = obstacles[i, c]
+                for d in range(4):
+                    p[k, c, d] = covariances[i, c, d]
             own_radii[k] = obstacles[i, 4]
             own_speeds[k] = speeds[i]
-            p[k] = covariances[i]
             k += 1
     paths = np.empty((1, n_steps, 2))
     radii = np.empty((count, n_steps))

@@ -537,7 +537,9 @@ def _lp3(lines: np.ndarray, n_static: int, begin: int, speed: float, rx: float,
     the others, starting from line ``begin`` with the partial result (rx, ry)."""
     depth = 0.0
     projected = np.empty(lines.shape)
-    projected[:n_static] = lines[:n_static]
+    for i in range(n_static):               # element by element: a slice assignment would
+        for j in range(4):                  # make numba compile its shape-error formatting
+            projected[i, j] = lines[i, j]
     for i in range(begin, lines.shape[0]):
         px, py, dx, dy = lines[i, 0], lines[i, 1], lines[i, 2], lines[i, 3]
         if dx * (py - ry) - dy * (px - rx) <= depth:

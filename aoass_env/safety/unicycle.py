@@ -529,8 +529,10 @@ def _reach_on_lines(heading: float, turn: float, floor: float, points: np.ndarra
     return k, last, True
 
 
-#: No edges: the certificate of :func:`_reach_on_lines` has nothing to bound.
+#: No edges: the certificate of :func:`_reach_on_lines` has nothing to bound (read only, as
+#: the edge arrays of ``StaticObstacles.segments_near``: one compiled version serves both).
 _NO_EDGES = np.zeros((0, 2))
+_NO_EDGES.flags.writeable = False
 
 
 def _command_on_lines(wanted: float, target: float, heading: float, max_turn: float,
