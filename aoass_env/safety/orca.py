@@ -94,6 +94,10 @@ _SLACK = 1e-9
 #: A line: (point x, point y, direction x, direction y), velocity space (m/s).
 _Line = tuple[float, float, float, float]
 
+#: Side (m) of the edge grid's cells (:class:`_EdgeCache`): about the reach of an ORCA or
+#: envelope query, so that a query visits a few cells.
+_CELL = 4.0
+
 
 # --------------------------------------------------------------------------------------------
 # input checks
@@ -146,6 +150,44 @@ def _moving(value: Any) -> np.ndarray:
 # static obstacles
 # --------------------------------------------------------------------------------------------
 
+@numba.njit(cache=True)
+def _cell(value: float, origin: float, inv: float, count: float) -> int:
+    """The grid column (or row) of the coordinate ``value`` (m), clamped to the grid."""
+    c = math.floor((value - origin) * inv)
+    return int(min(max(c, 0.0), count - 1.0))
+
+
+@numba.njit(cache=True)
+def _edge_cells(edges: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """:class:`_EdgeCache`'s ``cells``: each edge listed in every cell its bounding box meets
+    (the cells of its corners by :func:`_cell`, which the query uses too)."""
+    x0, y0, inv, nx, ny = grid[0], grid[1], grid[2], grid[3], grid[4]
+    columns = int(nx)
+    n_cells = columns * int(ny)
+    counts = np.zeros(n_cells + 1, np.int64)
+    for phase in range(2):
+        if phase == 1:                  # offsets past the header, then fill
+            total = n_cells + 1
+            for c in range(n_cells + 1):
+                counts[c], total = total, total + counts[c]
+            out = np.empty(total, np.int64)
+            fill = np.empty(n_cells + 1, np.int64)
+            for c in range(n_cells + 1):    # (a slice copy would compile numba's error text)
+                out[c] = fill[c] = counts[c]
+        for i in range(edges.shape[0]):
+            ax, ay, bx, by = edges[i, 0], edges[i, 1], edges[i, 2], edges[i, 3]
+            c0, c1 = _cell(min(ax, bx), x0, inv, nx), _cell(max(ax, bx), x0, inv, nx)
+            r0, r1 = _cell(min(ay, by), y0, inv, ny), _cell(max(ay, by), y0, inv, ny)
+            for r in range(r0, r1 + 1):
+                for c in range(c0, c1 + 1):
+                    if phase == 0:
+                        counts[r * columns + c] += 1
+                    else:
+                        out[fill[r * columns + c]] = i
+                        fill[r * columns + c] += 1
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class _EdgeCache:
     """What the per-call geometry of :class:`StaticObstacles` reads, built once per obstacle set:
@@ -159,11 +201,18 @@ class _EdgeCache:
         links: (V, 3) int64 rows [next, prev, convex]: the neighbouring vertices and RVO2's
             ``isConvex_``.
         bbox: (4,) bounding box (x0, y0, x1, y1) of the vertices (zeros when empty).
+        grid: (5,) a uniform grid of square cells over the bounding box: [x0, y0, 1 / cell
+            side (1/m), columns, rows].
+        cells: int64 the grid's edge lists: ``cells[c]`` to ``cells[c + 1]`` index the entries
+            of cell c (row-major) further on in the same array, the edges whose bounding box
+            meets the cell.
     """
 
     edges: np.ndarray
     links: np.ndarray
     bbox: np.ndarray
+    grid: np.ndarray
+    cells: np.ndarray
     #: :meth:`StaticObstacles.segments_near`'s read-only (starts, ends) arrays by edge list
     segments: dict = field(default_factory=dict, repr=False)
 
@@ -179,18 +228,24 @@ class _EdgeCache:
             raise ValueError("StaticObstacles has a zero-length edge (a vertex repeated)")
         lo, hi = ((point.min(axis=0), point.max(axis=0)) if len(point)
                   else (np.zeros(2), np.zeros(2)))
-        cache = cls(np.column_stack([ax, ay, point[nxt, 0], point[nxt, 1], ex, ey, 1.0 / len2,
-                                     direction]).reshape(-1, 9),
-                    np.column_stack([nxt, prv, convex]).astype(np.int64).reshape(-1, 3),
-                    np.concatenate([lo, hi]))
-        for array in (cache.edges, cache.links, cache.bbox):
+        edges = np.column_stack([ax, ay, point[nxt, 0], point[nxt, 1], ex, ey, 1.0 / len2,
+                                 direction]).reshape(-1, 9)
+        bbox = np.concatenate([lo, hi])
+        grid = np.array([lo[0], lo[1], 1.0 / _CELL,
+                         max(math.ceil((hi[0] - lo[0]) / _CELL), 1),
+                         max(math.ceil((hi[1] - lo[1]) / _CELL), 1)])
+        cache = cls(edges, np.column_stack([nxt, prv, convex]).astype(np.int64).reshape(-1, 3),
+                    bbox, grid, _edge_cells(edges, grid) if len(edges)
+                    else np.full(2, 2, np.int64))      # no edges: one empty cell
+        for array in (cache.edges, cache.links, cache.bbox, cache.grid, cache.cells):
             array.flags.writeable = False
         return cache
 
     def near(self, px: float, py: float, reach: float) -> list[int]:
         """:meth:`StaticObstacles.edges_near` on checked floats (m), as a list
         (:func:`_near_compiled`)."""
-        return _near_compiled(self.edges, self.bbox, px, py, reach).tolist()
+        return _near_compiled(self.edges, self.bbox, self.grid, self.cells, px, py,
+                              reach).tolist()
 
 
 @dataclass(frozen=True, eq=False)
@@ -418,7 +473,8 @@ def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obs
     share = _positive("responsibility", responsibility, "fraction", high=1.0)
     static = _static(static_obstacles)
     cache = (static if static is not None else _NO_STATIC)._cache
-    array, n_static = _compiled_lines(cache.edges, cache.links, cache.bbox, px, py, vx, vy,
+    array, n_static = _compiled_lines(cache.edges, cache.links, cache.bbox, cache.grid,
+                                      cache.cells, px, py, vx, vy,
                                       radius, max_speed, tau_obst, _moving(moving_obstacles),
                                       tau, step, share)
     array.flags.writeable = False           # the views and the solver's rows stay these floats
@@ -737,35 +793,62 @@ def _stable_order(keys: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _near_compiled(edges: np.ndarray, bbox: np.ndarray, px: float, py: float,
-                   reach: float) -> np.ndarray:
+def _near_compiled(edges: np.ndarray, bbox: np.ndarray, grid: np.ndarray, cells: np.ndarray,
+                   px: float, py: float, reach: float) -> np.ndarray:
     """Indices of the edges closer than ``reach`` (m) to (px, py), nearest first, from the
-    :class:`_EdgeCache` rows: each edge's parameter of its point nearest the query (clipped to
+    :class:`_EdgeCache` tables: each edge's parameter of its point nearest the query (clipped to
     [0, 1]) and the squared distance to it. With two or more, an edge nearest at its end vertex
     is measured from that vertex itself, so that two edges nearest at their shared vertex tie
-    exactly and keep index order (a stable sort)."""
-    if (edges.shape[0] == 0 or px < bbox[0] - reach or px > bbox[2] + reach
+    exactly and keep index order (a stable sort).
+
+    Only the edges listed in the grid cells that a square of half side ``reach`` (padded well
+    beyond round-off) meets are measured: an edge closer than ``reach`` has its bounding box in
+    that square, and the cells of both come from :func:`_cell`, which never decreases with the
+    coordinate. The answer is the whole list's, measured in index order."""
+    n = edges.shape[0]
+    if (n == 0 or px < bbox[0] - reach or px > bbox[2] + reach
             or py < bbox[1] - reach or py > bbox[3] + reach):
         return np.empty(0, dtype=np.int64)
-    n = edges.shape[0]
-    s = np.empty(n)
-    dist2 = np.empty(n)
-    for i in range(n):
+    x0, y0, inv, nx, ny = grid[0], grid[1], grid[2], grid[3], grid[4]
+    columns = int(nx)
+    pad = reach * (1.0 + 1e-9) + 1e-9
+    c0, c1 = _cell(px - pad, x0, inv, nx), _cell(px + pad, x0, inv, nx)
+    r0, r1 = _cell(py - pad, y0, inv, ny), _cell(py + pad, y0, inv, ny)
+    seen = np.zeros(n, np.bool_)
+    candidates = np.empty(n, np.int64)
+    count = 0
+    for r in range(r0, r1 + 1):
+        for c in range(c0, c1 + 1):
+            cell = r * columns + c
+            for k in range(cells[cell], cells[cell + 1]):
+                i = cells[k]
+                if not seen[i]:
+                    seen[i] = True
+                    candidates[count] = i
+                    count += 1
+    candidates = np.sort(candidates[:count])
+    s = np.empty(count)
+    dist2 = np.empty(count)
+    hits = np.empty(count, np.int64)
+    m = 0
+    for i in candidates:
         ax, ay, ex, ey = edges[i, 0], edges[i, 1], edges[i, 4], edges[i, 5]
         rx, ry = px - ax, py - ay
         si = (rx * ex + ry * ey) * edges[i, 6]
         si = min(max(si, 0.0), 1.0)
         rx -= si * ex
         ry -= si * ey
-        s[i] = si
-        dist2[i] = rx * rx + ry * ry
-    hits = np.flatnonzero(dist2 < reach * reach)
-    if len(hits) > 1:
-        for i in hits:
-            if s[i] >= 1.0:
-                qx, qy = px - edges[i, 2], py - edges[i, 3]
-                dist2[i] = qx * qx + qy * qy
-        hits = hits[_stable_order(dist2[hits])]
+        d2 = rx * rx + ry * ry
+        if d2 < reach * reach:
+            hits[m], s[m], dist2[m] = i, si, d2
+            m += 1
+    hits, s, dist2 = hits[:m], s[:m], dist2[:m]
+    if m > 1:
+        for k in range(m):
+            if s[k] >= 1.0:
+                qx, qy = px - edges[hits[k], 2], py - edges[hits[k], 3]
+                dist2[k] = qx * qx + qy * qy
+        hits = hits[_stable_order(dist2)]
     return hits
 
 
@@ -812,13 +895,15 @@ def _unit_or_away(wx: float, wy: float, cx: float, cy: float) -> tuple[float, fl
 
 
 @numba.njit(cache=True)
-def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, px: float,
+def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, grid: np.ndarray,
+                    cells: np.ndarray, px: float,
                     py: float, vx: float, vy: float, radius: float, max_speed: float,
                     tau_obst: float, moving: np.ndarray, tau: float, step: float,
                     share: float) -> tuple[np.ndarray, int]:
     """(lines (n, 4) as (px, py, dx, dy) rows, n_static): the anchor's ORCA lines, static ones
-    first, for :func:`_build`'s checked floats; ``edges``, ``links``, ``bbox``: an
-    :class:`_EdgeCache`'s tables (empty for no static obstacles), ``moving``: (k, 5) rows.
+    first, for :func:`_build`'s checked floats; ``edges``, ``links``, ``bbox``, ``grid``,
+    ``cells``: an :class:`_EdgeCache`'s tables (empty for no static obstacles), ``moving``:
+    (k, 5) rows.
 
     RVO2's obstacle part: the edges within ``tau_obst * max_speed + radius`` (m), nearest
     first, seen from their free side only (back-face culling), skipped when earlier lines
@@ -829,7 +914,7 @@ def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, px: 
     edge's direction for a "foreign" leg pointing into it) and the projection of the velocity
     on its boundary: a cut-off circle, the cut-off line or a leg (a foreign leg adds no line).
     Then the moving discs (:func:`_moving_compiled`)."""
-    near = _near_compiled(edges, bbox, px, py, tau_obst * max_speed + radius)
+    near = _near_compiled(edges, bbox, grid, cells, px, py, tau_obst * max_speed + radius)
     lines = np.empty((len(near) + moving.shape[0], 4))
     n = 0
     inv_tau = 1.0 / tau_obst

@@ -640,6 +640,42 @@ def test_the_compiled_lines_are_the_float_codes():
             assert n_static == want_static and _bits(array.tolist()) == _bits(want)
 
 
+def _near_by_full_scan(cache, px, py, reach):
+    """The edge query over every edge in NumPy (what the grid's cells must not change)."""
+    e = cache.edges
+    if len(e) == 0:
+        return []
+    rx, ry = px - e[:, 0], py - e[:, 1]
+    s = np.minimum(np.maximum((rx * e[:, 4] + ry * e[:, 5]) * e[:, 6], 0.0), 1.0)
+    gx, gy = rx - s * e[:, 4], ry - s * e[:, 5]
+    dist2 = gx * gx + gy * gy
+    hits = np.flatnonzero(dist2 < reach * reach)
+    if len(hits) > 1:
+        end = hits[s[hits] >= 1.0]
+        dist2[end] = (px - e[end, 2]) ** 2 + (py - e[end, 3]) ** 2
+        hits = hits[np.argsort(dist2[hits], kind="stable")]
+    return hits.tolist()
+
+
+def test_the_edge_grid_finds_what_a_full_scan_finds():
+    """The edge query through the grid's cells returns the full scan's edges in its order:
+    generated maps of 40 m and 200 m, queries inside, at the border and outside the field,
+    on cell boundaries and on vertices, reaches from 0.1 m to past the field."""
+    from aoass_env.maps import generate_map
+    rng = np.random.default_rng(24)
+    for size, density in ((40.0, 0.5), (200.0, 0.3)):
+        static = StaticObstacles.from_loops(generate_map(size, density, rng).free_space_loops)
+        cache = static._cache
+        n_cells = int(cache.grid[3] * cache.grid[4])
+        assert cache.cells[n_cells] == len(cache.cells) and len(cache.edges) > 50
+        points = np.concatenate([rng.uniform(-10.0, size + 10.0, (400, 2)),
+                                 cache.edges[rng.integers(0, len(cache.edges), 100), :2],
+                                 4.0 * rng.integers(0, int(size / 4.0) + 1, (100, 2))])
+        for px, py in points.tolist():
+            reach = float(rng.choice([0.1, 1.9, 3.7, 5.7, 9.7, 25.0, 2.0 * size]))
+            assert cache.near(px, py, reach) == _near_by_full_scan(cache, px, py, reach)
+
+
 def test_the_stable_order_is_numpys_stable_argsort():
     """Random keys with many ties, sorted and reversed runs, one key and none."""
     from aoass_env.safety.orca import _stable_order
