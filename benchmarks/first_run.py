@@ -1,0 +1,54 @@
+"""First-run cost of the compiled kernels: AOASS-Safe-v0's warm-up on a copy of the package with
+an empty numba cache, then again with the cache the first run wrote.
+
+    python3 benchmarks/first_run.py
+
+The package (``aoass_env/``, without its ``__pycache__`` folders) and ``benchmarks/`` are
+copied to a temporary folder; a fresh interpreter imports them from there and times
+``env_throughput.warm_up_safe`` (random steps of AOASS-Safe-v0 until the look-ahead has run):
+the first time every kernel it reaches compiles, the second time they load from numba's cache.
+Prints the import time and the two warm-ups (wall seconds).
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+_PROBE = """
+import sys, time
+sys.path.insert(0, "benchmarks")
+t = time.perf_counter()
+import gymnasium as gym
+import aoass_env
+from env_throughput import warm_up_safe
+imported = time.perf_counter()
+warm_up_safe(gym.make("AOASS-Safe-v0"))
+print(f"{imported - t:.1f} {time.perf_counter() - imported:.1f}")
+"""
+
+
+def main() -> None:
+    with tempfile.TemporaryDirectory(prefix="aoass_first_run_") as folder:
+        for part in ("aoass_env", "benchmarks"):
+            shutil.copytree(ROOT / part, Path(folder) / part,
+                            ignore=shutil.ignore_patterns("__pycache__"))
+        times = []
+        for _ in range(2):
+            out = subprocess.run([sys.executable, "-c", _PROBE], cwd=folder, check=True,
+                                 capture_output=True, text=True,
+                                 env={"PYTHONPATH": folder, "PATH": "/usr/bin:/bin"}).stdout
+            times.append([float(x) for x in out.split()])
+    (imp1, first), (imp2, cached) = times
+    print(f"import aoass_env and gymnasium: {imp1:.1f} s, {imp2:.1f} s")
+    print(f"AOASS-Safe-v0 warm-up to its first look-ahead: {first:.1f} s with an empty numba "
+          f"cache (every kernel compiles), {cached:.1f} s with the cache it wrote")
+
+
+if __name__ == "__main__":
+    main()
