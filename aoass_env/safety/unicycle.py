@@ -293,7 +293,7 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
 #   min(|v*|, .) = |v*|). So when, on every heading up to the one commanded, a lower bound of
 #   the computed cap passes either test, the ORCA lines' command stands (`_reach_on_lines`).
 #   The bound (`_travel_floor`) takes BLAS's products anywhere within `_DOT_SLACK` of their
-#   terms (9 units in the last place; any order, fused or not, errs by 2), keeps every
+#   terms (9 units of roundoff, 2^-53; any order, fused or not, errs by 2), keeps every
 #   candidate such a product could make valid, and bounds each time from below; the braking
 #   speed's rounded operations never decrease with the travel. Tested against free_travel on
 #   the headings where its decisions turn on round-off. Of 6 000 recorded calls, 869 computed
@@ -412,9 +412,9 @@ def _arc_bounds(heading: float, turn: float, points: np.ndarray,
     return out
 
 
-#: Relative slack of the certificate's bounds on BLAS's 2-term products (about 9 units in the
-#: last place of the terms' magnitudes; any order of the products, fused or not, errs by at most
-#: 2) and on the floats it recomputes (the edges' normals, the sides).
+#: Relative slack of the certificate's bounds on BLAS's 2-term products (about 9 units of
+#: roundoff, 2^-53, of the terms' magnitudes; any order of the products, fused or not, errs by
+#: at most 2) and on the floats it recomputes (the edges' normals, the sides).
 _DOT_SLACK = 1e-15
 
 
