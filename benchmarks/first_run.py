@@ -12,6 +12,7 @@ Prints the import time and the two warm-ups (wall seconds).
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -38,11 +39,14 @@ def main() -> None:
         for part in ("aoass_env", "benchmarks"):
             shutil.copytree(ROOT / part, Path(folder) / part,
                             ignore=shutil.ignore_patterns("__pycache__"))
+        # this machine's environment, but the copy on the path and numba's default cache
+        # (beside the copy's sources: empty the first time)
+        env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+        env["PYTHONPATH"] = folder
         times = []
         for _ in range(2):
             out = subprocess.run([sys.executable, "-c", _PROBE], cwd=folder, check=True,
-                                 capture_output=True, text=True,
-                                 env={"PYTHONPATH": folder, "PATH": "/usr/bin:/bin"}).stdout
+                                 capture_output=True, text=True, env=env).stdout
             times.append([float(x) for x in out.split()])
     (imp1, first), (imp2, cached) = times
     print(f"import aoass_env and gymnasium: {imp1:.1f} s, {imp2:.1f} s")

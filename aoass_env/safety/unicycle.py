@@ -384,10 +384,9 @@ def _argmax(values: list[float]) -> int:
 
 
 @numba.njit(cache=True)
-def _heading_bound(h: float, points: np.ndarray, directions: np.ndarray) -> float:
-    """:func:`_bound` on the heading ``h`` (rad), compiled (``math.cos``/``sin`` must be
-    compiled_trig's)."""
-    ch, sh = math.cos(h), math.sin(h)
+def _heading_bound(ch: float, sh: float, points: np.ndarray, directions: np.ndarray) -> float:
+    """:func:`_bound` on the heading (cos, sin) = (ch, sh), compiled (its ``math.cos``/``sin``
+    must be compiled_trig's)."""
     bound = math.inf
     for j in range(points.shape[0]):
         px, py = points[j, 0], points[j, 1]
@@ -408,7 +407,8 @@ def _arc_bounds(heading: float, turn: float, points: np.ndarray,
     compiled."""
     out = np.empty(9)
     for i in range(9):
-        out[i] = _heading_bound(heading + turn * (i / 8.0), points, directions)
+        h = heading + turn * (i / 8.0)
+        out[i] = _heading_bound(math.cos(h), math.sin(h), points, directions)
     return out
 
 
@@ -419,15 +419,15 @@ _DOT_SLACK = 1e-15
 
 
 @numba.njit(cache=True)
-def _travel_floor(h: float, starts: np.ndarray, ends: np.ndarray, px: float, py: float,
-                  radius: float) -> float:
-    """A lower bound (m) of :func:`free_travel` on the heading ``h`` (rad) as NumPy and BLAS
-    compute it (:func:`_products`, :func:`_travel_compiled`): the same candidates with each
-    matrix product (u . w, u . n, u . e) taken anywhere within ``_DOT_SLACK`` of its terms'
-    magnitudes, every decision that such a product could flip counted as taken (a candidate
-    that might be valid is kept), and each time bounded from below, its own rounding included
-    (``math.cos``/``sin`` must be compiled_trig's, so that u is NumPy's)."""
-    ux, uy = math.cos(h), math.sin(h)
+def _travel_floor(ux: float, uy: float, starts: np.ndarray, ends: np.ndarray, px: float,
+                  py: float, radius: float) -> float:
+    """A lower bound (m) of :func:`free_travel` on the heading u = (cos, sin) = (ux, uy) as
+    NumPy and BLAS compute it (:func:`_products`, :func:`_travel_compiled`): the same
+    candidates with each matrix product (u . w, u . n, u . e) taken anywhere within
+    ``_DOT_SLACK`` of its terms' magnitudes, every decision that such a product could flip
+    counted as taken (a candidate that might be valid is kept), and each time bounded from
+    below, its own rounding included. u is compiled_trig's cos and sin, NumPy's (the slack
+    would also absorb a unit in the last place)."""
     r2 = radius * radius
     best = math.inf
     for j in range(starts.shape[0]):
@@ -512,13 +512,14 @@ def _reach_on_lines(heading: float, turn: float, floor: float, points: np.ndarra
     k = -1
     for i in range(9):
         h = heading + turn * (i / 8.0)
-        bound = _heading_bound(h, points, directions)
+        ch, sh = math.cos(h), math.sin(h)
+        bound = _heading_bound(ch, sh, points, directions)
         if not reach < bound:
             reach = bound
         if reach + 1e-9 < floor:
             break
         if starts.shape[0]:
-            travel = _travel_floor(h, starts, ends, px, py, radius)
+            travel = _travel_floor(ch, sh, starts, ends, px, py, radius)
             if not math.isinf(travel):
                 d = travel if travel >= 0.0 else 0.0
                 cap = max_accel * (math.sqrt(dt * dt + 2.0 * d / max_accel) - dt)

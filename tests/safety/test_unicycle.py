@@ -373,7 +373,8 @@ def test_the_certificate_bounds_the_free_travel_from_below():
         headings = np.array(headings)
         want = free_travel(starts, ends, position, headings, radius)
         for h, w in zip(headings.tolist(), want.tolist(), strict=True):
-            got = unicycle._travel_floor(h, starts, ends, *position.tolist(), radius)
+            got = unicycle._travel_floor(math.cos(h), math.sin(h), starts, ends,
+                                         *position.tolist(), radius)
             assert got <= w, (case, h, got, w)
             bound_finite += math.isfinite(got)
     assert bound_finite > 1000
