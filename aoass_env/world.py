@@ -35,6 +35,43 @@ _SENSED_PTR = _ffi.new("cpShapeFilter *", tuple(_SENSED))
 _STATIC_ONLY_PTR = _ffi.new("cpShapeFilter *", tuple(_STATIC_ONLY))
 _SENSED_C, _STATIC_ONLY_C = _SENSED_PTR[0], _STATIC_ONLY_PTR[0]
 
+
+def _sets_velocity_to_gravity(func: Any) -> bool:
+    """Does the velocity function ``func`` set a body's velocity to the gravity, exactly?"""
+    space, body = pymunk.Space(), pymunk.Body(1.0, math.inf)
+    space.add(body, pymunk.Circle(body, 0.5))
+    _cp.cpBodySetVelocityUpdateFunc(body._body, func)
+    command = (0.1 + 2.0**-40, -3.0 - 2.0**-40)
+    _cp.cpSpaceSetGravity(space._space, command)
+    _cp.cpSpaceStep(space._space, 0.1)
+    v = _cp.cpBodyGetVelocity(body._body)
+    return (v.x, v.y) == command
+
+
+@_ffi.callback("cpBodyVelocityFunc")
+def _velocity_from_gravity_py(body: Any, gravity: Any, damping: float, dt: float) -> None:
+    """:data:`_VELOCITY_FROM_GRAVITY` as a Python callback, where the C form fails its probe."""
+    _cp.cpBodySetVelocity(body, gravity)
+
+
+def _velocity_from_gravity() -> Any:
+    """The anchor's velocity function, which sets its velocity to the space's gravity.
+
+    The anchor is the space's only dynamic body (the moving obstacles are kinematic, and
+    Chipmunk's default velocity function skips those), so the gravity is free to carry the
+    velocity command of the coming substep; :meth:`World.advance` sets it before each step.
+    Chipmunk calls a velocity function as ``f(body, gravity, damping, dt)``; its own
+    ``cpBodySetVelocity(body, v)`` takes the first two arguments and ignores the other two
+    (caller-cleaned arguments, as on the ABIs Chipmunk runs on), so it serves as that function
+    in C, without a Python callback at every substep. A probe space checks that it sets the
+    velocity to the gravity exactly; where it does not, a Python callback makes the same call.
+    """
+    in_c = _ffi.cast("cpBodyVelocityFunc", _ffi.addressof(_cp, "cpBodySetVelocity"))
+    return in_c if _sets_velocity_to_gravity(in_c) else _velocity_from_gravity_py
+
+
+_VELOCITY_FROM_GRAVITY = _velocity_from_gravity()
+
 _SLOP_FRACTION = 0.01   # allowed anchor overlap (pymunk collision_slop) / anchor radius
 _APPROACH_TOL = 1e-6    # a touched shape stops a disc moving into it faster than this * speed
 _MAX_BOUNCES = 4        # reflections of one moving obstacle within one physics substep
@@ -127,10 +164,8 @@ class World:
         x0, y0 = self._check_start(start)
         self._heading = wrap_angle(real("start_heading", start_heading, "rad"))
         self._speed = 0.0
-        self._velocity_cmd = (0.0, 0.0)
         self._anchor = pymunk.Body(1.0, math.inf)
         self._anchor.position = (x0, y0)
-        self._anchor.velocity_func = self._apply_velocity_command
         self._anchor_disc = disc = pymunk.Circle(self._anchor, config.anchor_radius)
         disc.friction, disc.elasticity = 0.0, 0.0
         disc.collision_type = _ANCHOR
@@ -172,6 +207,8 @@ class World:
         self._c_space = self._space._space
         self._c_anchor, self._c_disc = self._anchor._body, self._anchor_disc._shape
         self._c_moving = [body._body for body in self._mbodies]
+        # the velocity phase of a substep: the command, carried by the gravity (advance)
+        _cp.cpBodySetVelocityUpdateFunc(self._c_anchor, _VELOCITY_FROM_GRAVITY)
         self._seg_info = _ffi.new("cpSegmentQueryInfo *")
         self._point_info = _ffi.new("cpPointQueryInfo *")
 
@@ -267,11 +304,6 @@ class World:
             self._mbodies.append(body)
 
     # --- pymunk callbacks -----------------------------------------------------------------
-    def _apply_velocity_command(self, body: pymunk.Body, gravity: Any, damping: float,
-                                dt: float) -> None:
-        """Velocity phase of a pymunk step: the commanded velocity, before contacts are solved."""
-        _cp.cpBodySetVelocity(self._c_anchor, self._velocity_cmd)
-
     def _begin(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
         """A part starts touching the anchor: a new contact unless its obstacle is touched
         already or was let go less than one control period ago."""
@@ -327,6 +359,7 @@ class World:
         target = min(max(speed_cmd, 0.0), cfg.anchor_max_speed)
         max_dv, max_dh = cfg.anchor_max_accel * sdt, cfg.anchor_max_turn_rate * sdt
         get_position, anchor, moving = _cp.cpBodyGetPosition, self._c_anchor, self._c_moving
+        set_gravity, space = _cp.cpSpaceSetGravity, self._c_space
         p = get_position(anchor)
         x, y = p.x, p.y
         done = self._substeps_done
@@ -338,13 +371,15 @@ class World:
             speed += min(max(target - speed, -max_dv), max_dv)
             turn = math.pi - (math.pi - (heading_target - heading)) % _TWO_PI
             heading = math.pi - (math.pi - (heading + min(max(turn, -max_dh), max_dh))) % _TWO_PI
-            self._velocity_cmd = (speed * math.cos(heading), speed * math.sin(heading))
+            # the velocity phase of the step sets the anchor's velocity to this, before
+            # contacts are solved (_velocity_from_gravity)
+            set_gravity(space, (speed * math.cos(heading), speed * math.sin(heading)))
             velocity = self._limit_anchor_move(x, y)
             if self._turn_due <= done * sdt:
                 self._turn_moving()
             if moving:
                 self._move_moving(x, y, velocity)
-            _cp.cpSpaceStep(self._c_space, sdt)
+            _cp.cpSpaceStep(space, sdt)
             done = self._substeps_done = done + 1     # the contact callbacks read it
             self._mpos = [(q.x, q.y) for q in map(get_position, moving)]
             p = get_position(anchor)

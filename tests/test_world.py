@@ -440,3 +440,23 @@ def test_a_copied_world_runs_on_like_the_original(clone):
         assert w.nearest_obstacle_distance() == twin.nearest_obstacle_distance()
         np.testing.assert_array_equal(w.moving_positions, twin.moving_positions)
     assert w.contacts == twin.contacts
+
+
+def test_the_velocity_function_in_c_sets_the_gravity_like_the_python_callback(monkeypatch):
+    """The anchor's velocity phase: Chipmunk's cpBodySetVelocity called as the velocity function
+    (when its probe passes, the form used) moves the anchor as a Python callback making the same
+    call does, float for float, contacts with static and moving obstacles included."""
+    assert world_module._sets_velocity_to_gravity(world_module._velocity_from_gravity_py)
+    in_c = world_module._ffi.cast("cpBodyVelocityFunc",
+                                  world_module._ffi.addressof(world_module._cp,
+                                                              "cpBodySetVelocity"))
+    cmds = np.random.default_rng(14).uniform((0.0, -math.pi), (2.5, math.pi), size=(150, 2))
+    runs = []
+    for func in (in_c, world_module._velocity_from_gravity_py):
+        monkeypatch.setattr(world_module, "_VELOCITY_FROM_GRAVITY", func)
+        w = make((10.0, 6.0), seed=3, obstacle_map=field_map(), n_moving_obstacles=3,
+                 moving_obstacle_radius=0.5)
+        rows = [w.step(*c) for c in cmds.tolist()]
+        runs.append((np.concatenate(rows), w.contacts))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    assert runs[0][1] == runs[1][1] and runs[0][1] > 0
