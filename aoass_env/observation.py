@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 from typing import Protocol
 
+import numba
 import numpy as np
 from gymnasium import spaces
 
@@ -45,8 +46,8 @@ from aoass_env.config import AOASSConfig
 from aoass_env.planning import CoverageMap
 from aoass_env.world import World
 
-__all__ = ["MOVING_FIELDS", "Observer", "observation_layout", "observation_space",
-           "velocity_scale"]
+__all__ = ["MOVING_FIELDS", "Observer", "clip_like_numpy", "observation_layout",
+           "observation_space", "velocity_scale"]
 
 #: Fields of one moving-obstacle slot.
 MOVING_FIELDS = ("dx", "dy", "vx", "vy", "present")
@@ -84,6 +85,53 @@ def observation_space(config: AOASSConfig) -> spaces.Box:
     return spaces.Box(low, np.ones_like(low), dtype=np.float32)
 
 
+@numba.njit(cache=True, inline="always")
+def clip_like_numpy(x: float, low: float, high: float) -> float:
+    """``np.minimum(np.maximum(x, low), high)`` of one element, as NumPy's array functions give
+    it: a NaN is kept, and a tie of +0.0 and -0.0 gives the bound (the second operand)."""
+    if not (x > low or x != x):
+        x = low
+    if not (x < high or x != x):
+        x = high
+    return x
+
+
+@numba.njit(cache=True)
+def _vector(x: float, y: float, field: float, speed: float, max_speed: float, gap: float,
+            reach: float, heading_error: float, cos_h: float, sin_h: float,
+            upcoming: np.ndarray, wp_scale: float, rays: np.ndarray, slots: np.ndarray,
+            coverage: float, progress: float, time_fraction: float, extra: np.ndarray,
+            low: np.ndarray) -> np.ndarray:
+    """The observation vector from its parts, element by element: the float64 entries that
+    :meth:`Observer.__call__`'s concatenation of the parts would hold (the same divisions and
+    subtractions), clipped to [``low``, 1] as NumPy clips, then rounded to float32."""
+    out = np.empty(low.shape[0], np.float32)
+    head = (x / field, y / field, speed / max_speed, gap / reach, heading_error / math.pi,
+            cos_h, sin_h)
+    k = 0
+    for v in head:
+        out[k] = clip_like_numpy(v, low[k], 1.0)
+        k += 1
+    for i in range(upcoming.shape[0]):
+        out[k] = clip_like_numpy((upcoming[i, 0] - x) / wp_scale, low[k], 1.0)
+        out[k + 1] = clip_like_numpy((upcoming[i, 1] - y) / wp_scale, low[k + 1], 1.0)
+        k += 2
+    for i in range(rays.shape[0]):
+        out[k] = clip_like_numpy(rays[i] / reach, low[k], 1.0)
+        k += 1
+    for i in range(slots.shape[0]):
+        for j in range(slots.shape[1]):
+            out[k] = clip_like_numpy(slots[i, j], low[k], 1.0)
+            k += 1
+    for v in (coverage, progress, time_fraction):
+        out[k] = clip_like_numpy(v, low[k], 1.0)
+        k += 1
+    for i in range(extra.shape[0]):
+        out[k] = clip_like_numpy(extra[i], low[k], 1.0)
+        k += 1
+    return out
+
+
 class Route(Protocol):
     """The waypoints an episode's follower walks: the spiral's, or an adaptive sweep's."""
 
@@ -105,6 +153,7 @@ class Observer:
                  noise_rng: np.random.Generator) -> None:
         self.config = config
         self._low = observation_space(config).low.astype(np.float64)
+        self._no_extra = np.zeros(0)
         self._free = np.flatnonzero(~spiral.blocked)
         self._free_xy = spiral.waypoints[self._free]
         self._rng = noise_rng
@@ -189,15 +238,16 @@ class Observer:
         position, h = world.position, world.heading
         x, y = position.tolist()
         self.obstacle_gap = world.nearest_obstacle_distance()
-        head = np.array([x / c.field_size, y / c.field_size, world.speed / c.anchor_max_speed,
-                         self.obstacle_gap / c.sensing_range,
-                         heading_error / math.pi, math.cos(h), math.sin(h)])
-        waypoints = (self.upcoming(follower_index) - position) / self._wp_scale
-        parts = [head, waypoints.ravel(), world.ray_distances() / c.sensing_range,
-                 self.moving(world).ravel(), (coverage, progress, time_fraction)]
+        extra = self._no_extra
         if c.obs_coverage_sectors:
-            parts += [coverage_map.sector_deficits(world.position, h, c.obs_coverage_sectors,
-                                                   2.0 * c.radio_range),
-                      (coverage_map.ratio,)]
-        obs = np.concatenate(parts)
-        return np.minimum(np.maximum(obs, self._low), 1.0).astype(np.float32)
+            extra = np.append(coverage_map.sector_deficits(position, h, c.obs_coverage_sectors,
+                                                           2.0 * c.radio_range),
+                              coverage_map.ratio)
+        # the parts in order (docstring's table), clipped and rounded as
+        # np.minimum(np.maximum(np.concatenate(parts), low), 1.0).astype(np.float32)
+        return _vector(x, y, float(c.field_size), float(world.speed),
+                       float(c.anchor_max_speed), float(self.obstacle_gap),
+                       float(c.sensing_range), float(heading_error), math.cos(h), math.sin(h),
+                       self.upcoming(follower_index), self._wp_scale, world.ray_distances(),
+                       self.moving(world), float(coverage), float(progress),
+                       float(time_fraction), extra, self._low)

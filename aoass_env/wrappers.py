@@ -36,7 +36,7 @@ from aoass_env.action import ResidualAction, action_type_named
 from aoass_env.config import AOASSConfig, config_with
 from aoass_env.env import COST_KEYS, AnchorState, AOASSEnv, make_env
 from aoass_env.maps import ObstacleMap, list_maps, load_map, validation_split
-from aoass_env.observation import MOVING_FIELDS, velocity_scale
+from aoass_env.observation import MOVING_FIELDS, clip_like_numpy, velocity_scale
 from aoass_env.planning import AdaptiveConfig
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.safety.fuzzy import FuzzyController
@@ -248,11 +248,7 @@ def _empty_slots(observation: np.ndarray, start: int, stop: int, low: np.ndarray
     n = observation.shape[0]
     for i in range(low.shape[0]):
         x = observation[i] if i < n and not start <= i < stop else np.float32(0.0)
-        if not (x > low[i] or x != x):
-            x = low[i]
-        if not (x < high[i] or x != x):
-            x = high[i]
-        out[i] = x
+        out[i] = clip_like_numpy(x, low[i], high[i])
     return out
 
 

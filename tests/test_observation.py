@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.observation import Observer, observation_layout, observation_space
+from aoass_env.observation import Observer, _vector, observation_layout, observation_space
 from aoass_env.planning.square_spiral import episode_spiral
 from aoass_env.simulator import Simulator
 
@@ -132,3 +136,104 @@ def test_moving_equals_the_old_code_bit_for_bit(sensing_range):
         counts[len(new.detections) > 0] += 1
         sim.step(float(rng.uniform(0.0, 1.0)), float(rng.uniform(-np.pi, np.pi)))
     assert min(counts) > 5, counts
+
+
+def _numpy_observation(observer: Observer, world, *, follower_index, heading_error, coverage,
+                       progress, time_fraction, coverage_map) -> np.ndarray:
+    """The observation as the parts' concatenation, clipped by NumPy: the oracle of
+    Observer.__call__'s element-by-element kernel."""
+    c = observer.config
+    position, h = world.position, world.heading
+    x, y = position.tolist()
+    gap = world.nearest_obstacle_distance()
+    head = np.array([x / c.field_size, y / c.field_size, world.speed / c.anchor_max_speed,
+                     gap / c.sensing_range, heading_error / math.pi, math.cos(h), math.sin(h)])
+    waypoints = (observer.upcoming(follower_index) - position) / observer._wp_scale
+    parts = [head, waypoints.ravel(), world.ray_distances() / c.sensing_range,
+             observer.moving(world).ravel(), (coverage, progress, time_fraction)]
+    if c.obs_coverage_sectors:
+        parts += [coverage_map.sector_deficits(world.position, h, c.obs_coverage_sectors,
+                                               2.0 * c.radio_range), (coverage_map.ratio,)]
+    low = observation_space(c).low.astype(np.float64)
+    return np.minimum(np.maximum(np.concatenate(parts), low), 1.0).astype(np.float32)
+
+
+@pytest.mark.parametrize("env_id, config", [
+    ("AOASS-v0", {"obstacle_density": 0.3, "n_moving_obstacles": 8}),
+    ("AOASS-Adaptive-v0", {"obstacle_density": 0.2, "field_size": 60.0})])
+def test_observations_are_the_numpy_concatenation_float_for_float(env_id, config):
+    """Whole random-action episodes: every observation equals, by its bytes, the parts
+    concatenated and clipped by NumPy, read off the same state with the same noise draws."""
+    import copy
+
+    import gymnasium as gym
+
+    import aoass_env  # noqa: F401  (registers the ids)
+    env = gym.make(env_id, **config)
+    base = env.unwrapped
+    checked = {"n": 0, "moving": 0}
+    env.reset(seed=31)
+
+    class Checking:
+        """The episode's observer, each call checked against the NumPy form."""
+
+        def __init__(self, inner):
+            self.inner = inner
+
+        def __getattr__(self, name):
+            return getattr(self.inner, name)
+
+        def __call__(self, world, **kwargs):
+            twin = copy.deepcopy(self.inner)          # the same noise generator state
+            got = self.inner(world, **kwargs)
+            want = _numpy_observation(twin, world, **kwargs)
+            assert got.dtype == np.float32 and got.tobytes() == want.tobytes()
+            checked["n"] += 1
+            checked["moving"] += len(self.inner.detections) > 0
+            return got
+
+    base._observe = Checking(base._observe)
+    env.action_space.seed(31)
+    for _ in range(600):
+        *_, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+            base._observe = Checking(base._observe)
+    env.close()
+    assert checked["n"] >= 600 and checked["moving"] > 0
+
+
+_ODD = st.sampled_from([0.0, -0.0, 1.0, -1.0, math.nan, math.inf, -math.inf, 1e-300, -1e-300,
+                        1.0 + 2.0**-52, -1.0 - 2.0**-52, 2.0**-149, 3.4e38, 3.5e38])
+_ELEMENT = st.one_of(_ODD, st.floats(-3.0, 3.0, allow_subnormal=True))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.data())
+def test_the_observation_kernel_clips_and_rounds_as_numpy(data):
+    """_vector against the concatenation clipped by NumPy, by the bytes: signed zeros on the
+    bounds, NaN, infinities, values just past the bounds and at float32's limits."""
+    k, n_rays, m, s = (data.draw(st.integers(0, 4)) for _ in range(4))
+    scalars = data.draw(st.lists(_ELEMENT, min_size=10, max_size=10))
+    x, y, speed, gap, heading_error, cos_h, sin_h, coverage, progress, time_fraction = scalars[:10]
+    field, max_speed, reach = (data.draw(st.sampled_from([1.0, 3.0, 100.0, 0.3]))
+                               for _ in range(3))
+    wp_scale = data.draw(st.sampled_from([0.5, 10.0, 7.0]))
+
+    def array(*shape):
+        return np.array(data.draw(st.lists(_ELEMENT, min_size=int(np.prod(shape)),
+                                           max_size=int(np.prod(shape))))).reshape(shape)
+    upcoming, rays, slots, extra = array(k, 2), array(n_rays), array(m, 5), array(s)
+    low = np.array(data.draw(st.lists(st.sampled_from([0.0, -1.0]),
+                                      min_size=7 + 2 * k + n_rays + 5 * m + 3 + s,
+                                      max_size=7 + 2 * k + n_rays + 5 * m + 3 + s)))
+    with np.errstate(all="ignore"):
+        head = np.array([x / field, y / field, speed / max_speed, gap / reach,
+                         heading_error / math.pi, cos_h, sin_h])
+        parts = [head, ((upcoming - np.array([x, y])) / wp_scale).ravel(), rays / reach,
+                 slots.ravel(), (coverage, progress, time_fraction), extra]
+        want = np.minimum(np.maximum(np.concatenate(parts), low), 1.0).astype(np.float32)
+        got = _vector(x, y, field, speed, max_speed, gap, reach, heading_error, cos_h, sin_h,
+                      upcoming, wp_scale, rays, slots, coverage, progress, time_fraction, extra,
+                      low)
+    assert got.tobytes() == want.tobytes()
