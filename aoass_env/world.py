@@ -185,6 +185,7 @@ class World:
         space.on_collision(_ANCHOR, _MOVING, begin=self._begin, pre_solve=self._bounce_off_anchor,
                            separate=self._separate)
         self._substeps_done = 0
+        self._xy: np.ndarray | None = None    # position's array, until the anchor moves
         self._ray_offsets = 2.0 * math.pi * np.arange(config.n_rays) / config.n_rays
 
     # Chipmunk handles and query buffers (cffi objects): not picklable, rebuilt from the pymunk
@@ -386,6 +387,7 @@ class World:
             x, y = p.x, p.y
             rows.append((done * sdt, x, y))
         self._speed, self._heading = speed, heading
+        self._xy = None
         return rows
 
     def _turn_moving(self) -> None:
@@ -570,9 +572,14 @@ class World:
     # --- state ----------------------------------------------------------------------------
     @property
     def position(self) -> np.ndarray:
-        """Anchor centre (x, y) (m)."""
-        p = _cp.cpBodyGetPosition(self._c_anchor)
-        return np.array((p.x, p.y))
+        """Anchor centre (x, y) (m), read-only: one array per position, a new one after each
+        step (the step's readers share it)."""
+        xy = self._xy
+        if xy is None:
+            p = _cp.cpBodyGetPosition(self._c_anchor)
+            xy = self._xy = np.array((p.x, p.y))
+            xy.flags.writeable = False
+        return xy
 
     @property
     def heading(self) -> float:

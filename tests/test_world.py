@@ -460,3 +460,16 @@ def test_the_velocity_function_in_c_sets_the_gravity_like_the_python_callback(mo
         runs.append((np.concatenate(rows), w.contacts))
     np.testing.assert_array_equal(runs[0][0], runs[1][0])
     assert runs[0][1] == runs[1][1] and runs[0][1] > 0
+
+
+def test_position_is_a_read_only_array_renewed_by_each_step():
+    w = make((10.0, 6.0), seed=3, n_moving_obstacles=2, moving_obstacle_radius=0.5)
+    before = w.position
+    assert before is w.position and not before.flags.writeable
+    with pytest.raises(ValueError):
+        before[0] = 1.0
+    w.step(1.0, 0.5)
+    after = w.position
+    np.testing.assert_array_equal(before, [10.0, 6.0])
+    assert after is not before and tuple(after) == tuple(w._anchor.position)
+    assert after[0] > 10.0 and after[1] > 6.0
