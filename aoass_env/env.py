@@ -197,6 +197,11 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         self.sim: Simulator | None = None
         self._renderer: Any = None
         self._log: BeaconLog | None = None
+        #: Set by :class:`~aoass_env.wrappers.ActionRepeat` around the steps whose observation
+        #: nobody reads: such a step returns ``None`` for it and only measures what it would
+        #: measure (:meth:`Observer.sense`); :meth:`deferred_observation` builds it on demand.
+        self.defer_observation = False
+        self._deferred = False
 
     # --- episode ----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None,
@@ -227,6 +232,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         route = self._follower.follower if self._sweeps else self.sim.spiral
         self._observe = Observer(config, route, noise_rng)
         self._steps = 0
+        self._deferred = False
         self._log = None
         self._static_contacts = self._moving_contacts = 0
         self._rmse = 0.0
@@ -272,7 +278,20 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
             info["episode_metrics"] = self._episode_metrics()
         if self.render_mode == "human":
             self.render()
+        self._deferred = self.defer_observation
+        if self._deferred:
+            self._observe.sense(sim.world)
+            return None, float(sum(terms.values())), terminated, truncated, info
         return self._observation(), float(sum(terms.values())), terminated, truncated, info
+
+    def deferred_observation(self) -> np.ndarray:
+        """The observation the last step deferred (:attr:`defer_observation`), the vector it
+        would have returned: the state has not changed since."""
+        self._started("deferred_observation")
+        if not self._deferred:
+            raise RuntimeError("deferred_observation() reads the observation of a step run with "
+                               "defer_observation set; the last step returned its own")
+        return self._observation_vector()
 
     def end_episode(self) -> dict[str, Any]:
         """End the episode now, as a time limit outside the environment does
@@ -285,15 +304,20 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
 
     # --- what the agent and the user see -----------------------------------------------------
     def _observation(self) -> np.ndarray:
+        self._observe.sense(self.sim.world)
+        return self._observation_vector()
+
+    def _observation_vector(self) -> np.ndarray:
+        """The observation vector of the state :meth:`Observer.sense` last measured."""
         sim = self.sim
         heading_error = (wrap_angle(self._command[1] - sim.world.heading)
                          if not self._follower.done else 0.0)
-        return self._observe(sim.world, follower_index=self._follower.index,
-                             heading_error=heading_error,
-                             coverage=sim.network.coverage_ratio,
-                             progress=self._follower.progress(),
-                             time_fraction=min(self._steps / self.max_episode_steps, 1.0),
-                             coverage_map=sim.coverage_map)
+        return self._observe.vector(sim.world, follower_index=self._follower.index,
+                                    heading_error=heading_error,
+                                    coverage=sim.network.coverage_ratio,
+                                    progress=self._follower.progress(),
+                                    time_fraction=min(self._steps / self.max_episode_steps, 1.0),
+                                    coverage_map=sim.coverage_map)
 
     def _info(self) -> dict[str, Any]:
         sim, net = self.sim, self.sim.network

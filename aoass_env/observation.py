@@ -167,6 +167,7 @@ class Observer:
         self.detections = np.zeros((0, 4))
         #: d_obs (m) of the last observation (the world's gap to the nearest obstacle then)
         self.obstacle_gap = float(config.sensing_range)
+        self._slots = np.zeros((config.obs_moving_obstacles, len(MOVING_FIELDS)))
 
     def upcoming(self, index: int) -> np.ndarray:
         """(K, 2) the next K free waypoints from spiral index ``index`` on (the last one
@@ -220,10 +221,19 @@ class Observer:
         slots[:m, 4] = 1.0
         return slots
 
+    def sense(self, world: World) -> None:
+        """Measure what an observation measures: d_obs (:attr:`obstacle_gap`) and the noisy
+        moving-obstacle slots and :attr:`detections` (this draws the measurement noise). A
+        step whose observation vector nobody reads (inside :class:`~aoass_env.wrappers.
+        ActionRepeat`) runs only this; :meth:`vector` builds the vector from it later."""
+        self.obstacle_gap = world.nearest_obstacle_distance()
+        self._slots = self.moving(world)
+
     def __call__(self, world: World, *, follower_index: int, heading_error: float,
                  coverage: float, progress: float, time_fraction: float,
                  coverage_map: CoverageMap) -> np.ndarray:
-        """The observation vector (float32) for the current state.
+        """The observation vector (float32) for the current state: :meth:`sense`, then
+        :meth:`vector`.
 
         Args:
             world: the episode's world.
@@ -234,10 +244,19 @@ class Observer:
             time_fraction: elapsed steps / step limit.
             coverage_map: the anchor's coverage map (read when ``obs_coverage_sectors`` > 0).
         """
+        self.sense(world)
+        return self.vector(world, follower_index=follower_index, heading_error=heading_error,
+                           coverage=coverage, progress=progress, time_fraction=time_fraction,
+                           coverage_map=coverage_map)
+
+    def vector(self, world: World, *, follower_index: int, heading_error: float,
+               coverage: float, progress: float, time_fraction: float,
+               coverage_map: CoverageMap) -> np.ndarray:
+        """The observation vector (float32) of the state the last :meth:`sense` measured (the
+        world unmoved since), arguments as for :meth:`__call__`; no side effects."""
         c = self.config
         position, h = world.position, world.heading
         x, y = position.tolist()
-        self.obstacle_gap = world.nearest_obstacle_distance()
         extra = self._no_extra
         if c.obs_coverage_sectors:
             extra = np.append(coverage_map.sector_deficits(position, h, c.obs_coverage_sectors,
@@ -249,5 +268,5 @@ class Observer:
                        float(c.anchor_max_speed), float(self.obstacle_gap),
                        float(c.sensing_range), float(heading_error), math.cos(h), math.sin(h),
                        self.upcoming(follower_index), self._wp_scale, world.ray_distances(),
-                       self.moving(world), float(coverage), float(progress),
-                       float(time_fraction), extra, self._low)
+                       self._slots, float(coverage), float(progress), float(time_fraction),
+                       extra, self._low)

@@ -196,14 +196,26 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
         in :attr:`tracked_obstacles` (the filterpy filters' ``P``)."""
         return self.tracker.covariances()
 
-    def observation(self, observation: np.ndarray) -> np.ndarray:
-        c = self._base.config
+    def observation(self, observation: np.ndarray | None) -> np.ndarray | None:
         detections = self._base.detections
         if len(detections) or self.tracker.tracks:
             self.tracker.step(detections)
-            states = self.tracker.states()
-        else:                       # no track, no detection: tracker.step() would return at once
-            states = ()
+        # else no track, no detection: tracker.step() would return at once
+        if observation is None:     # a deferred step (ActionRepeat): the tracker steps all the same
+            return None
+        return self._with_tracks(observation)
+
+    def deferred_observation(self) -> np.ndarray:
+        """The observation the last step deferred (``AOASSEnv.defer_observation``): the
+        inner one (:meth:`AOASSEnv.deferred_observation <aoass_env.env.AOASSEnv.
+        deferred_observation>`) with this step's tracks."""
+        return self._with_tracks(self._base.deferred_observation())
+
+    def _with_tracks(self, observation: np.ndarray) -> np.ndarray:
+        """``observation`` with the confirmed tracks in the moving-obstacle slots and their
+        predicted positions appended."""
+        c = self._base.config
+        states = self.tracker.states() if self.tracker.tracks else ()
         if len(states) == 0:        # no confirmed track: empty slots (the lines below, in short)
             if observation.dtype == np.float32 and observation.shape == self._inner_shape:
                 return _empty_slots(observation, self._moving.start, self._moving.stop,
@@ -495,13 +507,33 @@ class ActionRepeat(_EntryPointWrapper):
     for one 0.5 s period moves the anchor at most 0.5 m, too little for a critic to tell its
     effect on Eq. 14 from noise. Wrapped outside the safety stack, the velocity filter still runs
     every control period.
+
+    Only the last step's observation is returned, so on AOASS-v0 and the safety stack the
+    steps before it defer theirs (``AOASSEnv.defer_observation``): they measure what the
+    filter and the tracker read (d_obs, the noisy detections) but build no vector (no rays);
+    when the episode ends on such a step, its observation is built then, from the same state.
+    The episodes are the same as with every observation built. Any other wrapper between
+    this one and AOASS-v0 might read the observations, so then every step builds its own.
     """
+
+    #: Wrappers between this one and AOASS-v0 under which observations may be deferred: they
+    #: read no observation, or (the tracker) step without one and build it on demand.
+    _DEFERRING = (gym.wrappers.TimeLimit,)
 
     def __init__(self, env: gym.Env, repeat: int) -> None:
         if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
             raise ValueError(f"action_repeat must be an integer >= 1, got {repeat!r}")
         super().__init__(env)
         self.repeat = repeat
+        # where a deferred observation is built: the outermost layer that transforms it
+        self._source: Any = None
+        layer, source = env, None
+        while isinstance(layer, (FuzzyORCASafety, KalmanObstacleTracker, *self._DEFERRING)):
+            if source is None and isinstance(layer, KalmanObstacleTracker):
+                source = layer
+            layer = layer.env
+        if isinstance(layer, AOASSEnv):
+            self._source = source or layer
 
     @property
     def spec(self) -> EnvSpec | None:
@@ -516,13 +548,22 @@ class ActionRepeat(_EntryPointWrapper):
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         total = 0.0
         costs = dict.fromkeys(COST_KEYS, 0.0)
-        for _ in range(self.repeat):
-            obs, reward, terminated, truncated, info = self.env.step(action)
-            total += float(reward)
-            for key in COST_KEYS:
-                costs[key] += info[key]
-            if terminated or truncated:
-                break
+        base = self.env.unwrapped if self._source is not None else None
+        try:
+            for k in range(self.repeat):
+                if base is not None:
+                    base.defer_observation = k < self.repeat - 1
+                obs, reward, terminated, truncated, info = self.env.step(action)
+                total += float(reward)
+                for key in COST_KEYS:
+                    costs[key] += info[key]
+                if terminated or truncated:
+                    break
+        finally:
+            if base is not None:
+                base.defer_observation = False
+        if obs is None and base is not None:    # the episode ended on a deferred step
+            obs = self._source.deferred_observation()
         info.update(costs)
         return obs, total, terminated, truncated, info
 

@@ -287,3 +287,31 @@ def test_bad_render_mode_map_and_reset_option():
 def test_config_object_and_keywords_combine():
     env = AOASSEnv(config=AOASSConfig(n_nodes=12), field_size=50.0)
     assert env.config.n_nodes == 12 and env.config.field_size == 50.0
+
+
+def test_a_deferred_observation_is_built_on_demand_and_only_then():
+    """defer_observation: the step returns None and its observation is built by
+    deferred_observation(), the vector the step would have returned; asking for it after a
+    step that returned its own (or before any step) is an error naming the method."""
+    deferring, plain = (gym.make("AOASS-v0", field_size=40.0, n_moving_obstacles=4)
+                        for _ in range(2))
+    for env in (deferring, plain):
+        env.reset(seed=12)
+    base = deferring.unwrapped
+    with pytest.raises(RuntimeError, match="deferred_observation"):
+        base.deferred_observation()
+    rng = np.random.default_rng(12)
+    for k in range(60):
+        action = rng.uniform(-1, 1, 2).astype(np.float32)
+        base.defer_observation = k % 3 != 0    # the checker of gym.make reads the first
+        got = deferring.step(action)
+        want = plain.step(action)
+        if base.defer_observation:
+            assert got[0] is None
+            obs = base.deferred_observation()
+            assert obs.tobytes() == base.deferred_observation().tobytes()   # no side effects
+        else:
+            obs = got[0]
+            with pytest.raises(RuntimeError, match="deferred_observation"):
+                base.deferred_observation()
+        assert obs.tobytes() == want[0].tobytes() and got[1] == want[1]

@@ -491,3 +491,78 @@ def test_tracker_clips_float32_as_float64():
         got = wrappers._empty_slots(inner, tracker._moving.start, tracker._moving.stop, low,
                                     high)
         assert got.dtype == np.float32 and got.tobytes() == want.tobytes()
+
+
+def _same(a, b) -> bool:
+    """Exact equality of nested infos: arrays by their bytes, floats by their bits (NaN too)."""
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return type(a) is type(b) and len(a) == len(b) and all(map(_same, a, b))
+    if isinstance(a, np.ndarray):
+        return (isinstance(b, np.ndarray) and a.dtype == b.dtype and a.shape == b.shape
+                and a.tobytes() == b.tobytes())
+    if isinstance(a, float):
+        return isinstance(b, float) and np.float64(a).tobytes() == np.float64(b).tobytes()
+    return type(a) is type(b) and a == b
+
+
+@pytest.mark.parametrize("kwargs, limit", [
+    (dict(field_size=30.0, n_nodes=30, obstacle_density=0.2, n_moving_obstacles=6,
+          moving_obstacle_speed=(0.3, 1.0)), None),
+    (dict(field_size=40.0, n_nodes=40, obstacle_density=0.3, n_moving_obstacles=3,
+          action_type="adaptive", obs_coverage_sectors=8), 620)],
+    ids=["residual-terminated", "adaptive-truncated"])
+def test_action_repeat_defers_the_unread_observations_and_plays_the_same_episodes(kwargs, limit):
+    """The repeated stack builds the observation vector on the last held step only, or on the
+    step that ends the episode: it plays the very episodes of a stack that builds every one
+    (an extra wrapper in between turns the deferral off), observations, rewards, ends and infos
+    equal by their bits, and builds far fewer vectors."""
+    from aoass_env.observation import Observer
+
+    repeat = 7
+
+    def stack(defer: bool) -> ActionRepeat:
+        env = make_safe_env(**kwargs)
+        if limit is not None:        # a time limit that ends the episode between held steps
+            env = gym.wrappers.TimeLimit(env, limit)
+        return ActionRepeat(env if defer else gym.Wrapper(env), repeat)
+
+    built = {"n": 0}
+    vector = Observer.vector
+
+    def counted(self, *args, **kw):
+        built["n"] += 1
+        return vector(self, *args, **kw)
+
+    plays, vectors, ends = {}, {}, {}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(Observer, "vector", counted)
+        for defer in (True, False):
+            env = stack(defer)
+            assert (env._source is not None) is defer
+            built["n"] = 0
+            plays[defer], ends[defer] = [], []
+            for seed in (21, 22):
+                rng = np.random.default_rng(seed)
+                episode = [env.reset(seed=seed)]
+                while True:
+                    action = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+                    episode.append(env.step(action))
+                    if episode[-1][2] or episode[-1][3]:
+                        break
+                plays[defer].append(episode)
+                ends[defer].append((env.unwrapped._steps, episode[-1][2], episode[-1][3]))
+            vectors[defer] = built["n"]
+    for got, want in zip(plays[True], plays[False], strict=True):
+        assert len(got) == len(want)
+        for a, b in zip(got, want, strict=True):
+            assert a[0].dtype == np.float32 and a[0].tobytes() == b[0].tobytes()
+            assert _same(a[1:], b[1:])
+    assert ends[True] == ends[False]
+    # each episode ended between held steps: its last observation was built on demand
+    assert all(steps % repeat for steps, _, _ in ends[True])
+    if limit is not None:
+        assert all(truncated for _, _, truncated in ends[True])
+    assert vectors[True] == sum(len(episode) for episode in plays[True])   # resets included
+    assert vectors[False] > 5 * vectors[True]
