@@ -513,22 +513,28 @@ class ActionRepeat(_EntryPointWrapper):
     filter and the tracker read (d_obs, the noisy detections) but build no vector (no rays);
     when the episode ends on such a step, its observation is built then, from the same state.
     The episodes are the same as with every observation built. Any other wrapper between
-    this one and AOASS-v0 might read the observations, so then every step builds its own.
+    this one and AOASS-v0 might read the observations, so then every step builds its own, as
+    it does with ``defer=False``.
+
+    Args:
+        env: the environment whose steps are held.
+        repeat: control periods per action, an integer >= 1.
+        defer: defer the observations nobody reads (as above), or build every one.
     """
 
-    #: Wrappers between this one and AOASS-v0 under which observations may be deferred: they
-    #: read no observation, or (the tracker) step without one and build it on demand.
-    _DEFERRING = (gym.wrappers.TimeLimit,)
-
-    def __init__(self, env: gym.Env, repeat: int) -> None:
+    def __init__(self, env: gym.Env, repeat: int, defer: bool = True) -> None:
         if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
             raise ValueError(f"action_repeat must be an integer >= 1, got {repeat!r}")
+        if not isinstance(defer, bool):
+            raise TypeError(f"defer must be a bool, got {type(defer).__name__}")
         super().__init__(env)
         self.repeat = repeat
         # where a deferred observation is built: the outermost layer that transforms it
         self._source: Any = None
-        layer, source = env, None
-        while isinstance(layer, (FuzzyORCASafety, KalmanObstacleTracker, *self._DEFERRING)):
+        layer, source = (env, None) if defer else (None, None)
+        # the layers under which observations may be deferred: they read none (the filter, time
+        # limits), or step without one and build it on demand (the tracker)
+        while isinstance(layer, (FuzzyORCASafety, KalmanObstacleTracker, gym.wrappers.TimeLimit)):
             if source is None and isinstance(layer, KalmanObstacleTracker):
                 source = layer
             layer = layer.env

@@ -51,9 +51,10 @@ PARTS: tuple[tuple[str, type, str], ...] = (
     ("      Network.record_beacon", Network, "record_beacon"),
     ("  WaypointFollower.command", WaypointFollower, "command"),
     ("    DetourPlanner.path (its searches)", DetourPlanner, "path"),
-    ("  Observer.__call__", Observer, "__call__"),
-    ("    World.ray_distances", World, "ray_distances"),
+    ("  Observer.sense (d_obs, detections)", Observer, "sense"),
     ("    World.nearest_obstacle_distance", World, "nearest_obstacle_distance"),
+    ("  Observer.vector (rays, the vector)", Observer, "vector"),
+    ("    World.ray_distances", World, "ray_distances"),
     ("AOASSEnv.reset", AOASSEnv, "reset"),
 )
 

@@ -148,6 +148,9 @@ def test_action_repeat_holds_the_action_and_sums_the_rewards():
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="action_repeat"):
             make_safe_env(**SMALL, action_repeat=bad)
+    with pytest.raises(TypeError, match="defer must be a bool"):
+        ActionRepeat(make_safe_env(**SMALL), 4, defer="no")
+    assert ActionRepeat(make_safe_env(**SMALL), 4, defer=False)._source is None
 
 
 def test_energy_cost_charges_the_energy_spent_in_each_step():
