@@ -292,6 +292,8 @@ class AdaptiveSweep:
     _clock: float = 0.0
     _via: WaypointFollower | None = None
     _near: dict[int, np.ndarray] = field(default_factory=dict)
+    # need() per waypoint, with the coverage map's beacon count it was computed at
+    _needs: dict[int, tuple[int, float]] = field(default_factory=dict)
     _runner: WaypointFollower | None = None
     _open: np.ndarray | None = None
     _cell: int = -1
@@ -419,12 +421,18 @@ class AdaptiveSweep:
     def need(self, index: int) -> float:
         """Mean coverage deficit of the free cells within ``skip_radius`` of spiral waypoint
         ``index`` that it sees (0 when it sees none)."""
+        beacons = self.coverage.beacons      # the deficits change only with a beacon
+        known = self._needs.get(index)
+        if known is not None and known[0] == beacons:
+            return known[1]
         cells = self._near.get(index)
         if cells is None:
             cells = self.coverage.visible_near(self.follower.waypoints[index],
                                                self.rule.skip_radius)
             self._near[index] = cells
-        return float(self.coverage.deficit_at(cells).mean()) if len(cells) else 0.0
+        need = float(self.coverage.deficit_at(cells).mean()) if len(cells) else 0.0
+        self._needs[index] = (beacons, need)
+        return need
 
     def online_thresholds(self) -> OnlineThresholds:
         """The rule's skip_need, detour_need and detour_excess (m) on this map: the ``dense_``

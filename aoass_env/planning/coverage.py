@@ -205,6 +205,12 @@ class CoverageMap:
         return self._radio
 
     @property
+    def beacons(self) -> int:
+        """Beacons recorded so far (:meth:`add_beacon`); the cells' state changes only with
+        one."""
+        return self._network.beacons_sent
+
+    @property
     def ratio(self) -> float:
         """Covered share of the free cells (the area coverage ratio), in [0, 1]."""
         return self._network.n_covered / self.n_cells if self.n_cells else 1.0

@@ -402,3 +402,30 @@ def test_a_cell_is_coverable_when_beacons_from_every_reachable_point_would_cover
         assert coverable(planner, coverage, config) is able   # once per map
         if obstacle_map is pocket:
             assert not able.all() and able.mean() > 0.5
+
+
+@pytest.mark.parametrize("rule", [dict(ONLINE), dict(ONLINE, sites=True, prune=False)],
+                         ids=["online-skips", "sites"])
+def test_the_needs_kept_between_beacons_are_the_needs_computed_anew(rule, monkeypatch):
+    """need() keeps each waypoint's value until the coverage map records a beacon: the sweeps
+    (their path, beacons and every pass-over) equal those that compute it on every call."""
+    def computed_anew(self, index):
+        cells = self._near.get(index)
+        if cells is None:
+            cells = self.coverage.visible_near(self.follower.waypoints[index],
+                                               self.rule.skip_radius)
+            self._near[index] = cells
+        return float(self.coverage.deficit_at(cells).mean()) if len(cells) else 0.0
+
+    config = AOASSConfig(field_size=60.0, n_nodes=120, obstacle_density=0.0,
+                         n_moving_obstacles=2)
+    runs = []
+    for patch in (False, True):
+        if patch:
+            monkeypatch.setattr(AdaptiveSweep, "need", computed_anew)
+        sim, ctl = _sweep(config, 3, AdaptiveConfig(**rule), obstacle_map=WALL)
+        log = sim.finish()
+        runs.append((log.beacons.tobytes(), sim.network.distance_travelled,
+                     list(ctl.passed), sim.world.time))
+    assert runs[0] == runs[1]
+    assert runs[0][2]             # the online skips were taken: need() decided something
