@@ -103,8 +103,9 @@ def _vector(x: float, y: float, field: float, speed: float, max_speed: float, ga
             coverage: float, progress: float, time_fraction: float, extra: np.ndarray,
             low: np.ndarray) -> np.ndarray:
     """The observation vector from its parts, element by element: the float64 entries that
-    :meth:`Observer.__call__`'s concatenation of the parts would hold (the same divisions and
-    subtractions), clipped to [``low``, 1] as NumPy clips, then rounded to float32."""
+    NumPy's concatenation of the parts would hold (the same divisions and subtractions; that
+    form is the test's oracle), clipped to [``low``, 1] as NumPy clips, then rounded to
+    float32."""
     out = np.empty(low.shape[0], np.float32)
     head = (x / field, y / field, speed / max_speed, gap / reach, heading_error / math.pi,
             cos_h, sin_h)

@@ -196,6 +196,7 @@ class World:
         state = self.__dict__.copy()
         for name in self._C_FIELDS:
             del state[name]
+        state["_xy"] = None          # built again, read-only, on the first read
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -365,6 +366,7 @@ class World:
         x, y = p.x, p.y
         done = self._substeps_done
         rows = [(done * sdt, x, y)]
+        self._xy = None              # the anchor moves: position reads Chipmunk again
         speed, heading = self._speed, self._heading
         for _ in range(cfg.physics_substeps):
             # the bounded command filter: speed toward the target by at most max_dv, heading
