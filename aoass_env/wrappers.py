@@ -529,17 +529,20 @@ class ActionRepeat(_EntryPointWrapper):
             raise TypeError(f"defer must be a bool, got {type(defer).__name__}")
         super().__init__(env)
         self.repeat = repeat
-        # where a deferred observation is built: the outermost layer that transforms it
-        self._source: Any = None
-        layer, source = (env, None) if defer else (None, None)
-        # the layers under which observations may be deferred: they read none (the filter, time
-        # limits), or step without one and build it on demand (the tracker)
-        while isinstance(layer, (FuzzyORCASafety, KalmanObstacleTracker, gym.wrappers.TimeLimit)):
-            if source is None and isinstance(layer, KalmanObstacleTracker):
-                source = layer
-            layer = layer.env
-        if isinstance(layer, AOASSEnv):
-            self._source = source or layer
+        # where a deferred observation is built (the outermost layer that transforms it), or
+        # None: every held step builds its own
+        self._source: KalmanObstacleTracker | AOASSEnv | None = None
+        if defer:
+            layer, tracker = env, None
+            # the layers under which observations may be deferred: they read none (the filter,
+            # time limits), or step without one and build it on demand (the tracker)
+            while isinstance(layer, (FuzzyORCASafety, KalmanObstacleTracker,
+                                     gym.wrappers.TimeLimit)):
+                if tracker is None and isinstance(layer, KalmanObstacleTracker):
+                    tracker = layer
+                layer = layer.env
+            if isinstance(layer, AOASSEnv):
+                self._source = tracker or layer
 
     @property
     def spec(self) -> EnvSpec | None:
@@ -568,7 +571,7 @@ class ActionRepeat(_EntryPointWrapper):
         finally:
             if base is not None:
                 base.defer_observation = False
-        if obs is None and base is not None:    # the episode ended on a deferred step
+        if obs is None and self._source is not None:    # the episode ended on a deferred step
             obs = self._source.deferred_observation()
         info.update(costs)
         return obs, total, terminated, truncated, info
