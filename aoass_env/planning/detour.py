@@ -105,7 +105,9 @@ class DetourPlanner:
         self._tree: tuple[int, float] | None = None
         self._arrays: tuple[np.ndarray, np.ndarray] | None = None
         self._nearest_main: np.ndarray | None = None     # built on first use (main_point)
-        self._rows: np.ndarray | None = None     # row of every graph entry (keep-out searches)
+        # entry (j, i) of every entry (i, j) of the graph, for keep-out searches: built on first
+        # use, shared by copies (for_map)
+        self._reverse: dict[str, np.ndarray] = {}
 
     @classmethod
     def for_map(cls, obstacle_map: ObstacleMap, radius: float,
@@ -338,14 +340,17 @@ class DetourPlanner:
         """The grid graph with every edge weight multiplied by ``factor`` once for each end in
         the mask ``cells``: the entries of ``F @ graph @ F`` for the diagonal F of ``factor``
         on ``cells`` (1 elsewhere), the same floats ((f_i w) f_j) in the same order, without
-        two sparse products."""
+        two sparse products. Only the entries of the masked cells' rows are touched, and of
+        their columns, which are those rows' entries reversed (the graph holds both
+        directions of every edge)."""
         graph = self._graph
-        if self._rows is None:
-            self._rows = np.repeat(np.arange(graph.shape[0], dtype=graph.indices.dtype),
-                                   np.diff(graph.indptr))
+        reverse = self._reverse.get("entries")
+        if reverse is None:
+            reverse = self._reverse["entries"] = _reverse_entries(graph)
+        own = _row_entries(graph.indptr, np.flatnonzero(cells))
         data = graph.data.copy()
-        data[cells[self._rows]] *= factor
-        data[cells[graph.indices]] *= factor
+        data[own] *= factor
+        data[reverse[own]] *= factor
         return csr_matrix((data, graph.indices, graph.indptr), shape=graph.shape)
 
     def _tree_from(self, s: int, limit: float) -> tuple[np.ndarray, np.ndarray]:
@@ -402,6 +407,29 @@ class DetourPlanner:
             out.append(pts[j])
             i = j
         return np.array(out)
+
+
+def _row_entries(indptr: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Indices of the entries of the CSR rows ``rows`` (given by ``indptr``), row by row."""
+    starts = indptr[rows]
+    counts = indptr[rows + 1] - starts
+    offsets = np.cumsum(counts) - counts       # where each row's entries begin in the answer
+    return np.repeat(starts - offsets, counts) + np.arange(counts.sum())
+
+
+def _reverse_entries(graph: csr_matrix) -> np.ndarray:
+    """(nnz,) for each entry (i, j) of ``graph``, the index of its entry (j, i); ValueError
+    when some entry has none (the structure is not symmetric)."""
+    n = graph.shape[0]
+    rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(graph.indptr))
+    cols = graph.indices.astype(np.int64)
+    key = rows * n + cols
+    order = np.argsort(key, kind="stable")
+    where = np.searchsorted(key[order], cols * n + rows).clip(max=max(len(key) - 1, 0))
+    reverse = order[where]
+    if len(key) and not np.array_equal(key[reverse], cols * n + rows):
+        raise ValueError("the grid graph must hold both directions of every edge")
+    return reverse
 
 
 def _ring_edges(area: shapely.Geometry) -> np.ndarray:

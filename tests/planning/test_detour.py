@@ -1,6 +1,7 @@
 from collections import Counter
 
 import numpy as np
+import pytest
 import shapely
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
@@ -120,6 +121,14 @@ def test_planners_of_one_map_share_the_grid_with_a_fresh_search_state():
         DetourPlanner(m, 0.8).path(np.array([20.0, 50.0]), np.array([70.0, 50.0])), path)
     assert DetourPlanner.for_map(m, 1.0)._graph is not a._graph
     assert DetourPlanner.for_map(ObstacleMap(100, 100, [WALL]), 0.8)._graph is not a._graph
+    # the keep-out searches' reverse entries: built once, by whichever planner needs them first
+    keepout = dict(keepout=np.array([[30.0, 50.0]]), keepout_radius=2.0)
+    around = b.path(np.array([20.0, 50.0]), np.array([70.0, 50.0]), **keepout)
+    entries = b._reverse["entries"]
+    c = DetourPlanner.for_map(m, 0.8)
+    np.testing.assert_array_equal(
+        c.path(np.array([20.0, 50.0]), np.array([70.0, 50.0]), **keepout), around)
+    assert c._reverse["entries"] is entries and a._reverse["entries"] is entries
 
 
 def test_costs_are_the_searched_way_at_least_its_length_and_inf_in_a_pocket():
@@ -308,3 +317,25 @@ def test_visible_is_shapelys_intersects_with_the_grown_obstacles(seed, density):
         want = not (shapely.intersects_xy(planner._blocker, *p) if np.array_equal(p, q) else
                     shapely.intersects(planner._blocker, shapely.linestrings([p, q])))
         assert planner.visible(p, q) is want
+
+
+def test_reverse_entries_pair_every_edge_with_its_other_direction():
+    """The keep-out reweighting finds a row's column entries through each entry's reverse
+    (issue 20): entry (i, j) maps to (j, i); a graph missing a direction is refused."""
+    from scipy.sparse import csr_matrix
+
+    from aoass_env.planning.detour import _reverse_entries, _row_entries
+
+    p = DetourPlanner(generate_map(40.0, 0.3, np.random.default_rng(5)), radius=0.8)
+    g = p._graph
+    reverse = _reverse_entries(g)
+    rows = np.repeat(np.arange(g.shape[0]), np.diff(g.indptr))
+    np.testing.assert_array_equal(rows[reverse], g.indices)
+    np.testing.assert_array_equal(g.indices[reverse], rows)
+    cells = np.array([3, 0, 7, 7 + g.shape[0] // 2])
+    want = np.concatenate([np.arange(g.indptr[c], g.indptr[c + 1]) for c in cells])
+    np.testing.assert_array_equal(_row_entries(g.indptr, cells), want)
+    assert len(_row_entries(g.indptr, np.array([], dtype=np.int64))) == 0
+    one_way = csr_matrix((np.ones(1), (np.array([0]), np.array([1]))), shape=(2, 2))
+    with pytest.raises(ValueError, match="both directions"):
+        _reverse_entries(one_way)
