@@ -49,10 +49,10 @@ from aoass_env.safety.lookahead import (
     position_std,
 )
 from aoass_env.safety.orca import (
+    OrcaAgent,
     OrcaLines,
     StaticObstacles,
     active_constraints,
-    orca_lines,
     solve_velocity,
 )
 from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
@@ -332,6 +332,8 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         self.action_space = self.agent_action.space
         self._static: StaticObstacles | None = None
         self._static_map: Any = None
+        #: the config the ORCA settings were made for, and the settings (_orca_agent)
+        self._orca = (base.config, self._orca_settings(base.config))
         #: the look-ahead's escape budget and whether it escaped last period (hysteresis)
         self.escape_budget = EscapeBudget(config.escape_budget)
         self._escaping = False
@@ -349,6 +351,19 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
             self._static = StaticObstacles.from_loops(episode_map.free_space_loops)
             self._static_map = episode_map
         return self._static
+
+    def _orca_settings(self, c: AOASSConfig) -> OrcaAgent:
+        """The anchor's ORCA settings under the env's config ``c``: its radius inflated by
+        ``margin``, the filter's horizons, the control period."""
+        cfg = self.config
+        return OrcaAgent(c.anchor_radius + cfg.margin, c.anchor_max_speed, cfg.time_horizon,
+                         cfg.time_horizon_obst, c.dt)
+
+    def _orca_agent(self, c: AOASSConfig) -> OrcaAgent:
+        """:meth:`_orca_settings` of ``c``, checked once per config."""
+        if self._orca[0] is not c:
+            self._orca = (c, self._orca_settings(c))
+        return self._orca[1]
 
     def _braking_envelope(self, position: np.ndarray) -> BrakingEnvelope:
         """The static edges within the anchor's reach in one period and a full stop from top
@@ -432,11 +447,8 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         pref = (speed_pref * math.cos(heading_pref), speed_pref * math.sin(heading_pref))
         v_pref = np.array(pref)
 
-        lines = orca_lines(anchor.position, anchor.velocity, c.anchor_radius + cfg.margin,
-                           c.anchor_max_speed, static_obstacles=self._static_obstacles(),
-                           moving_obstacles=self._moving_obstacles(),
-                           time_horizon=cfg.time_horizon,
-                           time_horizon_obst=cfg.time_horizon_obst, time_step=c.dt)
+        lines = self._orca_agent(c).lines(anchor.position, anchor.velocity,
+                                          self._static_obstacles(), self._moving_obstacles())
         v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
         escape = None
         if cfg.look_ahead and len(lines) > lines.n_static:

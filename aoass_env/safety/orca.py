@@ -79,8 +79,8 @@ from numpy.typing import ArrayLike
 
 from aoass_env.validators import positive, real, vec2
 
-__all__ = ["OrcaLines", "StaticObstacles", "active_constraints", "orca_lines", "orca_velocity",
-           "solve_velocity"]
+__all__ = ["OrcaAgent", "OrcaLines", "StaticObstacles", "active_constraints", "orca_lines",
+           "orca_velocity", "solve_velocity"]
 
 #: RVO2's RVO_EPSILON: slack of the "already covered" test (m/s) and the parallel-line
 #: tolerance of the 3-D LP's projection (a |det| of unit vectors).
@@ -463,22 +463,59 @@ def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obs
            responsibility: Any) -> tuple[np.ndarray, int, float]:
     """Checked inputs -> (the lines' read-only (n, 4) rows [px, py, dx, dy], n_static,
     max_speed)."""
-    px, py = _vec2("position", position, "m")
-    vx, vy = _vec2("velocity", velocity, "m/s")
-    radius = _positive("radius", radius, "m")
-    max_speed = _positive("max_speed", max_speed, "m/s")
-    tau = _positive("time_horizon", time_horizon, "s")
-    tau_obst = _positive("time_horizon_obst", time_horizon_obst, "s")
-    step = _positive("time_step", time_step, "s")
-    share = _positive("responsibility", responsibility, "fraction", high=1.0)
-    static = _static(static_obstacles)
-    cache = (static if static is not None else _NO_STATIC)._cache
-    array, n_static = _compiled_lines(cache.edges, cache.links, cache.bbox, cache.grid,
-                                      cache.cells, px, py, vx, vy,
-                                      radius, max_speed, tau_obst, _moving(moving_obstacles),
-                                      tau, step, share)
-    array.flags.writeable = False           # the views and the solver's rows stay these floats
-    return array, n_static, max_speed
+    agent = OrcaAgent(radius, max_speed, time_horizon, time_horizon_obst, time_step,
+                      responsibility)
+    array, n_static = agent._rows(position, velocity, static_obstacles, moving_obstacles)
+    return array, n_static, agent.max_speed
+
+
+@dataclass(frozen=True)
+class OrcaAgent:
+    """The anchor's side of :func:`orca_lines`, checked once: its radius and speed limit (m,
+    m/s), the horizons against moving and static obstacles (s), the control period (s) and its
+    share of the avoidance of moving obstacles, in (0, 1]. For a caller that builds lines with
+    the same settings period after period (the safety stack): :meth:`lines` checks only what
+    changes.
+
+    Raises:
+        ValueError: a setting that is not a positive finite number (naming it).
+    """
+
+    radius: float
+    max_speed: float
+    time_horizon: float = 2.0
+    time_horizon_obst: float = 2.0
+    time_step: float = 0.5
+    responsibility: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name, unit in (("radius", "m"), ("max_speed", "m/s"), ("time_horizon", "s"),
+                           ("time_horizon_obst", "s"), ("time_step", "s")):
+            object.__setattr__(self, name, _positive(name, getattr(self, name), unit))
+        object.__setattr__(self, "responsibility", _positive(
+            "responsibility", self.responsibility, "fraction", high=1.0))
+
+    def lines(self, position: ArrayLike, velocity: ArrayLike,
+              static_obstacles: StaticObstacles | Sequence[ArrayLike] | None = None,
+              moving_obstacles: ArrayLike | None = None) -> OrcaLines:
+        """:func:`orca_lines` with these settings: the anchor at ``position`` (2,) (m) moving
+        at ``velocity`` (2,) (m/s) among the obstacles."""
+        array, n_static = self._rows(position, velocity, static_obstacles, moving_obstacles)
+        return OrcaLines(array[:, :2], array[:, 2:], n_static, array)
+
+    def _rows(self, position: Any, velocity: Any, static_obstacles: Any,
+              moving_obstacles: Any) -> tuple[np.ndarray, int]:
+        """(the lines' read-only (n, 4) rows [px, py, dx, dy], n_static) of checked inputs."""
+        px, py = _vec2("position", position, "m")
+        vx, vy = _vec2("velocity", velocity, "m/s")
+        static = _static(static_obstacles)
+        cache = (static if static is not None else _NO_STATIC)._cache
+        array, n_static = _compiled_lines(
+            cache.edges, cache.links, cache.bbox, cache.grid, cache.cells, px, py, vx, vy,
+            self.radius, self.max_speed, self.time_horizon_obst, _moving(moving_obstacles),
+            self.time_horizon, self.time_step, self.responsibility)
+        array.flags.writeable = False       # the views and the solver's rows stay these floats
+        return array, n_static
 
 
 def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_speed: float, *,
@@ -486,7 +523,9 @@ def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_spee
                moving_obstacles: ArrayLike | None = None, time_horizon: float = 2.0,
                time_horizon_obst: float = 2.0, time_step: float = 0.5,
                responsibility: float = 1.0) -> OrcaLines:
-    """The anchor's ORCA half-planes (Eq. 8-9), static-obstacle lines first.
+    """The anchor's ORCA half-planes (Eq. 8-9), static-obstacle lines first
+    (:meth:`OrcaAgent.lines` with the settings checked once, for a caller that builds them
+    period after period).
 
     Args:
         position: (2,) anchor position (m).

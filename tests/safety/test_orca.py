@@ -19,6 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.safety.orca import (
+    OrcaAgent,
     OrcaLines,
     StaticObstacles,
     _hypot,
@@ -484,6 +485,35 @@ def test_orca_lines_own_rows_solve_as_the_checked_arrays(scene):
                                   solve_velocity(plain, pref, state["max_speed"]))
     assert not lines.point.flags.writeable and not lines.direction.flags.writeable
     assert active_constraints(lines, pref) == active_constraints(plain, pref)
+
+
+@settings(max_examples=100, deadline=None)
+@given(scenes(), scenes())
+def test_an_orca_agent_builds_the_lines_of_orca_lines(scene, other):
+    """OrcaAgent checks its settings once and then builds, for any state and obstacles, the
+    lines orca_lines builds, bit for bit (the safety stack keeps one per config)."""
+    loops, _, discs, state, _ = scene
+    settings_ = {k: v for k, v in state.items() if k not in ("position", "velocity")}
+    agent = OrcaAgent(**settings_)
+    for (where, obstacles, moving) in ((state, loops, discs), (other[3], other[0], other[2])):
+        got = agent.lines(where["position"], where["velocity"], obstacles, moving)
+        want = orca_lines(where["position"], where["velocity"], static_obstacles=obstacles,
+                          moving_obstacles=moving, **settings_)
+        assert got.n_static == want.n_static
+        np.testing.assert_array_equal(got.table, want.table)
+        assert not got.table.flags.writeable
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"radius": 0.0}, r"radius=0\.0 must be a number in \(0"),
+    ({"max_speed": float("nan")}, "max_speed"),
+    ({"time_horizon_obst": -1.0}, "time_horizon_obst"),
+    ({"time_step": "0.5"}, "time_step"),
+    ({"responsibility": 2.0}, r"responsibility=2\.0 must be a number in \(0\.0, 1\.0\]"),
+])
+def test_an_orca_agent_refuses_bad_settings_naming_them(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        OrcaAgent(**{"radius": 0.5, "max_speed": 2.0, **kwargs})
 
 
 @settings(max_examples=300, deadline=None)
