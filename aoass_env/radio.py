@@ -57,7 +57,7 @@ def _points(value: object, name: str, *, single: bool = False) -> np.ndarray:
     if pts.shape != (2,) if single else (pts.ndim != 2 or pts.shape[1] != 2):
         shape = "(2,)" if single else "(M, 2)"
         raise ValueError(f"{name} must have shape {shape}, got {pts.shape}")
-    if not np.all(np.isfinite(pts)):
+    if not np.isfinite(pts).all():
         raise ValueError(f"{name} must be finite coordinates in metres")
     return pts
 

@@ -159,14 +159,14 @@ class Simulator:
 
     def _broadcast(self, beacons: np.ndarray) -> int:
         newly = 0
-        for t, x, y in beacons:
+        for t, x, y in beacons.tolist():     # Python floats: the recorder's fast path
             pos = np.array([x, y])
             # the nodes' and the coverage map's links in one line-of-sight test
             receivers, cells = receivers_at(pos, [(self.radio, None),
                                                   self.coverage_map.listeners()])
             newly += self.network.record_beacon(pos, receivers)
             self.coverage_map.add_beacon(pos, cells)
-            self.recorder.add_beacon(t, pos, receivers)
+            self.recorder.add_beacon(t, (x, y), receivers)
         return newly
 
     def step(self, speed_cmd: float, heading_cmd: float) -> StepRecord:
