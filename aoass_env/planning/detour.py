@@ -99,6 +99,7 @@ class DetourPlanner:
         self._blocker = shapely.buffer(self._obstacles, radius)
         shapely.prepare(self._blocker)
         self._blocker_edges = EdgeGrid(_ring_edges(self._blocker))
+        self._last_inside = (math.nan, math.nan, False)   # (x, y, answer) of _inside
         self._degree = int(np.diff(self._graph.indptr).max(initial=0))   # at most 8
         # (start cell, limit) of the kept shortest-path tree, and its (dist, pred) arrays once a
         # search has needed them (a forced quick path needs no tree)
@@ -242,11 +243,20 @@ class DetourPlanner:
         status = self._blocker_edges.status(ax, ay, bx, by)
         if status == CROSSES:
             return False
-        if status == CLEAR:
-            return not shapely.intersects_xy(self._blocker, ax, ay)
-        if ax == bx and ay == by:
-            return not shapely.intersects_xy(self._blocker, ax, ay)
+        if status == CLEAR or (ax == bx and ay == by):
+            return not self._inside(ax, ay)
         return not shapely.intersects(self._blocker, shapely.linestrings([a, b]))
+
+    def _inside(self, x: float, y: float) -> bool:
+        """Whether the point (x, y) (m) meets the grown obstacles (shapely's
+        ``intersects_xy``). The answer for the last point asked is kept: string pulling asks
+        about one start point against many ends."""
+        last = self._last_inside
+        if last[0] == x and last[1] == y:
+            return last[2]
+        inside = bool(shapely.intersects_xy(self._blocker, x, y))
+        self._last_inside = (x, y, inside)
+        return inside
 
     def path(self, start: np.ndarray, goal: np.ndarray, keepout: np.ndarray | None = None,
              keepout_radius: float = 0.0) -> np.ndarray | None:

@@ -313,6 +313,14 @@ def test_visible_is_shapelys_intersects_with_the_grown_obstacles(seed, density):
         b[100:125] = vertices[np.minimum(k[0, :25] + 1, len(vertices) - 1)]
         a[100:125] = vertices[k[0, :25]]                         # along an edge
         a[125:] = vertices[k[1, :25]]                            # from a vertex outward
+    # fans from a few starts (one inside the grown obstacles when there are any), in runs and
+    # in turn: the answer kept for the last start point
+    starts = rng.uniform(-2, 62, (4, 2))
+    if not planner._blocker.is_empty:
+        starts[0] = shapely.get_coordinates(shapely.point_on_surface(planner._blocker))[0]
+    which = rng.integers(len(starts), size=60).repeat(rng.integers(1, 4, size=60))
+    fans = starts[which]
+    a, b = np.vstack([a, fans]), np.vstack([b, fans + rng.normal(0.0, 1.5, fans.shape)])
     for p, q in zip(a, b, strict=True):
         want = not (shapely.intersects_xy(planner._blocker, *p) if np.array_equal(p, q) else
                     shapely.intersects(planner._blocker, shapely.linestrings([p, q])))
