@@ -1,0 +1,65 @@
+"""What a reset of AOASS-Adaptive-v0 costs on a freshly generated map (the sweep's plan).
+
+The adaptive rule plans its sweep on the static map before it moves (``AdaptiveSweep``: the
+site tour, ``aoass_env.planning.pruning``); plans are cached per map, so on the shipped maps
+only the first episode of a map pays, but every reset on a freshly generated map does (the
+robustness preset, training or evaluating on generated maps). This script resets
+``gym.make("AOASS-Adaptive-v0")`` once per map on ``--maps`` fresh maps of side ``--field``
+(map k of density d from ``default_rng([SEED, k])``, densities taken in turn from
+``--densities``) and prints the CPU seconds of each reset and their sum. Compare trees by
+running it with ``PYTHONPATH=<tree>``.
+
+Run: ``python3 benchmarks/adaptive_reset.py [--maps 4] [--densities 0.2 0.3 0.4 0.5]
+[--field 100]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import aoass_env  # noqa: F401  (registers the ids)
+from aoass_env.maps import MAX_DENSITY, generate_map
+
+#: map k is generate_map(100, d, default_rng([SEED, k])): seeds used nowhere else
+SEED = 31313
+
+
+def resets(maps: int, densities: list[float], field: float = 100.0) -> list[float]:
+    """CPU seconds of one reset on each fresh map of side ``field`` (m), after a first reset
+    that loads the kernels."""
+    env = gym.make("AOASS-Adaptive-v0", field_size=field)
+    env.reset(seed=1)
+    out = []
+    for k in range(maps):
+        density = densities[k % len(densities)]
+        fresh = generate_map(field, density, np.random.default_rng([SEED, k]))
+        start = time.process_time()
+        env.reset(seed=2, options={"map": fresh})
+        out.append(time.process_time() - start)
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--maps", type=int, default=4, help="fresh maps, one reset each")
+    parser.add_argument("--densities", type=float, nargs="+", default=[0.2, 0.3, 0.4, 0.5])
+    parser.add_argument("--field", type=float, default=100.0, help="field side (m)")
+    args = parser.parse_args(argv)
+    if args.maps < 1:
+        parser.error(f"--maps must be an integer >= 1, got {args.maps}")
+    for d in args.densities:
+        if not 0.0 <= d <= MAX_DENSITY:
+            parser.error(f"--densities must lie in [0, {MAX_DENSITY}], got {d}")
+    if not 20.0 <= args.field <= 400.0:
+        parser.error(f"--field must lie in [20, 400] m, got {args.field:g}")
+    times = resets(args.maps, args.densities, args.field)
+    print(f"AOASS-Adaptive-v0 reset on a fresh {args.field:g} m map, CPU s: "
+          + " ".join(f"{t:.2f}" for t in times) + f"  (sum {sum(times):.2f})")
+
+
+if __name__ == "__main__":
+    main()
