@@ -198,7 +198,7 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
 
     def observation(self, observation: np.ndarray | None) -> np.ndarray | None:
         detections = self._base.detections
-        if len(detections) or self.tracker.tracks:
+        if len(detections) or self.tracker.n_tracks:
             self.tracker.step(detections)
         # else no track, no detection: tracker.step() would return at once
         if observation is None:     # a deferred step (ActionRepeat): the tracker steps all the same
@@ -215,7 +215,7 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
         """``observation`` with the confirmed tracks in the moving-obstacle slots and their
         predicted positions appended."""
         c = self._base.config
-        states = self.tracker.states() if self.tracker.tracks else ()
+        states = self.tracker.states() if self.tracker.n_tracks else ()
         if len(states) == 0:        # no confirmed track: empty slots (the lines below, in short)
             if observation.dtype == np.float32 and observation.shape == self._inner_shape:
                 return _empty_slots(observation, self._moving.start, self._moving.stop,
@@ -365,15 +365,16 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
             self._orca = (c, self._orca_settings(c))
         return self._orca[1]
 
-    def _braking_envelope(self, position: np.ndarray) -> BrakingEnvelope:
-        """The static edges within the anchor's reach in one period and a full stop from top
-        speed, as speed caps by heading (:class:`~aoass_env.safety.unicycle.BrakingEnvelope`;
-        the anchor's radius is inflated by ``margin``, as for ORCA)."""
+    def _braking_envelope(self, position: np.ndarray, static: StaticObstacles
+                          ) -> BrakingEnvelope:
+        """The edges of ``static`` within the anchor's reach in one period and a full stop
+        from top speed, as speed caps by heading (:class:`~aoass_env.safety.unicycle.
+        BrakingEnvelope`; the anchor's radius is inflated by ``margin``, as for ORCA)."""
         c = self._base.config
         radius = c.anchor_radius + self.config.margin
         top = c.anchor_max_speed
         reach = top * c.dt + top * top / (2.0 * c.anchor_max_accel) + radius
-        starts, ends = self._static_obstacles().segments_near(position, reach)
+        starts, ends = static.segments_near(position, reach)
         return BrakingEnvelope(starts, ends, np.asarray(position, dtype=np.float64), radius,
                                c.anchor_max_accel, c.dt)
 
@@ -390,8 +391,8 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
             tracks[:, 4] += self.config.covariance_sigma * std
         return tracks
 
-    def _look_ahead(self, v_star: np.ndarray, v_pref: np.ndarray, anchor: AnchorState
-                    ) -> Escape:
+    def _look_ahead(self, v_star: np.ndarray, v_pref: np.ndarray, anchor: AnchorState,
+                    static: StaticObstacles) -> Escape:
         """The look-ahead's verdict on ORCA's ``v_star`` (:func:`~aoass_env.safety.lookahead.
         escape_velocity`) for the ``anchor`` as it is this period: the tracks' prediction and
         covariance against the anchor's unicycle rolled out among the static edges."""
@@ -401,7 +402,7 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         tracks = self._tracker.tracked_obstacles
         tracks[:, 4] += c.anchor_radius
         radius = c.anchor_radius + cfg.margin
-        starts, ends = self._static_obstacles().segments_near(
+        starts, ends = static.segments_near(
             anchor.position, c.anchor_max_speed * horizon + radius)
         react = cfg.look_ahead_react or c.dt + c.anchor_max_speed / c.anchor_max_accel
         yielding = self.escape_budget.yielding
@@ -445,14 +446,14 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         heading_pref = heading + float(turn) * max_turn
         speed_pref = float(slow) * speed_des
         pref = (speed_pref * math.cos(heading_pref), speed_pref * math.sin(heading_pref))
-        v_pref = np.array(pref)
 
-        lines = self._orca_agent(c).lines(anchor.position, anchor.velocity,
-                                          self._static_obstacles(), self._moving_obstacles())
-        v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
+        static = self._static_obstacles()
+        lines = self._orca_agent(c).lines(anchor.position, anchor.velocity, static,
+                                          self._moving_obstacles())
+        v_star = solve_velocity(lines, pref, c.anchor_max_speed)
         escape = None
         if cfg.look_ahead and len(lines) > lines.n_static:
-            escape = self._look_ahead(v_star, v_pref, anchor)
+            escape = self._look_ahead(v_star, np.array(pref), anchor, static)
             if escape.escaping:
                 # the rollouts chose among the moving obstacles: the static lines stay hard
                 lines = OrcaLines(lines.point[:lines.n_static],
@@ -461,7 +462,7 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                 v_star = solve_velocity(lines, escape.velocity, c.anchor_max_speed)
         speed_cmd, heading_cmd = unicycle_command(
             v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
-            lines.direction, heading_pref, self._braking_envelope(anchor.position))
+            lines.direction, heading_pref, self._braking_envelope(anchor.position, static))
         executed = base.action_type.action(speed_cmd, heading_cmd, nominal, knobs)
 
         # constraints active at v*: on the line (within 1e-6 m/s) or violated

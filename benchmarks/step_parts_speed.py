@@ -63,7 +63,8 @@ def main() -> None:
         "World.ray_distances": world.ray_distances,
         "Observer.moving": lambda: observer.moving(world),
         "FuzzyController (one input)": lambda: safe.controller(2.0, 0.3),
-        "FuzzyORCASafety._braking_envelope": lambda: safe._braking_envelope(position),
+        "FuzzyORCASafety._braking_envelope": lambda: safe._braking_envelope(
+            position, safe._static_obstacles()),
         "FuzzyORCASafety._moving_obstacles": safe._moving_obstacles,
         "FuzzyORCASafety._filter": lambda: safe._filter(action),
         "KalmanObstacleTracker.observation": lambda: tracker.observation(inner),

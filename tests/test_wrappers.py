@@ -250,9 +250,9 @@ def test_the_look_ahead_takes_the_yielding_tolerance_and_headway_price_while_yie
     env = make_safe_env(safety=cfg, **SMALL)
     env.reset(seed=1)
     v = np.array([1.0, 0.0])
-    env._look_ahead(v, v, env.unwrapped.anchor)
+    env._look_ahead(v, v, env.unwrapped.anchor, env._static_obstacles())
     env.escape_budget.yielding = True
-    env._look_ahead(v, v, env.unwrapped.anchor)
+    env._look_ahead(v, v, env.unwrapped.anchor, env._static_obstacles())
     assert seen == [(1.0, 2.0, 0.5), (3.0, 10.0, 0.0)]
 
 
@@ -376,14 +376,15 @@ def _old_filter(self, action):
     v_star = solve_velocity(lines, v_pref, c.anchor_max_speed)
     escape = None
     if cfg.look_ahead and len(lines) > lines.n_static:
-        escape = self._look_ahead(v_star, v_pref, anchor)
+        escape = self._look_ahead(v_star, v_pref, anchor, self._static_obstacles())
         if escape.escaping:
             lines = OrcaLines(lines.point[:lines.n_static], lines.direction[:lines.n_static],
                               lines.n_static)
             v_star = solve_velocity(lines, escape.velocity, c.anchor_max_speed)
     speed_cmd, heading_cmd = unicycle_command(
         v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
-        lines.direction, heading_pref, self._braking_envelope(anchor.position))
+        lines.direction, heading_pref,
+        self._braking_envelope(anchor.position, self._static_obstacles()))
     executed = base.action_type.action(speed_cmd, heading_cmd, nominal, knobs)
     sx, sy = v_star.tolist()
     active = [dx * (py - sy) - dy * (px - sx) > -1e-6 for (px, py), (dx, dy) in

@@ -171,6 +171,11 @@ class MultiTargetTracker:
         return list(self._tracks)
 
     @property
+    def n_tracks(self) -> int:
+        """How many tracks are live, tentative and confirmed."""
+        return len(self._tracks)
+
+    @property
     def confirmed(self) -> list[Track]:
         """The confirmed tracks, in order of birth; rows of :meth:`states` follow this order."""
         return [t for t in self._tracks if t.confirmed]

@@ -112,11 +112,18 @@ def _positive(name: str, value: Any, unit: str, high: float | None = None) -> fl
 
 
 def _vec2(name: str, value: Any, unit: str) -> tuple[float, float]:
-    """:func:`~aoass_env.validators.vec2`, with a fast path for a finite (2,) float64 array."""
+    """:func:`~aoass_env.validators.vec2`, with fast paths for a finite (2,) float64 array and
+    a pair of finite Python floats."""
     if type(value) is np.ndarray and value.shape == (2,) and value.dtype == np.float64:
         x, y = value.tolist()
-        if -math.inf < x < math.inf and -math.inf < y < math.inf:
-            return x, y
+    elif type(value) is tuple and len(value) == 2:
+        x, y = value
+        if not (type(x) is float and type(y) is float):
+            return vec2(name, value, unit)
+    else:
+        return vec2(name, value, unit)
+    if -math.inf < x < math.inf and -math.inf < y < math.inf:
+        return x, y
     return vec2(name, value, unit)
 
 

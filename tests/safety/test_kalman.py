@@ -160,15 +160,16 @@ def test_birth_needs_birth_hits_detections():
     assert tr.states().shape == (1, 4) and tr.states(confirmed_only=False).shape == (1, 4)
     once = MultiTargetTracker(DT, position_noise=SIGMA_P, velocity_noise=None, birth_hits=1)
     once.step([[5.0, 5.0], [20.0, 5.0]])
-    assert [t.id for t in once.confirmed] == [0, 1]
+    assert [t.id for t in once.confirmed] == [0, 1] and once.n_tracks == 2
 
 
 def test_tentative_track_dies_at_first_miss():
     tr = MultiTargetTracker(DT, position_noise=SIGMA_P, velocity_noise=None, birth_hits=3)
     tr.step([[5.0, 5.0]])
     tr.step([[5.0, 5.0]])
+    assert tr.n_tracks == 1
     tr.step(np.zeros((0, 2)))
-    assert tr.tracks == []
+    assert tr.tracks == [] and tr.n_tracks == 0
 
 
 def test_confirmed_track_deleted_after_max_misses():
