@@ -487,23 +487,6 @@ def test_orca_lines_own_rows_solve_as_the_checked_arrays(scene):
     assert active_constraints(lines, pref) == active_constraints(plain, pref)
 
 
-@settings(max_examples=100, deadline=None)
-@given(scenes(), scenes())
-def test_an_orca_agent_builds_the_lines_of_orca_lines(scene, other):
-    """OrcaAgent checks its settings once and then builds, for any state and obstacles, the
-    lines orca_lines builds, bit for bit (the safety stack keeps one per config)."""
-    loops, _, discs, state, _ = scene
-    settings_ = {k: v for k, v in state.items() if k not in ("position", "velocity")}
-    agent = OrcaAgent(**settings_)
-    for (where, obstacles, moving) in ((state, loops, discs), (other[3], other[0], other[2])):
-        got = agent.lines(where["position"], where["velocity"], obstacles, moving)
-        want = orca_lines(where["position"], where["velocity"], static_obstacles=obstacles,
-                          moving_obstacles=moving, **settings_)
-        assert got.n_static == want.n_static
-        np.testing.assert_array_equal(got.table, want.table)
-        assert not got.table.flags.writeable
-
-
 @pytest.mark.parametrize("kwargs, message", [
     ({"radius": 0.0}, r"radius=0\.0 must be a number in \(0"),
     ({"max_speed": float("nan")}, "max_speed"),
@@ -716,3 +699,27 @@ def test_the_stable_order_is_numpys_stable_argsort():
     cases += [rng.normal(size=int(rng.integers(2, 300))) for _ in range(50)]
     for keys in cases:
         assert _stable_order(keys).tolist() == np.argsort(keys, kind="stable").tolist()
+
+
+@pytest.mark.skipif(not _CORRECT_HYPOT, reason=_NOT_CORRECT)
+@settings(max_examples=100, deadline=None)
+@given(scenes(), scenes())
+def test_an_orca_agent_builds_the_float_codes_lines_scene_after_scene(scene, other):
+    """OrcaAgent checks its settings once; one agent then builds, for the anchor's state and
+    obstacles of scene after scene, the float code's lines (tests/safety/orca_floats.py) bit
+    for bit and in order, read-only (the safety stack keeps one per config)."""
+    from aoass_env.safety import orca
+    loops, _, discs, state, _ = scene
+    settings_ = {k: v for k, v in state.items() if k not in ("position", "velocity")}
+    agent = OrcaAgent(**settings_)
+    for where, obstacles, moving in ((state, loops, discs), (other[3], other[0], other[2]),
+                                     (state, loops, discs)):
+        got = agent.lines(where["position"], where["velocity"], obstacles, moving)
+        (px, py), (vx, vy) = np.asarray([where["position"], where["velocity"]],
+                                        dtype=np.float64).tolist()
+        want, want_static = reference_lines(
+            orca._static(obstacles), orca._moving(moving), px, py, vx, vy,
+            *(float(settings_[k]) for k in ("radius", "max_speed", "time_horizon_obst",
+                                            "time_horizon", "time_step", "responsibility")))
+        assert got.n_static == want_static and _bits(got.table.tolist()) == _bits(want)
+        assert not got.table.flags.writeable
