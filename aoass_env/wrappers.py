@@ -448,9 +448,8 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         pref = (speed_pref * math.cos(heading_pref), speed_pref * math.sin(heading_pref))
 
         static = self._static_obstacles()
-        lines = self._orca_agent(c).lines(anchor.position, anchor.velocity, static,
-                                          self._moving_obstacles())
-        v_star = solve_velocity(lines, pref, c.anchor_max_speed)
+        lines, v_star = self._orca_agent(c).velocity(anchor.position, anchor.velocity, pref,
+                                                     static, self._moving_obstacles())
         escape = None
         if cfg.look_ahead and len(lines) > lines.n_static:
             escape = self._look_ahead(v_star, np.array(pref), anchor, static)

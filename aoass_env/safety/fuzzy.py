@@ -82,9 +82,10 @@ def _memberships(x: float, inner: np.ndarray, rows: np.ndarray, lo: float,
 def _aggregate(d: float, h: float, d_inner: np.ndarray, d_rows: np.ndarray, d_lo: float,
                d_hi: float, h_inner: np.ndarray, h_rows: np.ndarray, h_lo: float, h_hi: float,
                table: np.ndarray, grid: np.ndarray, nt: int,
-               support: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The aggregated turn and speed sets (each (n,), on the output grid) of one d (m) and one
-    wrapped dtheta (rad): AND = min, implication = min, aggregation = max.
+               support: np.ndarray) -> np.ndarray:
+    """(2, n) the aggregated turn and speed sets (rows, on the output grid) of one d (m) and
+    one wrapped dtheta (rad): AND = min, implication = min, aggregation = max. One array, so
+    one allocation and one return to Python.
 
     Only the rules whose two memberships are both positive are evaluated: any other rule has a
     strength min(mu_d, mu_h) <= 0, which never raises an output term's strength (they start at
@@ -113,19 +114,18 @@ def _aggregate(d: float, h: float, d_inner: np.ndarray, d_rows: np.ndarray, d_lo
                         out[t] = w
                     if w > out[s]:
                         out[s] = w
-    turn = np.zeros(n)
-    speed = np.zeros(n)
+    sets = np.zeros((2, n))
     for r in range(n_out):
         strength = out[r]
-        target = turn if r < nt else speed
         if not strength > 0.0:
             continue
+        target = sets[0] if r < nt else sets[1]
         for k in range(support[r, 0], support[r, 1]):
             g = grid[r, k]
             clipped = strength if strength < g else g
             if clipped > target[k]:
                 target[k] = clipped
-    return turn, speed
+    return sets
 
 
 @dataclass(frozen=True)
@@ -411,11 +411,14 @@ class FuzzyController:
         The memberships, the rules and the aggregation run compiled (:func:`_aggregate`); the
         centroid's areas and moments are NumPy's products of the aggregated sets, whose
         division and clipping round as NumPy's float64 scalars do (NumPy divides a zero area).
+        The products are ``np.dot``'s: the same BLAS product as ``@`` (one vector times one
+        matrix; tested equal), with less of the ufunc machinery around it.
         """
         tab = self._tables
-        turn, speed = _aggregate(d, h, *tab["compiled"])
-        ta, tm = (turn @ tab["moments"][0]).tolist()
-        sa, sm = (speed @ tab["moments"][1]).tolist()
+        sets = _aggregate(d, h, *tab["compiled"])
+        moments = tab["moments"]
+        ta, tm = np.dot(sets[0], moments[0]).tolist()
+        sa, sm = np.dot(sets[1], moments[1]).tolist()
         if not (ta and sa):     # an area underflowed to 0: NumPy's inf or nan (and warning)
             ta, sa = np.float64(ta), np.float64(sa)
         return min(max(tm / ta, -1.0), 1.0), min(max(sm / sa, 0.0), 1.0)

@@ -465,17 +465,6 @@ class OrcaLines:
 _NO_STATIC = StaticObstacles.empty()
 
 
-def _build(position: Any, velocity: Any, radius: Any, max_speed: Any, static_obstacles: Any,
-           moving_obstacles: Any, time_horizon: Any, time_horizon_obst: Any, time_step: Any,
-           responsibility: Any) -> tuple[np.ndarray, int, float]:
-    """Checked inputs -> (the lines' read-only (n, 4) rows [px, py, dx, dy], n_static,
-    max_speed)."""
-    agent = OrcaAgent(radius, max_speed, time_horizon, time_horizon_obst, time_step,
-                      responsibility)
-    array, n_static = agent._rows(position, velocity, static_obstacles, moving_obstacles)
-    return array, n_static, agent.max_speed
-
-
 @dataclass(frozen=True)
 class OrcaAgent:
     """The anchor's side of :func:`orca_lines`, checked once: its radius and speed limit (m,
@@ -510,19 +499,36 @@ class OrcaAgent:
         array, n_static = self._rows(position, velocity, static_obstacles, moving_obstacles)
         return OrcaLines(array[:, :2], array[:, 2:], n_static, array)
 
+    def velocity(self, position: ArrayLike, velocity: ArrayLike, preferred_velocity: ArrayLike,
+                 static_obstacles: StaticObstacles | Sequence[ArrayLike] | None = None,
+                 moving_obstacles: ArrayLike | None = None) -> tuple[OrcaLines, np.ndarray]:
+        """(:meth:`lines`, Eq. 10's velocity (2,) (m/s) in them closest to
+        ``preferred_velocity`` (2,) (m/s)): ``solve_velocity(lines, preferred_velocity,
+        max_speed)``'s floats, the lines and the program in one compiled call."""
+        args = self._arguments(position, velocity, static_obstacles, moving_obstacles)
+        ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
+        array, n_static, x, y = _lines_and_velocity(*args, ox, oy)
+        array.flags.writeable = False       # the views and the solver's rows stay these floats
+        return OrcaLines(array[:, :2], array[:, 2:], n_static, array), np.array([x, y])
+
     def _rows(self, position: Any, velocity: Any, static_obstacles: Any,
               moving_obstacles: Any) -> tuple[np.ndarray, int]:
         """(the lines' read-only (n, 4) rows [px, py, dx, dy], n_static) of checked inputs."""
+        array, n_static = _compiled_lines(
+            *self._arguments(position, velocity, static_obstacles, moving_obstacles))
+        array.flags.writeable = False       # the views and the solver's rows stay these floats
+        return array, n_static
+
+    def _arguments(self, position: Any, velocity: Any, static_obstacles: Any,
+                   moving_obstacles: Any) -> tuple[Any, ...]:
+        """:func:`_compiled_lines`'s arguments: the inputs checked, with these settings."""
         px, py = _vec2("position", position, "m")
         vx, vy = _vec2("velocity", velocity, "m/s")
         static = _static(static_obstacles)
         cache = (static if static is not None else _NO_STATIC)._cache
-        array, n_static = _compiled_lines(
-            cache.edges, cache.links, cache.bbox, cache.grid, cache.cells, px, py, vx, vy,
-            self.radius, self.max_speed, self.time_horizon_obst, _moving(moving_obstacles),
-            self.time_horizon, self.time_step, self.responsibility)
-        array.flags.writeable = False       # the views and the solver's rows stay these floats
-        return array, n_static
+        return (cache.edges, cache.links, cache.bbox, cache.grid, cache.cells, px, py, vx, vy,
+                self.radius, self.max_speed, self.time_horizon_obst, _moving(moving_obstacles),
+                self.time_horizon, self.time_step, self.responsibility)
 
 
 def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_speed: float, *,
@@ -549,10 +555,9 @@ def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_spee
         responsibility: the anchor's share of the avoidance of moving obstacles, in (0, 1]
             (RVO2's agent-agent case: 0.5).
     """
-    array, n_static, _ = _build(position, velocity, radius, max_speed, static_obstacles,
-                                moving_obstacles, time_horizon, time_horizon_obst, time_step,
-                                responsibility)
-    return OrcaLines(array[:, :2], array[:, 2:], n_static, array)
+    agent = OrcaAgent(radius, max_speed, time_horizon, time_horizon_obst, time_step,
+                      responsibility)
+    return agent.lines(position, velocity, static_obstacles, moving_obstacles)
 
 
 # --------------------------------------------------------------------------------------------
@@ -761,12 +766,10 @@ def orca_velocity(position: ArrayLike, velocity: ArrayLike, preferred_velocity: 
                   responsibility: float = 1.0) -> np.ndarray:
     """= solve_velocity(orca_lines(...), preferred_velocity, max_speed). Returns (2,) float64
     m/s. Arguments as in :func:`orca_lines`; ``preferred_velocity`` (2,) in m/s."""
-    ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
-    lines, n_static, max_speed = _build(position, velocity, radius, max_speed,
-                                        static_obstacles, moving_obstacles, time_horizon,
-                                        time_horizon_obst, time_step, responsibility)
-    x, y = _solve(lines, n_static, ox, oy, max_speed)
-    return np.array([x, y])
+    agent = OrcaAgent(radius, max_speed, time_horizon, time_horizon_obst, time_step,
+                      responsibility)
+    return agent.velocity(position, velocity, preferred_velocity, static_obstacles,
+                          moving_obstacles)[1]
 
 
 # --------------------------------------------------------------------------------------------
@@ -947,9 +950,9 @@ def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, grid
                     tau_obst: float, moving: np.ndarray, tau: float, step: float,
                     share: float) -> tuple[np.ndarray, int]:
     """(lines (n, 4) as (px, py, dx, dy) rows, n_static): the anchor's ORCA lines, static ones
-    first, for :func:`_build`'s checked floats; ``edges``, ``links``, ``bbox``, ``grid``,
-    ``cells``: an :class:`_EdgeCache`'s tables (empty for no static obstacles), ``moving``:
-    (k, 5) rows.
+    first, for :meth:`OrcaAgent._arguments`' checked floats; ``edges``, ``links``, ``bbox``,
+    ``grid``, ``cells``: an :class:`_EdgeCache`'s tables (empty for no static obstacles),
+    ``moving``: (k, 5) rows.
 
     RVO2's obstacle part: the edges within ``tau_obst * max_speed + radius`` (m), nearest
     first, seen from their free side only (back-face culling), skipped when earlier lines
@@ -1132,3 +1135,17 @@ def _moving_compiled(lines: np.ndarray, n: int, moving: np.ndarray, px: float, p
             ux, uy = grow * ux, grow * uy
         n = _push(lines, n, vx + share * ux, vy + share * uy, dx, dy)
     return n
+
+
+@numba.njit(cache=True)
+def _lines_and_velocity(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray,
+                        grid: np.ndarray, cells: np.ndarray, px: float, py: float, vx: float,
+                        vy: float, radius: float, max_speed: float, tau_obst: float,
+                        moving: np.ndarray, tau: float, step: float, share: float, ox: float,
+                        oy: float) -> tuple[np.ndarray, int, float, float]:
+    """(lines, n_static, v*x, v*y): :func:`_compiled_lines`, then :func:`_solve` for the
+    preferred velocity (ox, oy) (m/s) in them (:meth:`OrcaAgent.velocity`)."""
+    lines, n_static = _compiled_lines(edges, links, bbox, grid, cells, px, py, vx, vy, radius,
+                                      max_speed, tau_obst, moving, tau, step, share)
+    x, y = _solve(lines, n_static, ox, oy, max_speed)
+    return lines, n_static, x, y

@@ -556,13 +556,17 @@ def _bits(rows) -> list[tuple[int, ...]]:
 
 
 def _both_paths(**kwargs) -> tuple[tuple, tuple]:
-    """(compiled, float code) lines of the same arguments: orca.py's _build and the oracle's
-    reference_lines (tests/safety/orca_floats.py) on _build's checked floats."""
+    """(compiled, float code) lines of the same arguments: orca_lines' (rows, n_static,
+    max_speed) and the oracle's reference_lines (tests/safety/orca_floats.py) on the checked
+    floats."""
     from aoass_env.safety import orca
     args = [kwargs[k] for k in ("position", "velocity", "radius", "max_speed",
                                 "static_obstacles", "moving_obstacles", "time_horizon",
                                 "time_horizon_obst", "time_step", "responsibility")]
-    compiled = orca._build(*args)
+    lines = orca_lines(*args[:4], static_obstacles=args[4], moving_obstacles=args[5],
+                       time_horizon=args[6], time_horizon_obst=args[7], time_step=args[8],
+                       responsibility=args[9])
+    compiled = (lines.table, lines.n_static, float(args[3]))
     (px, py), (vx, vy) = map(tuple, np.asarray(args[:2], dtype=np.float64).tolist())
     moving = orca._moving(kwargs["moving_obstacles"])
     floats = reference_lines(orca._static(kwargs["static_obstacles"]), moving, px, py, vx, vy,
@@ -723,3 +727,12 @@ def test_an_orca_agent_builds_the_float_codes_lines_scene_after_scene(scene, oth
                                             "time_horizon", "time_step", "responsibility")))
         assert got.n_static == want_static and _bits(got.table.tolist()) == _bits(want)
         assert not got.table.flags.writeable
+        # the lines and the program in one call: the same lines, the float code's velocity
+        pref = (where["velocity"][1], -where["velocity"][0])
+        lines, v_star = agent.velocity(where["position"], where["velocity"], pref, obstacles,
+                                       moving)
+        assert lines.n_static == want_static and _bits(lines.table.tolist()) == _bits(want)
+        assert not lines.table.flags.writeable
+        ox, oy = np.asarray(pref, dtype=np.float64).tolist()
+        assert _bits([v_star.tolist()]) == _bits([reference_solve(
+            want, want_static, ox, oy, float(settings_["max_speed"]))])
