@@ -20,7 +20,7 @@ speed term)`` in a frozen :class:`FuzzyController`. Inference:
 
 Membership grids of the output terms and the interpolation tables of the input terms are
 computed once at construction. A scalar call runs fuzzification, rules and aggregation compiled
-(numba, :func:`_aggregate`) and the centroid's two products in NumPy (about 6 us;
+(numba, :func:`_aggregate`) and the centroid's two products in NumPy (about 5 us;
 scikit-fuzzy's control system takes about 12 ms on the same sets); arrays go through the same
 steps vectorised, in blocks of 1024 points (about 5 us per point). ``benchmarks/fuzzy.py``
 prints the figures.
