@@ -27,6 +27,7 @@ from contextlib import contextmanager
 from typing import Any
 
 import gymnasium as gym
+from numba.core import event as numba_event
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env import simulator, wrappers
@@ -142,18 +143,37 @@ def reset_ms(resets: int, seeds: list[int] | None = None, **kwargs: Any) -> floa
     return 1e3 * statistics.median(times)
 
 
-def warm_up_safe(env: gym.Env, most: int = 5_000) -> None:
-    """Random steps of an AOASS-Safe-v0 ``env`` (at least 200) until the look-ahead has run
-    (a step with a moving obstacle's ORCA line), at most ``most``: their first calls load or
-    compile the safety stack's kernels, which would otherwise fall into a timed run."""
-    env.reset(seed=0)
-    env.action_space.seed(0)
-    for step in range(most):
-        _, _, terminated, truncated, info = env.step(env.action_space.sample())
-        if step >= 200 and info["safety"]["constraints"] > info["safety"]["static"]:
-            break
-        if terminated or truncated:
-            env.reset()
+#: The warm-up's seed (:func:`warm_up_env`), used by no timed run.
+WARM_UP_SEED = 9_999
+
+
+def warm_up_env(env: gym.Env, most: int = 20_000, quiet: int = 2_000) -> None:
+    """Random steps of an AOASS ``env`` until an episode has ended and the env has then run
+    ``quiet`` steps in a row without compiling a numba kernel (numba's ``"numba:compile"``
+    events, which a kernel loaded from numba's cache does not raise), at most ``most``; under
+    AOASS-Safe-v0 only after its first look-ahead (a step with a moving obstacle's ORCA line)
+    as well. The first calls of a kernel compile it on a machine's first run (seconds each) or
+    load it from numba's cache; either would otherwise fall into a timed run (an episode's end,
+    the look-ahead's contest and the re-solve of an escape come late or rarely). It plays its
+    own seed, :data:`WARM_UP_SEED`: the maps it generates are none a timed run asks for (the
+    generator keeps its last few maps), so every timed reset builds its map."""
+    env.reset(seed=WARM_UP_SEED)
+    env.action_space.seed(WARM_UP_SEED)
+    ended = looked = False          # an episode has ended; the look-ahead has run (or none)
+    since = 0                       # quiet steps since both
+    with numba_event.install_recorder("numba:compile") as compiles:
+        seen = 0
+        for _ in range(most):
+            _, _, terminated, truncated, info = env.step(env.action_space.sample())
+            safety = info.get("safety")
+            looked = looked or safety is None or safety["constraints"] > safety["static"]
+            if terminated or truncated:
+                ended = True
+                env.reset()
+            since = since + 1 if ended and looked and len(compiles.buffer) == seen else 0
+            seen = len(compiles.buffer)
+            if since >= quiet:
+                break
 
 
 @contextmanager
@@ -227,7 +247,8 @@ def main() -> None:
     throughput(gym.make("Pendulum-v1"), 2_000)       # warm-up (imports, CPU clock)
     # first-use costs of AOASS (lazy imports, compiled kernels loaded from numba's cache, or
     # compiled on a machine's first run), the look-ahead's included
-    warm_up_safe(gym.make("AOASS-Safe-v0", **field))
+    warm_up_env(gym.make("AOASS-Safe-v0", **field))
+    warm_up_env(gym.make("AOASS-v0", **field))
     ref, _, _, ref_cpu = throughput(gym.make("Pendulum-v1"), args.steps)
     print(f"{'env':34s} {'steps/s':>9s} {'us/step':>8s} {'CPU us':>7s} {'episodes':>8s} "
           f"{'reset s':>8s} {'ratio':>6s} {'CPU':>6s}  against")

@@ -5,8 +5,9 @@ an empty numba cache, then again with the cache the first run wrote.
 
 The package (``aoass_env/``, without its ``__pycache__`` folders) and ``benchmarks/`` are
 copied to a temporary folder; a fresh interpreter imports them from there and times
-``env_throughput.warm_up_safe`` (random steps of AOASS-Safe-v0 until the look-ahead has run):
-the first time every kernel it reaches compiles, the second time they load from numba's cache.
+``env_throughput.warm_up_env`` (random steps of AOASS-Safe-v0 until, after its first look-ahead
+and an episode's end, 2 000 steps in a row compiled nothing): the first time every kernel it
+reaches compiles, the second time they load from numba's cache.
 Prints the import time and the two warm-ups (wall seconds).
 """
 
@@ -27,9 +28,9 @@ sys.path.insert(0, "benchmarks")
 t = time.perf_counter()
 import gymnasium as gym
 import aoass_env
-from env_throughput import warm_up_safe
+from env_throughput import warm_up_env
 imported = time.perf_counter()
-warm_up_safe(gym.make("AOASS-Safe-v0"))
+warm_up_env(gym.make("AOASS-Safe-v0"))
 print(f"{imported - t:.1f} {time.perf_counter() - imported:.1f}")
 """
 
@@ -50,7 +51,7 @@ def main() -> None:
             times.append([float(x) for x in out.split()])
     (imp1, first), (imp2, cached) = times
     print(f"import aoass_env and gymnasium: {imp1:.1f} s, {imp2:.1f} s")
-    print(f"AOASS-Safe-v0 warm-up to its first look-ahead: {first:.1f} s with an empty numba "
+    print(f"AOASS-Safe-v0 warm-up until no kernel compiles: {first:.1f} s with an empty numba "
           f"cache (every kernel compiles), {cached:.1f} s with the cache it wrote")
 
 
