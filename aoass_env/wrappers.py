@@ -224,6 +224,10 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
             out[self._moving] = 0.0
             return self._clipped(out)
         anchor = self._base.sim.world.position
+        if observation.dtype == np.float32 and observation.shape == self._inner_shape:
+            return _track_slots(observation, states, *anchor.tolist(), self._horizon,
+                                c.sensing_range, self._v_scale, self._slots,
+                                self._moving.start, self._low, self._high)
         # MultiTargetTracker.predict_positions(horizon) of the same states
         predicted = states[:, :2] + self._horizon * states[:, 2:]
         rel = states[:, :2] - anchor
@@ -262,6 +266,44 @@ def _empty_slots(observation: np.ndarray, start: int, stop: int, low: np.ndarray
         x = observation[i] if i < n and not start <= i < stop else np.float32(0.0)
         out[i] = clip_like_numpy(x, low[i], high[i])
     return out
+
+
+@numba.njit(cache=True)
+def _track_slots(observation: np.ndarray, states: np.ndarray, ax: float, ay: float,
+                 horizon: float, reach: float, v_scale: float, slots: int, start: int,
+                 low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """The tracker's observation with confirmed tracks, from a float32 ``observation``: the
+    array code of :meth:`KalmanObstacleTracker._with_tracks` element by element. The tracks
+    ``states`` (m, 4) nearest the anchor (ax, ay) (m) first (a stable order of their
+    ``np.hypot`` distances, the C library's hypot as NumPy's) fill the ``slots`` moving-obstacle
+    slots from ``start`` ([dx, dy] / ``reach``, [vx, vy] / ``v_scale``, 1) and their positions
+    ``horizon`` (s) ahead the appended block ((x + horizon vx - ax) / ``reach``, ...); the rest
+    is zero. The float64 entries are clipped to [``low``, ``high``] as NumPy clips, then
+    rounded to float32."""
+    n = observation.shape[0]
+    out = np.empty(n + 2 * slots)
+    for i in range(n):
+        out[i] = observation[i]
+    out[n:] = 0.0
+    out[start:start + len(MOVING_FIELDS) * slots] = 0.0
+    distance = np.empty(states.shape[0])
+    for j in range(states.shape[0]):
+        distance[j] = np.hypot(states[j, 0] - ax, states[j, 1] - ay)
+    order = np.argsort(distance, kind="mergesort")
+    for k in range(min(slots, states.shape[0])):
+        j = order[k]
+        row = start + len(MOVING_FIELDS) * k
+        out[row] = (states[j, 0] - ax) / reach
+        out[row + 1] = (states[j, 1] - ay) / reach
+        out[row + 2] = states[j, 2] / v_scale
+        out[row + 3] = states[j, 3] / v_scale
+        out[row + 4] = 1.0
+        out[n + 2 * k] = (states[j, 0] + horizon * states[j, 2] - ax) / reach
+        out[n + 2 * k + 1] = (states[j, 1] + horizon * states[j, 3] - ay) / reach
+    clipped = np.empty(out.shape[0], np.float32)
+    for i in range(out.shape[0]):
+        clipped[i] = clip_like_numpy(out[i], np.float64(low[i]), np.float64(high[i]))
+    return clipped
 
 
 class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):

@@ -402,6 +402,68 @@ def _old_filter(self, action):
     return executed, report
 
 
+def _array_track_slots(tracker, observation, states, anchor):
+    """The tracker's observation with confirmed tracks by the array code (the oracle of the
+    compiled ``_track_slots``)."""
+    c = tracker._base.config
+    predicted = states[:, :2] + tracker._horizon * states[:, 2:]
+    rel = states[:, :2] - anchor
+    order = np.argsort(np.hypot(rel[:, 0], rel[:, 1]), kind="stable")[:tracker._slots]
+    m = len(order)
+    filtered = np.zeros((tracker._slots, 5))
+    filtered[:m, :2] = rel[order] / c.sensing_range
+    filtered[:m, 2:4] = states[order, 2:4] / tracker._v_scale
+    filtered[:m, 4] = 1.0
+    ahead = np.zeros((tracker._slots, 2))
+    ahead[:m] = (predicted[order] - anchor) / c.sensing_range
+    out = np.concatenate([observation, ahead.ravel()])
+    out[tracker._moving] = filtered.ravel()
+    return np.minimum(np.maximum(out, tracker._low), tracker._high).astype(np.float32)
+
+
+def test_tracker_slots_compiled_are_the_array_codes():
+    """With confirmed tracks, the compiled observation (``_track_slots``) is the array code's,
+    byte for byte: 1 to more tracks than slots, tracks at equal distances (the stable order),
+    on the anchor, far out of range (clipped), signed zeros and the observation's own specials;
+    and _with_tracks takes it for a float32 observation of the inner shape."""
+    env = make_safe_env(**SMALL)
+    tracker = env.env
+    c = tracker._base.config
+    rng = np.random.default_rng(13)
+    n = tracker._inner_shape[0]
+    specials = np.array([0.0, -0.0, 1.0, -1.0, np.inf, -np.inf, np.nan, 0.5], np.float32)
+    for trial in range(400):
+        obs = np.where(rng.random(n) < 0.2, rng.choice(specials, n),
+                       rng.standard_normal(n)).astype(np.float32)
+        m = int(rng.integers(1, tracker._slots + 3))
+        anchor = rng.uniform(0.0, 30.0, 2)
+        states = np.column_stack([anchor + rng.normal(0.0, c.sensing_range, (m, 2)),
+                                  rng.normal(0.0, 2.0, (m, 2))])
+        if trial % 4 == 0 and m > 1:        # equal distances: mirrored about the anchor
+            states[1, :2] = 2.0 * anchor - states[0, :2]
+        if trial % 5 == 0:
+            states[0, :2] = anchor          # on the anchor: a zero offset
+            states[0, 2] = -0.0
+        got = wrappers._track_slots(obs, states, *anchor.tolist(), tracker._horizon,
+                                    c.sensing_range, tracker._v_scale, tracker._slots,
+                                    tracker._moving.start, tracker._low, tracker._high)
+        want = _array_track_slots(tracker, obs, states, anchor)
+        assert got.dtype == np.float32 and got.tobytes() == want.tobytes(), trial
+    # in the wrapper: the compiled path for the inner float32 observation, with tracks
+    env.reset(seed=2)
+    seen = 0
+    for _ in range(400):
+        env.step(rng.uniform(-1.0, 1.0, 2).astype(np.float32))
+        states = tracker.tracker.states()
+        if len(states):
+            inner = tracker._base._observation_vector()
+            anchor = tracker._base.sim.world.position
+            assert tracker._with_tracks(inner).tobytes() == \
+                _array_track_slots(tracker, inner, states, anchor).tobytes()
+            seen += 1
+    assert seen > 20, seen
+
+
 def _same(a, b) -> bool:
     """Equal bit for bit: arrays by dtype and bytes, floats by their bits, dicts by key."""
     if isinstance(a, tuple):
