@@ -320,28 +320,33 @@ def test_free_space_loops_put_free_space_on_the_right():
 
 def _old_observation(self, observation):
     """``KalmanObstacleTracker.observation`` before issue 20's seventh round (the oracle)."""
-    from aoass_env.observation import MOVING_FIELDS
-    c = self._base.config
-    anchor = self._base.sim.world.position
     self.tracker.step(self._base.detections)
     states = self.tracker.states()
     if len(states) == 0:
         out = np.concatenate([observation, np.zeros(2 * self._slots)])
         out[self._moving] = 0.0
         return np.minimum(np.maximum(out, self._low), self._high).astype(np.float32)
-    predicted = states[:, :2] + self._horizon * states[:, 2:]
+    return _array_track_slots(self, observation, states, self._base.sim.world.position)
+
+
+def _array_track_slots(tracker, observation, states, anchor):
+    """The tracker's observation with confirmed tracks ``states`` by the array code (the
+    oracle of the old observation and of the compiled ``_track_slots``)."""
+    from aoass_env.observation import MOVING_FIELDS
+    c = tracker._base.config
+    predicted = states[:, :2] + tracker._horizon * states[:, 2:]
     rel = states[:, :2] - anchor
-    order = np.argsort(np.hypot(rel[:, 0], rel[:, 1]), kind="stable")[:self._slots]
+    order = np.argsort(np.hypot(rel[:, 0], rel[:, 1]), kind="stable")[:tracker._slots]
     m = len(order)
-    filtered = np.zeros((self._slots, len(MOVING_FIELDS)))
+    filtered = np.zeros((tracker._slots, len(MOVING_FIELDS)))
     filtered[:m, :2] = rel[order] / c.sensing_range
-    filtered[:m, 2:4] = states[order, 2:4] / self._v_scale
+    filtered[:m, 2:4] = states[order, 2:4] / tracker._v_scale
     filtered[:m, 4] = 1.0
-    ahead = np.zeros((self._slots, 2))
+    ahead = np.zeros((tracker._slots, 2))
     ahead[:m] = (predicted[order] - anchor) / c.sensing_range
     out = np.concatenate([observation, ahead.ravel()])
-    out[self._moving] = filtered.ravel()
-    return np.minimum(np.maximum(out, self._low), self._high).astype(np.float32)
+    out[tracker._moving] = filtered.ravel()
+    return np.minimum(np.maximum(out, tracker._low), tracker._high).astype(np.float32)
 
 
 def _old_filter(self, action):
@@ -400,25 +405,6 @@ def _old_filter(self, action):
               "look_ahead_shortfall": 0.0 if escape is None else escape.shortfall,
               "yielding": self.escape_budget.yielding}
     return executed, report
-
-
-def _array_track_slots(tracker, observation, states, anchor):
-    """The tracker's observation with confirmed tracks by the array code (the oracle of the
-    compiled ``_track_slots``)."""
-    c = tracker._base.config
-    predicted = states[:, :2] + tracker._horizon * states[:, 2:]
-    rel = states[:, :2] - anchor
-    order = np.argsort(np.hypot(rel[:, 0], rel[:, 1]), kind="stable")[:tracker._slots]
-    m = len(order)
-    filtered = np.zeros((tracker._slots, 5))
-    filtered[:m, :2] = rel[order] / c.sensing_range
-    filtered[:m, 2:4] = states[order, 2:4] / tracker._v_scale
-    filtered[:m, 4] = 1.0
-    ahead = np.zeros((tracker._slots, 2))
-    ahead[:m] = (predicted[order] - anchor) / c.sensing_range
-    out = np.concatenate([observation, ahead.ravel()])
-    out[tracker._moving] = filtered.ravel()
-    return np.minimum(np.maximum(out, tracker._low), tracker._high).astype(np.float32)
 
 
 def test_tracker_slots_compiled_are_the_array_codes():
