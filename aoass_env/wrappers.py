@@ -214,34 +214,23 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
     def _with_tracks(self, observation: np.ndarray) -> np.ndarray:
         """``observation`` with the confirmed tracks in the moving-obstacle slots and their
         predicted positions appended."""
-        c = self._base.config
+        observation = np.asarray(observation)
+        if observation.shape != self._inner_shape:
+            raise ValueError(f"KalmanObstacleTracker got an observation of shape "
+                             f"{observation.shape}; the env it wraps has {self._inner_shape}")
         states = self.tracker.states() if self.tracker.n_tracks else ()
         if len(states) == 0:        # no confirmed track: empty slots (the lines below, in short)
-            if observation.dtype == np.float32 and observation.shape == self._inner_shape:
+            if observation.dtype == np.float32:
                 return _empty_slots(observation, self._moving.start, self._moving.stop,
                                     self._low, self._high)
             out = np.concatenate([observation, self._no_ahead])
             out[self._moving] = 0.0
             return self._clipped(out)
-        anchor = self._base.sim.world.position
-        if observation.dtype == np.float32 and observation.shape == self._inner_shape:
-            return _track_slots(observation, states, *anchor.tolist(), self._horizon,
-                                c.sensing_range, self._v_scale, self._slots,
-                                self._moving.start, self._low, self._high)
-        # MultiTargetTracker.predict_positions(horizon) of the same states
-        predicted = states[:, :2] + self._horizon * states[:, 2:]
-        rel = states[:, :2] - anchor
-        order = np.argsort(np.hypot(rel[:, 0], rel[:, 1]), kind="stable")[:self._slots]
-        m = len(order)
-        filtered = np.zeros((self._slots, len(MOVING_FIELDS)))
-        filtered[:m, :2] = rel[order] / c.sensing_range
-        filtered[:m, 2:4] = states[order, 2:4] / self._v_scale
-        filtered[:m, 4] = 1.0
-        ahead = np.zeros((self._slots, 2))
-        ahead[:m] = (predicted[order] - anchor) / c.sensing_range
-        out = np.concatenate([observation, ahead.ravel()])
-        out[self._moving] = filtered.ravel()
-        return self._clipped(out)
+        if observation.dtype not in (np.float32, np.float64):   # NumPy's float64, as before
+            observation = observation.astype(np.float64)
+        return _track_slots(observation, states, *self._base.sim.world.position.tolist(),
+                            self._horizon, self._base.config.sensing_range, self._v_scale,
+                            self._slots, self._moving.start, self._low, self._high)
 
     def _clipped(self, out: np.ndarray) -> np.ndarray:
         """``out`` clipped to the observation space, as float32: ``np.clip``'s values without
@@ -272,8 +261,8 @@ def _empty_slots(observation: np.ndarray, start: int, stop: int, low: np.ndarray
 def _track_slots(observation: np.ndarray, states: np.ndarray, ax: float, ay: float,
                  horizon: float, reach: float, v_scale: float, slots: int, start: int,
                  low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """The tracker's observation with confirmed tracks, from a float32 ``observation``: the
-    array code of :meth:`KalmanObstacleTracker._with_tracks` element by element. The tracks
+    """The tracker's observation with confirmed tracks, from a float32 or float64
+    ``observation``: NumPy's array code (tests/test_wrappers.py) element by element. The tracks
     ``states`` (m, 4) nearest the anchor (ax, ay) (m) first (a stable order of their
     ``np.hypot`` distances, the C library's hypot as NumPy's) fill the ``slots`` moving-obstacle
     slots from ``start`` ([dx, dy] / ``reach``, [vx, vy] / ``v_scale``, 1) and their positions

@@ -411,7 +411,8 @@ def test_tracker_slots_compiled_are_the_array_codes():
     """With confirmed tracks, the compiled observation (``_track_slots``) is the array code's,
     byte for byte: 1 to more tracks than slots, tracks at equal distances (the stable order),
     on the anchor, far out of range (clipped), signed zeros and the observation's own specials;
-    and _with_tracks takes it for a float32 observation of the inner shape."""
+    and _with_tracks takes it for float32 and float64 observations of the inner shape, and
+    refuses another shape."""
     env = make_safe_env(**SMALL)
     tracker = env.env
     c = tracker._base.config
@@ -444,10 +445,16 @@ def test_tracker_slots_compiled_are_the_array_codes():
         if len(states):
             inner = tracker._base._observation_vector()
             anchor = tracker._base.sim.world.position
-            assert tracker._with_tracks(inner).tobytes() == \
-                _array_track_slots(tracker, inner, states, anchor).tobytes()
+            want = _array_track_slots(tracker, inner, states, anchor).tobytes()
+            assert tracker._with_tracks(inner).tobytes() == want
+            # a float64 observation (a wrapper between): the same floats as NumPy's
+            assert tracker._with_tracks(inner.astype(np.float64)).tobytes() == want
+            assert _array_track_slots(tracker, inner.astype(np.float64), states,
+                                      anchor).tobytes() == want
             seen += 1
     assert seen > 20, seen
+    with pytest.raises(ValueError, match=r"observation of shape \(\d+,\); the env it wraps"):
+        tracker._with_tracks(inner[:-1])
 
 
 def _same(a, b) -> bool:

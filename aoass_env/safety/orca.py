@@ -496,8 +496,8 @@ class OrcaAgent:
               moving_obstacles: ArrayLike | None = None) -> OrcaLines:
         """:func:`orca_lines` with these settings: the anchor at ``position`` (2,) (m) moving
         at ``velocity`` (2,) (m/s) among the obstacles."""
-        array, n_static = self._rows(position, velocity, static_obstacles, moving_obstacles)
-        return OrcaLines(array[:, :2], array[:, 2:], n_static, array)
+        return _read_only_lines(*_compiled_lines(
+            *self._arguments(position, velocity, static_obstacles, moving_obstacles)))
 
     def velocity(self, position: ArrayLike, velocity: ArrayLike, preferred_velocity: ArrayLike,
                  static_obstacles: StaticObstacles | Sequence[ArrayLike] | None = None,
@@ -508,16 +508,7 @@ class OrcaAgent:
         args = self._arguments(position, velocity, static_obstacles, moving_obstacles)
         ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
         array, n_static, x, y = _lines_and_velocity(*args, ox, oy)
-        array.flags.writeable = False       # the views and the solver's rows stay these floats
-        return OrcaLines(array[:, :2], array[:, 2:], n_static, array), np.array([x, y])
-
-    def _rows(self, position: Any, velocity: Any, static_obstacles: Any,
-              moving_obstacles: Any) -> tuple[np.ndarray, int]:
-        """(the lines' read-only (n, 4) rows [px, py, dx, dy], n_static) of checked inputs."""
-        array, n_static = _compiled_lines(
-            *self._arguments(position, velocity, static_obstacles, moving_obstacles))
-        array.flags.writeable = False       # the views and the solver's rows stay these floats
-        return array, n_static
+        return _read_only_lines(array, n_static), np.array([x, y])
 
     def _arguments(self, position: Any, velocity: Any, static_obstacles: Any,
                    moving_obstacles: Any) -> tuple[Any, ...]:
@@ -529,6 +520,13 @@ class OrcaAgent:
         return (cache.edges, cache.links, cache.bbox, cache.grid, cache.cells, px, py, vx, vy,
                 self.radius, self.max_speed, self.time_horizon_obst, _moving(moving_obstacles),
                 self.time_horizon, self.time_step, self.responsibility)
+
+
+def _read_only_lines(array: np.ndarray, n_static: int) -> OrcaLines:
+    """The lines of the compiled (n, 4) rows [px, py, dx, dy], made read-only: the views and
+    the solver's rows stay these floats."""
+    array.flags.writeable = False
+    return OrcaLines(array[:, :2], array[:, 2:], n_static, array)
 
 
 def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_speed: float, *,
