@@ -34,10 +34,12 @@ from aoass_env import simulator, wrappers
 from aoass_env.env import AOASSEnv
 from aoass_env.network import Network
 from aoass_env.observation import Observer
+from aoass_env.planning.coverage import CoverageMap
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import WaypointFollower
-from aoass_env.radio import Radio
 from aoass_env.safety.fuzzy import FuzzyController
+from aoass_env.safety.kalman import MultiTargetTracker
+from aoass_env.safety.orca import OrcaAgent
 from aoass_env.simulator import Simulator
 from aoass_env.world import World
 
@@ -47,9 +49,9 @@ PARTS: tuple[tuple[str, type, str], ...] = (
     ("  Simulator.step", Simulator, "step"),
     ("    World.step", World, "advance"),    # what Simulator.step calls (rows as floats)
     ("    Simulator._broadcast", Simulator, "_broadcast"),
-    ("      Radio.receivers", Radio, "receivers"),
     ("      receivers_at (both radios' links)", simulator, "receivers_at"),
     ("      Network.record_beacon", Network, "record_beacon"),
+    ("      CoverageMap.add_beacon", CoverageMap, "add_beacon"),
     ("  WaypointFollower.command", WaypointFollower, "command"),
     ("    DetourPlanner.path (its searches)", DetourPlanner, "path"),
     ("  Observer.sense (d_obs, detections)", Observer, "sense"),
@@ -67,9 +69,10 @@ SAFE_PARTS: tuple[tuple[str, Any, str], ...] = (
     ("FuzzyORCASafety.step", wrappers.FuzzyORCASafety, "step"),
     ("  AOASSEnv.step (the bare env)", AOASSEnv, "step"),
     ("  KalmanObstacleTracker.observation", wrappers.KalmanObstacleTracker, "observation"),
+    ("    MultiTargetTracker.step (kalman.py)", MultiTargetTracker, "step"),
     ("  FuzzyORCASafety._filter", wrappers.FuzzyORCASafety, "_filter"),
     ("    FuzzyController (fuzzy.py)", FuzzyController, "__call__"),
-    ("    orca_lines", wrappers, "orca_lines"),
+    ("    OrcaAgent.velocity (ORCA lines, Eq. 10)", OrcaAgent, "velocity"),
     ("    solve_velocity", wrappers, "solve_velocity"),
     ("    escape_velocity (look-ahead)", wrappers, "escape_velocity"),
     ("    _braking_envelope", wrappers.FuzzyORCASafety, "_braking_envelope"),
