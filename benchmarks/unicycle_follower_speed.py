@@ -34,9 +34,19 @@ from aoass_env.planning.follower import WaypointFollower
 from aoass_env.safety import unicycle
 
 try:
-    from benchmarks.lookahead_speed import random_steps, reference_module, replay_arguments
+    from benchmarks.lookahead_speed import (
+        random_steps,
+        reference_module,
+        replay_arguments,
+        warm_up,
+    )
 except ImportError:         # run as a script from benchmarks/
-    from lookahead_speed import random_steps, reference_module, replay_arguments  # type: ignore[no-redef]
+    from lookahead_speed import (  # type: ignore[no-redef]
+        random_steps,
+        reference_module,
+        replay_arguments,
+        warm_up,
+    )
 
 #: AOASS-Safe-v0 episodes whose unicycle_command calls are recorded: (keywords, seed)
 SAFE_EPISODES: tuple[tuple[dict[str, Any], int], ...] = (
@@ -162,6 +172,7 @@ def main() -> None:
     print(f"unicycle_command: {len(calls)} calls recorded in {len(SAFE_EPISODES)} x "
           f"{args.steps} AOASS-Safe-v0 steps; reference {args.ref}")
     print(f"{'round':>5s} {'reference':>10s} {'now':>8s} {'speed-up':>8s}   (CPU us per call)")
+    warm_up((old_unicycle.unicycle_command, old_calls), (unicycle.unicycle_command, calls))
     for i in range(args.rounds):
         start = time.process_time()
         r_old = [old_unicycle.unicycle_command(*a, **k) for a, k in old_calls]

@@ -1,0 +1,38 @@
+"""benchmarks/lookahead_speed.py: a reference that cannot take today's calls is refused in one
+line, and the warm-up replays every call once."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.benchmarks.conftest import load_benchmark
+
+
+def before_tolerance(velocity, preferred, *, horizon, progress_weight=0.0):
+    """A reference's signature from before a keyword the recorded calls pass."""
+    return velocity
+
+
+def with_tolerance(velocity, preferred, *, horizon, progress_weight=0.0, tolerance=None):
+    return velocity
+
+
+CALLS = [((1.0, 2.0), {"horizon": 3.0}), ((1.0, 2.0), {"horizon": 3.0, "tolerance": 1.0})]
+
+
+def test_a_reference_without_a_recorded_keyword_is_refused_in_one_line():
+    bench = load_benchmark("lookahead_speed")
+    bench.replayable(with_tolerance, CALLS, "abc1234", "escape_velocity")     # takes them all
+    with pytest.raises(SystemExit) as refused:
+        bench.replayable(before_tolerance, CALLS, "abc1234", "escape_velocity")
+    message = str(refused.value)
+    assert "\n" not in message and message.startswith("--ref abc1234: its escape_velocity")
+    assert "'tolerance'" in message and bench.REFERENCE in message
+
+
+def test_the_warm_up_replays_every_call_of_each_function_once():
+    bench = load_benchmark("lookahead_speed")
+    seen = []
+    bench.warm_up((lambda *a, **k: seen.append(("old", a, k)), CALLS),
+                  (lambda *a, **k: seen.append(("new", a, k)), CALLS[:1]))
+    assert seen == [("old", *CALLS[0]), ("old", *CALLS[1]), ("new", *CALLS[0])]
