@@ -50,7 +50,7 @@ PARTS: tuple[tuple[str, type, str], ...] = (
     ("    World.step", World, "advance"),    # what Simulator.step calls (rows as floats)
     ("    Simulator._broadcast", Simulator, "_broadcast"),
     ("      receivers_at (both radios' links)", simulator, "receivers_at"),
-    ("      Network.record_beacon", Network, "record_beacon"),
+    ("      Network.record_beacon (nodes, cells)", Network, "record_beacon"),
     ("      CoverageMap.add_beacon", CoverageMap, "add_beacon"),
     ("  WaypointFollower.command", WaypointFollower, "command"),
     ("    DetourPlanner.path (its searches)", DetourPlanner, "path"),
@@ -69,10 +69,10 @@ SAFE_PARTS: tuple[tuple[str, Any, str], ...] = (
     ("FuzzyORCASafety.step", wrappers.FuzzyORCASafety, "step"),
     ("  AOASSEnv.step (the bare env)", AOASSEnv, "step"),
     ("  KalmanObstacleTracker.observation", wrappers.KalmanObstacleTracker, "observation"),
-    ("    MultiTargetTracker.step (kalman.py)", MultiTargetTracker, "step"),
+    ("    MultiTargetTracker.step", MultiTargetTracker, "step"),
     ("  FuzzyORCASafety._filter", wrappers.FuzzyORCASafety, "_filter"),
     ("    FuzzyController (fuzzy.py)", FuzzyController, "__call__"),
-    ("    OrcaAgent.velocity (ORCA lines, Eq. 10)", OrcaAgent, "velocity"),
+    ("    OrcaAgent.velocity (ORCA, Eq. 10)", OrcaAgent, "velocity"),
     ("    solve_velocity", wrappers, "solve_velocity"),
     ("    escape_velocity (look-ahead)", wrappers, "escape_velocity"),
     ("    _braking_envelope", wrappers.FuzzyORCASafety, "_braking_envelope"),
@@ -229,7 +229,7 @@ def profile(steps: int, env_id: str = "AOASS-v0", **kwargs: Any) -> None:
           f"({1e6 * total / steps:.0f} us/step in all, timers included):")
     for label, _, _ in parts:
         seconds, calls = totals.get(label, (0.0, 0))
-        print(f"  {label:38s} {1e6 * seconds / steps:7.1f} us/step {100 * seconds / total:5.1f} %"
+        print(f"  {label:42s} {1e6 * seconds / steps:7.1f} us/step {100 * seconds / total:5.1f} %"
               f"  ({calls} calls, {1e6 * seconds / max(calls, 1):8.1f} us/call)")
 
 

@@ -1,0 +1,123 @@
+"""Speed-up of an AOASS-v0 step against an earlier commit (issue 20's "3 x faster per step").
+
+The earlier tree is unpacked with ``git archive`` into a temporary folder; this tree and that one
+then run in turn, each in a fresh interpreter whose ``PYTHONPATH`` puts the tree first: random
+actions in ``gymnasium.make("AOASS-v0")`` (default config), ``--steps`` steps from each of seeds
+0, 1, ... after 3 000 steps of warm-up on seed 9 999 (imports, caches, compiled kernels),
+resets included, timed in the process's CPU time. The fingerprint test pins the same episodes
+for the same seeds since before issue 20, so both trees step through the same states.
+Pendulum-v1 is timed the same way in this tree's process, as the reference of issue 20's
+second target (AOASS-v0 at >= 0.22 x its steps/s).
+
+Run: ``python3 benchmarks/step_speedup.py [--against 94e941b] [--steps 20000] [--seeds 3]
+[--rounds 2]`` (pin it to one core with ``taskset -c 1`` on a shared machine). ``94e941b`` is
+the tree before issue 20's first change.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+from pathlib import Path
+
+import gymnasium as gym
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: the warm-up's seed and length, used by no timed run
+WARM_UP_SEED, WARM_UP_STEPS = 9_999, 3_000
+
+
+def cpu_us_per_step(env_id: str, steps: int, seeds: int) -> float:
+    """CPU microseconds per random step of ``env_id`` (resets included) over ``steps`` steps
+    from each of seeds 0 .. ``seeds`` - 1, after the warm-up."""
+    import aoass_env  # noqa: F401  (registers AOASS-v0 of the tree first on the path)
+
+    env = gym.make(env_id)
+    spent = 0.0
+    for seed in (WARM_UP_SEED, *range(seeds)):
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        start = time.process_time()
+        for _ in range(WARM_UP_STEPS if seed == WARM_UP_SEED else steps):
+            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+            if terminated or truncated:
+                env.reset()
+        if seed != WARM_UP_SEED:
+            spent += time.process_time() - start
+    env.close()
+    return 1e6 * spent / (steps * seeds)
+
+
+def unpack(ref: str, folder: Path) -> None:
+    """The files of commit ``ref`` (``git archive``) into ``folder``; exits in one line when git
+    does not know it."""
+    run = subprocess.run(["git", "archive", "--format=tar", ref], cwd=ROOT, capture_output=True)
+    if run.returncode:
+        raise SystemExit(f"--against {ref}: git archive failed "
+                         f"({run.stderr.decode().strip().splitlines()[-1]})")
+    with tarfile.open(fileobj=io.BytesIO(run.stdout)) as tar:
+        tar.extractall(folder, filter="data")
+
+
+def in_tree(tree: Path, env_id: str, steps: int, seeds: int) -> float:
+    """:func:`cpu_us_per_step` in a fresh interpreter, run in ``tree``, that imports
+    ``aoass_env`` from it; exits in one line when another copy was imported."""
+    code = ("import json, sys, aoass_env; sys.path.insert(0, sys.argv[1]); "
+            "import step_speedup as s; "
+            "print(json.dumps([aoass_env.__file__, s.cpu_us_per_step(sys.argv[2], "
+            "int(sys.argv[3]), int(sys.argv[4]))]))")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(tree), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    run = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), env_id,
+                          str(steps), str(seeds)], cwd=tree, env=env, capture_output=True,
+                         text=True)
+    if run.returncode:
+        raise SystemExit(f"the tree {tree} failed to step {env_id}: "
+                         f"{(run.stderr.strip().splitlines() or ['no error output'])[-1]}")
+    module, us = json.loads(run.stdout.strip().splitlines()[-1])
+    if not Path(module).resolve().is_relative_to(tree.resolve()):
+        raise SystemExit(f"the run meant for {tree} imported aoass_env from {module}")
+    return us
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--against", default="94e941b", help="the earlier commit")
+    parser.add_argument("--steps", type=int, default=20_000, help="timed steps per seed")
+    parser.add_argument("--seeds", type=int, default=3, help="seeds 0 .. N-1")
+    parser.add_argument("--rounds", type=int, default=2, help="runs of each tree, in turn")
+    args = parser.parse_args(argv)
+    for flag in ("steps", "seeds", "rounds"):
+        if getattr(args, flag) < 1:
+            parser.error(f"--{flag} must be an integer >= 1, got {getattr(args, flag)}")
+    with tempfile.TemporaryDirectory(prefix="aoass_before_") as folder:
+        before = Path(folder)
+        unpack(args.against, before)
+        print(f"AOASS-v0, random actions, resets included, CPU us per step ({args.steps} steps "
+              f"from each of {args.seeds} seeds); {args.against} against this tree:")
+        ratios, pendulum = [], []
+        for i in range(args.rounds):
+            old = in_tree(before, "AOASS-v0", args.steps, args.seeds)
+            new = in_tree(ROOT, "AOASS-v0", args.steps, args.seeds)
+            ref = in_tree(ROOT, "Pendulum-v1", 3 * args.steps, args.seeds)
+            ratios.append(old / new)
+            pendulum.append((ref / old, ref / new))
+            print(f"  round {i + 1}: {old:7.1f} -> {new:7.1f} us, {old / new:5.2f} x faster "
+                  f"(target 3); Pendulum-v1 {ref:5.1f} us: {ref / old:.3f} x -> "
+                  f"{ref / new:.3f} x its steps/s (target 0.22)")
+        print(f"median speed-up {statistics.median(ratios):.2f} x; against Pendulum-v1 "
+              f"{statistics.median(p[0] for p in pendulum):.3f} x -> "
+              f"{statistics.median(p[1] for p in pendulum):.3f} x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,39 @@
+"""benchmarks/step_speedup.py: each tree's run imports that tree, and bad input is refused in
+one line."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.benchmarks.conftest import ROOT, load_benchmark
+
+
+def test_a_run_in_this_tree_times_it():
+    bench = load_benchmark("step_speedup")
+    assert bench.in_tree(ROOT, "Pendulum-v1", 20, 1) > 0.0
+
+
+def test_a_tree_whose_aoass_env_is_not_the_one_imported_is_refused(tmp_path):
+    """A folder without the package: the interpreter finds the installed one instead, and the
+    run must not be reported as the folder's."""
+    bench = load_benchmark("step_speedup")
+    with pytest.raises(SystemExit) as refused:
+        bench.in_tree(tmp_path, "Pendulum-v1", 1, 1)
+    assert str(refused.value).startswith(f"the run meant for {tmp_path} imported aoass_env from")
+
+
+def test_an_unknown_commit_is_refused_in_one_line(tmp_path):
+    bench = load_benchmark("step_speedup")
+    with pytest.raises(SystemExit) as refused:
+        bench.unpack("no-such-commit", tmp_path)
+    message = str(refused.value)
+    assert message.startswith("--against no-such-commit: git archive failed")
+    assert "\n" not in message
+
+
+@pytest.mark.parametrize("flag", ["--steps", "--seeds", "--rounds"])
+def test_counts_below_one_are_refused_in_one_line(capsys, flag):
+    bench = load_benchmark("step_speedup")
+    with pytest.raises(SystemExit):
+        bench.main([flag, "0"])
+    assert f"{flag} must be an integer >= 1, got 0" in capsys.readouterr().err
