@@ -247,9 +247,15 @@ def run_zero(seeds: int, jobs: int, labels: tuple[str, ...] = ("stack", "orca"))
     return out
 
 
-def kalman_error(noise: float, seed: int, steps: int) -> tuple[float, float, int]:
+def rms(errors: list[float]) -> float | None:
+    """Root mean square of ``errors``; None when there are none (no sample to average)."""
+    return float(np.sqrt(np.mean(np.square(errors)))) if errors else None
+
+
+def kalman_error(noise: float, seed: int, steps: int) -> tuple[float | None, float | None, int]:
     """RMS velocity error (m/s) of the raw detections and of the confirmed tracks matched to
-    a true obstacle, with velocity noise ``noise`` (position noise 1.5x), over ``steps``."""
+    a true obstacle (None where there was none), with velocity noise ``noise`` (position
+    noise 1.5x), over ``steps``; and the number of track samples."""
     base = gym.make("AOASS-v0", obstacle_density=0.2, n_moving_obstacles=8,
                     obs_moving_obstacles=8, obs_velocity_noise=noise,
                     obs_position_noise=1.5 * noise)
@@ -271,8 +277,7 @@ def kalman_error(noise: float, seed: int, steps: int) -> tuple[float, float, int
                 kf_err.append(math.hypot(vx - true_v[j, 0], vy - true_v[j, 1]))
         if term or trunc:
             break
-    return (float(np.sqrt(np.mean(np.square(raw_err)))),
-            float(np.sqrt(np.mean(np.square(kf_err)))), len(kf_err))
+    return rms(raw_err), rms(kf_err), len(kf_err)
 
 
 def run_kalman(steps: int) -> dict:
@@ -282,6 +287,11 @@ def run_kalman(steps: int) -> dict:
     for noise in (0.05, 0.1, 0.2, 0.4, 0.8):
         raw, kf, n = kalman_error(noise, seed=7, steps=steps)
         out[str(noise)] = {"raw": raw, "tracked": kf, "samples": n}
+        if raw is None or kf is None:       # no detection or no confirmed track yet
+            print(f"{noise:15.2f} {'-':>7s} {'-':>8s} {'-':>6s} {n:8d}  (no "
+                  f"{'detection' if raw is None else 'confirmed track'} in {steps} steps: "
+                  f"raise --kalman-steps)")
+            continue
         print(f"{noise:15.2f} {raw:7.3f} {kf:8.3f} {kf / raw:6.2f} {n:8d}")
     return out
 
@@ -340,6 +350,11 @@ def main() -> None:
                         choices=["contacts", "zero", "cost", "kalman", "speed"])
     parser.add_argument("--out", type=Path, default=Path("out/bench_safety"))
     args = parser.parse_args()
+    for flag in ("episodes", "zero_seeds", "kalman_steps", "speed_steps", "jobs",
+                 "cost_episodes"):
+        if getattr(args, flag) < 1:
+            parser.error(f"--{flag.replace('_', '-')} must be an integer >= 1, "
+                         f"got {getattr(args, flag)}")
     results = {}
     if "speed" in args.parts:
         results["speed"] = run_speed(args.speed_steps)

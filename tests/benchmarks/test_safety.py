@@ -1,0 +1,37 @@
+"""benchmarks/safety.py: a Kalman row without samples says so instead of printing NaN, and
+counts below one are refused in one line."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+
+import pytest
+
+from tests.benchmarks.conftest import load_benchmark
+
+
+def test_rms_of_no_errors_is_none_and_of_some_is_their_root_mean_square():
+    bench = load_benchmark("safety")
+    assert bench.rms([]) is None
+    assert bench.rms([3.0, 4.0]) == pytest.approx(math.sqrt(12.5))
+
+
+def test_kalman_rows_without_samples_say_so_and_store_none(capsys):
+    bench = load_benchmark("safety")
+    out = bench.run_kalman(steps=3)     # too few steps for a detection
+    printed = capsys.readouterr().out
+    assert "nan" not in printed and "raise --kalman-steps" in printed
+    assert all(row["raw"] is None and row["tracked"] is None and row["samples"] == 0
+               for row in out.values())
+    json.loads(json.dumps(out, allow_nan=False))     # strict JSON: no NaN written
+
+
+@pytest.mark.parametrize("flag", ["--episodes", "--kalman-steps", "--jobs", "--cost-episodes"])
+def test_counts_below_one_are_refused_in_one_line(capsys, monkeypatch, flag):
+    bench = load_benchmark("safety")
+    monkeypatch.setattr(sys, "argv", ["safety.py", flag, "0"])
+    with pytest.raises(SystemExit):
+        bench.main()
+    assert f"{flag} must be an integer >= 1, got 0" in capsys.readouterr().err
