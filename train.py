@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import os
 import shlex
 import sys
@@ -26,25 +25,7 @@ import torch
 
 from aoass_env.backends import add_backend_arguments, deliver_interrupts, make_backend
 from aoass_env.localization.training import TrainConfig, train_localizer
-
-
-def _number(kind: type, low: float, low_open: bool = False) -> Callable[[str], Any]:
-    """An argparse type: a finite ``kind`` (int or float) >= ``low`` (> ``low`` if
-    ``low_open``); the message says what is valid."""
-    def parse(text: str) -> Any:
-        try:
-            value = kind(text)
-        except ValueError:
-            value = None
-        if value is None or not math.isfinite(value) or value < low or (low_open and
-                                                                         value == low):
-            what = "an integer" if kind is int else "a finite number"
-            raise argparse.ArgumentTypeError(f"must be {what} {'>' if low_open else '>='} "
-                                             f"{low:g}, got {text!r}")
-        return value
-    parse.__name__ = kind.__name__
-    return parse
-
+from aoass_env.validators import argparse_number
 
 #: Valid ranges of the localizer's numeric options: (type, low, low open).
 _LOCALIZER_RANGES: dict[str, tuple[type, float, bool]] = {
@@ -86,10 +67,11 @@ def _localizer_parser() -> argparse.ArgumentParser:
         "checkpoint.")
     for field in dataclasses.fields(TrainConfig):
         default = getattr(defaults, field.name)
-        kind = (Path if isinstance(default, Path) else _number(*_LOCALIZER_RANGES[field.name]))
+        kind = (Path if isinstance(default, Path)
+                else argparse_number(*_LOCALIZER_RANGES[field.name]))
         p.add_argument(f"--{field.name.replace('_', '-')}", type=kind, default=default,
                        help=f"(default: {default})")
-    p.add_argument("--threads", type=_number(int, 1), default=1,
+    p.add_argument("--threads", type=argparse_number(int, 1), default=1,
                    help="torch threads (default: 1)")
     return p
 
@@ -111,15 +93,15 @@ def _agent_parser() -> argparse.ArgumentParser:
     p.add_argument("--algo", choices=["td3-lstm", "td3"], default="td3-lstm",
                    help="td3-lstm: recurrent TD3 (agents.RecurrentTD3); td3: SB3's "
                         "feedforward TD3 (ablation) (default: td3-lstm)")
-    p.add_argument("--timesteps", type=_number(int, 1), default=None,
+    p.add_argument("--timesteps", type=argparse_number(int, 1), default=None,
                    help="environment steps (default: the config's n_timesteps)")
     seeds = p.add_mutually_exclusive_group()
-    seeds.add_argument("--seed", type=_number(int, 0), default=0, help="(default: 0)")
+    seeds.add_argument("--seed", type=argparse_number(int, 0), default=0, help="(default: 0)")
     seeds.add_argument("--seeds", metavar="LIST",
                        help="one run per seed: a range 0-4 and/or a list 0,2,5; run S writes "
                             "into <out>/seed<S>/")
     add_backend_arguments(p, "seed", "the runs one after another in this process")
-    p.add_argument("--n-envs", type=_number(int, 1), default=1,
+    p.add_argument("--n-envs", type=argparse_number(int, 1), default=1,
                    help="parallel environments, subprocesses when > 1 (default: 1)")
     p.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
                    help="hyperparameter YAML (default: configs/aoass.yml)")
@@ -131,14 +113,14 @@ def _agent_parser() -> argparse.ArgumentParser:
                    metavar="KEY:VALUE",
                    help="replace keys of the section's env (e.g. n_nodes:50 "
                         "'densities:[0.2, 0.3]')")
-    p.add_argument("--eval-freq", type=_number(int, 1), default=None,
+    p.add_argument("--eval-freq", type=argparse_number(int, 1), default=None,
                    help="env steps between evaluations on the validation maps "
                         "(default: the config's eval.freq)")
-    p.add_argument("--eval-episodes", type=_number(int, 1), default=None,
+    p.add_argument("--eval-episodes", type=argparse_number(int, 1), default=None,
                    help="episodes per evaluation (default: the config's eval.episodes)")
-    p.add_argument("--checkpoint-freq", type=_number(int, 1), default=None,
+    p.add_argument("--checkpoint-freq", type=argparse_number(int, 1), default=None,
                    help="env steps between checkpoints (default: the config's checkpoint_freq)")
-    p.add_argument("--log-interval", type=_number(int, 1), default=4,
+    p.add_argument("--log-interval", type=argparse_number(int, 1), default=4,
                    help="episodes between log rows; a last row is written at the end "
                         "(default: 4)")
     p.add_argument("--resume", type=Path, default=None,
@@ -150,7 +132,7 @@ def _agent_parser() -> argparse.ArgumentParser:
                    help="TensorBoard folder (default: out/tensorboard)")
     p.add_argument("--no-tensorboard", action="store_true", help="do not write TensorBoard logs")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    p.add_argument("--threads", type=_number(int, 1), default=1,
+    p.add_argument("--threads", type=argparse_number(int, 1), default=1,
                    help="torch threads (default: 1)")
     return p
 

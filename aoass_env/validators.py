@@ -17,11 +17,12 @@ keywords get a did-you-mean error; :meth:`ValidatedConfig.markdown` is the docs 
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import difflib
 import json
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import field
 from numbers import Integral, Real
 from pathlib import Path
@@ -46,6 +47,24 @@ def unknown_key_message(key: Any, valid: Iterable[str], what: str = "config keyw
 
 
 # --- numbers -----------------------------------------------------------------------------------
+def argparse_number(kind: type, low: float, low_open: bool = False) -> Callable[[str], Any]:
+    """An argparse ``type``: a finite ``kind`` (int or float) >= ``low`` (> ``low`` if
+    ``low_open``). argparse's one-line error names the flag; the message says what is valid."""
+    def parse(text: str) -> Any:
+        try:
+            value = kind(text)
+        except ValueError:
+            value = None
+        if value is None or not math.isfinite(value) or value < low or (low_open and
+                                                                         value == low):
+            what = "an integer" if kind is int else "a finite number"
+            raise argparse.ArgumentTypeError(f"must be {what} {'>' if low_open else '>='} "
+                                             f"{low:g}, got {text!r}")
+        return value
+    parse.__name__ = kind.__name__
+    return parse
+
+
 def _interval(low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:
     left = "(" if low_open or low is None else "["
     right = ")" if high_open or high is None else "]"

@@ -26,6 +26,7 @@ import numpy as np
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env import simulator
 from aoass_env.planning.coverage import CoverageMap
+from aoass_env.validators import argparse_number
 
 
 def _nodes_only(point: np.ndarray, queries: list) -> list[np.ndarray]:
@@ -58,8 +59,9 @@ def steps_per_second(steps: int, density: float, *, with_map: bool, sectors: int
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=3000, help="steps per run")
-    parser.add_argument("--rounds", type=int, default=3, help="alternating rounds")
+    parser.add_argument("--steps", type=argparse_number(int, 1), default=3000, help="steps per run")
+    parser.add_argument("--rounds", type=argparse_number(int, 1),
+                        default=3, help="alternating rounds")
     parser.add_argument("--density", type=float, default=0.2, help="obstacle density")
     args = parser.parse_args()
     runs = {"without the map": dict(with_map=False), "with the map": dict(with_map=True),

@@ -13,6 +13,7 @@ Prints the import time and the two warm-ups (wall seconds).
 
 from __future__ import annotations
 
+import argparse
 import os
 import shutil
 import subprocess
@@ -35,7 +36,8 @@ print(f"{imported - t:.1f} {time.perf_counter() - imported:.1f}")
 """
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args(argv)  # no options
     with tempfile.TemporaryDirectory(prefix="aoass_first_run_") as folder:
         for part in ("aoass_env", "benchmarks"):
             shutil.copytree(ROOT / part, Path(folder) / part,

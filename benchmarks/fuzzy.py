@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from aoass_env.safety.fuzzy import FuzzyController
+from aoass_env.validators import argparse_number
 
 
 def best_of_three(fn, n: int) -> float:
@@ -31,8 +32,8 @@ def best_of_three(fn, n: int) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--calls", type=int, default=20000)
-    parser.add_argument("--batch", type=int, default=10000)
+    parser.add_argument("--calls", type=argparse_number(int, 1), default=20000)
+    parser.add_argument("--batch", type=argparse_number(int, 1), default=10000)
     args = parser.parse_args()
     flc = FuzzyController()
     rng = np.random.default_rng(0)

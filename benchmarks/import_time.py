@@ -18,6 +18,8 @@ import statistics
 import subprocess
 import sys
 
+from aoass_env.validators import argparse_number
+
 TARGET = 2.5
 
 _PROBE = """
@@ -46,7 +48,8 @@ def probe(statement: str) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--repeats", type=int, default=7, help="fresh interpreters per case")
+    parser.add_argument("--repeats", type=argparse_number(int, 1),
+                        default=7, help="fresh interpreters per case")
     args = parser.parse_args()
     runs: dict[str, list[dict]] = {name: [] for name in CASES}
     for _ in range(args.repeats):

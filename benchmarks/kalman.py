@@ -18,6 +18,7 @@ import time
 import numpy as np
 
 from aoass_env.safety.kalman import MultiTargetTracker
+from aoass_env.validators import argparse_number
 
 DT, SIGMA_P, SIGMA_V = 0.5, 0.3, 0.2
 
@@ -55,9 +56,9 @@ def per_step_us(frames: np.ndarray, velocity_noise: float | None) -> tuple[float
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--targets", type=int, default=3)
-    parser.add_argument("--steps", type=int, default=2000)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--targets", type=argparse_number(int, 1), default=3)
+    parser.add_argument("--steps", type=argparse_number(int, 1), default=2000)
+    parser.add_argument("--seed", type=argparse_number(int, 0), default=0)
     args = parser.parse_args()
     frames = detections(args.targets, args.steps + 5, np.random.default_rng(args.seed))
     for label, vn, cols in (("positions [x, y]", None, 2),

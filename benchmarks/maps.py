@@ -18,6 +18,7 @@ import numpy as np
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap, generate_map
+from aoass_env.validators import argparse_number
 
 CLEARANCE = AOASSConfig().map_clearance  # the default the shipped maps use (m)
 
@@ -37,7 +38,8 @@ def timed_maps(size: float, density: float, seeds: int) -> tuple[float, Obstacle
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seeds", type=int, default=5, help="maps per case (default 5)")
+    parser.add_argument("--seeds", type=argparse_number(int, 1),
+                        default=5, help="maps per case (default 5)")
     args = parser.parse_args()
     generate_map(50, 0.3, np.random.default_rng(0))  # warm-up: imports, GEOS, caches
 

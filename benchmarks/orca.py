@@ -37,6 +37,7 @@ import shapely
 from aoass_env.maps import generate_map
 from aoass_env.safety import orca
 from aoass_env.safety.orca import StaticObstacles, orca_lines, orca_velocity, solve_velocity
+from aoass_env.validators import argparse_number
 
 RADIUS, MAX_SPEED, TAU, TAU_OBST, STEP = 0.7, 2.0, 4.0, 2.5, 0.1
 
@@ -177,11 +178,11 @@ def against_reference(name: str, calls: list[dict], reference: ModuleType,
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--calls", type=int, default=2000)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--calls", type=argparse_number(int, 1), default=2000)
+    parser.add_argument("--seed", type=argparse_number(int, 0), default=0)
     parser.add_argument("--reference", type=Path, default=None,
                         help="another orca.py to time against, in the same process")
-    parser.add_argument("--repeats", type=int, default=9,
+    parser.add_argument("--repeats", type=argparse_number(int, 1), default=9,
                         help="alternating passes per scene with --reference")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)

@@ -42,6 +42,7 @@ from stable_baselines3.common.noise import NormalActionNoise  # noqa: E402
 
 from agents import RecurrentTD3  # noqa: E402
 from aoass_env.atomic import write_text_atomic  # noqa: E402
+from aoass_env.validators import argparse_number  # noqa: E402
 
 torch.set_num_threads(1)
 ALGOS = {"RecurrentTD3": (RecurrentTD3, "MlpLstmPolicy"), "TD3": (TD3, "MlpPolicy")}
@@ -129,10 +130,11 @@ def print_table(results: list[dict], seeds: list[int]) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--steps", type=int, default=50_000, help="env steps per run")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--steps", type=argparse_number(int, 1),
+                        default=50_000, help="env steps per run")
+    parser.add_argument("--seeds", type=argparse_number(int, 0), nargs="+", default=[0, 1, 2])
     parser.add_argument("--algos", nargs="+", choices=list(ALGOS), default=list(ALGOS))
-    parser.add_argument("--eval-freq", type=int, default=10_000,
+    parser.add_argument("--eval-freq", type=argparse_number(int, 1), default=10_000,
                         help="steps between learning-curve evaluations (0: final only)")
     parser.add_argument("--rtd3-kwargs", type=json.loads, default={},
                         help="JSON dict of extra RecurrentTD3 keyword arguments (tuning)")

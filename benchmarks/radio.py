@@ -21,6 +21,7 @@ import numpy as np
 
 from aoass_env.maps import generate_map
 from aoass_env.radio import Radio
+from aoass_env.validators import argparse_number
 
 
 def reference_receivers(nodes: list[tuple[float, float]],
@@ -49,12 +50,13 @@ def reference_receivers(nodes: list[tuple[float, float]],
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--nodes", type=int, default=1000)
+    parser.add_argument("--nodes", type=argparse_number(int, 1), default=1000)
     parser.add_argument("--density", type=float, default=0.4)
-    parser.add_argument("--range", type=float, default=25.0, dest="radio_range")
-    parser.add_argument("--beacons", type=int, default=1000)
-    parser.add_argument("--reference-beacons", type=int, default=20)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--range", type=argparse_number(float, 0, True),
+                        default=25.0, dest="radio_range")
+    parser.add_argument("--beacons", type=argparse_number(int, 1), default=1000)
+    parser.add_argument("--reference-beacons", type=argparse_number(int, 1), default=20)
+    parser.add_argument("--seed", type=argparse_number(int, 0), default=0)
     args = parser.parse_args()
 
     rng = np.random.default_rng(args.seed)

@@ -28,6 +28,7 @@ from stable_baselines3.common.callbacks import BaseCallback  # noqa: E402
 from stable_baselines3.common.env_util import make_vec_env  # noqa: E402
 
 from agents import RecurrentTD3  # noqa: E402
+from aoass_env.validators import argparse_number  # noqa: E402
 
 torch.set_num_threads(1)
 POLICIES = {"TD3": (TD3, "MlpPolicy"), "RecurrentTD3": (RecurrentTD3, "MlpLstmPolicy")}
@@ -61,8 +62,10 @@ def steps_per_second(name: str, env_id: str, steps: int, seed: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--env", default="Pendulum-v1", help="Gymnasium env id (Box actions)")
-    parser.add_argument("--steps", type=int, default=2000, help="measured steps per run")
-    parser.add_argument("--repeats", type=int, default=3, help="runs per algorithm")
+    parser.add_argument("--steps", type=argparse_number(int, 1),
+                        default=2000, help="measured steps per run")
+    parser.add_argument("--repeats", type=argparse_number(int, 1),
+                        default=3, help="runs per algorithm")
     args = parser.parse_args()
     rates: dict[str, list[float]] = {name: [] for name in POLICIES}
     for r in range(args.repeats):

@@ -26,6 +26,7 @@ import numpy as np
 
 import aoass_env
 from aoass_env.radio import receivers_at
+from aoass_env.validators import argparse_number
 from aoass_env.wrappers import FuzzyORCASafety
 
 
@@ -42,8 +43,10 @@ def best_of(function: Callable[[], object], calls: int, rounds: int = 5) -> floa
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--steps", type=int, default=400, help="steps before the state")
-    parser.add_argument("--calls", type=int, default=3000, help="calls per round")
+    parser.add_argument("--steps", type=argparse_number(int, 0),
+                        default=400, help="steps before the state")
+    parser.add_argument("--calls", type=argparse_number(int, 1),
+                        default=3000, help="calls per round")
     args = parser.parse_args()
     env = gym.make("AOASS-Safe-v0", n_nodes=100)
     env.reset(seed=0)

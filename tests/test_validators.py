@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import math
 from collections.abc import Callable
 from typing import Any
@@ -17,7 +18,7 @@ from aoass_env.maps import MapError, ObstacleMap, generate_map
 from aoass_env.planning.baselines.m_anchoro import free_samples
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.orca import orca_lines
-from aoass_env.validators import integer, positive, real, vec2
+from aoass_env.validators import argparse_number, integer, positive, real, vec2
 from aoass_env.world import World
 
 NUMBERS = [np.float32(1.5), np.float64(1.5), np.int64(100), np.int32(7), 2, 2.0]
@@ -160,3 +161,25 @@ def test_hyperparameter_sections_follow_the_rule() -> None:
     for bad in ("32", True, 32.5):
         with pytest.raises(HyperparameterError, match=r"f\.yml\.td3-lstm\.batch_size=.* integer"):
             _batch_size(bad)
+
+
+@pytest.mark.parametrize(("kind", "low", "low_open", "text", "valid"), [
+    (int, 1, False, "1", True), (int, 1, False, "0", False), (int, 0, False, "0", True),
+    (int, 1, False, "1.5", False), (int, 1, False, "two", False), (int, 1, False, "", False),
+    (float, 0, True, "0.001", True), (float, 0, True, "0", False), (float, 0, True, "-1", False),
+    (float, 0, False, "0", True), (float, 0, False, "nan", False), (float, 0, False, "inf", False),
+])
+def test_argparse_number_takes_finite_values_in_range_and_names_the_flag_otherwise(
+        capsys, kind, low, low_open, text, valid):
+    parser = argparse.ArgumentParser(prog="tool")
+    parser.add_argument("--count", type=argparse_number(kind, low, low_open))
+    if valid:
+        value = parser.parse_args(["--count", text]).count
+        assert type(value) is kind and value == kind(text)
+        return
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--count", text])
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    what = "an integer" if kind is int else "a finite number"
+    assert error == (f"tool: error: argument --count: must be {what} "
+                     f"{'>' if low_open else '>='} {low:g}, got {text!r}")
