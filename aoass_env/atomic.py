@@ -10,7 +10,7 @@ import os
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 #: Suffix of the temporary files of :func:`atomic_open` (``.<name>.<uuid>.tmp``).
 TMP_SUFFIX = ".tmp"
@@ -49,3 +49,15 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     with atomic_open(path, "w") as f:
         f.write(text)
+
+
+def save_figure_atomic(figure: Any, path: str | os.PathLike[str], **savefig: Any) -> None:
+    """Save a matplotlib ``figure`` to ``path`` atomically, in the format its suffix names
+    (``.png``, ``.pdf``, ...), creating parent folders; ``savefig`` goes to
+    ``figure.savefig`` (e.g. ``dpi``)."""
+    path = Path(path)
+    if not path.suffix:
+        raise ValueError(f"figure path {path}: give a suffix naming the format (e.g. .png)")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_open(path, "wb") as f:
+        figure.savefig(f, format=path.suffix[1:], **savefig)

@@ -43,7 +43,7 @@ import aoass_env  # noqa: F401  (registers the ids)
 from agents.recurrent_td3 import RecurrentTD3
 from agents.sections import key_value
 from agents.seeds import parse_seeds
-from aoass_env.atomic import write_text_atomic
+from aoass_env.atomic import save_figure_atomic, write_text_atomic
 from aoass_env.backends import add_backend_arguments, make_backend
 from aoass_env.evaluation.report import ci_stats
 from aoass_env.registration import ENV_IDS, QUICK_ENV_ID, TRAIN_ENV_ID
@@ -189,7 +189,7 @@ def draw_curves(results: dict[tuple[str, int], dict[str, Any]], path: Path) -> N
     ax.set(xlabel="agent steps", ylabel="evaluation return (Eq. 14)")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure_atomic(fig, path, dpi=110)
     plt.close(fig)
 
 

@@ -44,6 +44,7 @@ from aoass_env.evaluation.report import (
 )
 from aoass_env.evaluation.store import read_episodes, read_runs
 from aoass_env.evaluation.sweep import PRESETS, ROBUSTNESS_EPISODE_SEED_BASE, episode_jobs
+from aoass_env.validators import argparse_number
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATE = Path(__file__).with_name("results_template.md")
@@ -428,7 +429,8 @@ def replace_section(page: str, template: str, values: dict[str, str]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--workers", type=int, help="evaluate.py --workers (default: all cores)")
+    parser.add_argument("--workers", type=argparse_number(int, 1),
+                        help="evaluate.py --workers (default: all cores)")
     parser.add_argument("--out", type=Path, default=ROOT / "out", help="the presets' folders")
     parser.add_argument("--skip-runs", action="store_true",
                         help="only rebuild the page from the episodes already in --out")

@@ -19,7 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from aoass_env.atomic import atomic_open  # noqa: E402
+from aoass_env.atomic import save_figure_atomic  # noqa: E402
 from aoass_env.safety.fuzzy import FuzzyController, FuzzyVariable  # noqa: E402
 
 
@@ -62,9 +62,10 @@ def main() -> None:
         fig.colorbar(mesh, ax=ax)
     fig.suptitle("Eq. 7 fuzzy controller f_FLC(d, Δθ) = [ω, v]: Mamdani, min/max, centroid")
     fig.tight_layout()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_open(args.out, "wb") as f:
-        fig.savefig(f, format="png", dpi=80)
+    try:
+        save_figure_atomic(fig, args.out, dpi=80)
+    except (OSError, ValueError) as exc:
+        parser.error(f"--out {args.out}: {getattr(exc, 'strerror', None) or exc}")
     plt.close(fig)
     print(f"wrote {args.out}")
 

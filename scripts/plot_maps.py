@@ -14,7 +14,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Polygon  # noqa: E402
 
-from aoass_env.maps import load_map  # noqa: E402
+from aoass_env.atomic import save_figure_atomic  # noqa: E402
+from aoass_env.maps import MapError, load_map  # noqa: E402
 
 DEFAULT = ["test/d0.10_f100_s500", "test/d0.30_f100_s506", "test/d0.60_f100_s515",
            "test/d0.60_f200_s533"]
@@ -28,14 +29,19 @@ def main() -> None:
     fig, axes = plt.subplots(1, len(args.names), figsize=(4 * len(args.names), 4.2),
                              squeeze=False)
     for ax, name in zip(axes[0], args.names, strict=True):
-        m = load_map(name)
+        try:
+            m = load_map(name)
+        except MapError as exc:
+            parser.error(str(exc))
         for poly in m.polygons:
             ax.add_patch(Polygon(poly, closed=True, color="0.45"))
         ax.set(xlim=(0, m.width), ylim=(0, m.height), aspect="equal",
                title=f"{name}: density {m.density:.3f}")
     fig.tight_layout()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out, dpi=80)
+    try:
+        save_figure_atomic(fig, args.out, dpi=80)
+    except (OSError, ValueError) as exc:
+        parser.error(f"--out {args.out}: {getattr(exc, 'strerror', None) or exc}")
     print(f"wrote {args.out}")
 
 

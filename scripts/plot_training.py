@@ -9,7 +9,7 @@ Run: ``python3 scripts/plot_training.py [RUN_DIR] [--tensorboard out/tensorboard
 from __future__ import annotations
 
 import argparse
-import io
+import zipfile
 from pathlib import Path
 
 import matplotlib
@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from aoass_env.atomic import atomic_open  # noqa: E402
+from aoass_env.atomic import save_figure_atomic  # noqa: E402
 
 SCALARS = (("rollout/ep_rew_mean", "training episodes: Eq. 14 return"),
            ("aoass/coverage", "training episodes: coverage (Eq. 18)"),
@@ -43,7 +43,17 @@ def main() -> None:
     parser.add_argument("--tensorboard", type=Path, default=None)
     parser.add_argument("--out", type=Path, default=Path("docs/figures/training_curve.png"))
     args = parser.parse_args()
-    ev = np.load(args.run / "evaluations.npz")
+    npz = args.run / "evaluations.npz"
+    if not npz.is_file():
+        parser.error(f"RUN {args.run}: holds no evaluations.npz (a python train.py run folder, "
+                     f"e.g. checkpoints/aoass_td3_lstm)")
+    if args.tensorboard is not None and not args.tensorboard.is_dir():
+        parser.error(f"--tensorboard {args.tensorboard}: not a folder")
+    try:
+        with np.load(npz, allow_pickle=False) as data:
+            ev = {key: data[key] for key in ("timesteps", "results")}
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
+        parser.error(f"{npz}: not an evaluation log with timesteps and results ({exc})")
     scalars = tensorboard_scalars(args.tensorboard) if args.tensorboard else {}
     panels = 1 + sum(tag in scalars for tag, _ in SCALARS)
     fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 3.4), squeeze=False)
@@ -64,11 +74,10 @@ def main() -> None:
             k += 1
     fig.suptitle(f"{args.run.name}: TD3-LSTM inside the safety stack", fontsize=10)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_open(args.out, "wb") as f:
-        f.write(buf.getvalue())
+    try:
+        save_figure_atomic(fig, args.out, dpi=110)
+    except (OSError, ValueError) as exc:
+        parser.error(f"--out {args.out}: {getattr(exc, 'strerror', None) or exc}")
     print(f"wrote {args.out}")
 
 

@@ -1,6 +1,6 @@
 import pytest
 
-from aoass_env.atomic import atomic_open, write_text_atomic
+from aoass_env.atomic import atomic_open, save_figure_atomic, write_text_atomic
 
 
 def test_write_creates_parents_and_replaces(tmp_path):
@@ -24,3 +24,29 @@ def test_crash_mid_write_keeps_old_file_and_leaves_no_temp(tmp_path):
 def test_bad_mode():
     with pytest.raises(ValueError, match="mode"), atomic_open("x", "a"):
         pass
+
+
+def test_a_figure_is_saved_whole_in_its_suffix_format_or_not_at_all(tmp_path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [1, 0])
+    png, pdf = tmp_path / "f" / "a.png", tmp_path / "f" / "a.pdf"
+    save_figure_atomic(fig, png, dpi=20)
+    save_figure_atomic(fig, pdf)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and pdf.read_bytes()[:5] == b"%PDF-"
+    with pytest.raises(ValueError, match="suffix"):
+        save_figure_atomic(fig, tmp_path / "f" / "noformat")
+
+    class Failing:              # a figure whose drawing fails half-way
+        def savefig(self, f, **kwargs):
+            f.write(b"half")
+            raise RuntimeError("draw failed")
+
+    with pytest.raises(RuntimeError):
+        save_figure_atomic(Failing(), png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"      # the old figure, whole
+    assert sorted(p.name for p in png.parent.iterdir()) == ["a.pdf", "a.png"]
+    plt.close(fig)

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from scipy import stats as st
 
-from aoass_env.atomic import write_text_atomic
+from aoass_env.atomic import save_figure_atomic, write_text_atomic
 from aoass_env.evaluation.methods import METHODS
 from aoass_env.evaluation.store import (
     EPISODE_FIELDS,
@@ -456,7 +456,7 @@ def _lines(episodes: list[dict[str, Any]], localizer: str, x_key: str, x_label: 
     fig.legend(*axes[0][0].get_legend_handles_labels(), loc="center right", fontsize=8)
     fig.suptitle(f"{title} (mean, 95 % bootstrap interval)")
     fig.tight_layout(rect=(0, 0, 1 - 2.6 / fig.get_figwidth(), 1))
-    fig.savefig(path, dpi=110)
+    save_figure_atomic(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -475,7 +475,7 @@ def draw_figures(rows: list[dict[str, Any]], out: Path) -> list[Path]:
     if fig2:
         written.append(out / "fig2.png")
         figure = _fig2(fig2, localizers)
-        figure.savefig(written[-1], dpi=110)
+        save_figure_atomic(figure, written[-1], dpi=110)
         plt.close(figure)
     fig3 = [e for e in episodes if _in_grid("fig3", e)]
     if fig3:

@@ -1,0 +1,65 @@
+"""The scripts refuse bad input in one line naming the flag or argument, before writing."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
+
+
+def load(name: str):
+    spec = importlib.util.spec_from_file_location(f"aoass_script_{name}", SCRIPTS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def refused(capsys, monkeypatch, name: str, *argv: str) -> str:
+    """The one-line error of ``scripts/<name>.py argv`` (argparse's exit status 2)."""
+    monkeypatch.setattr(sys, "argv", [f"{name}.py", *argv])
+    with pytest.raises(SystemExit) as exit_:
+        load(name).main()
+    assert exit_.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines[-1].startswith(f"{name}.py: error: ")
+    return lines[-1].removeprefix(f"{name}.py: error: ")
+
+
+def test_plot_training_names_a_run_folder_without_its_log(capsys, monkeypatch, tmp_path):
+    assert refused(capsys, monkeypatch, "plot_training", str(tmp_path)).startswith(
+        f"RUN {tmp_path}: holds no evaluations.npz")
+    np.savez(tmp_path / "evaluations.npz", other=np.zeros(2))
+    assert "not an evaluation log with timesteps and results" in refused(
+        capsys, monkeypatch, "plot_training", str(tmp_path))
+    assert refused(capsys, monkeypatch, "plot_training", "--tensorboard",
+                   str(tmp_path / "none")) == f"--tensorboard {tmp_path / 'none'}: not a folder"
+
+
+def test_plot_maps_names_an_unknown_map_and_an_unwritable_out(capsys, monkeypatch, tmp_path):
+    assert refused(capsys, monkeypatch, "plot_maps", "no-such-map").startswith(
+        "unknown map 'no-such-map'")
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    out = blocker / "maps.png"                  # a folder that is a file: cannot be written
+    assert refused(capsys, monkeypatch, "plot_maps", "train/d0.10_f100_s000", "--out",
+                   str(out)).startswith(f"--out {out}: ")
+    assert blocker.read_text() == ""
+
+
+def test_make_results_refuses_zero_workers_instead_of_running_on_all_cores(capsys, monkeypatch):
+    script = load("make_results")
+    monkeypatch.setattr(script, "run_presets", lambda *args: pytest.fail("the presets ran"))
+    with pytest.raises(SystemExit):
+        script.main(["--workers", "0"])
+    assert "argument --workers: must be an integer >= 1, got '0'" in capsys.readouterr().err
+
+
+def test_make_config_doc_takes_no_options(capsys):
+    with pytest.raises(SystemExit):
+        load("make_config_doc").main(["--out", "x"])
+    assert "unrecognized arguments: --out x" in capsys.readouterr().err
