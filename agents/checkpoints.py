@@ -31,6 +31,7 @@ from stable_baselines3 import TD3 as _SB3TD3
 
 from agents.envs import make_training_env
 from agents.sections import HyperparameterError, check_section, model_kwargs, policy_name, read_yaml
+from aoass_env.atomic import atomic_open
 from aoass_env.validators import integer
 
 __all__ = ["RECORD_NAME", "STATE_FIELDS", "PolicyFileError", "SafeLoading", "TD3",
@@ -193,11 +194,19 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
 
 def save_replay_buffer(model: Any, path: str | os.PathLike[str] | io.IOBase) -> None:
     """Write ``model``'s replay buffer as an ``.npz`` of its arrays (no pickles), tagged with the
-    model's step count."""
+    model's step count. A path is written atomically, with ``.npz`` appended where it lacks it
+    (as :func:`numpy.savez` names it); a file object is written as it is."""
     buffer = model.replay_buffer
     arrays = {k: v for k, v in vars(buffer).items() if isinstance(v, np.ndarray)}
-    np.savez(path, **arrays, pos=np.int64(buffer.pos), full=np.bool_(buffer.full),
-             num_timesteps=np.int64(model.num_timesteps))
+    tags = {"pos": np.int64(buffer.pos), "full": np.bool_(buffer.full),
+            "num_timesteps": np.int64(model.num_timesteps)}
+    if not isinstance(path, (str, os.PathLike)):
+        np.savez(path, **arrays, **tags)
+        return
+    path = Path(path)
+    with atomic_open(path if path.suffix == ".npz" else path.with_name(f"{path.name}.npz"),
+                     "wb") as f:
+        np.savez(f, **arrays, **tags)
 
 
 def load_replay_buffer(model: Any, path: str | os.PathLike[str]) -> None:

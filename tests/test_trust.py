@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import base64
 import json
+import os
 import pathlib
 import pickle
 import shutil
@@ -418,3 +419,25 @@ def test_evaluate_refuses_a_nan_localizer_checkpoint_before_any_episode(tmp_path
     message = capsys.readouterr().err
     assert err.value.code == 2 and "nan.pt" in message and "NaN" in message
     assert not (tmp_path / "out" / "episodes.csv").exists()
+
+
+def test_a_replay_buffer_saved_to_a_path_is_written_whole_and_named_as_numpy_names_it(
+        tmp_path, monkeypatch):
+    model = RecurrentTD3.load(DEFAULT_POLICY)
+    model.save_replay_buffer(tmp_path / "buffer")          # numpy's name: .npz appended
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["buffer.npz"]
+    load_replay_buffer(model, tmp_path / "buffer.npz")
+    old = (tmp_path / "buffer.npz").read_bytes()
+
+    def crash(file, **arrays):          # half a file written, then the disk fills
+        if isinstance(file, (str, os.PathLike)):
+            Path(file).write_bytes(b"half")
+        else:
+            file.write(b"half")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez", crash)
+    with pytest.raises(OSError, match="disk full"):
+        model.save_replay_buffer(tmp_path / "buffer.npz")
+    assert (tmp_path / "buffer.npz").read_bytes() == old      # the old buffer, whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["buffer.npz"]
