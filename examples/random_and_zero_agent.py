@@ -18,6 +18,8 @@ from PIL import Image
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env.atomic import atomic_open
+from aoass_env.config import AOASSConfig
+from aoass_env.validators import argparse_number
 
 Policy = Callable[[gym.Env, np.ndarray], np.ndarray]
 
@@ -62,25 +64,40 @@ def save_gif(frames: list[np.ndarray], path: Path, fps: float, width: int) -> No
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--field-size", type=float, default=30.0, help="field side (m)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=argparse_number(int, 0), default=0)
     parser.add_argument("--out", type=Path, default=Path("out/examples"),
                         help="folder for the GIFs")
-    parser.add_argument("--max-steps", type=int, default=0,
+    parser.add_argument("--max-steps", type=argparse_number(int, 0), default=0,
                         help="step limit per episode (0: the environment's own limit)")
-    parser.add_argument("--frame-every", type=int, default=4,
+    parser.add_argument("--frame-every", type=argparse_number(int, 1), default=4,
                         help="keep every k-th frame in the GIF")
-    parser.add_argument("--gif-width", type=int, default=400, help="GIF width (px)")
+    parser.add_argument("--gif-width", type=argparse_number(int, 1), default=400,
+                        help="GIF width (px)")
     args = parser.parse_args(argv)
+    settings = dict(field_size=args.field_size, n_nodes=40, obstacle_density=0.1,
+                    n_moving_obstacles=2)
+    try:
+        AOASSConfig(**settings)            # a bad --field-size: its one-line error, here
+    except ValueError as exc:
+        parser.error(f"--field-size: {exc}")
+    if args.out.exists() and not args.out.is_dir():
+        parser.error(f"--out {args.out}: is a file, not a folder")
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)     # before the episodes, not after
+    except OSError as exc:
+        parser.error(f"--out {args.out}: {exc.strerror or exc}")
 
     limit = {"max_episode_steps": args.max_steps} if args.max_steps > 0 else {}
     for name, policy in POLICIES.items():
-        env = gym.make("AOASS-v0", render_mode="rgb_array", field_size=args.field_size,
-                       n_nodes=40, obstacle_density=0.1, n_moving_obstacles=2, **limit)
+        env = gym.make("AOASS-v0", render_mode="rgb_array", **settings, **limit)
         summary, frames = run_episode(env, policy, args.seed, args.frame_every)
         fps = env.metadata["render_fps"]
         env.close()
         gif = args.out / f"{name}_agent.gif"
-        save_gif(frames, gif, fps, args.gif_width)
+        try:
+            save_gif(frames, gif, fps, args.gif_width)
+        except OSError as exc:
+            parser.error(f"--out {args.out}: {exc.strerror or exc}")
         print(f"{name:>6}: return {summary['return']:8.2f}  coverage "
               f"{100 * summary['coverage']:5.1f} %  collisions {summary['collisions']}  "
               f"path {summary['path_length_m']:6.1f} m  steps {summary['steps']}  "
