@@ -25,13 +25,17 @@ __all__ = ["main"]
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; returns the exit status (0 ok, 1 no logs, 2 a bad log or checkpoint)."""
+    """Run the CLI; returns the exit status (0 ok, 1 no logs, 2 a bad log or checkpoint); a
+    LOGDIR that is no folder exits with argparse's status 2."""
     parser = argparse.ArgumentParser(prog="python -m aoass_env.localization",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("logdir", type=Path, help="folder of .npz beacon logs")
     parser.add_argument("--method", choices=METHODS, default="olstm-dvhop")
     parser.add_argument("--checkpoint", type=Path, default=DEFAULT_CHECKPOINT)
     args = parser.parse_args(argv)
+    if not args.logdir.is_dir():
+        why = "not a folder" if args.logdir.exists() else "no such folder"
+        parser.error(f"LOGDIR {args.logdir}: {why}")
     torch.set_num_threads(1)
     paths = sorted(args.logdir.glob("*.npz"))
     if not paths:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from aoass_env.localization.cli import main
@@ -30,3 +31,14 @@ def test_cli_errors(tmp_path, capsys) -> None:
     assert main([str(tmp_path), "--method", "dvhop"]) == 2
     assert "x.npz" in capsys.readouterr().err
     assert main([str(tmp_path), "--checkpoint", str(tmp_path / "none.pt")]) == 2
+
+
+def test_a_logdir_that_is_no_folder_is_named_in_one_line(tmp_path, capsys) -> None:
+    (tmp_path / "f.npz").write_bytes(b"")
+    for logdir, why in ((tmp_path / "none", "no such folder"),
+                        (tmp_path / "f.npz", "not a folder")):
+        with pytest.raises(SystemExit) as exit_:
+            main([str(logdir)])
+        assert exit_.value.code == 2
+        last = capsys.readouterr().err.strip().splitlines()[-1]
+        assert last.endswith(f"LOGDIR {logdir}: {why}")
