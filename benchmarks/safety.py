@@ -52,6 +52,7 @@ import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env.atomic import write_text_atomic
 from aoass_env.maps import list_maps
 from aoass_env.safety.config import SafetyConfig
+from aoass_env.validators import argparse_number
 from aoass_env.wrappers import KalmanObstacleTracker, make_safe_env
 
 DENSITIES = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
@@ -330,15 +331,16 @@ def _map(tasks: list, jobs: int) -> list[dict]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--episodes", type=int, default=200)
-    parser.add_argument("--zero-seeds", type=int, default=3)
-    parser.add_argument("--kalman-steps", type=int, default=600)
-    parser.add_argument("--speed-steps", type=int, default=3000)
-    parser.add_argument("--jobs", type=int, default=2)
-    parser.add_argument("--cost-episodes", type=int, default=60)
-    parser.add_argument("--cost-first-seed", type=int, default=40_000,
+    count = argparse_number(int, 1)
+    parser.add_argument("--episodes", type=count, default=200)
+    parser.add_argument("--zero-seeds", type=count, default=3)
+    parser.add_argument("--kalman-steps", type=count, default=600)
+    parser.add_argument("--speed-steps", type=count, default=3000)
+    parser.add_argument("--jobs", type=count, default=2)
+    parser.add_argument("--cost-episodes", type=count, default=60)
+    parser.add_argument("--cost-first-seed", type=argparse_number(int, 0), default=40_000,
                         help="seed of the cost part's first episode")
-    parser.add_argument("--first-seed", type=int, default=10_000,
+    parser.add_argument("--first-seed", type=argparse_number(int, 0), default=10_000,
                         help="seed of the contacts part's first episode")
     parser.add_argument("--stacks", nargs="+", default=["stack", "orca", "bare"],
                         choices=list(STACKS), help="what the contacts part compares")
@@ -350,11 +352,6 @@ def main() -> None:
                         choices=["contacts", "zero", "cost", "kalman", "speed"])
     parser.add_argument("--out", type=Path, default=Path("out/bench_safety"))
     args = parser.parse_args()
-    for flag in ("episodes", "zero_seeds", "kalman_steps", "speed_steps", "jobs",
-                 "cost_episodes"):
-        if getattr(args, flag) < 1:
-            parser.error(f"--{flag.replace('_', '-')} must be an integer >= 1, "
-                         f"got {getattr(args, flag)}")
     results = {}
     if "speed" in args.parts:
         results["speed"] = run_speed(args.speed_steps)

@@ -30,6 +30,8 @@ from pathlib import Path
 
 import gymnasium as gym
 
+from aoass_env.validators import argparse_number
+
 ROOT = Path(__file__).resolve().parents[1]
 
 #: the warm-up's seed and length, used by no timed run
@@ -92,13 +94,13 @@ def in_tree(tree: Path, env_id: str, steps: int, seeds: int) -> float:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--against", default="94e941b", help="the earlier commit")
-    parser.add_argument("--steps", type=int, default=20_000, help="timed steps per seed")
-    parser.add_argument("--seeds", type=int, default=3, help="seeds 0 .. N-1")
-    parser.add_argument("--rounds", type=int, default=2, help="runs of each tree, in turn")
+    parser.add_argument("--steps", type=argparse_number(int, 1), default=20_000,
+                        help="timed steps per seed")
+    parser.add_argument("--seeds", type=argparse_number(int, 1), default=3,
+                        help="seeds 0 .. N-1")
+    parser.add_argument("--rounds", type=argparse_number(int, 1), default=2,
+                        help="runs of each tree, in turn")
     args = parser.parse_args(argv)
-    for flag in ("steps", "seeds", "rounds"):
-        if getattr(args, flag) < 1:
-            parser.error(f"--{flag} must be an integer >= 1, got {getattr(args, flag)}")
     with tempfile.TemporaryDirectory(prefix="aoass_before_") as folder:
         before = Path(folder)
         unpack(args.against, before)

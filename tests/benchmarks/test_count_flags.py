@@ -23,6 +23,12 @@ CASES = [
     ("import_time", "--repeats", "0", 1),
     ("pendulum_memory", "--steps", "0", 1), ("pendulum_memory", "--seeds", "-2", 0),
     ("pendulum_memory", "--eval-freq", "0", 1),
+    ("safety", "--episodes", "0", 1), ("safety", "--zero-seeds", "0", 1),
+    ("safety", "--kalman-steps", "0", 1), ("safety", "--speed-steps", "0", 1),
+    ("safety", "--jobs", "0", 1), ("safety", "--cost-episodes", "0", 1),
+    ("safety", "--first-seed", "-1", 0), ("safety", "--cost-first-seed", "-1", 0),
+    ("step_speedup", "--steps", "0", 1), ("step_speedup", "--seeds", "0", 1),
+    ("step_speedup", "--rounds", "0", 1),
 ]
 
 #: one interpreter runs every case (some scripts set thread variables when imported): each

@@ -1,11 +1,10 @@
-"""benchmarks/safety.py: a Kalman row without samples says so instead of printing NaN, and
-counts below one are refused in one line."""
+"""benchmarks/safety.py: a Kalman row without samples says so instead of printing NaN (its
+counts: tests/benchmarks/test_count_flags.py)."""
 
 from __future__ import annotations
 
 import json
 import math
-import sys
 
 import pytest
 
@@ -27,11 +26,3 @@ def test_kalman_rows_without_samples_say_so_and_store_none(capsys):
                for row in out.values())
     json.loads(json.dumps(out, allow_nan=False))     # strict JSON: no NaN written
 
-
-@pytest.mark.parametrize("flag", ["--episodes", "--kalman-steps", "--jobs", "--cost-episodes"])
-def test_counts_below_one_are_refused_in_one_line(capsys, monkeypatch, flag):
-    bench = load_benchmark("safety")
-    monkeypatch.setattr(sys, "argv", ["safety.py", flag, "0"])
-    with pytest.raises(SystemExit):
-        bench.main()
-    assert f"{flag} must be an integer >= 1, got 0" in capsys.readouterr().err
