@@ -49,12 +49,13 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=MAPS_DIR,
                         help=f"folder that receives train/ and test/ (default {MAPS_DIR})")
     args = parser.parse_args()
+    splits = plan()
     try:
-        for split in plan():
+        for split in splits:
             (args.out / split).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         parser.error(f"--out {args.out}: {exc.strerror or exc}")
-    for split, entries in plan().items():
+    for split, entries in splits.items():
         folder = args.out / split
         wanted = {map_name(*entry) for entry in entries}
         for stale in folder.glob("*.txt"):
