@@ -103,7 +103,9 @@ class MapSampler(_EntryPointWrapper):
             raise ValueError(f"maps must be a non-empty list of maps, got {maps!r}")
         self.maps = [m if isinstance(m, ObstacleMap) else
                      load_map(m, field_size=base.config.field_size) for m in maps]
-        self.cycle = bool(cycle)
+        if not isinstance(cycle, bool):
+            raise ValueError(f"cycle must be a bool, got {cycle!r}")
+        self.cycle = cycle
         self._next = 0
         self._rng: np.random.Generator | None = None
 
@@ -685,8 +687,10 @@ def make_training_env(*, split: str = "train", field_size: float = 100.0,
     if split not in TRAINING_SPLITS:
         raise ValueError(f"split={split!r} must be one of {TRAINING_SPLITS} (maps/test is for "
                          f"reported results only)")
+    if not isinstance(cycle, bool):
+        raise ValueError(f"cycle must be a bool, got {cycle!r}")
     fit, held_out = validation_split(list_maps("train", field_size=field_size,
-                                               densities=tuple(densities)))
+                                               densities=densities))
     maps = fit if split == "train" else held_out
     if not maps:
         raise ValueError(f"no shipped {split} maps with field_size={field_size} and densities "

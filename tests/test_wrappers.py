@@ -301,6 +301,13 @@ def test_safety_filter_needs_full_range_actions_and_its_tracker():
         KalmanObstacleTracker(gym.make("Pendulum-v1"))
     with pytest.raises(ValueError, match="non-empty list"):
         MapSampler(AOASSEnv(**SMALL), [])
+    with pytest.raises(ValueError, match="cycle must be a bool, got 'yes'"):
+        MapSampler(AOASSEnv(**SMALL), ["test/d0.10_f100_s500"], cycle="yes")
+    # the training env's map filters: three densities used to train on the first two's range
+    with pytest.raises(ValueError, match=r"densities must be a pair of finite numbers"):
+        gym.make("AOASS-Train-v0", densities=[0.1, 0.2, 0.3])
+    with pytest.raises(ValueError, match="cycle must be a bool, got 'yes'"):
+        wrappers.make_training_env(cycle="yes")
     env = make_safe_env(**SMALL)
     env.reset(seed=0)
     with pytest.raises(ValueError, match="action must be finite"):

@@ -14,6 +14,7 @@ from pathlib import Path
 from aoass_env.data import shipped_dir
 from aoass_env.maps.obstacle_map import MapError, ObstacleMap
 from aoass_env.maps.text_format import read_map
+from aoass_env.validators import positive, vec2
 
 #: Folder of the shipped maps (``train/`` and ``test/``): the repository's ``maps/``, or the
 #: installed wheel's copy (:func:`aoass_env.data.shipped_dir`).
@@ -27,9 +28,18 @@ def list_maps(split: str, *, field_size: float | None = None,
     """Names (``"<split>/<stem>"``) of the shipped maps of ``split`` ("train" or "test").
 
     Shipped stems read ``d<density>_f<field size>_s<seed>``; ``field_size`` (m) keeps the maps
-    of that field size, ``densities`` = (low, high) those whose density lies in [low, high]."""
+    of that field size, ``densities`` = (low, high) those whose density lies in [low, high]
+    (0 <= low <= high <= 1)."""
     if split not in SPLITS:
         raise MapError(f"split={split!r} must be one of {SPLITS}")
+    if field_size is not None:
+        field_size = positive("field_size", field_size, "m", error=MapError)
+    if densities is not None:
+        low, high = vec2("densities", densities, "low, high", error=MapError)
+        if not 0.0 <= low <= high <= 1.0:
+            raise MapError(f"densities={densities!r} must be (low, high) with "
+                           f"0 <= low <= high <= 1 (obstacle area / field area)")
+        densities = (low, high)
     folder = MAPS_DIR / split
     if not folder.is_dir():
         raise MapError(f"shipped map folder {folder} is missing (it comes with the repository)")

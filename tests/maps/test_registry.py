@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
 import pytest
 
 from aoass_env.maps import (
@@ -32,6 +33,28 @@ def test_shipped_map_lists():
                       for s in ("100", "200")}
     with pytest.raises(MapError, match="split='validation'"):
         list_maps("validation")
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"densities": (0.1, 0.2, 0.3)}, r"densities must be a pair of finite numbers \(low, high\), "
+                                     r"got \(0.1, 0.2, 0.3\)"),   # the third was ignored
+    ({"densities": 0.3}, "densities must be a pair of finite numbers"),
+    ({"densities": [0.3]}, "densities must be a pair of finite numbers"),
+    ({"densities": "ab"}, "densities must be a pair of finite numbers"),
+    ({"densities": (float("nan"), 0.4)}, "densities must be a pair of finite numbers"),
+    ({"densities": (0.4, 0.1)}, r"densities=\(0.4, 0.1\) must be \(low, high\) with "
+                                r"0 <= low <= high <= 1"),
+    ({"densities": (0.2, 7)}, r"0 <= low <= high <= 1"),
+    ({"field_size": "100"}, r"field_size='100' must be a number in \(0.0, inf\) m"),
+    ({"field_size": -100}, r"field_size=-100 must be a number in \(0.0, inf\) m"),
+])
+def test_list_maps_refuses_filters_it_cannot_apply(kwargs, message):
+    """A filter that is not a field size or a (low, high) density range is named, where it
+    used to match nothing, raise from inside, or (three densities) drop a value silently."""
+    with pytest.raises(MapError, match=message):
+        list_maps("train", **kwargs)
+    assert list_maps("train", field_size=100.0, densities=[0.1, 0.1]) == \
+        list_maps("train", field_size=100, densities=np.array([0.1, 0.1]))
 
 
 def test_every_shipped_map_matches_its_name_and_is_traversable():
