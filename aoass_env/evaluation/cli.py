@@ -126,7 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--logs", type=Path, metavar="DIR",
                         help="localize the saved beacon logs (*.npz) in DIR instead of running "
                              "episodes")
-    parser.add_argument("--policy", type=Path, default=DEFAULT_POLICY, metavar="ZIP",
+    parser.add_argument("--policy", type=Path, metavar="ZIP",
                         help="checkpoint of the aoass policy (default: the shipped one)")
     parser.add_argument("--policy-run", type=Path, metavar="YML",
                         help="run record (run.yml of train.py) of the stack the policy was "
@@ -182,18 +182,20 @@ def main(argv: list[str] | None = None) -> int:
         if args.workers is not None and args.workers < 1:
             raise EvaluationError(f"--workers must be at least 1, got {args.workers}")
         preset = PRESETS[args.preset]
+        policy = args.policy or DEFAULT_POLICY
         localizers = _check_localizers(
             _names(args.localizers, "--localizers"),
             DEFAULT_LOCALIZERS if preset.localize or args.logs else (NO_LOCALIZER,))
         if args.logs is not None:
-            if args.methods or args.seeds or args.save_logs:
+            if args.methods or args.seeds or args.save_logs or args.policy or args.policy_run:
                 raise EvaluationError("--logs localizes every log in its folder; --methods, "
-                                      "--seeds and --save-logs do not apply")
+                                      "--seeds, --save-logs, --policy and --policy-run do not "
+                                      "apply")
             out = args.out or Path("out") / "localized"
             jobs = log_jobs(args.logs.resolve(), localizers)
             title = f"AOASS evaluation: beacon logs of {args.logs}"
         else:
-            methods = select_methods(_names(args.methods, "--methods"), args.policy)
+            methods = select_methods(_names(args.methods, "--methods"), policy)
             out = args.out or Path("out") / preset.name
             jobs = episode_jobs(preset, methods, localizers, args.seeds)
             title = f"AOASS evaluation: preset {preset.name}"
@@ -212,8 +214,13 @@ def main(argv: list[str] | None = None) -> int:
                     scope[f"{name} checkpoint"] = [name]
             scope["policy"] = [m for m in methods if METHODS[m].uses_policy]
             if scope["policy"]:
-                record = _check_policy(args.policy, args.policy_run)
-                inputs["policy"] = file_digest(args.policy, record)
+                record = _check_policy(policy, args.policy_run)
+                inputs["policy"] = file_digest(policy, record)
+            elif args.policy or args.policy_run:
+                users = [n for n, spec in METHODS.items() if spec.uses_policy]
+                raise EvaluationError(
+                    f"--policy and --policy-run are for the method(s) that run that policy "
+                    f"({', '.join(users)}); none of {', '.join(methods)} does")
         if "olstm-dvhop" in localizers:
             inputs["olstm-dvhop"] = file_digest(DEFAULT_CHECKPOINT)
         backend = make_backend(args.backend, workers=args.workers, address=args.address)
@@ -224,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
 
     torch.set_num_threads(1)
     # absolute paths: the workers of a Ray cluster may run in another folder
-    options = RunOptions(policy=str(args.policy.resolve()),
+    options = RunOptions(policy=str(policy.resolve()),
                          policy_run=None if record is None else str(record.resolve()))
     log_dir = (out / "logs").resolve() if args.save_logs else None
     with store:

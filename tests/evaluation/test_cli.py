@@ -87,6 +87,20 @@ def test_unknown_names_list_the_valid_ones(capsys, tmp_path, argv, valid):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("argv", [
+    ["--methods", "spiral", "aoass-adaptive", "--policy", "any.zip"],
+    ["--methods", "spiral", "--policy-run", "any.yml"],
+    ["--logs", "any", "--policy", "any.zip"],
+])
+def test_a_policy_that_no_method_runs_is_refused(capsys, tmp_path, argv):
+    """--policy and --policy-run without a method that runs the policy (or with --logs) used
+    to be ignored: the run went ahead without the policy the user named."""
+    err = _usage_error(capsys, [*argv, "--out", str(tmp_path / "out")])
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("evaluate.py: error: ") and "--policy and --policy-run" in last
+    assert not (tmp_path / "out").exists()
+
+
 def test_missing_policy_checkpoint_names_file_and_command(capsys, tmp_path):
     missing = tmp_path / "none.zip"
     err = _usage_error(capsys, ["--methods", "aoass", "--policy", str(missing),
