@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from aoass_env.validators import integer, real
+
 
 def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, float]:
     """Eq. 15: RMSE (m) over the nodes that have an estimate, and the localized fraction.
@@ -11,10 +13,12 @@ def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, f
     Nodes whose estimate is NaN are left out of the RMSE; the fraction of nodes that were
     localized is returned beside it so that the two are always reported together.
     """
-    t = np.asarray(true_xy, dtype=np.float64).reshape(-1, 2)
-    e = np.asarray(est_xy, dtype=np.float64).reshape(-1, 2)
-    if t.shape != e.shape:
-        raise ValueError(f"true_xy {t.shape} and est_xy {e.shape} must have the same shape")
+    t = np.asarray(true_xy, dtype=np.float64)
+    e = np.asarray(est_xy, dtype=np.float64)
+    if t.shape != e.shape or t.ndim != 2 or t.shape[1] != 2:
+        raise ValueError(f"true_xy {t.shape} and est_xy {e.shape} must have the same shape (N, 2)")
+    if not np.isfinite(t).all():
+        raise ValueError("true_xy must be finite (the nodes' true positions, m)")
     ok = np.all(np.isfinite(e), axis=1)
     if not ok.any():
         return float("nan"), 0.0
@@ -24,17 +28,28 @@ def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, f
 
 def energy_per_beacon(energy_total: float, n_beacons: int) -> float:
     """Eq. 16: E_norm = E_total / N_beacons (J per beacon); inf without beacons."""
-    return float(energy_total) / n_beacons if n_beacons > 0 else float("inf")
+    energy, beacons = _energy_and_beacons(energy_total, n_beacons)
+    return energy / beacons if beacons > 0 else float("inf")
 
 
 def energy_efficiency_ratio(energy_total: float, n_beacons: int) -> float:
-    """Eq. 17: EER = 1 / E_norm (beacons per J)."""
-    return float(n_beacons) / energy_total if energy_total > 0 else float("inf")
+    """Eq. 17: EER = 1 / E_norm (beacons per J); inf when nothing was spent."""
+    energy, beacons = _energy_and_beacons(energy_total, n_beacons)
+    return beacons / energy if energy > 0 else float("inf")
+
+
+def _energy_and_beacons(energy_total: float, n_beacons: int) -> tuple[float, int]:
+    return (real("energy_total", energy_total, "J", low=0.0),
+            integer("n_beacons", n_beacons, low=0))
 
 
 def coverage_ratio(covered: np.ndarray) -> float:
     """Eq. 18: share of nodes (in [0, 1]; x 100 for %) that heard >= 3 non-collinear beacons."""
-    c = np.asarray(covered, dtype=bool)
+    c = np.asarray(covered)
+    if c.dtype != bool:
+        if not (np.issubdtype(c.dtype, np.number) and np.isin(c, (0, 1)).all()):
+            raise ValueError(f"covered must hold booleans (or 0 and 1), got dtype {c.dtype}")
+        c = c.astype(bool)
     return float(c.mean()) if c.size else 0.0
 
 
@@ -44,6 +59,10 @@ def trajectory_efficiency(l_ideal: float, l_actual: float, t_ideal: float,
 
     Zero when the anchor did not move (no path, no efficiency).
     """
+    l_ideal, l_actual = (real(n, v, "m", low=0.0) for n, v in
+                         (("l_ideal", l_ideal), ("l_actual", l_actual)))
+    t_ideal, t_actual = (real(n, v, "s", low=0.0) for n, v in
+                         (("t_ideal", t_ideal), ("t_actual", t_actual)))
     if l_actual <= 0 or t_actual <= 0:
         return 0.0
     return (l_ideal / l_actual) * (t_ideal / t_actual)

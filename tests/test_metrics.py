@@ -21,6 +21,12 @@ def test_rmse_eq15_and_localized_fraction():
     assert math.isnan(localization_rmse(true, np.full((4, 2), np.nan))[0])
     with pytest.raises(ValueError, match="same shape"):
         localization_rmse(true, est[:2])
+    # (N, 4) arrays used to be read as (2N, 2) positions, a silent nonsense RMSE
+    with pytest.raises(ValueError, match=r"true_xy \(2, 4\) and est_xy \(2, 4\) must have the "
+                                         r"same shape \(N, 2\)"):
+        localization_rmse(true.reshape(2, 4), est.reshape(2, 4))
+    with pytest.raises(ValueError, match="true_xy must be finite"):
+        localization_rmse(est, true)
 
 
 def test_energy_metrics_eq16_eq17():
@@ -28,14 +34,38 @@ def test_energy_metrics_eq16_eq17():
     assert energy_efficiency_ratio(10.0, 4) == pytest.approx(0.4)
     assert energy_efficiency_ratio(10.0, 4) == pytest.approx(1 / energy_per_beacon(10.0, 4))
     assert energy_per_beacon(1.0, 0) == math.inf
+    assert energy_efficiency_ratio(0.0, 3) == math.inf
+
+
+@pytest.mark.parametrize(("energy", "beacons", "message"), [
+    (-10.0, 5, r"energy_total=-10.0 must be a number in \[0.0, inf\) J"),
+    (float("nan"), 5, "energy_total=nan must be a number"),
+    (10.0, -1, r"n_beacons=-1 must be an integer in \[0, inf\)"),
+    (10.0, 2.5, "n_beacons=2.5 must be an integer"),
+])
+def test_energy_metrics_refuse_impossible_inputs(energy, beacons, message):
+    """A negative energy or beacon count used to give a negative E_norm or EER."""
+    for metric in (energy_per_beacon, energy_efficiency_ratio):
+        with pytest.raises(ValueError, match=message):
+            metric(energy, beacons)
 
 
 def test_coverage_eq18():
     assert coverage_ratio(np.array([True, False, True, True])) == 0.75
     assert coverage_ratio(np.array([], bool)) == 0.0
+    assert coverage_ratio(np.array([1, 0, 0, 1])) == 0.5
+    # any non-zero float used to count as covered: [0.5, 2.0] gave 100 %
+    with pytest.raises(ValueError, match="covered must hold booleans .or 0 and 1., got dtype "
+                                         "float64"):
+        coverage_ratio(np.array([0.5, 2.0]))
 
 
 def test_trajectory_efficiency_eq19():
     assert trajectory_efficiency(100, 100, 50, 50) == 1.0
     assert trajectory_efficiency(100, 200, 50, 100) == pytest.approx(0.25)
     assert trajectory_efficiency(100, 0, 50, 0) == 0.0
+    # a negative length or time used to read as "did not move" (0.0)
+    with pytest.raises(ValueError, match=r"l_actual=-5 must be a number in \[0.0, inf\) m"):
+        trajectory_efficiency(10, -5, 10, 5)
+    with pytest.raises(ValueError, match="t_ideal=nan must be a number"):
+        trajectory_efficiency(10, 5, float("nan"), 5)
