@@ -70,6 +70,13 @@ TIMING_FIELDS = ("localize_seconds", "wall_seconds")
 _TEXT = ("method", "map", "localizer")
 _INTEGER = ("n_nodes", "seed", "beacons", "collisions", "collisions_static",
             "collisions_moving", "path_complete")
+#: What a value read back may be: (low, high), both included; a column not listed here is
+#: >= 0. Empty cells (NaN) pass; only ``e_norm`` and ``eer`` may be infinite (no beacons, no
+#: energy). A row outside them was not written by an episode (hand-edited, or another tool's).
+_RANGES = {"field_size": (1e-9, math.inf), "n_nodes": (1, math.inf),
+           "obstacle_density": (0.0, 1.0), "localized": (0.0, 1.0), "coverage": (0.0, 1.0),
+           "path_complete": (0, 1)}
+_INFINITE = ("e_norm", "eer")
 
 
 def _cell(value: Any) -> Any:
@@ -89,7 +96,16 @@ def _parsed(row: dict[str, str]) -> dict[str, Any]:
         elif text == "":
             out[name] = math.nan
         else:
-            out[name] = int(text) if name in _INTEGER else float(text)
+            value = int(text) if name in _INTEGER else float(text)
+            low, high = _RANGES.get(name, (0, math.inf))
+            if math.isnan(value) or not low <= value <= high or (
+                    math.isinf(value) and name not in _INFINITE):
+                what = "a number" if name in _INFINITE else "a finite number"
+                where = f">= {low:g}" if high == math.inf else f"in [{low:g}, {high:g}]"
+                raise ValueError(f"{name}={text!r} must be {what} {where}")
+            out[name] = value
+    if not out["method"]:
+        raise ValueError("method is empty")
     return out
 
 

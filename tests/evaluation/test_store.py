@@ -85,6 +85,42 @@ def test_a_broken_row_inside_the_file_is_an_error(tmp_path):
         EpisodeStore(path)
 
 
+@pytest.mark.parametrize(("values", "message"), [
+    ({"energy_total": -784.0}, r"energy_total='-784.0' must be a finite number >= 0"),
+    ({"coverage": 5.0}, r"coverage='5.0' must be a finite number in \[0, 1\]"),
+    ({"localized": 1.5}, r"localized='1.5' must be a finite number in \[0, 1\]"),
+    ({"seed": -3}, r"seed='-3' must be a finite number >= 0"),
+    ({"n_nodes": 0}, r"n_nodes='0' must be a finite number >= 1"),
+    ({"path_complete": 2}, r"path_complete='2' must be a finite number in \[0, 1\]"),
+    ({"obstacle_density": 1.2}, r"obstacle_density='1.2' must be a finite number in \[0, 1\]"),
+    ({"path_length": math.inf}, r"path_length='inf' must be a finite number >= 0"),
+    ({"rmse": "nan"}, r"rmse='nan' must be a finite number >= 0"),
+    ({"e_norm": -1.0}, r"e_norm='-1.0' must be a number >= 0"),
+    ({"method": ""}, "method is empty"),
+])
+def test_a_value_no_episode_writes_is_a_broken_row(tmp_path, values, message):
+    """A row outside its column's range (hand-edited or another tool's) used to reach the
+    tables: a negative energy was averaged in, a coverage of 5 printed as 500 %."""
+    path = tmp_path / "episodes.csv"
+    with EpisodeStore(path) as store:
+        store.append([row(seed=0)])
+    bad = tmp_path / "bad.csv"
+    cells = {**row(seed=1), **values}
+    bad.write_text(path.read_text().splitlines()[0] + "\n" + ",".join(
+        "" if cells[name] is None else str(cells[name]) for name in COLUMNS) + "\n")
+    with pytest.raises(EvaluationError, match=rf"line 2: broken row \({message}\)"):
+        read_episodes(bad)
+
+
+def test_infinite_energy_ratios_and_empty_cells_read_back(tmp_path):
+    """E_norm is inf without beacons and EER inf without energy; empty cells are NaN."""
+    path = tmp_path / "episodes.csv"
+    with EpisodeStore(path) as store:
+        store.append([row(seed=0, e_norm=math.inf, eer=math.inf, beacons=0, rmse=None)])
+    back = read_episodes(path)[0]
+    assert back["e_norm"] == back["eer"] == math.inf and math.isnan(back["rmse"])
+
+
 def test_another_schema_is_an_error(tmp_path):
     path = tmp_path / "episodes.csv"
     path.write_text("method,map,rmse\nspiral,x,1.0\n")
