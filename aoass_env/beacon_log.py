@@ -34,6 +34,7 @@ import dataclasses
 import json
 import math
 import os
+import re
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -140,6 +141,13 @@ def _parse_config(text: Any) -> dict[str, Any]:
     if not isinstance(config, dict):
         raise BeaconLogError("must be a JSON object", "config_json")
     return config
+
+
+def one_line(exc: BaseException) -> str:
+    """``exc``'s text on one line (whitespace runs and line breaks collapsed, terminal colour
+    codes removed; its type name when it has no text), for messages that embed a library's."""
+    text = " ".join(re.sub(r"\x1b\[[0-9;]*m", "", str(exc)).split())
+    return text or type(exc).__name__
 
 
 def _fail_at(bad: np.ndarray, key: str, message: str) -> None:
@@ -305,7 +313,8 @@ class BeaconLog:
         except FileNotFoundError:
             raise
         except unreadable as exc:
-            raise BeaconLogError(f"not a readable .npz file ({type(exc).__name__}: {exc})",
+            raise BeaconLogError(f"not a readable .npz file ({type(exc).__name__}: "
+                                 f"{one_line(exc)})",
                                  path=path) from None
         if not isinstance(data, np.lib.npyio.NpzFile):
             raise BeaconLogError("not an .npz archive (a single .npy array)", path=path)
@@ -314,8 +323,8 @@ class BeaconLog:
                 try:
                     arrays[key] = data[key]
                 except unreadable as exc:
-                    raise BeaconLogError(f"cannot read ({type(exc).__name__}: {exc})", key,
-                                         path) from None
+                    raise BeaconLogError(f"cannot read ({type(exc).__name__}: {one_line(exc)})",
+                                         key, path) from None
         for key in KEYS:
             if key not in arrays:
                 raise BeaconLogError(f"missing (keys present: {sorted(arrays)})", key, path)

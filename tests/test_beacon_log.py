@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 
 import numpy as np
 import pytest
@@ -247,6 +248,25 @@ def test_corrupted_member_is_an_error(tmp_path):
     with pytest.raises(BeaconLogError, match="cannot read") as info:
         BeaconLog.load(path)
     assert info.value.key == "nodes"
+
+
+def test_a_multi_line_numpy_error_is_reported_on_one_line(tmp_path):
+    # numpy refuses a .npy header over 10000 bytes with a three-line message
+    path = tmp_path / "log.npz"
+    nodes = good_arrays()["nodes"]
+    make_log().save(path)
+    with zipfile.ZipFile(path) as z:
+        members = {name: z.read(name) for name in z.namelist()}
+    header = f"{{'descr': '<f8', 'fortran_order': False, 'shape': {nodes.shape}, }}"
+    header += " " * (20000 - len(header)) + "\n"
+    members["nodes.npy"] = (b"\x93NUMPY\x02\x00" + len(header).to_bytes(4, "little")
+                            + header.encode() + nodes.tobytes())
+    with zipfile.ZipFile(path, "w") as z:
+        for name, content in members.items():
+            z.writestr(name, content)
+    with pytest.raises(BeaconLogError, match="Header info length") as info:
+        BeaconLog.load(path)
+    assert info.value.key == "nodes" and "\n" not in str(info.value)
 
 
 def test_object_extras_and_bad_extra_names_are_rejected(tmp_path):

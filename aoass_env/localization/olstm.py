@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+import pickle
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,7 @@ import torch
 from torch import nn
 
 from aoass_env.atomic import atomic_open
+from aoass_env.beacon_log import one_line
 from aoass_env.data import shipped_dir
 from aoass_env.localization.consensus import RELIABLE_SPREAD, Consensus, node_consensus
 from aoass_env.localization.episode import Episode
@@ -107,7 +109,8 @@ def load_checkpoint(path: str | os.PathLike[str] = DEFAULT_CHECKPOINT) -> OLSTM:
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for a damaged or foreign file
-        raise CheckpointError(f"{path}: not a readable torch checkpoint ({exc})") from None
+        raise CheckpointError(f"{path}: not a readable torch checkpoint "
+                              f"({_load_failure(exc)})") from None
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise CheckpointError(f"{path}: not an {CHECKPOINT_FORMAT} checkpoint")
     if payload.get("version") != CHECKPOINT_VERSION:
@@ -125,15 +128,38 @@ def load_checkpoint(path: str | os.PathLike[str] = DEFAULT_CHECKPOINT) -> OLSTM:
     if isinstance(width, bool) or not isinstance(width, (int, float)) \
             or not (math.isfinite(width) and width >= 0):
         raise CheckpointError(f"{path}: band_width must be a finite number >= 0, got {width!r}")
+    state = payload.get("state_dict")
+    if not isinstance(state, dict):
+        raise CheckpointError(f"{path}: state_dict must be a dict of weight tensors, got "
+                              f"{type(state).__name__}")
+    embed = state.get("embed.0.weight")
+    got = tuple(embed.shape) if isinstance(embed, torch.Tensor) else \
+        "nothing" if embed is None else type(embed).__name__
+    if got != (hidden, N_FEATURES):  # before the model is built: a huge hidden allocates
+        raise CheckpointError(f"{path}: state_dict: embed.0.weight must be a tensor of shape "
+                              f"(hidden={hidden}, {N_FEATURES}), got {got}")
     model = OLSTM(hidden, width)
     try:
-        model.load_state_dict(payload["state_dict"])
+        model.load_state_dict(state)
     except (KeyError, RuntimeError, TypeError, AttributeError) as exc:
-        raise CheckpointError(f"{path}: weights do not fit the model ({exc})") from None
+        raise CheckpointError(f"{path}: weights do not fit the model "
+                              f"({one_line(exc)})") from None
     for name, tensor in model.state_dict().items():
         if not bool(torch.isfinite(tensor).all()):
             raise CheckpointError(f"{path}: state_dict: {name} holds NaN or infinite weights")
     return model.eval()
+
+
+def _load_failure(exc: Exception) -> str:
+    """Why ``torch.load`` refused a file, on one line: for a weights-only refusal (a pickle of
+    Python objects, or no pickle at all) the reason torch gives after its advice text."""
+    marker = "WeightsUnpickler error:"
+    text = str(exc)
+    if isinstance(exc, pickle.UnpicklingError) and marker in text:
+        lines = [ln.strip() for ln in text.split(marker, 1)[1].splitlines() if ln.strip()]
+        if lines:
+            return f"weights-only load refused: {one_line(lines[0].split('. ')[0])}"
+    return one_line(exc)
 
 
 def predict_pattern(model: OLSTM, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

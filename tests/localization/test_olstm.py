@@ -106,6 +106,51 @@ def test_missing_and_garbage_checkpoints(tmp_path) -> None:
                  checkpoint=tmp_path / "absent.pt")
 
 
+class _Evil:
+    def __reduce__(self):
+        return (print, ("unpickled",))
+
+
+def test_a_refused_or_damaged_checkpoint_is_named_in_one_line(tmp_path, model) -> None:
+    garbage, evil, empty = tmp_path / "garbage.pt", tmp_path / "evil.pt", tmp_path / "empty.pt"
+    garbage.write_bytes(b"garbage")
+    torch.save({"x": _Evil()}, evil)
+    empty.write_bytes(b"")
+    for path, reason in (
+            (garbage, "weights-only load refused: Unsupported operand 103"),
+            (evil, "weights-only load refused: Unsupported global: GLOBAL print was not an "
+                   "allowed global by default"),
+            (empty, "EOFError")):
+        with pytest.raises(CheckpointError) as info:
+            load_checkpoint(path)
+        assert str(info.value) == f"{path}: not a readable torch checkpoint ({reason})"
+    save_checkpoint(model, tmp_path / "m.pt", {})
+    payload = torch.load(tmp_path / "m.pt", weights_only=True)
+    del payload["state_dict"]["head.2.bias"]
+    payload["state_dict"]["extra"] = torch.zeros(1)
+    torch.save(payload, tmp_path / "keys.pt")
+    with pytest.raises(CheckpointError, match='Missing key.*"head.2.bias"') as info:
+        load_checkpoint(tmp_path / "keys.pt")
+    assert "\n" not in str(info.value) and "\t" not in str(info.value)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"hidden": 10**9}, "state_dict: embed.0.weight must be a tensor of shape "
+                        "(hidden=1000000000, 25), got (8, 25)"),
+    ({"state_dict": 3}, "state_dict must be a dict of weight tensors, got int"),
+])
+def test_weights_that_do_not_fit_hidden_are_refused_before_the_model_is_built(
+        tmp_path, model, change, message) -> None:
+    path = tmp_path / "m.pt"
+    save_checkpoint(model, path, {})
+    payload = torch.load(path, weights_only=True)
+    payload.update(change)
+    torch.save(payload, path)
+    with pytest.raises(CheckpointError) as info:
+        load_checkpoint(path)
+    assert str(info.value) == f"{path}: {message}"
+
+
 def test_log_without_beacons(model) -> None:
     with pytest.raises(BeaconLogError, match="no beacons"):
         localize(make_log(np.zeros((2, 2)), np.zeros((0, 2)), [], []), checkpoint=model)
