@@ -20,7 +20,7 @@ import numpy as np
 
 from aoass_env.beacon_log import BeaconLog
 from aoass_env.localization.episode import Episode, prepare
-from aoass_env.localization.hops import DEFAULT_FLOOD_LIMIT
+from aoass_env.localization.hops import DEFAULT_FLOOD_LIMIT, check_flood_limit
 
 if TYPE_CHECKING:
     from aoass_env.localization.olstm import OLSTM, CheckpointError
@@ -47,7 +47,7 @@ def _cached_model(path: str, mtime: float) -> OLSTM:
 
 def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
              checkpoint: str | os.PathLike[str] | OLSTM | None = None,
-             flood_limit: int = DEFAULT_FLOOD_LIMIT) -> np.ndarray:
+             flood_limit: int | None = None) -> np.ndarray:
     """Estimate every node's position from one episode's beacon log.
 
     Args:
@@ -58,19 +58,31 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
         checkpoint: OLSTM checkpoint path (default: the shipped one,
             :data:`~aoass_env.localization.olstm.DEFAULT_CHECKPOINT`), or a loaded model
             (``"olstm-dvhop"`` only).
-        flood_limit: hop-count flooding limit [hops] (ignored for a prepared episode).
+        flood_limit: hop-count flooding limit [hops]; default
+            :data:`~aoass_env.localization.hops.DEFAULT_FLOOD_LIMIT`, or a prepared episode's
+            own (another value is refused for a prepared episode: it floods only once).
 
     Returns:
         (N, 2) estimates [m]; NaN rows for nodes not covered under Eq. 18.
 
     Raises:
-        ValueError: unknown method.
+        ValueError: unknown method, or a bad ``flood_limit``.
+        TypeError: ``checkpoint`` is neither a path nor an :class:`OLSTM`.
         BeaconLogError: the log holds no beacons or is otherwise invalid.
         CheckpointError: the checkpoint is missing or does not match this code.
     """
     if method not in METHODS:
         raise ValueError(f"method={method!r} must be one of {METHODS}")
-    episode = log if isinstance(log, Episode) else prepare(log, flood_limit)
+    if isinstance(log, Episode):
+        if flood_limit is not None:
+            check_flood_limit(flood_limit)
+            if flood_limit != log.flood_limit:
+                raise ValueError(f"flood_limit={flood_limit!r} differs from the prepared "
+                                 f"episode's flood_limit={log.flood_limit}; pass the log, or "
+                                 f"prepare it with this flood_limit")
+        episode = log
+    else:
+        episode = prepare(log, DEFAULT_FLOOD_LIMIT if flood_limit is None else flood_limit)
     if method == "dvhop":
         from aoass_env.localization.dvhop import dvhop
         return dvhop(episode)
@@ -80,6 +92,9 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
     from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, OLSTM, olstm_dvhop
     if isinstance(checkpoint, OLSTM):
         model = checkpoint
+    elif checkpoint is not None and not isinstance(checkpoint, (str, os.PathLike)):
+        raise TypeError(f"checkpoint must be a path or a loaded OLSTM, got "
+                        f"{type(checkpoint).__name__}")
     else:
         path = os.fspath(DEFAULT_CHECKPOINT if checkpoint is None else checkpoint)
         model = _cached_model(path, os.path.getmtime(path) if os.path.isfile(path) else -1.0)

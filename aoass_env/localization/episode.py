@@ -122,9 +122,12 @@ def prepare(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> Episode:
     """Hop counts, HopSizes (Eq. 11), coverage (Eq. 18) and heard centroids of ``log``.
 
     Raises:
-        BeaconLogError: the log holds no beacons, or its config or receptions are invalid.
+        BeaconLogError: the log holds no beacons or no nodes, or its config or receptions are
+            invalid.
     """
     require_beacons(log)
+    if log.n_nodes == 0:
+        raise BeaconLogError("the log holds no nodes: nothing to localize", "nodes")
     check_flood_limit(flood_limit)
     config = log_config(log)
     xy = log.beacons[:, 1:]

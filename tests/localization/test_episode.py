@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from aoass_env.beacon_log import BeaconLog, BeaconLogError
+from aoass_env.localization import METHODS, localize
 from aoass_env.localization.episode import covered_nodes, log_config, prepare
 from tests.localization.conftest import make_log
 
@@ -43,3 +44,34 @@ def test_config_defaults_to_the_log_radio_range(small_log) -> None:
     arrays = small_log.arrays()
     arrays["config_json"] = "{}"
     assert log_config(BeaconLog(**arrays)).radio_range == small_log.radio_range
+
+
+def test_a_log_without_nodes_is_named() -> None:
+    log = make_log(np.zeros((0, 2)), np.array([[5.0, 5.0]]), [], [])
+    for method in METHODS:
+        with pytest.raises(BeaconLogError) as info:
+            localize(log, method)
+        assert str(info.value) == "beacon log key 'nodes': the log holds no nodes: nothing to " \
+                                  "localize"
+
+
+def test_flood_limit_of_a_prepared_episode(small_log) -> None:
+    episode = prepare(small_log, flood_limit=2)
+    np.testing.assert_array_equal(localize(episode, "dvhop"),
+                                  localize(small_log, "dvhop", flood_limit=2))
+    assert np.array_equal(localize(episode, "dvhop", flood_limit=2),
+                          localize(episode, "dvhop"), equal_nan=True)
+    with pytest.raises(ValueError) as info:
+        localize(episode, "dvhop", flood_limit=5)       # was silently flooded 2 hops
+    assert str(info.value) == ("flood_limit=5 differs from the prepared episode's "
+                               "flood_limit=2; pass the log, or prepare it with this flood_limit")
+    with pytest.raises(ValueError, match="flood_limit=0 must be an integer"):
+        localize(episode, "dvhop", flood_limit=0)       # was silently ignored
+
+
+@pytest.mark.parametrize("checkpoint", [3, b"m.pt", ["m.pt"]])
+def test_a_checkpoint_of_the_wrong_type_is_named(small_log, checkpoint) -> None:
+    with pytest.raises(TypeError) as info:
+        localize(small_log, "olstm-dvhop", checkpoint=checkpoint)
+    assert str(info.value) == (f"checkpoint must be a path or a loaded OLSTM, got "
+                               f"{type(checkpoint).__name__}")
