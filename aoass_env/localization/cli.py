@@ -1,7 +1,7 @@
 """Localize a folder of saved beacon logs and print RMSE, localized fraction and coverage.
 
 ``python -m aoass_env.localization LOGDIR [--method olstm-dvhop|consensus|dvhop]
-[--checkpoint PATH]``
+[--checkpoint PATH]`` (``--checkpoint``: olstm-dvhop only)
 
 One line per ``.npz`` log, then an overall line: the RMSE pooled over every localized node of
 every log (Eq. 15), the localized fraction and the Eq. 18 coverage over all nodes.
@@ -25,27 +25,36 @@ __all__ = ["main"]
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; returns the exit status (0 ok, 1 no logs, 2 a bad log or checkpoint); a
-    LOGDIR that is no folder exits with argparse's status 2."""
+    """Run the CLI; returns the exit status (0 ok, 1 no logs); bad input (a LOGDIR that is no
+    folder, a bad log or checkpoint, a --checkpoint the method does not read) exits with
+    argparse's status 2 and a one-line error."""
     parser = argparse.ArgumentParser(prog="python -m aoass_env.localization",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("logdir", type=Path, help="folder of .npz beacon logs")
     parser.add_argument("--method", choices=METHODS, default="olstm-dvhop")
-    parser.add_argument("--checkpoint", type=Path, default=DEFAULT_CHECKPOINT)
+    parser.add_argument("--checkpoint", type=Path, default=None,
+                        help=f"OLSTM checkpoint of --method olstm-dvhop (default: "
+                             f"{DEFAULT_CHECKPOINT})")
     args = parser.parse_args(argv)
     if not args.logdir.is_dir():
         why = "not a folder" if args.logdir.exists() else "no such folder"
         parser.error(f"LOGDIR {args.logdir}: {why}")
+    if args.checkpoint is not None and args.method != "olstm-dvhop":
+        parser.error(f"--checkpoint is read only by --method olstm-dvhop, not {args.method}")
     torch.set_num_threads(1)
     paths = sorted(args.logdir.glob("*.npz"))
     if not paths:
-        print(f"no .npz logs in {args.logdir}", file=sys.stderr)
+        nested = sorted({p.parent for p in args.logdir.glob("*/**/*.npz")})
+        hint = (f" (its subfolders hold some; pass one of them: "
+                f"{', '.join(str(p) for p in nested[:3])}{', ...' if len(nested) > 3 else ''})"
+                if nested else "")
+        print(f"no .npz logs in {args.logdir}{hint}", file=sys.stderr)
         return 1
     try:
-        model = load_checkpoint(args.checkpoint) if args.method == "olstm-dvhop" else None
+        model = load_checkpoint(args.checkpoint or DEFAULT_CHECKPOINT) \
+            if args.method == "olstm-dvhop" else None
     except CheckpointError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        parser.error(f"--checkpoint {exc}")
     width = max(len(p.name) for p in paths)
     print(f"{'log':<{width}}  {'nodes':>5}  {'RMSE [m]':>8}  {'localized':>9}  {'coverage':>8}")
     sq, n_loc, n_cov, n_all = 0.0, 0, 0, 0
@@ -53,8 +62,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             episode = prepare(BeaconLog.load(path))
         except BeaconLogError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
+            parser.error(str(exc))
         est = localize(episode, args.method, checkpoint=model) if model is not None \
             else localize(episode, args.method)
         rmse, frac = localization_rmse(episode.log.nodes, est)

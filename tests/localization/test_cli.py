@@ -25,12 +25,41 @@ def test_cli_on_a_folder(tmp_path, small_log, capsys) -> None:
     assert np.isfinite(rmse)
 
 
+def _error_line(argv: list[str], capsys) -> str:
+    """The last stderr line of a run that must exit with argparse's status 2."""
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 2
+    return capsys.readouterr().err.strip().splitlines()[-1]
+
+
 def test_cli_errors(tmp_path, capsys) -> None:
     assert main([str(tmp_path)]) == 1
     (tmp_path / "x.npz").write_bytes(b"junk")
-    assert main([str(tmp_path), "--method", "dvhop"]) == 2
-    assert "x.npz" in capsys.readouterr().err
-    assert main([str(tmp_path), "--checkpoint", str(tmp_path / "none.pt")]) == 2
+    assert _error_line([str(tmp_path), "--method", "dvhop"], capsys).endswith(
+        f"error: {tmp_path / 'x.npz'}: not an .npz archive (no zip structure): written by "
+        f"BeaconLog.save?")
+    assert _error_line([str(tmp_path), "--checkpoint", str(tmp_path / "none.pt")],
+                       capsys).endswith(f"error: --checkpoint {tmp_path / 'none.pt'}: no "
+                                        f"localizer checkpoint there (train one with `python "
+                                        f"train.py localizer`)")
+
+
+def test_a_checkpoint_the_method_does_not_read_is_refused(tmp_path, small_log, capsys) -> None:
+    small_log.save(tmp_path / "a.npz")
+    for method in ("dvhop", "consensus"):   # the checkpoint was silently ignored
+        assert _error_line([str(tmp_path), "--method", method, "--checkpoint", "m.pt"],
+                           capsys).endswith(f"error: --checkpoint is read only by --method "
+                                            f"olstm-dvhop, not {method}")
+
+
+def test_logs_only_in_subfolders_are_pointed_at(tmp_path, small_log, capsys) -> None:
+    (tmp_path / "train").mkdir()
+    small_log.save(tmp_path / "train" / "a.npz")
+    assert main([str(tmp_path)]) == 1
+    assert capsys.readouterr().err.strip() == (
+        f"no .npz logs in {tmp_path} (its subfolders hold some; pass one of them: "
+        f"{tmp_path / 'train'})")
 
 
 def test_a_logdir_that_is_no_folder_is_named_in_one_line(tmp_path, capsys) -> None:
