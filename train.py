@@ -24,14 +24,13 @@ from typing import Any
 import torch
 
 from aoass_env.backends import add_backend_arguments, deliver_interrupts, make_backend
-from aoass_env.localization.training import TrainConfig, train_localizer
+from aoass_env.localization.training import (
+    TRAIN_RANGES,
+    TrainConfig,
+    draw_episodes,
+    train_localizer,
+)
 from aoass_env.validators import argparse_number
-
-#: Valid ranges of the localizer's numeric options: (type, low, low open).
-_LOCALIZER_RANGES: dict[str, tuple[type, float, bool]] = {
-    "n_train_logs": (int, 1, False), "n_val_logs": (int, 1, False), "hidden": (int, 1, False),
-    "epochs": (int, 1, False), "batch_size": (int, 1, False),
-    "learning_rate": (float, 0, True), "seed": (int, 0, False)}
 
 
 def _key_value(flag: str) -> Callable[[str], tuple[str, Any]]:
@@ -68,7 +67,7 @@ def _localizer_parser() -> argparse.ArgumentParser:
     for field in dataclasses.fields(TrainConfig):
         default = getattr(defaults, field.name)
         kind = (Path if isinstance(default, Path)
-                else argparse_number(*_LOCALIZER_RANGES[field.name]))
+                else argparse_number(*TRAIN_RANGES[field.name]))
         p.add_argument(f"--{field.name.replace('_', '-')}", type=kind, default=default,
                        help=f"(default: {default})")
     p.add_argument("--threads", type=argparse_number(int, 1), default=1,
@@ -77,9 +76,21 @@ def _localizer_parser() -> argparse.ArgumentParser:
 
 
 def _run_localizer(argv: list[str]) -> None:
-    args = _localizer_parser().parse_args(argv)
+    parser = _localizer_parser()
+    args = parser.parse_args(argv)
+    try:                                  # before any log is simulated or epoch trained
+        cfg = TrainConfig(**{f.name: getattr(args, f.name)
+                             for f in dataclasses.fields(TrainConfig)})
+        _folder("--data-dir", cfg.data_dir)
+        if cfg.checkpoint.is_dir():
+            raise ValueError(f"--checkpoint {cfg.checkpoint}: is a folder, not a file")
+        _folder(f"--checkpoint {cfg.checkpoint}: its folder", cfg.checkpoint.parent)
+        draw_episodes(cfg)
+    except ValueError as exc:
+        name, eq, rest = str(exc).partition("=")   # "seed=..." names its flag, "--seed ..."
+        parser.error(f"--{name.replace('_', '-')} {rest}" if eq and name in TRAIN_RANGES
+                     else str(exc))
     torch.set_num_threads(args.threads)
-    cfg = TrainConfig(**{f.name: getattr(args, f.name) for f in dataclasses.fields(TrainConfig)})
     train_localizer(cfg, report=lambda line: print(line, flush=True))
 
 

@@ -20,6 +20,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import re
 import time
 from collections.abc import Callable, Sequence
@@ -38,9 +39,11 @@ from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, OLSTM, olstm_dvhop,
 from aoass_env.localization.reception import PairRecord, pair_histograms, pair_statistics
 from aoass_env.maps import list_maps, load_map, validation_split
 from aoass_env.simulator import Simulator
+from aoass_env.validators import integer, real
 
-__all__ = ["BAND_WIDTHS", "EpisodeSpec", "Example", "TrainConfig", "augment", "episode_specs",
-           "example", "gaussian_nll", "generate_logs", "map_density", "train_localizer"]
+__all__ = ["BAND_WIDTHS", "TRAIN_RANGES", "EpisodeSpec", "Example", "TrainConfig", "augment",
+           "draw_episodes", "episode_specs", "example", "gaussian_nll", "generate_logs",
+           "map_density", "train_localizer"]
 
 _MAP_NAME = re.compile(r"d(?P<density>[0-9.]+)_f(?P<field>[0-9]+)_s[0-9]+$")
 #: Candidate band widths [standard deviations], chosen on validation.
@@ -157,9 +160,17 @@ def gaussian_nll(mean: torch.Tensor, logstd: torch.Tensor, target: torch.Tensor)
     return (logstd + 0.5 * ((target - mean) / torch.exp(logstd)) ** 2).mean()
 
 
+#: Valid ranges of :class:`TrainConfig`'s numbers: (type, low, low open).
+TRAIN_RANGES: dict[str, tuple[type, float, bool]] = {
+    "n_train_logs": (int, 1, False), "n_val_logs": (int, 1, False), "hidden": (int, 1, False),
+    "epochs": (int, 1, False), "batch_size": (int, 1, False),
+    "learning_rate": (float, 0, True), "seed": (int, 0, False)}
+
+
 @dataclass(frozen=True)
 class TrainConfig:
-    """Settings of :func:`train_localizer` (defaults: the shipped checkpoint)."""
+    """Settings of :func:`train_localizer` (defaults: the shipped checkpoint); numbers in
+    :data:`TRAIN_RANGES`, else ValueError naming the field."""
 
     data_dir: Path = Path("out/localizer_logs")
     checkpoint: Path = DEFAULT_CHECKPOINT
@@ -170,6 +181,35 @@ class TrainConfig:
     batch_size: int = 8
     learning_rate: float = 3e-3
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name, (kind, low, low_open) in TRAIN_RANGES.items():
+            value = getattr(self, name)
+            high = 2**64 - 1 if name == "seed" else None  # torch.manual_seed's largest
+            object.__setattr__(self, name, integer(name, value, low=low, high=high)
+                               if kind is int else real(name, value, low=low, low_open=low_open))
+        for name in ("data_dir", "checkpoint"):
+            value = getattr(self, name)
+            if not isinstance(value, (str, os.PathLike)):
+                raise TypeError(f"{name} must be a path, got {type(value).__name__}")
+
+
+def draw_episodes(cfg: TrainConfig) -> tuple[list[str], list[str], list[EpisodeSpec],
+                                              list[EpisodeSpec]]:
+    """The training and validation maps and the episodes drawn on them (validation, training).
+
+    Raises:
+        ValueError: the validation or the training draw holds no episode with DOI > 0 (only
+            those are examples): nothing to validate or to train on.
+    """
+    fit_maps, val_maps = validation_split(list_maps("train"))
+    val_specs = episode_specs(cfg.n_val_logs, val_maps, _SPEC_SEED + cfg.seed + 1)
+    train_specs = episode_specs(cfg.n_train_logs, fit_maps, _SPEC_SEED + cfg.seed + 2)
+    for name, specs in (("n_val_logs", val_specs), ("n_train_logs", train_specs)):
+        if not any(spec.doi > 0 for spec in specs):
+            raise ValueError(f"{name}={len(specs)}: no episode of this draw (seed {cfg.seed}) "
+                             f"has DOI > 0, the only ones the OLSTM learns from; draw more")
+    return fit_maps, val_maps, val_specs, train_specs
 
 
 def _examples(paths: Sequence[Path]) -> tuple[list[Example], list[Episode]]:
@@ -199,9 +239,7 @@ def train_localizer(cfg: TrainConfig, report: Callable[[str], None] = print) -> 
     metadata."""
     rng = np.random.default_rng(cfg.seed)
     torch.manual_seed(cfg.seed)
-    fit_maps, val_maps = validation_split(list_maps("train"))
-    val_specs = episode_specs(cfg.n_val_logs, val_maps, _SPEC_SEED + cfg.seed + 1)
-    train_specs = episode_specs(cfg.n_train_logs, fit_maps, _SPEC_SEED + cfg.seed + 2)
+    fit_maps, val_maps, val_specs, train_specs = draw_episodes(cfg)
     report(f"simulating {len(train_specs)} training and {len(val_specs)} validation logs "
            f"into {cfg.data_dir}")
     val_paths = generate_logs(val_specs, Path(cfg.data_dir) / "val", report)

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from aoass_env.localization.episode import prepare
 from aoass_env.localization.olstm import OLSTM
 from aoass_env.localization.training import (
+    TrainConfig,
     augment,
+    draw_episodes,
     episode_specs,
     example,
     gaussian_nll,
@@ -53,3 +56,66 @@ def test_tiny_training_run_lowers_the_loss(doi_sim) -> None:
         optim.step()
         losses.append(float(loss.detach()))
     assert np.mean(losses[-5:]) < losses[0] - 0.1
+
+
+@pytest.mark.parametrize("change, error, message", [
+    ({"epochs": 0}, ValueError, "epochs=0 must be an integer in [1, inf)"),
+    ({"n_train_logs": -3}, ValueError, "n_train_logs=-3 must be an integer in [1, inf)"),
+    ({"hidden": 2.5}, ValueError, "hidden=2.5 must be an integer in [1, inf)"),
+    ({"batch_size": True}, ValueError, "batch_size=True must be an integer in [1, inf)"),
+    ({"learning_rate": float("nan")}, ValueError,
+     "learning_rate=nan must be a number in (0, inf)"),
+    ({"seed": 2**64}, ValueError,
+     "seed=18446744073709551616 must be an integer in [0, 18446744073709551615]"),
+    ({"checkpoint": 3}, TypeError, "checkpoint must be a path, got int"),
+])
+def test_train_config_names_a_bad_setting(change, error, message) -> None:
+    with pytest.raises(error) as info:
+        TrainConfig(**change)
+    assert str(info.value) == message
+
+
+def test_train_config_reads_whole_floats_as_integers() -> None:
+    cfg = TrainConfig(hidden=16.0, epochs=np.int64(3))
+    assert cfg.hidden == 16 and type(cfg.hidden) is int and type(cfg.epochs) is int
+    assert TrainConfig() == TrainConfig(n_train_logs=240, learning_rate=3e-3)
+
+
+@pytest.mark.parametrize("change, message", [
+    # seed 11 draws one validation episode with DOI 0 (np.stack failed after simulating),
+    # seed 10 one training episode with DOI 0 (trained on nothing and wrote a checkpoint)
+    ({"n_val_logs": 1, "seed": 11}, "n_val_logs=1: no episode of this draw (seed 11) has DOI > 0"),
+    ({"n_train_logs": 1, "seed": 10},
+     "n_train_logs=1: no episode of this draw (seed 10) has DOI > 0"),
+])
+def test_a_draw_without_irregular_radio_is_refused(change, message) -> None:
+    with pytest.raises(ValueError) as info:
+        draw_episodes(TrainConfig(**change))
+    assert str(info.value) == f"{message}, the only ones the OLSTM learns from; draw more"
+    assert all(any(spec.doi > 0 for spec in specs) for specs in draw_episodes(TrainConfig())[2:])
+
+
+def test_localizer_subcommand_refuses_bad_input_before_any_work(tmp_path, train_script,
+                                                                monkeypatch, capsys) -> None:
+    def no_training(*args, **kwargs):
+        raise AssertionError("train_localizer must not start")
+    monkeypatch.setattr(train_script, "train_localizer", no_training)
+    a_file = tmp_path / "file"
+    a_file.write_text("")
+    for argv, message in (
+            (["--data-dir", str(a_file)], f"--data-dir {a_file}: is a file, not a folder"),
+            (["--checkpoint", str(tmp_path)], f"--checkpoint {tmp_path}: is a folder, not a file"),
+            (["--checkpoint", str(a_file / "m.pt")],
+             f"--checkpoint {a_file / 'm.pt'}: its folder {a_file}: is a file, not a folder"),
+            (["--n-val-logs", "1", "--seed", "11"],
+             "--n-val-logs 1: no episode of this draw (seed 11) has DOI > 0, the only ones the "
+             "OLSTM learns from; draw more"),
+            (["--seed", str(2**64)],
+             "--seed 18446744073709551616 must be an integer in [0, 18446744073709551615]")):
+        with pytest.raises(SystemExit) as exit_:
+            train_script.main(["localizer", "--data-dir", str(tmp_path / "logs"),
+                               "--checkpoint", str(tmp_path / "m.pt"), *argv])
+        assert exit_.value.code == 2
+        assert capsys.readouterr().err.strip().splitlines()[-1] == \
+            f"train.py localizer: error: {message}"
+    assert not (tmp_path / "logs").exists()
