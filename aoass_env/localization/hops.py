@@ -109,6 +109,10 @@ def hop_size(beacon_xy: np.ndarray, beacon_hops: np.ndarray) -> np.ndarray:
     if xy.ndim != 2 or xy.shape[1] != 2 or h.shape != (len(xy), len(xy)):
         raise ValueError(f"beacon_xy must be (B, 2) and beacon_hops (B, B); got {xy.shape}, "
                          f"{h.shape}")
+    if not np.all(np.isfinite(xy)):
+        raise ValueError("beacon_xy must be finite")
+    if not np.all(h >= 0):  # NaN fails too; inf (beyond the flooding limit) is fine
+        raise ValueError("beacon_hops must be hop counts >= 0 (inf: unreachable)")
     i, j = np.nonzero(np.isfinite(h) & (h > 0))
     num = np.bincount(i, weights=np.hypot(*(xy[i] - xy[j]).T), minlength=len(xy))
     den = np.bincount(i, weights=h[i, j], minlength=len(xy))

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from aoass_env.validators import integer, positive, real, vec2
+
 __all__ = ["multilaterate"]
 
 _LAMBDA0 = 1e-3
@@ -39,14 +41,19 @@ def multilaterate(anchors: np.ndarray, distances: np.ndarray, weights: np.ndarra
         distances: (S, M) estimated distances to those anchors [m].
         weights: (S, M) non-negative weights (0 = padding / unused anchor).
         init: (S, 2) starting positions [m], clipped to the field.
-        field: field width and height [m]; estimates stay in ``[0, w] x [0, h]``.
-        max_iter: iteration limit.
-        tol: a node has converged once an accepted step is at most this [m]; the iteration
-            stops when every node has.
+        field: field width and height [m] (both > 0); estimates stay in ``[0, w] x [0, h]``.
+        max_iter: iteration limit (>= 1).
+        tol: a node has converged once an accepted step is at most this [m] (>= 0); the
+            iteration stops when every node has.
 
     Raises:
-        ValueError: shapes disagree, or an input is not finite, or a weight is negative.
+        ValueError: shapes disagree, an input is not finite, a distance or weight is negative,
+            or ``field``, ``max_iter`` or ``tol`` is out of range.
     """
+    width, height = (positive(f"field[{i}]", v, "m") for i, v in enumerate(vec2("field", field,
+                                                                                   "m")))
+    max_iter = integer("max_iter", max_iter, low=1)
+    tol = real("tol", tol, "m", low=0)
     a = np.asarray(anchors, dtype=np.float64)
     d = np.asarray(distances, dtype=np.float64)
     w = np.asarray(weights, dtype=np.float64)
@@ -60,7 +67,9 @@ def multilaterate(anchors: np.ndarray, distances: np.ndarray, weights: np.ndarra
             raise ValueError(f"{name} must be finite")
     if np.any(w < 0):
         raise ValueError("weights must be non-negative")
-    hi = np.array([float(field[0]), float(field[1])])
+    if np.any(d < 0):
+        raise ValueError("distances must be non-negative")
+    hi = np.array([width, height])
     out = np.clip(p, 0.0, hi)
     # working set: the nodes still iterating, compacted whenever some converge
     act = np.arange(len(out))

@@ -40,3 +40,17 @@ def test_dvhop_estimates_covered_nodes_only(small_sim) -> None:
 def test_unknown_method(small_log) -> None:
     with pytest.raises(ValueError, match="method"):
         localize(small_log, "trilateration")
+
+
+@pytest.mark.parametrize("xy, hops, message", [
+    # were a NaN HopSize for every beacon, without a word
+    ([[0.0, 0.0], [np.nan, 1.0]], [[0, 2], [2, 0]], "beacon_xy must be finite"),
+    ([[0.0, 0.0], [1.0, 1.0]], [[0, -2], [-2, 0]],
+     "beacon_hops must be hop counts >= 0 (inf: unreachable)"),
+    ([[0.0, 0.0], [1.0, 1.0]], [[0, np.nan], [np.nan, 0]],
+     "beacon_hops must be hop counts >= 0 (inf: unreachable)"),
+])
+def test_hop_size_refuses_impossible_input(xy, hops, message) -> None:
+    with pytest.raises(ValueError) as info:
+        hop_size(np.array(xy), np.array(hops, dtype=float))
+    assert str(info.value) == message

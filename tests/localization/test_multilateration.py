@@ -50,3 +50,28 @@ def test_bad_input(change: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         multilaterate(args["anchors"], args["distances"], args["weights"], args["init"],
                       (10, 10))
+
+
+@pytest.mark.parametrize("change, message", [
+    # each of these was accepted: a negative width put the estimate outside the field, NaN
+    # gave a NaN estimate, a third entry was dropped, max_iter <= 0 returned the start point,
+    # a NaN or negative tol never converged, a negative distance was fitted
+    ({"field": (-1.0, 10.0)}, "field[0]=-1.0 must be a number in (0.0, inf) m"),
+    ({"field": (10.0, float("nan"))},
+     "field must be a pair of finite numbers (m), got (10.0, nan)"),
+    ({"field": (10.0, 10.0, 3.0)},
+     "field must be a pair of finite numbers (m), got (10.0, 10.0, 3.0)"),
+    ({"max_iter": 0}, "max_iter=0 must be an integer in [1, inf)"),
+    ({"max_iter": -1}, "max_iter=-1 must be an integer in [1, inf)"),
+    ({"tol": float("nan")}, "tol=nan must be a number in [0, inf) m"),
+    ({"tol": -1.0}, "tol=-1.0 must be a number in [0, inf) m"),
+    ({"distances": np.array([[1.0, -1.0, 1.0]])}, "distances must be non-negative"),
+])
+def test_bad_field_limits_and_distances_are_named(change: dict, message: str) -> None:
+    args = {"anchors": np.array([[[1, 1], [8, 1], [1, 8]]], dtype=float),
+            "distances": np.ones((1, 3)), "weights": np.ones((1, 3)), "init": np.zeros((1, 2)),
+            "field": (10.0, 10.0)}
+    args.update(change)
+    with pytest.raises(ValueError) as info:
+        multilaterate(**args)
+    assert str(info.value) == message
