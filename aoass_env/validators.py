@@ -30,7 +30,7 @@ from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
-__all__ = ["ConfigError", "ValidatedConfig", "integer", "param", "positive", "real",
+__all__ = ["ConfigError", "ValidatedConfig", "integer", "one_line", "param", "positive", "real",
            "unknown_key_message", "vec2"]
 
 
@@ -44,6 +44,12 @@ def unknown_key_message(key: Any, valid: Iterable[str], what: str = "config keyw
     close = difflib.get_close_matches(str(key), names, n=1)
     hint = f"; did you mean {close[0]!r}?" if close else ""
     return f"unknown {what} {key!r}{hint} (valid: {', '.join(names)})"
+
+
+def one_line(error: BaseException | str) -> str:
+    """The text of ``error`` (an exception from a library, or a string) on one line: runs of
+    whitespace, line breaks included, become one space; for embedding in a one-line message."""
+    return " ".join(str(error).split())
 
 
 # --- numbers -----------------------------------------------------------------------------------

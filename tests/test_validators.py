@@ -18,7 +18,7 @@ from aoass_env.maps import MapError, ObstacleMap, generate_map
 from aoass_env.planning.baselines.m_anchoro import free_samples
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.orca import orca_lines
-from aoass_env.validators import argparse_number, integer, positive, real, vec2
+from aoass_env.validators import argparse_number, integer, one_line, positive, real, vec2
 from aoass_env.world import World
 
 NUMBERS = [np.float32(1.5), np.float64(1.5), np.int64(100), np.int32(7), 2, 2.0]
@@ -183,3 +183,10 @@ def test_argparse_number_takes_finite_values_in_range_and_names_the_flag_otherwi
     what = "an integer" if kind is int else "a finite number"
     assert error == (f"tool: error: argument --count: must be {what} "
                      f"{'>' if low_open else '>='} {low:g}, got {text!r}")
+
+
+def test_one_line_joins_a_library_message_into_one_line() -> None:
+    assert one_line(ValueError("Weights only load failed.\n\n  Unsupported operand 103\n")) \
+        == "Weights only load failed. Unsupported operand 103"
+    assert one_line("already one line") == "already one line"
+    assert one_line(KeyError()) == ""
