@@ -23,11 +23,12 @@ from agents.envs import make_training_env
 from aoass_env.config import AOASSConfig, unknown_key_message
 from aoass_env.planning import AdaptiveConfig
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
-from aoass_env.validators import integer, real
+from aoass_env.validators import integer, one_line, real
 from aoass_env.wrappers import make_safe_env
 
 __all__ = ["EXTRA_KEYS", "HyperparameterError", "check_section", "env_keys", "key_value",
-           "model_kwargs", "override_section", "policy_name", "read_yaml", "section_keys"]
+           "model_kwargs", "override_section", "policy_name", "read_yaml", "section_keys",
+           "yaml_problem"]
 
 #: Keys of a section that are not constructor keywords.
 EXTRA_KEYS = ("n_timesteps", "policy", "action_noise", "env", "eval", "checkpoint_freq")
@@ -95,9 +96,23 @@ def read_yaml(path: str | Path, what: str = "hyperparameter file") -> Any:
     except FileNotFoundError:
         raise HyperparameterError(f"{path}: no such {what}") from None
     except (IsADirectoryError, PermissionError, UnicodeDecodeError) as exc:
-        raise HyperparameterError(f"{path}: not a readable {what} ({exc})") from None
+        raise HyperparameterError(f"{path}: not a readable {what} ({one_line(exc)})") from None
     except yaml.YAMLError as exc:
-        raise HyperparameterError(f"{path}: not valid YAML ({exc})") from None
+        raise HyperparameterError(f"{path}: not valid YAML ({yaml_problem(exc)})") from None
+
+
+def yaml_problem(exc: yaml.YAMLError) -> str:
+    """PyYAML's error ``exc`` on one line: ``line L, column C: <problem>`` (1-based, where the
+    problem is), without the marks and caret lines of its own text."""
+    if isinstance(exc, yaml.reader.ReaderError):
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        return f"character {exc.position + 1}: unacceptable character #x{code:04x}: {exc.reason}"
+    problem = getattr(exc, "problem", None)
+    if not problem:
+        return one_line(exc)
+    mark = getattr(exc, "problem_mark", None)
+    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+    return f"{where}{one_line(problem)}"
 
 
 def key_value(text: str, flag: str) -> tuple[str, Any]:
@@ -111,7 +126,7 @@ def key_value(text: str, flag: str) -> tuple[str, Any]:
         return key, yaml.safe_load(value)
     except yaml.YAMLError as exc:
         raise HyperparameterError(f"{flag} {text!r}: the value is not valid YAML "
-                                  f"({getattr(exc, 'problem', exc)})") from None
+                                  f"({yaml_problem(exc)})") from None
 
 
 def _check_keys(where: str, section: Mapping[str, Any], valid: list[str]) -> None:
