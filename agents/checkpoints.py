@@ -32,7 +32,7 @@ from stable_baselines3 import TD3 as _SB3TD3
 from agents.envs import make_training_env
 from agents.sections import HyperparameterError, check_section, model_kwargs, policy_name, read_yaml
 from aoass_env.atomic import atomic_open
-from aoass_env.validators import integer
+from aoass_env.validators import integer, one_line
 
 __all__ = ["RECORD_NAME", "STATE_FIELDS", "PolicyFileError", "SafeLoading", "TD3",
            "load_model", "record_path", "validate_record"]
@@ -80,12 +80,31 @@ def validate_record(record: Any, cls: type, path: str | os.PathLike[str]) -> dic
     return {**record, "hyperparameters": hp}
 
 
+def _problem(exc: BaseException) -> str:
+    """A library's error ``exc`` on one line (its type when it has no text)."""
+    return one_line(exc) or type(exc).__name__
+
+
+def _torch_load_problem(exc: BaseException) -> str:
+    """``torch.load``'s error ``exc`` on one line; of a weights-only refusal only the reason
+    (torch's text around it is several lines advising ``weights_only=False``, which would run
+    code from the file)."""
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    if lines and lines[0].startswith("Weights only load failed"):
+        reasons = [line for line in lines[1:]
+                   if not line.startswith(("Please file an issue", "Check the documentation"))]
+        return "torch's weights-only reader refused it" + (
+            f": {one_line(' '.join(reasons))}" if reasons else "")
+    return _problem(exc)
+
+
 def _read_weights(path: Path, archive: zipfile.ZipFile, name: str, device: str) -> Any:
     try:
         payload = th.load(io.BytesIO(archive.read(f"{name}.pth")), map_location=device,
                           weights_only=True)
     except Exception as exc:  # torch raises many types for a damaged or foreign file
-        raise PolicyFileError(f"{path}: {name}.pth: not readable weights ({exc})") from None
+        raise PolicyFileError(f"{path}: {name}.pth: not readable weights "
+                              f"({_torch_load_problem(exc)})") from None
     if not isinstance(payload, Mapping):
         raise PolicyFileError(f"{path}: {name}.pth: not a state dict")
     return payload
@@ -98,11 +117,68 @@ def _check_finite(path: Path, name: str, state: Mapping[str, Any]) -> None:
             raise PolicyFileError(f"{path}: {name}.pth: {key} holds NaN or infinite weights")
 
 
+def _describe(value: Any) -> str:
+    if isinstance(value, th.Tensor):
+        return f"{list(value.shape)} {str(value.dtype).removeprefix('torch.')}"
+    return type(value).__name__
+
+
+def _fit_problem(model_state: Mapping[str, th.Tensor], file_state: Mapping[str, Any]
+                 ) -> str | None:
+    """Why the weights ``file_state`` do not fit ``model_state`` (tensors missing, unexpected,
+    of another shape, or not floating point where the model's are), on one line; None when
+    they fit."""
+    def fits(key: str) -> bool:
+        mine, theirs = model_state[key], file_state[key]
+        return (isinstance(theirs, th.Tensor) and theirs.shape == mine.shape
+                and theirs.is_floating_point() == mine.is_floating_point())
+
+    wrong = [key for key in model_state if key in file_state and not fits(key)]
+    missing = [key for key in model_state if key not in file_state]
+    unexpected = [key for key in file_state if key not in model_state]
+    parts = []
+    if wrong:
+        parts.append(f"{len(wrong)} of another shape or type, first {wrong[0]}: "
+                     f"{_describe(file_state[wrong[0]])} in the file, "
+                     f"{_describe(model_state[wrong[0]])} in the model")
+    if missing:
+        parts.append(f"{len(missing)} missing, first {missing[0]}")
+    if unexpected:
+        parts.append(f"{len(unexpected)} unexpected, first {unexpected[0]}")
+    return f"{', '.join(parts)} (of {len(model_state)} tensors)" if parts else None
+
+
+def _load_optimizer(path: Path, name: str, optimizer: th.optim.Optimizer,
+                    state: Mapping[str, Any]) -> None:
+    """Load the optimizer state ``state`` (from ``name``.pth) into ``optimizer``; every
+    per-parameter tensor must have its parameter's shape and be finite."""
+    where = f"{path}: {name}.pth"
+    if not {"state", "param_groups"} <= set(state):
+        raise PolicyFileError(f"{where}: not an optimizer state (it must hold 'state' and "
+                              f"'param_groups')")
+    try:
+        optimizer.load_state_dict(state)
+    except Exception as exc:  # torch raises many types for a foreign state
+        raise PolicyFileError(f"{where}: not the optimizer state of this model "
+                              f"({_problem(exc)})") from None
+    for group in optimizer.param_groups:
+        for param in group["params"]:
+            for key, value in optimizer.state.get(param, {}).items():
+                if not isinstance(value, th.Tensor):
+                    continue
+                if value.dim() > 0 and value.shape != param.shape:
+                    raise PolicyFileError(f"{where}: {key}: shape {list(value.shape)}, its "
+                                          f"parameter has {list(param.shape)}")
+                if value.is_floating_point() and not bool(th.isfinite(value).all()):
+                    raise PolicyFileError(f"{where}: {key} holds NaN or infinite values")
+
+
 def _read_state(path: Path, archive: zipfile.ZipFile) -> dict[str, int]:
     try:
         data = json.loads(archive.read("data"))
     except (KeyError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise PolicyFileError(f"{path}: data: missing or not JSON ({exc})") from None
+        raise PolicyFileError(f"{path}: data: missing or not JSON ({_problem(exc)})"
+                              ) from None
     if not isinstance(data, dict):
         raise PolicyFileError(f"{path}: data: must be a JSON object")
     state = {}
@@ -170,7 +246,8 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
                 weights.update({n: _read_weights(path, archive, n, device)
                                 for n in _OPTIMIZERS if f"{n}.pth" in names})
     except (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError) as exc:
-        raise PolicyFileError(f"{path}: not a readable model .zip ({exc})") from None
+        raise PolicyFileError(f"{path}: not a readable model .zip ({_problem(exc)})"
+                              ) from None
     _check_finite(path, "policy", weights["policy"])
     overrides = {} if env is not None else {"buffer_size": 1}
     model = cls(policy_name(hp, cls), None if env is None else env, device=device,
@@ -179,14 +256,16 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
         model.observation_space, model.action_space = _spaces(None, hp)
         model.n_envs = 1
     model._setup_model()
-    try:
-        model.policy.load_state_dict(weights.pop("policy"), strict=True)
-        for name, optimizer_state in weights.items():
-            getattr(model, name.split(".")[0]).optimizer.load_state_dict(optimizer_state)
-    except (RuntimeError, ValueError, KeyError) as exc:
-        raise PolicyFileError(f"{path}: weights do not fit the recorded architecture "
-                              f"(policy_kwargs {hp.get('policy_kwargs', {})}): "
-                              f"{str(exc).splitlines()[0]}") from None
+    policy = weights.pop("policy")
+    problem = _fit_problem(model.policy.state_dict(), policy)
+    if problem is not None:
+        raise PolicyFileError(f"{path}: policy.pth: weights do not fit the recorded "
+                              f"architecture (policy_kwargs {hp.get('policy_kwargs', {})} "
+                              f"and the observation and action sizes of its env): {problem}")
+    model.policy.load_state_dict(policy, strict=True)
+    for name, optimizer_state in weights.items():
+        _load_optimizer(path, name, getattr(model, name.split(".")[0]).optimizer,
+                        optimizer_state)
     for key, value in {**state, **kwargs}.items():
         setattr(model, key, value)
     return model
@@ -224,7 +303,8 @@ def load_replay_buffer(model: Any, path: str | os.PathLike[str]) -> None:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
     except Exception as exc:  # zipfile, zlib and numpy raise many types for a damaged file
-        raise PolicyFileError(f"{path}: not a replay buffer .npz of arrays ({exc})") from None
+        raise PolicyFileError(f"{path}: not a replay buffer .npz of arrays "
+                              f"({_problem(exc)})") from None
     for key in (*own, *_BUFFER_META):
         if key not in arrays:
             raise PolicyFileError(f"{path}: {key}: missing (not a replay buffer of this model)")

@@ -1,0 +1,133 @@
+"""agents.checkpoints: a model .zip that cannot be used is refused in one line naming the file
+and the member (weights torch refuses, weights or optimizer states of another architecture)."""
+
+from __future__ import annotations
+
+import io
+import os
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import pytest
+import torch as th
+from stable_baselines3.common.env_util import make_vec_env
+
+from agents import RecurrentTD3
+from agents.checkpoints import PolicyFileError
+
+TINY = dict(batch_size=8, burn_in=2, train_length=4, buffer_size=200,
+            policy_kwargs=dict(lstm_hidden_size=4, net_arch=[4]))
+RECORD = {"algo": "td3-lstm", "hyperparameters": TINY}
+
+
+def _env():
+    return make_vec_env("Pendulum-v1", n_envs=1, seed=0, env_kwargs=dict(max_episode_steps=20))
+
+
+@pytest.fixture(scope="module")
+def saved(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("model") / "model.zip"
+    model = RecurrentTD3("MlpLstmPolicy", _env(), seed=0, device="cpu", learning_starts=5,
+                         **TINY)
+    model.learn(12)                                 # the optimizers hold Adam's moments
+    model.save(path)
+    return path
+
+
+def _members(path: Path) -> dict[str, bytes]:
+    with zipfile.ZipFile(path) as archive:
+        return {name: archive.read(name) for name in archive.namelist()}
+
+
+def _torch_bytes(obj: Any) -> bytes:
+    buffer = io.BytesIO()
+    th.save(obj, buffer)
+    return buffer.getvalue()
+
+
+def _write(path: Path, members: dict[str, bytes]) -> Path:
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, data in members.items():
+            archive.writestr(name, data)
+    return path
+
+
+def _refusal(path: Path) -> str:
+    with pytest.raises(PolicyFileError) as err:
+        RecurrentTD3.load(path, env=_env(), record=RECORD)
+    message = str(err.value)
+    assert len(message.splitlines()) == 1, message
+    assert message.startswith(f"{path}: ")
+    return message
+
+
+class _RunsCode:
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (os.system, ("echo should never run",))
+
+
+def test_the_saved_model_loads(saved: Path) -> None:
+    assert RecurrentTD3.load(saved, env=_env(), record=RECORD).num_timesteps == 12
+
+
+def test_weights_torch_refuses_are_one_line_without_torch_advice(saved: Path,
+                                                                 tmp_path: Path) -> None:
+    members = _members(saved)
+    code = _write(tmp_path / "code.zip", {**members,
+                                          "policy.pth": _torch_bytes({"x": _RunsCode()})})
+    message = _refusal(code)
+    assert "policy.pth: not readable weights (torch's weights-only reader refused it: " in message
+    assert "GLOBAL" in message and "weights_only" not in message
+    garbage = _write(tmp_path / "garbage.zip", {**members, "actor.optimizer.pth": b"garbage"})
+    assert _refusal(garbage).endswith(
+        "actor.optimizer.pth: not readable weights (torch's weights-only reader refused it: "
+        "Unsupported operand 103)")
+    empty = _write(tmp_path / "empty.zip", {**members, "policy.pth": b""})
+    assert _refusal(empty).endswith("policy.pth: not readable weights (EOFError)")
+
+
+def test_weights_of_another_architecture_name_the_first_misfit(saved: Path,
+                                                               tmp_path: Path) -> None:
+    members = _members(saved)
+    state = th.load(io.BytesIO(members["policy.pth"]), weights_only=True)
+    wider = dict(state, **{"actor.lstm.weight_ih_l0": th.zeros(16, 9)})
+    message = _refusal(_write(tmp_path / "wide.zip",
+                              {**members, "policy.pth": _torch_bytes(wider)}))
+    assert message.endswith(
+        "policy.pth: weights do not fit the recorded architecture (policy_kwargs "
+        "{'lstm_hidden_size': 4, 'net_arch': [4]} and the observation and action sizes of its "
+        f"env): 1 of another shape or type, first actor.lstm.weight_ih_l0: [16, 9] float32 in "
+        f"the file, [16, 4] float32 in the model (of {len(state)} tensors)")
+    fewer = {k: v for k, v in state.items() if not k.startswith("critic_target.")}
+    fewer["extra"] = th.zeros(1)
+    message = _refusal(_write(tmp_path / "fewer.zip",
+                              {**members, "policy.pth": _torch_bytes(fewer)}))
+    assert message.endswith(f"missing, first critic_target.lstms.0.weight_ih_l0, 1 unexpected, "
+                            f"first extra (of {len(state)} tensors)")
+    integers = dict(state, **{"actor.mu.0.bias": state["actor.mu.0.bias"].long()})
+    message = _refusal(_write(tmp_path / "int.zip",
+                              {**members, "policy.pth": _torch_bytes(integers)}))
+    assert "first actor.mu.0.bias: [4] int64 in the file, [4] float32 in the model" in message
+
+
+def test_optimizer_states_that_do_not_fit_are_named(saved: Path, tmp_path: Path) -> None:
+    members = _members(saved)
+    adam = th.load(io.BytesIO(members["actor.optimizer.pth"]), weights_only=True)
+    cases = {
+        "not_state": ({"foo": 1}, "actor.optimizer.pth: not an optimizer state (it must hold "
+                                  "'state' and 'param_groups')"),
+        "groups": ({"state": {}, "param_groups": []},
+                   "actor.optimizer.pth: not the optimizer state of this model (loaded state "
+                   "dict has a different number of parameter groups)"),
+        "shape": ({**adam, "state": {**adam["state"], 0: {
+            **adam["state"][0], "exp_avg": th.zeros(3)}}},
+            "actor.optimizer.pth: exp_avg: shape [3], its parameter has [16, 4]"),
+        "nan": ({**adam, "state": {**adam["state"], 0: {
+            **adam["state"][0], "exp_avg_sq": adam["state"][0]["exp_avg_sq"] * float("nan")}}},
+            "actor.optimizer.pth: exp_avg_sq holds NaN or infinite values"),
+    }
+    for name, (optimizer, end) in cases.items():
+        path = _write(tmp_path / f"{name}.zip",
+                      {**members, "actor.optimizer.pth": _torch_bytes(optimizer)})
+        assert _refusal(path).endswith(end), name
