@@ -34,6 +34,28 @@ from aoass_env.validators import integer, real
 LSTMState = tuple[th.Tensor, th.Tensor]
 
 
+def check_net_arch(net_arch: Any, name: str = "net_arch"
+                   ) -> list[int] | dict[str, list[int]] | None:
+    """``net_arch`` of a TD3 policy checked: None (the default), a list of layer widths
+    (integers >= 1, possibly empty) or ``{pi: [...], qf: [...]}``; ``ValueError`` naming ``name``
+    otherwise (SB3 asserts, torch fails deep inside, or a width 0 builds an empty layer)."""
+    if net_arch is None:
+        return None
+    if isinstance(net_arch, dict):
+        if set(net_arch) != {"pi", "qf"}:
+            raise ValueError(f"{name} must be a list of layer widths or {{pi: [...], qf: [...]}}"
+                             f", got the keys {sorted(map(str, net_arch))}")
+        return {key: _widths(net_arch[key], f"{name}.{key}") for key in ("pi", "qf")}
+    return _widths(net_arch, name)
+
+
+def _widths(value: Any, name: str) -> list[int]:
+    if not isinstance(value, (list, tuple)):
+        raise ValueError(f"{name} must be a list of layer widths (integers >= 1), got "
+                         f"{value!r}")
+    return [integer(f"{name}[{i}]", width, "units", low=1) for i, width in enumerate(value)]
+
+
 def _sequence_features(model: BaseModel, obs: th.Tensor) -> th.Tensor:
     """Features ``(B, L, F)`` of observations ``(B, L, *obs_shape)`` in one extractor call."""
     batch, length = obs.shape[:2]
@@ -227,6 +249,11 @@ class RecurrentTD3Policy(BasePolicy):
     ):
         if isinstance(observation_space, spaces.Dict):
             raise ValueError("RecurrentTD3Policy does not support Dict observation spaces")
+        net_arch = check_net_arch(net_arch)
+        for flag, value in (("current_features", current_features),
+                            ("normalize_images", normalize_images)):
+            if not isinstance(value, (bool, np.bool_)):
+                raise ValueError(f"{flag}={value!r} must be True or False")
         lstm_hidden_size = integer("lstm_hidden_size", lstm_hidden_size, "units", low=1)
         n_lstm_layers = integer("n_lstm_layers", n_lstm_layers, "layers", low=1)
         n_critics = integer("n_critics", n_critics, "critics", low=1)

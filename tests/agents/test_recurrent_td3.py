@@ -352,6 +352,11 @@ def test_eval_callback_works(tmp_path) -> None:
     (dict(policy_kwargs=dict(lstm_hidden_size=0)), "lstm_hidden_size"),
     (dict(policy_kwargs=dict(actor_final_init=-1.0)), "actor_final_init"),
     (dict(policy_kwargs=dict(actor_final_init="small")), "actor_final_init"),
+    (dict(policy_kwargs=dict(net_arch=5)), r"net_arch must be a list of layer widths"),
+    (dict(policy_kwargs=dict(net_arch=[8, 0])), r"net_arch\[1\]=0 must be an integer"),
+    (dict(policy_kwargs=dict(net_arch=dict(pi=[8]))), r"net_arch must be .* got the keys \['pi'\]"),
+    (dict(policy_kwargs=dict(current_features="no")), "current_features='no' must be True or"),
+    (dict(policy_kwargs=dict(normalize_images=3)), "normalize_images=3 must be True or False"),
 ])
 def test_bad_constructor_values_name_the_parameter(kwargs: dict, name: str) -> None:
     with pytest.raises(ValueError, match=name):
