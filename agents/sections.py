@@ -20,6 +20,7 @@ from typing import Any
 import yaml
 
 from agents.envs import make_training_env
+from agents.policies import check_net_arch
 from aoass_env.config import AOASSConfig, unknown_key_message
 from aoass_env.planning import AdaptiveConfig
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
@@ -42,6 +43,7 @@ _NUMERIC: dict[str, tuple[type, float, float, bool]] = {
     "learning_starts": (int, 0, math.inf, True), "batch_size": (int, 1, math.inf, True),
     "tau": (float, 0.0, 1.0, False), "gamma": (float, 0.0, 1.0, False),
     "gradient_steps": (int, -1, math.inf, True), "policy_delay": (int, 1, math.inf, True),
+    "stats_window_size": (int, 1, math.inf, True),
     "target_policy_noise": (float, 0.0, math.inf, True),
     "target_noise_clip": (float, 0.0, math.inf, True), "n_timesteps": (int, 1, math.inf, True),
     "checkpoint_freq": (int, 1, math.inf, True), "burn_in": (int, 0, math.inf, True),
@@ -49,6 +51,16 @@ _NUMERIC: dict[str, tuple[type, float, float, bool]] = {
     "critic_warmup": (int, 0, math.inf, True),
     "actor_bound_penalty": (float, 0.0, math.inf, True),
 }
+
+
+#: Keys that take True or False: of a section, of its policy_kwargs, of its replay_buffer_kwargs.
+_FLAGS = {"": ("optimize_memory_usage",),
+          "policy_kwargs": ("normalize_images", "share_features_extractor", "current_features"),
+          "replay_buffer_kwargs": ("handle_timeout_termination",)}
+#: policy_kwargs that take a Python class, which a YAML file cannot name.
+_CLASSES = ("activation_fn", "features_extractor_class", "optimizer_class")
+#: The replay buffer keywords a section may set (the algorithm sets the others).
+_BUFFER_KEYS = ["handle_timeout_termination"]
 
 
 class HyperparameterError(ValueError):
@@ -166,10 +178,25 @@ def check_section(section: Any, cls: type, where: str) -> dict[str, Any]:
     _check_keys(where, section, section_keys(cls))
     numbers = {key: _check_number(where, key, value) for key, value in section.items()
                if key in _NUMERIC}
-    for key in ("env", "eval", "policy_kwargs"):
+    if numbers.get("gradient_steps") == 0:
+        raise HyperparameterError(f"{where}.gradient_steps=0 would never train: must be an "
+                                  f"integer >= 1, or -1 (as many as the env steps collected)")
+    for key in ("env", "eval", "policy_kwargs", "replay_buffer_kwargs"):
         if key in section and not isinstance(section[key], Mapping):
             raise HyperparameterError(f"{where}.{key}: must be a mapping, got "
                                       f"{type(section[key]).__name__}")
+    _check_keys(f"{where}.replay_buffer_kwargs", section.get("replay_buffer_kwargs", {}),
+                _BUFFER_KEYS)
+    for sub, keys in _FLAGS.items():
+        for key in keys:
+            value = (section.get(sub, {}) if sub else section).get(key, False)
+            if not isinstance(value, bool):
+                raise HyperparameterError(f"{where}.{f'{sub}.' if sub else ''}{key}={value!r} "
+                                          f"must be true or false")
+    if section.get("optimize_memory_usage") and section.get(
+            "replay_buffer_kwargs", {}).get("handle_timeout_termination", True):
+        raise HyperparameterError(f"{where}.optimize_memory_usage: true needs "
+                                  f"replay_buffer_kwargs.handle_timeout_termination: false")
     if "action_noise" in section:
         _check_noise(where, section["action_noise"])
     if "train_freq" in section:
@@ -182,7 +209,7 @@ def check_section(section: Any, cls: type, where: str) -> dict[str, Any]:
                     error=HyperparameterError)
         numbers["train_freq"] = n if unit is None else [n, unit]
     policy = policy_name(section, cls)
-    if policy not in cls.policy_aliases:
+    if not isinstance(policy, str) or policy not in cls.policy_aliases:
         raise HyperparameterError(f"{where}.policy: {policy!r} is not one of "
                                   f"{sorted(cls.policy_aliases)}")
     evaluation = section.get("eval", {})
@@ -205,7 +232,8 @@ def env_keys() -> list[str]:
     """The keys of a section's ``env``: the training environment's keywords."""
     return sorted({*_keywords(make_training_env, "config"),
                    *_keywords(make_safe_env, "config", "kwargs", "tracker", "safety"),
-                   *(f.name for f in dataclasses.fields(AOASSConfig))} - {"render_mode"})
+                   *(f.name for f in dataclasses.fields(AOASSConfig))}
+                  - {"render_mode", "split"})     # train.py sets the split of each env
 
 
 def override_section(hp: Mapping[str, Any], cls: type, where: str, *,
@@ -242,16 +270,29 @@ def _check_stack(where: str, cls: type, policy: str, hp: Mapping[str, Any]) -> N
     policy_kwargs = hp.get("policy_kwargs", {})
     _check_keys(f"{where}.policy_kwargs", policy_kwargs, _keywords(
         policy_class.__init__, "observation_space", "action_space", "lr_schedule"))
+    for key in _CLASSES:
+        if key in policy_kwargs and not isinstance(policy_kwargs[key], type):
+            raise HyperparameterError(f"{where}.policy_kwargs.{key}: must be a Python class, "
+                                      f"which a YAML file cannot name (got "
+                                      f"{policy_kwargs[key]!r}); leave it out for the default")
+    try:
+        check_net_arch(policy_kwargs.get("net_arch"), f"{where}.policy_kwargs.net_arch")
+    except ValueError as exc:
+        raise HyperparameterError(str(exc)) from None
     try:
         env = make_training_env(split="validation", **env_kwargs)
     except (ValueError, TypeError) as exc:
-        raise HyperparameterError(f"{where}.env: {exc}") from None
+        raise HyperparameterError(f"{where}.env: {one_line(exc)}") from None
     try:
         policy_class(env.observation_space, env.action_space, lambda _: 1e-3, **policy_kwargs)
     except (ValueError, TypeError, RuntimeError) as exc:
-        raise HyperparameterError(f"{where}.policy_kwargs: {exc}") from None
+        raise HyperparameterError(f"{where}.policy_kwargs: {one_line(exc)}") from None
     finally:
         env.close()
+    try:        # the algorithm's own checks, without building its networks and buffer
+        cls(policy, None, device="cpu", _init_setup_model=False, **model_kwargs(hp))
+    except (ValueError, TypeError) as exc:
+        raise HyperparameterError(f"{where}: {one_line(exc)}") from None
 
 
 def _check_noise(where: str, spec: Any) -> None:

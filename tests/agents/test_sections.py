@@ -5,9 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import yaml
 
 from agents.checkpoints import PolicyFileError
-from agents.hyperparams import read_run_record
+from agents.hyperparams import load_hyperparams, read_run_record
 from agents.sections import HyperparameterError, key_value, read_yaml
 
 
@@ -45,3 +46,73 @@ def test_key_value_yaml_error_is_one_line() -> None:
         key_value("net_arch:[1", "--hyperparams")
     assert str(err.value) == ("--hyperparams 'net_arch:[1': the value is not valid YAML "
                               "(line 1, column 3: expected ',' or ']', but got '<stream end>')")
+
+
+_TINY = {"batch_size": 4, "buffer_size": 100, "burn_in": 2, "train_length": 4,
+         "policy_kwargs": {"lstm_hidden_size": 4, "net_arch": [4]},
+         "env": {"field_size": 100, "densities": [0.1, 0.1], "n_nodes": 20}}
+
+
+@pytest.mark.parametrize("algo, keys, message", [
+    ("td3-lstm", {"gradient_steps": 0}, "td3-lstm.gradient_steps=0 would never train: must be an "
+                                        "integer >= 1, or -1 (as many as the env steps "
+                                        "collected)"),
+    ("td3-lstm", {"policy": [1]}, "td3-lstm.policy: [1] is not one of ['MlpLstmPolicy']"),
+    ("td3-lstm", {"stats_window_size": 0},
+     "td3-lstm.stats_window_size=0 must be an integer in [1, inf)"),
+    ("td3-lstm", {"optimize_memory_usage": 3},
+     "td3-lstm.optimize_memory_usage=3 must be true or false"),
+    ("td3", {"optimize_memory_usage": True}, "td3.optimize_memory_usage: true needs "
+                                             "replay_buffer_kwargs.handle_timeout_termination: "
+                                             "false"),
+    ("td3-lstm", {"optimize_memory_usage": True,
+                  "replay_buffer_kwargs": {"handle_timeout_termination": False}},
+     "td3-lstm: optimize_memory_usage=True is not supported by RecurrentTD3"),
+    ("td3-lstm", {"replay_buffer_kwargs": 5}, "td3-lstm.replay_buffer_kwargs: must be a "
+                                              "mapping, got int"),
+    ("td3-lstm", {"replay_buffer_kwargs": {"foo": 1}},
+     "td3-lstm.replay_buffer_kwargs.foo: unknown key 'foo' (valid: handle_timeout_termination)"),
+    ("td3-lstm", {"replay_buffer_kwargs": {"handle_timeout_termination": 3}},
+     "td3-lstm.replay_buffer_kwargs.handle_timeout_termination=3 must be true or false"),
+    ("td3-lstm", {"policy_kwargs": {"net_arch": 5}},
+     "td3-lstm.policy_kwargs.net_arch must be a list of layer widths (integers >= 1), got 5"),
+    ("td3", {"policy_kwargs": {"net_arch": {"pi": [4], "foo": [3]}}},
+     "td3.policy_kwargs.net_arch must be a list of layer widths or {pi: [...], qf: [...]}, got "
+     "the keys ['foo', 'pi']"),
+    ("td3-lstm", {"policy_kwargs": {"net_arch": [4, 0]}},
+     "td3-lstm.policy_kwargs.net_arch[1]=0 must be an integer in [1, inf) units"),
+    ("td3-lstm", {"policy_kwargs": {"current_features": "no"}},
+     "td3-lstm.policy_kwargs.current_features='no' must be true or false"),
+    ("td3", {"policy_kwargs": {"share_features_extractor": 3}},
+     "td3.policy_kwargs.share_features_extractor=3 must be true or false"),
+    ("td3-lstm", {"policy_kwargs": {"activation_fn": "relu"}},
+     "td3-lstm.policy_kwargs.activation_fn: must be a Python class, which a YAML file cannot "
+     "name (got 'relu'); leave it out for the default"),
+])
+def test_bad_keys_name_the_file_and_the_key(tmp_path: Path, algo: str, keys: dict,
+                                            message: str) -> None:
+    section = {k: v for k, v in _TINY.items() if algo == "td3-lstm" or k not in (
+        "burn_in", "train_length", "policy_kwargs")}
+    path = tmp_path / "config.yml"
+    path.write_text(yaml.safe_dump({algo: {**section, **keys}}), encoding="utf-8")
+    with pytest.raises(HyperparameterError) as err:
+        load_hyperparams(path, algo)
+    assert str(err.value) == f"{path}: {message}"
+
+
+def test_the_split_is_not_a_key_of_env(tmp_path: Path) -> None:
+    path = tmp_path / "config.yml"
+    path.write_text(yaml.safe_dump({"td3-lstm": {**_TINY, "env": {"split": "validation"}}}),
+                    encoding="utf-8")
+    with pytest.raises(HyperparameterError, match=r"td3-lstm\.env\.split: unknown key 'split'"):
+        load_hyperparams(path, "td3-lstm")
+
+
+def test_good_sections_are_unchanged(tmp_path: Path) -> None:
+    keys = {"gradient_steps": -1, "replay_buffer_kwargs": {"handle_timeout_termination": False},
+            "policy_kwargs": {"lstm_hidden_size": 4, "net_arch": {"pi": [4], "qf": []},
+                              "current_features": False}}
+    path = tmp_path / "config.yml"
+    path.write_text(yaml.safe_dump({"td3-lstm": {**_TINY, **keys}}), encoding="utf-8")
+    hp = load_hyperparams(path, "td3-lstm")
+    assert hp == {**_TINY, **keys}
