@@ -46,6 +46,17 @@ def _key_value(flag: str) -> Callable[[str], tuple[str, Any]]:
     return parse
 
 
+def _path(text: str) -> Path:
+    """An argparse ``type``: a path, never the empty string (which ``Path`` reads as the
+    working folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"must be a path, got {text!r}")
+    return Path(text)
+
+
+_path.__name__ = "path"
+
+
 def _folder(flag: str, path: Path) -> None:
     """A one-line error naming ``flag`` unless ``path`` is a folder this process can write, or
     can create (nothing is created here)."""
@@ -66,7 +77,7 @@ def _localizer_parser() -> argparse.ArgumentParser:
         "checkpoint.")
     for field in dataclasses.fields(TrainConfig):
         default = getattr(defaults, field.name)
-        kind = (Path if isinstance(default, Path)
+        kind = (_path if isinstance(default, Path)
                 else argparse_number(*TRAIN_RANGES[field.name]))
         p.add_argument(f"--{field.name.replace('_', '-')}", type=kind, default=default,
                        help=f"(default: {default})")
@@ -114,7 +125,7 @@ def _agent_parser() -> argparse.ArgumentParser:
     add_backend_arguments(p, "seed", "the runs one after another in this process")
     p.add_argument("--n-envs", type=argparse_number(int, 1), default=1,
                    help="parallel environments, subprocesses when > 1 (default: 1)")
-    p.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
+    p.add_argument("--config", type=_path, default=DEFAULT_CONFIG,
                    help="hyperparameter YAML (default: configs/aoass.yml)")
     p.add_argument("--hyperparams", type=_key_value("--hyperparams"), nargs="+", default=[],
                    metavar="KEY:VALUE",
@@ -134,12 +145,12 @@ def _agent_parser() -> argparse.ArgumentParser:
     p.add_argument("--log-interval", type=argparse_number(int, 1), default=4,
                    help="episodes between log rows; a last row is written at the end "
                         "(default: 4)")
-    p.add_argument("--resume", type=Path, default=None,
+    p.add_argument("--resume", type=_path, default=None,
                    help="continue training a saved model (.zip; its replay buffer is loaded "
                         "when saved beside it, as last.zip's is)")
-    p.add_argument("--out", type=Path, default=None,
+    p.add_argument("--out", type=_path, default=None,
                    help="folder of the run's models (default: checkpoints/aoass_<algo>)")
-    p.add_argument("--log-dir", type=Path, default=Path("out/tensorboard"),
+    p.add_argument("--log-dir", type=_path, default=Path("out/tensorboard"),
                    help="TensorBoard folder (default: out/tensorboard)")
     p.add_argument("--no-tensorboard", action="store_true", help="do not write TensorBoard logs")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
