@@ -299,6 +299,9 @@ def load_replay_buffer(model: Any, path: str | os.PathLike[str]) -> None:
     path = Path(path)
     buffer = model.replay_buffer
     own = {k: v for k, v in vars(buffer).items() if isinstance(v, np.ndarray)}
+    if not zipfile.is_zipfile(path):    # else numpy takes it for a pickle and advises loading it
+        raise PolicyFileError(f"{path}: not a replay buffer .npz (no such file, or no zip "
+                              f"structure)")
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}

@@ -131,3 +131,14 @@ def test_optimizer_states_that_do_not_fit_are_named(saved: Path, tmp_path: Path)
         path = _write(tmp_path / f"{name}.zip",
                       {**members, "actor.optimizer.pth": _torch_bytes(optimizer)})
         assert _refusal(path).endswith(end), name
+
+
+def test_a_replay_buffer_that_is_not_an_npz_is_named(saved: Path, tmp_path: Path) -> None:
+    model = RecurrentTD3.load(saved, env=_env(), record=RECORD)
+    garbage = tmp_path / "buffer.npz"
+    garbage.write_bytes(b"garbage")
+    for path in (garbage, tmp_path / "missing.npz"):
+        with pytest.raises(PolicyFileError) as err:
+            model.load_replay_buffer(path)
+        assert str(err.value) == (f"{path}: not a replay buffer .npz (no such file, or no zip "
+                                  f"structure)")
