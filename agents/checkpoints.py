@@ -261,7 +261,8 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
     if problem is not None:
         raise PolicyFileError(f"{path}: policy.pth: weights do not fit the recorded "
                               f"architecture (policy_kwargs {hp.get('policy_kwargs', {})} "
-                              f"and the observation and action sizes of its env): {problem}")
+                              f"and the observation and action sizes of "
+                              f"{'the given' if env is not None else 'its'} env): {problem}")
     model.policy.load_state_dict(policy, strict=True)
     for name, optimizer_state in weights.items():
         _load_optimizer(path, name, getattr(model, name.split(".")[0]).optimizer,

@@ -96,9 +96,9 @@ def test_weights_of_another_architecture_name_the_first_misfit(saved: Path,
                               {**members, "policy.pth": _torch_bytes(wider)}))
     assert message.endswith(
         "policy.pth: weights do not fit the recorded architecture (policy_kwargs "
-        "{'lstm_hidden_size': 4, 'net_arch': [4]} and the observation and action sizes of its "
-        f"env): 1 of another shape or type, first actor.lstm.weight_ih_l0: [16, 9] float32 in "
-        f"the file, [16, 4] float32 in the model (of {len(state)} tensors)")
+        "{'lstm_hidden_size': 4, 'net_arch': [4]} and the observation and action sizes of the "
+        "given env): 1 of another shape or type, first actor.lstm.weight_ih_l0: [16, 9] float32 "
+        f"in the file, [16, 4] float32 in the model (of {len(state)} tensors)")
     fewer = {k: v for k, v in state.items() if not k.startswith("critic_target.")}
     fewer["extra"] = th.zeros(1)
     message = _refusal(_write(tmp_path / "fewer.zip",
