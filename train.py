@@ -171,6 +171,9 @@ def _run_agent(argv: list[str]) -> None:
     try:
         if args.config.is_dir():
             raise ValueError(f"--config {args.config}: is a folder, not a hyperparameter file")
+        if args.resume is not None and not args.resume.is_file():
+            raise ValueError(f"--resume {args.resume}: no such model file"
+                             f"{' (a folder)' if args.resume.is_dir() else ''}")
         _folder("--out", out)
         if not args.no_tensorboard:
             _folder("--log-dir", args.log_dir)

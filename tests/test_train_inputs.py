@@ -20,3 +20,13 @@ def test_empty_paths_are_usage_errors(train_script, capsys: pytest.CaptureFixtur
         train_script.main(argv)
     assert exit_.value.code == 2
     assert capsys.readouterr().err.strip().splitlines()[-1] == message
+
+
+def test_a_missing_resume_names_the_flag(train_script, capsys: pytest.CaptureFixture,
+                                         tmp_path) -> None:
+    for path, end in ((tmp_path / "missing.zip", ""), (tmp_path, " (a folder)")):
+        with pytest.raises(SystemExit) as exit_:
+            train_script.main(["--resume", str(path), "--out", str(tmp_path / "run")])
+        assert exit_.value.code == 2
+        assert capsys.readouterr().err.strip().splitlines()[-1] == (
+            f"train.py: error: --resume {path}: no such model file{end}")
