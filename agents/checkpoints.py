@@ -32,7 +32,7 @@ from stable_baselines3 import TD3 as _SB3TD3
 from agents.envs import make_training_env
 from agents.sections import HyperparameterError, check_section, model_kwargs, policy_name, read_yaml
 from aoass_env.atomic import atomic_open
-from aoass_env.validators import integer, one_line
+from aoass_env.validators import integer, one_line, torch_load_problem
 
 __all__ = ["RECORD_NAME", "STATE_FIELDS", "PolicyFileError", "SafeLoading", "TD3",
            "load_model", "record_path", "validate_record"]
@@ -80,31 +80,13 @@ def validate_record(record: Any, cls: type, path: str | os.PathLike[str]) -> dic
     return {**record, "hyperparameters": hp}
 
 
-def _problem(exc: BaseException) -> str:
-    """A library's error ``exc`` on one line (its type when it has no text)."""
-    return one_line(exc) or type(exc).__name__
-
-
-def _torch_load_problem(exc: BaseException) -> str:
-    """``torch.load``'s error ``exc`` on one line; of a weights-only refusal only the reason
-    (torch's text around it is several lines advising ``weights_only=False``, which would run
-    code from the file)."""
-    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
-    if lines and lines[0].startswith("Weights only load failed"):
-        reasons = [line for line in lines[1:]
-                   if not line.startswith(("Please file an issue", "Check the documentation"))]
-        return "torch's weights-only reader refused it" + (
-            f": {one_line(' '.join(reasons))}" if reasons else "")
-    return _problem(exc)
-
-
 def _read_weights(path: Path, archive: zipfile.ZipFile, name: str, device: str) -> Any:
     try:
         payload = th.load(io.BytesIO(archive.read(f"{name}.pth")), map_location=device,
                           weights_only=True)
     except Exception as exc:  # torch raises many types for a damaged or foreign file
         raise PolicyFileError(f"{path}: {name}.pth: not readable weights "
-                              f"({_torch_load_problem(exc)})") from None
+                              f"({torch_load_problem(exc)})") from None
     if not isinstance(payload, Mapping):
         raise PolicyFileError(f"{path}: {name}.pth: not a state dict")
     return payload
@@ -160,7 +142,7 @@ def _load_optimizer(path: Path, name: str, optimizer: th.optim.Optimizer,
         optimizer.load_state_dict(state)
     except Exception as exc:  # torch raises many types for a foreign state
         raise PolicyFileError(f"{where}: not the optimizer state of this model "
-                              f"({_problem(exc)})") from None
+                              f"({one_line(exc)})") from None
     for group in optimizer.param_groups:
         for param in group["params"]:
             for key, value in optimizer.state.get(param, {}).items():
@@ -177,7 +159,7 @@ def _read_state(path: Path, archive: zipfile.ZipFile) -> dict[str, int]:
     try:
         data = json.loads(archive.read("data"))
     except (KeyError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise PolicyFileError(f"{path}: data: missing or not JSON ({_problem(exc)})"
+        raise PolicyFileError(f"{path}: data: missing or not JSON ({one_line(exc)})"
                               ) from None
     if not isinstance(data, dict):
         raise PolicyFileError(f"{path}: data: must be a JSON object")
@@ -246,7 +228,7 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
                 weights.update({n: _read_weights(path, archive, n, device)
                                 for n in _OPTIMIZERS if f"{n}.pth" in names})
     except (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError) as exc:
-        raise PolicyFileError(f"{path}: not a readable model .zip ({_problem(exc)})"
+        raise PolicyFileError(f"{path}: not a readable model .zip ({one_line(exc)})"
                               ) from None
     _check_finite(path, "policy", weights["policy"])
     overrides = {} if env is not None else {"buffer_size": 1}
@@ -308,7 +290,7 @@ def load_replay_buffer(model: Any, path: str | os.PathLike[str]) -> None:
             arrays = {k: data[k] for k in data.files}
     except Exception as exc:  # zipfile, zlib and numpy raise many types for a damaged file
         raise PolicyFileError(f"{path}: not a replay buffer .npz of arrays "
-                              f"({_problem(exc)})") from None
+                              f"({one_line(exc)})") from None
     for key in (*own, *_BUFFER_META):
         if key not in arrays:
             raise PolicyFileError(f"{path}: {key}: missing (not a replay buffer of this model)")

@@ -34,7 +34,6 @@ import dataclasses
 import json
 import math
 import os
-import re
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -45,6 +44,7 @@ import numpy as np
 from aoass_env.atomic import atomic_open
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import MapError, ObstacleMap
+from aoass_env.validators import one_line
 
 __all__ = ["KEYS", "SCHEMA_VERSION", "SUPPORTED_VERSIONS", "BeaconLog", "BeaconLogError",
            "BeaconLogRecorder", "episode_config_json"]
@@ -141,13 +141,6 @@ def _parse_config(text: Any) -> dict[str, Any]:
     if not isinstance(config, dict):
         raise BeaconLogError("must be a JSON object", "config_json")
     return config
-
-
-def one_line(exc: BaseException) -> str:
-    """``exc``'s text on one line (whitespace runs and line breaks collapsed, terminal colour
-    codes removed; its type name when it has no text), for messages that embed a library's."""
-    text = " ".join(re.sub(r"\x1b\[[0-9;]*m", "", str(exc)).split())
-    return text or type(exc).__name__
 
 
 def _fail_at(bad: np.ndarray, key: str, message: str) -> None:

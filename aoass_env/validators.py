@@ -22,6 +22,7 @@ import dataclasses
 import difflib
 import json
 import math
+import re
 from collections.abc import Callable, Iterable
 from dataclasses import field
 from numbers import Integral, Real
@@ -31,7 +32,7 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 
 __all__ = ["ConfigError", "ValidatedConfig", "integer", "one_line", "param", "positive", "real",
-           "unknown_key_message", "vec2"]
+           "torch_load_problem", "unknown_key_message", "vec2"]
 
 
 class ConfigError(ValueError):
@@ -46,10 +47,34 @@ def unknown_key_message(key: Any, valid: Iterable[str], what: str = "config keyw
     return f"unknown {what} {key!r}{hint} (valid: {', '.join(names)})"
 
 
+_COLOUR_CODE = re.compile(r"\x1b\[[0-9;]*m")
+
+
 def one_line(error: BaseException | str) -> str:
     """The text of ``error`` (an exception from a library, or a string) on one line: runs of
-    whitespace, line breaks included, become one space; for embedding in a one-line message."""
-    return " ".join(str(error).split())
+    whitespace, line breaks included, become one space and terminal colour codes go; an
+    exception without text gives its type's name. For embedding in a one-line message."""
+    text = " ".join(_COLOUR_CODE.sub("", str(error)).split())
+    return text or (type(error).__name__ if isinstance(error, BaseException) else "")
+
+
+def torch_load_problem(error: BaseException) -> str:
+    """Why ``torch.load(..., weights_only=True)`` refused a file, on one line. Of a weights-only
+    refusal (a pickle of Python objects, or no pickle at all) only torch's reason is kept: its
+    text around it advises ``weights_only=False``, which would run code from the file."""
+    lines = [line.strip() for line in _COLOUR_CODE.sub("", str(error)).splitlines()
+             if line.strip()]
+    if not lines or not lines[0].startswith("Weights only load failed"):
+        return one_line(error)
+    marker = "WeightsUnpickler error:"
+    text = "\n".join(lines[1:])
+    if marker in text:        # the reason's line, then how to allowlist it: its first sentence
+        reason = (text.split(marker, 1)[1].strip().splitlines() or [""])[0].split(". ")[0]
+    else:                          # the reason on lines of its own between torch's advice
+        reason = " ".join(line for line in lines[1:] if not line.startswith(
+            ("(1)", "(2)", "Please file an issue", "Check the documentation")))
+    return f"weights-only load refused: {one_line(reason.rstrip('.'))}" if reason \
+        else "weights-only load refused"
 
 
 # --- numbers -----------------------------------------------------------------------------------

@@ -18,7 +18,15 @@ from aoass_env.maps import MapError, ObstacleMap, generate_map
 from aoass_env.planning.baselines.m_anchoro import free_samples
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.orca import orca_lines
-from aoass_env.validators import argparse_number, integer, one_line, positive, real, vec2
+from aoass_env.validators import (
+    argparse_number,
+    integer,
+    one_line,
+    positive,
+    real,
+    torch_load_problem,
+    vec2,
+)
 from aoass_env.world import World
 
 NUMBERS = [np.float32(1.5), np.float64(1.5), np.int64(100), np.int32(7), 2, 2.0]
@@ -189,4 +197,39 @@ def test_one_line_joins_a_library_message_into_one_line() -> None:
     assert one_line(ValueError("Weights only load failed.\n\n  Unsupported operand 103\n")) \
         == "Weights only load failed. Unsupported operand 103"
     assert one_line("already one line") == "already one line"
-    assert one_line(KeyError()) == ""
+    assert one_line(EOFError()) == "EOFError" and one_line("") == ""
+    assert one_line("\x1b[1mbold\x1b[0m\n\ttext") == "bold text"
+
+
+def test_torch_load_problem_keeps_the_reason_and_drops_the_advice(tmp_path) -> None:
+    """torch's weights-only refusals in their three shapes (no pickle, a blocked module, a
+    global not allowlisted), each several lines advising weights_only=False."""
+    import os
+
+    import torch
+
+    class RunsCode:
+        def __reduce__(self):
+            return (os.system, ("true",))
+
+    class Prints:
+        def __reduce__(self):
+            return (print, ("unpickled",))
+
+    (tmp_path / "garbage").write_bytes(b"garbage")
+    torch.save({"x": RunsCode()}, tmp_path / "code")
+    torch.save({"x": Prints()}, tmp_path / "print")
+    (tmp_path / "empty").write_bytes(b"")
+    reasons = {}
+    for name in ("garbage", "code", "print", "empty"):
+        with pytest.raises(Exception) as info:
+            torch.load(tmp_path / name, weights_only=True)
+        reasons[name] = torch_load_problem(info.value)
+    assert reasons["garbage"] == "weights-only load refused: Unsupported operand 103"
+    assert reasons["code"].startswith("weights-only load refused: Trying to load unsupported "
+                                      "GLOBAL ") and reasons["code"].endswith(" is blocked")
+    assert reasons["print"] == ("weights-only load refused: Unsupported global: GLOBAL print "
+                                "was not an allowed global by default")
+    assert reasons["empty"] == "EOFError"
+    assert all("weights_only" not in r and "\n" not in r for r in reasons.values())
+    assert torch_load_problem(ValueError("another\nproblem")) == "another problem"

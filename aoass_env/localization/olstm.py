@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import os
-import pickle
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +27,6 @@ import torch
 from torch import nn
 
 from aoass_env.atomic import atomic_open
-from aoass_env.beacon_log import one_line
 from aoass_env.data import shipped_dir
 from aoass_env.localization.consensus import RELIABLE_SPREAD, Consensus, node_consensus
 from aoass_env.localization.episode import Episode
@@ -40,6 +38,7 @@ from aoass_env.localization.reception import (
     pair_statistics,
     range_band,
 )
+from aoass_env.validators import one_line, torch_load_problem
 
 __all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "DEFAULT_CHECKPOINT", "CheckpointError",
            "OLSTM", "load_checkpoint", "olstm_dvhop", "predict_pattern", "save_checkpoint"]
@@ -110,7 +109,7 @@ def load_checkpoint(path: str | os.PathLike[str] = DEFAULT_CHECKPOINT) -> OLSTM:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for a damaged or foreign file
         raise CheckpointError(f"{path}: not a readable torch checkpoint "
-                              f"({_load_failure(exc)})") from None
+                              f"({torch_load_problem(exc)})") from None
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise CheckpointError(f"{path}: not an {CHECKPOINT_FORMAT} checkpoint")
     if payload.get("version") != CHECKPOINT_VERSION:
@@ -148,18 +147,6 @@ def load_checkpoint(path: str | os.PathLike[str] = DEFAULT_CHECKPOINT) -> OLSTM:
         if not bool(torch.isfinite(tensor).all()):
             raise CheckpointError(f"{path}: state_dict: {name} holds NaN or infinite weights")
     return model.eval()
-
-
-def _load_failure(exc: Exception) -> str:
-    """Why ``torch.load`` refused a file, on one line: for a weights-only refusal (a pickle of
-    Python objects, or no pickle at all) the reason torch gives after its advice text."""
-    marker = "WeightsUnpickler error:"
-    text = str(exc)
-    if isinstance(exc, pickle.UnpicklingError) and marker in text:
-        lines = [ln.strip() for ln in text.split(marker, 1)[1].splitlines() if ln.strip()]
-        if lines:
-            return f"weights-only load refused: {one_line(lines[0].split('. ')[0])}"
-    return one_line(exc)
 
 
 def predict_pattern(model: OLSTM, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -77,11 +77,11 @@ def test_weights_torch_refuses_are_one_line_without_torch_advice(saved: Path,
     code = _write(tmp_path / "code.zip", {**members,
                                           "policy.pth": _torch_bytes({"x": _RunsCode()})})
     message = _refusal(code)
-    assert "policy.pth: not readable weights (torch's weights-only reader refused it: " in message
+    assert "policy.pth: not readable weights (weights-only load refused: " in message
     assert "GLOBAL" in message and "weights_only" not in message
     garbage = _write(tmp_path / "garbage.zip", {**members, "actor.optimizer.pth": b"garbage"})
     assert _refusal(garbage).endswith(
-        "actor.optimizer.pth: not readable weights (torch's weights-only reader refused it: "
+        "actor.optimizer.pth: not readable weights (weights-only load refused: "
         "Unsupported operand 103)")
     empty = _write(tmp_path / "empty.zip", {**members, "policy.pth": b""})
     assert _refusal(empty).endswith("policy.pth: not readable weights (EOFError)")
