@@ -35,7 +35,7 @@ from typing import Any, Protocol, TypeVar
 
 import torch
 
-from aoass_env.validators import integer, positive
+from aoass_env.validators import integer, one_line, positive
 
 __all__ = ["BACKENDS", "Backend", "BackendError", "LocalBackend", "RayBackend",
            "add_backend_arguments", "deliver_interrupts", "init_ray", "make_backend",
@@ -159,9 +159,12 @@ def init_ray(address: str | None = None, num_cpus: int | None = None) -> None:
         else:
             ray.init(address=address)
     except ConnectionError as exc:
-        raise BackendError(f"cannot reach the Ray cluster at --address {address}: {exc}; start "
-                           f"one with `ray start --head`, or leave out --address to start a "
-                           f"local Ray instance") from None
+        raise BackendError(f"cannot reach the Ray cluster at --address {address}: "
+                           f"{one_line(exc)}; start one with `ray start --head`, or leave out "
+                           f"--address to start a local Ray instance") from None
+    except ValueError as exc:   # Ray's own text does not say where the address came from
+        raise BackendError(f"--address {address!r} (or $RAY_ADDRESS) is not a Ray cluster "
+                           f"address ({one_line(exc)}): give 'auto' or HOST:PORT") from None
 
 
 def _ray_task(fn: Callable[[T], R], item: T, threads: int) -> R:

@@ -215,6 +215,18 @@ def test_a_file_that_is_no_beacon_log_is_a_usage_error(capsys, tmp_path):
     assert "broken.npz" in err and "not an .npz archive" in err
 
 
+def test_a_ray_address_that_is_no_address_names_the_flag(capsys, tmp_path, monkeypatch):
+    """Ray's own ValueError ('Invalid address format: foo') ended in a traceback."""
+    ray = pytest.importorskip("ray", reason="the Ray backend needs the extra")
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    err = _usage_error(capsys, ["--preset", "smoke", "--methods", "spiral", "--backend", "ray",
+                                "--address", "foo", "--out", str(tmp_path / "out")])
+    assert err.strip().splitlines()[-1] == (
+        "evaluate.py: error: --address 'foo' (or $RAY_ADDRESS) is not a Ray cluster address "
+        "(Invalid address format: foo): give 'auto' or HOST:PORT")
+    assert not ray.is_initialized() and not (tmp_path / "out").exists()
+
+
 def test_backend_ray_without_ray_says_how_to_install(capsys, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)           # `import ray` fails
     err = _usage_error(capsys, ["--preset", "smoke", "--methods", "spiral", "--backend", "ray",
