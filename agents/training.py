@@ -43,7 +43,7 @@ from agents.callbacks import (
     replay_buffer_path,
     save_atomic,
 )
-from agents.checkpoints import record_path
+from agents.checkpoints import PolicyFileError, record_path
 from agents.envs import TRAINING_SPLITS, make_training_env
 from agents.hyperparams import ALGORITHMS, action_noise, load_hyperparams, read_run_record
 from agents.sections import model_kwargs, override_section, policy_name
@@ -136,6 +136,8 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     """Train (or resume) the agent of ``run``; returns the path of the final model."""
     hp = run_hyperparams(run)
     cls = ALGORITHMS[run.algo]
+    if run.resume is not None:
+        _check_resume(Path(run.resume), hp, cls)
     timesteps = run.timesteps or int(hp.get("n_timesteps", 100_000))
     env_kwargs = dict(hp.get("env", {}))
     evaluation = dict(hp.get("eval", {}))
@@ -187,6 +189,27 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     eval_env.close()
     report(f"trained {model.num_timesteps} steps; models in {out}")
     return final
+
+
+def _check_resume(model: Path, hp: dict[str, Any], cls: type) -> None:
+    """A resume rebuilds ``model`` from the run.yml beside it, so this run's model keywords
+    (``--config``, ``--hyperparams``) would be ignored while its record listed them: those that
+    differ from the record's are a :class:`PolicyFileError` naming the first."""
+    record = record_path(model)
+    if not record.is_file():
+        return
+    recorded = read_run_record(record)["hyperparameters"]
+    mine, theirs = model_kwargs(hp), model_kwargs(recorded)
+    mine["policy"], theirs["policy"] = policy_name(hp, cls), policy_name(recorded, cls)
+    differ = [k for k in sorted({*mine, *theirs}) if mine.get(k, ...) != theirs.get(k, ...)]
+    if differ:
+        def value(kwargs: dict[str, Any], key: str) -> str:
+            return repr(kwargs[key]) if key in kwargs else "unset"
+        more = f" (and {len(differ) - 1} more: {', '.join(differ[1:])})" if differ[1:] else ""
+        raise PolicyFileError(
+            f"{model}: a resume rebuilds the model from {record}, where {differ[0]} is "
+            f"{value(theirs, differ[0])}, not this run's {value(mine, differ[0])}{more}; give "
+            f"the --config it was trained with and no --hyperparams, or start a new run")
 
 
 def _relative(path: Path) -> str:

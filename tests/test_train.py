@@ -43,7 +43,7 @@ def tiny(tmp_path: Path) -> Path:
     return path
 
 
-def test_cli_trains_checkpoints_and_resumes(tiny: Path, tmp_path: Path, train_script):
+def test_cli_trains_checkpoints_and_resumes(tiny: Path, tmp_path: Path, train_script, capsys):
     out = tmp_path / "run"
     train_script.main(["--config", str(tiny), "--timesteps", "120", "--out", str(out),
                        "--log-dir", str(tmp_path / "tb"), "--no-progress"])
@@ -65,6 +65,18 @@ def test_cli_trains_checkpoints_and_resumes(tiny: Path, tmp_path: Path, train_sc
                        "--no-progress"])
     resumed = RecurrentTD3.load(out / "final.zip", device="cpu")
     assert resumed.num_timesteps == at + 60
+    # a model keyword the resume would ignore (it rebuilds the model from run.yml) is refused
+    # before any step; it used to train on with the old value and record the new one
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
+                           "--resume", str(out / "last.zip"), "--no-tensorboard",
+                           "--no-progress", "--hyperparams", "learning_rate:0.5", "tau:0.1"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith(f"train.py: error: --resume: {out / 'last.zip'}: a resume rebuilds "
+                          f"the model from {out / 'run.yml'}, where learning_rate is ")
+    assert ", not this run's 0.5 (and 1 more: tau); give the --config" in err
+    assert RecurrentTD3.load(out / "final.zip", device="cpu").num_timesteps == at + 60
 
 
 def test_feedforward_ablation_trains(tiny: Path, tmp_path: Path, train_script):

@@ -96,8 +96,9 @@ def test_train_resume_runs_no_code_from_a_crafted_zip(tmp_path, capsys, train_sc
     policy = _crafted_policy(tmp_path / "p", marker)
     config = tmp_path / "tiny.yml"
     hp = load_hyperparams(CONFIG, "td3-lstm")
+    # the model's keywords stay the record's (a resume rebuilds the model from its run.yml)
     config.write_text(yaml.safe_dump({"td3-lstm": {
-        **hp, "learning_starts": 0, "buffer_size": 100, "checkpoint_freq": 10_000,
+        **hp, "checkpoint_freq": 10_000,
         "eval": {"freq": 10_000, "episodes": 1},
         "env": {**hp["env"], "n_nodes": 20, "time_limit_factor": 1.0}}}))
     train_script.main(["--resume", str(policy), "--timesteps", "2", "--config", str(config),
