@@ -26,6 +26,7 @@ import torch
 from aoass_env.backends import add_backend_arguments, deliver_interrupts, make_backend
 from aoass_env.localization.training import (
     TRAIN_RANGES,
+    CachedLogError,
     TrainConfig,
     draw_episodes,
     train_localizer,
@@ -102,7 +103,10 @@ def _run_localizer(argv: list[str]) -> None:
         parser.error(f"--{name.replace('_', '-')} {rest}" if eq and name in TRAIN_RANGES
                      else str(exc))
     torch.set_num_threads(args.threads)
-    train_localizer(cfg, report=lambda line: print(line, flush=True))
+    try:
+        train_localizer(cfg, report=lambda line: print(line, flush=True))
+    except CachedLogError as exc:      # a file an earlier run left in --data-dir
+        parser.error(f"--data-dir: {exc}")
 
 
 def _agent_parser() -> argparse.ArgumentParser:

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 from aoass_env.atomic import atomic_open
-from aoass_env.beacon_log import BeaconLog
+from aoass_env.beacon_log import BeaconLog, BeaconLogError
 from aoass_env.config import AOASSConfig
 from aoass_env.localization.consensus import RELIABLE_SPREAD, node_consensus
 from aoass_env.localization.episode import Episode, prepare
@@ -39,11 +39,11 @@ from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, OLSTM, olstm_dvhop,
 from aoass_env.localization.reception import PairRecord, pair_histograms, pair_statistics
 from aoass_env.maps import list_maps, load_map, validation_split
 from aoass_env.simulator import Simulator
-from aoass_env.validators import integer, real
+from aoass_env.validators import integer, one_line, real
 
-__all__ = ["BAND_WIDTHS", "TRAIN_RANGES", "EpisodeSpec", "Example", "TrainConfig", "augment",
-           "draw_episodes", "episode_specs", "example", "gaussian_nll", "generate_logs",
-           "map_density", "train_localizer"]
+__all__ = ["BAND_WIDTHS", "TRAIN_RANGES", "CachedLogError", "EpisodeSpec", "Example",
+           "TrainConfig", "augment", "draw_episodes", "episode_specs", "example", "gaussian_nll",
+           "generate_logs", "map_density", "train_localizer"]
 
 _MAP_NAME = re.compile(r"d(?P<density>[0-9.]+)_f(?P<field>[0-9]+)_s[0-9]+$")
 #: Candidate band widths [standard deviations], chosen on validation.
@@ -212,13 +212,41 @@ def draw_episodes(cfg: TrainConfig) -> tuple[list[str], list[str], list[EpisodeS
     return fit_maps, val_maps, val_specs, train_specs
 
 
+class CachedLogError(ValueError):
+    """A log or anchor pattern in the data folder (simulated by an earlier run and reused) cannot
+    be read; the message names the file."""
+
+
+def _load_cached(path: Path) -> tuple[Episode, np.ndarray | None]:
+    """The prepared episode of the log at ``path`` and, with DOI > 0, its anchor pattern (360,);
+    :class:`CachedLogError` naming the file otherwise."""
+    hint = "delete it and its pair to simulate them again"
+    try:
+        episode = prepare(BeaconLog.load(path))
+    except BeaconLogError as exc:
+        raise CachedLogError(f"{one_line(exc)}; {hint}") from None
+    if episode.config.doi <= 0:
+        return episode, None
+    file = pattern_path(path)
+    try:
+        pattern = np.load(file, allow_pickle=False)
+    except (OSError, ValueError, EOFError) as exc:
+        raise CachedLogError(f"{file}: not a readable anchor pattern ({one_line(exc)}); "
+                             f"{hint}") from None
+    if pattern.shape != (360,) or not np.issubdtype(pattern.dtype, np.floating) \
+            or not np.isfinite(pattern).all():
+        raise CachedLogError(f"{file}: an anchor pattern is 360 finite floats, got "
+                             f"{pattern.dtype} of shape {pattern.shape}; {hint}")
+    return episode, pattern
+
+
 def _examples(paths: Sequence[Path]) -> tuple[list[Example], list[Episode]]:
     """Examples of the logs with DOI > 0 among ``paths`` (sorted by name), and those episodes."""
     examples, episodes = [], []
     for path in sorted(paths, key=lambda p: p.name):
-        episode = prepare(BeaconLog.load(path))
-        if episode.config.doi > 0:
-            examples.append(example(episode, np.load(pattern_path(path), allow_pickle=False)))
+        episode, pattern = _load_cached(path)
+        if pattern is not None:
+            examples.append(example(episode, pattern))
             episodes.append(episode)
     return examples, episodes
 

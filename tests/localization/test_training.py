@@ -9,13 +9,16 @@ import torch
 from aoass_env.localization.episode import prepare
 from aoass_env.localization.olstm import OLSTM
 from aoass_env.localization.training import (
+    CachedLogError,
     TrainConfig,
+    _examples,
     augment,
     draw_episodes,
     episode_specs,
     example,
     gaussian_nll,
     map_density,
+    pattern_path,
 )
 from aoass_env.maps import list_maps, validation_split
 
@@ -119,3 +122,39 @@ def test_localizer_subcommand_refuses_bad_input_before_any_work(tmp_path, train_
         assert capsys.readouterr().err.strip().splitlines()[-1] == \
             f"train.py localizer: error: {message}"
     assert not (tmp_path / "logs").exists()
+
+
+def test_a_damaged_cached_log_or_pattern_is_named(doi_sim, tmp_path, train_script, monkeypatch,
+                                                  capsys) -> None:
+    """The data folder's logs and patterns are reused across runs; a damaged one ended in a
+    traceback from np.load, or (a pattern of another shape) in a wrong target."""
+    log = tmp_path / "a.npz"
+    doi_sim.finish().save(log)
+    np.save(pattern_path(log), doi_sim.radio.anchor_pattern)
+    (first,), _ = _examples([log])
+    assert first.target.shape == (360,)
+    for content, message in (
+            (b"garbage", "not a readable anchor pattern"),
+            (np.zeros(90), "an anchor pattern is 360 finite floats, got float64 of shape (90,)"),
+            (np.full(360, np.nan), "an anchor pattern is 360 finite floats")):
+        if isinstance(content, bytes):
+            pattern_path(log).write_bytes(content)
+        else:
+            np.save(pattern_path(log), content)
+        with pytest.raises(CachedLogError) as info:
+            _examples([log])
+        assert str(info.value).startswith(f"{pattern_path(log)}: {message}")
+        assert str(info.value).endswith("; delete it and its pair to simulate them again")
+    log.write_bytes(b"garbage")
+    with pytest.raises(CachedLogError, match=rf"^{log}: not an .npz archive"):
+        _examples([log])
+
+    def damaged(*args, **kwargs):
+        raise CachedLogError("x.npz: damaged")
+    monkeypatch.setattr(train_script, "train_localizer", damaged)
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["localizer", "--data-dir", str(tmp_path / "logs"),
+                           "--checkpoint", str(tmp_path / "m.pt")])
+    assert exit_.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == \
+        "train.py localizer: error: --data-dir: x.npz: damaged"
