@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aoass_env.validators import integer, real
+from aoass_env.validators import float_array, integer, real
 
 
 def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, float]:
@@ -13,8 +13,7 @@ def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, f
     Nodes whose estimate is NaN are left out of the RMSE; the fraction of nodes that were
     localized is returned beside it so that the two are always reported together.
     """
-    t = np.asarray(true_xy, dtype=np.float64)
-    e = np.asarray(est_xy, dtype=np.float64)
+    t, e = float_array("true_xy", true_xy), float_array("est_xy", est_xy)
     if t.shape != e.shape or t.ndim != 2 or t.shape[1] != 2:
         raise ValueError(f"true_xy {t.shape} and est_xy {e.shape} must have the same shape (N, 2)")
     if not np.isfinite(t).all():

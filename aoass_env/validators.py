@@ -31,8 +31,8 @@ from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
-__all__ = ["ConfigError", "ValidatedConfig", "integer", "one_line", "param", "positive", "real",
-           "torch_load_problem", "unknown_key_message", "vec2"]
+__all__ = ["ConfigError", "ValidatedConfig", "float_array", "integer", "one_line", "param",
+           "positive", "real", "torch_load_problem", "unknown_key_message", "vec2"]
 
 
 class ConfigError(ValueError):
@@ -138,6 +138,15 @@ def positive(name: str, value: Any, unit: str = "", *, high: float | None = None
              error: type[Exception] = ValueError) -> float:
     """``value`` as a float when it is a finite real number > 0 (and <= ``high``)."""
     return real(name, value, unit, low=0.0, low_open=True, high=high, error=error)
+
+
+def float_array(name: str, value: Any, error: type[Exception] = ValueError) -> np.ndarray:
+    """``value`` as a float64 array (``np.asarray``); ``error`` naming ``name`` when its
+    entries are not numbers (strings, objects, ragged lists)."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise error(f"{name} must be an array of numbers ({one_line(exc)})") from None
 
 
 def vec2(name: str, value: Any, unit: str = "", *,

@@ -27,6 +27,8 @@ def test_rmse_eq15_and_localized_fraction():
         localization_rmse(true.reshape(2, 4), est.reshape(2, 4))
     with pytest.raises(ValueError, match="true_xy must be finite"):
         localization_rmse(est, true)
+    with pytest.raises(ValueError, match=r"est_xy must be an array of numbers \(could not "):
+        localization_rmse(true, [["a", 1]] * 4)
 
 
 def test_energy_metrics_eq16_eq17():

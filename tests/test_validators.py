@@ -20,6 +20,7 @@ from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.orca import orca_lines
 from aoass_env.validators import (
     argparse_number,
+    float_array,
     integer,
     one_line,
     positive,
@@ -191,6 +192,17 @@ def test_argparse_number_takes_finite_values_in_range_and_names_the_flag_otherwi
     what = "an integer" if kind is int else "a finite number"
     assert error == (f"tool: error: argument --count: must be {what} "
                      f"{'>' if low_open else '>='} {low:g}, got {text!r}")
+
+
+def test_float_array_names_entries_that_are_not_numbers() -> None:
+    assert float_array("xy", [[1, 2], [3.5, np.float32(4)]]).dtype == np.float64
+    for value, why in (([["a", 1]], "could not convert string to float: 'a'"),
+                       ([[1, 2], [3]], "setting an array element with a sequence"),
+                       ([{"x": 1}], "float() argument must be")):
+        with pytest.raises(ValueError) as info:
+            float_array("xy", value)
+        assert str(info.value).startswith(f"xy must be an array of numbers ({why}")
+        assert "\n" not in str(info.value)
 
 
 def test_one_line_joins_a_library_message_into_one_line() -> None:

@@ -21,6 +21,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from aoass_env.beacon_log import BeaconLog, BeaconLogError
+from aoass_env.validators import float_array
 
 __all__ = ["DEFAULT_FLOOD_LIMIT", "HopCounts", "hop_counts", "hop_size", "radio_graph",
            "require_beacons"]
@@ -104,8 +105,7 @@ def hop_size(beacon_xy: np.ndarray, beacon_hops: np.ndarray) -> np.ndarray:
         (B,) HopSize [m/hop]. A beacon that reaches no other beacon gets the network-wide
         ratio (all reachable pairs pooled); NaN if no pair is reachable at all.
     """
-    xy = np.asarray(beacon_xy, dtype=np.float64)
-    h = np.asarray(beacon_hops, dtype=np.float64)
+    xy, h = float_array("beacon_xy", beacon_xy), float_array("beacon_hops", beacon_hops)
     if xy.ndim != 2 or xy.shape[1] != 2 or h.shape != (len(xy), len(xy)):
         raise ValueError(f"beacon_xy must be (B, 2) and beacon_hops (B, B); got {xy.shape}, "
                          f"{h.shape}")

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aoass_env.validators import integer, positive, real, vec2
+from aoass_env.validators import float_array, integer, positive, real, vec2
 
 __all__ = ["multilaterate"]
 
@@ -54,10 +54,8 @@ def multilaterate(anchors: np.ndarray, distances: np.ndarray, weights: np.ndarra
                                                                                    "m")))
     max_iter = integer("max_iter", max_iter, low=1)
     tol = real("tol", tol, "m", low=0)
-    a = np.asarray(anchors, dtype=np.float64)
-    d = np.asarray(distances, dtype=np.float64)
-    w = np.asarray(weights, dtype=np.float64)
-    p = np.asarray(init, dtype=np.float64)
+    a, d, w, p = (float_array(name, value) for name, value in (
+        ("anchors", anchors), ("distances", distances), ("weights", weights), ("init", init)))
     if a.ndim != 3 or a.shape[2] != 2 or d.shape != a.shape[:2] or w.shape != d.shape \
             or p.shape != (a.shape[0], 2):
         raise ValueError(f"shapes must be anchors (S, M, 2), distances and weights (S, M), init "

@@ -66,6 +66,8 @@ def test_bad_input(change: dict, match: str) -> None:
     ({"tol": float("nan")}, "tol=nan must be a number in [0, inf) m"),
     ({"tol": -1.0}, "tol=-1.0 must be a number in [0, inf) m"),
     ({"distances": np.array([[1.0, -1.0, 1.0]])}, "distances must be non-negative"),
+    ({"weights": [["1", "x", "1"]]},   # numpy's own text named no parameter
+     "weights must be an array of numbers (could not convert string to float: 'x')"),
 ])
 def test_bad_field_limits_and_distances_are_named(change: dict, message: str) -> None:
     args = {"anchors": np.array([[[1, 1], [8, 1], [1, 8]]], dtype=float),
