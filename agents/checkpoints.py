@@ -35,7 +35,7 @@ from aoass_env.atomic import atomic_open
 from aoass_env.validators import integer, one_line, torch_load_problem
 
 __all__ = ["RECORD_NAME", "STATE_FIELDS", "PolicyFileError", "SafeLoading", "TD3",
-           "load_model", "record_path", "validate_record"]
+           "load_model", "read_record", "record_path", "validate_record"]
 
 #: The run record that ``train.py`` writes beside its models.
 RECORD_NAME = "run.yml"
@@ -78,6 +78,15 @@ def validate_record(record: Any, cls: type, path: str | os.PathLike[str]) -> dic
     if not isinstance(record.get("resumes", []), list):
         raise PolicyFileError(f"{path}: resumes: must be a list of run records")
     return {**record, "hyperparameters": hp}
+
+
+def read_record(path: str | os.PathLike[str], cls: type) -> dict[str, Any]:
+    """The run record at ``path`` of a model of class ``cls``, read safely and validated
+    (:func:`validate_record`); :class:`PolicyFileError` naming the file otherwise."""
+    try:
+        return validate_record(read_yaml(path, "run record"), cls, path)
+    except HyperparameterError as exc:
+        raise PolicyFileError(str(exc)) from None
 
 
 def _read_weights(path: Path, archive: zipfile.ZipFile, name: str, device: str) -> Any:
@@ -207,10 +216,7 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
                                   f"from the run record that train.py writes next to it; give "
                                   f"one explicitly")
     if not isinstance(record, Mapping):
-        try:
-            record = validate_record(read_yaml(record, "run record"), cls, record)
-        except HyperparameterError as exc:
-            raise PolicyFileError(str(exc)) from None
+        record = read_record(record, cls)
     if record.get("algo") != cls.algo_name:
         raise PolicyFileError(f"{path}: its run record says algo {record.get('algo')!r}, not "
                               f"{cls.algo_name!r}")

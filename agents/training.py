@@ -43,7 +43,7 @@ from agents.callbacks import (
     replay_buffer_path,
     save_atomic,
 )
-from agents.checkpoints import PolicyFileError, record_path
+from agents.checkpoints import PolicyFileError, read_record, record_path
 from agents.envs import TRAINING_SPLITS, make_training_env
 from agents.hyperparams import ALGORITHMS, action_noise, load_hyperparams, read_run_record
 from agents.sections import model_kwargs, override_section, policy_name
@@ -136,8 +136,8 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     """Train (or resume) the agent of ``run``; returns the path of the final model."""
     hp = run_hyperparams(run)
     cls = ALGORITHMS[run.algo]
-    if run.resume is not None:
-        _check_resume(Path(run.resume), hp, cls)
+    if run.resume is not None:      # the record the model is rebuilt from, read once
+        record = _resume_record(Path(run.resume), hp, cls)
     timesteps = run.timesteps or int(hp.get("n_timesteps", 100_000))
     env_kwargs = dict(hp.get("env", {}))
     evaluation = dict(hp.get("eval", {}))
@@ -153,10 +153,7 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
 
     if run.resume is not None:
         # rebuilt from its run.yml (else this run's hyperparameters), nothing unpickled
-        record = record_path(run.resume)
-        model = cls.load(run.resume, env=env, tensorboard_log=tb, device="cpu",
-                         record=record if record.is_file() else
-                         {"algo": run.algo, "hyperparameters": hp})
+        model = cls.load(run.resume, env=env, tensorboard_log=tb, device="cpu", record=record)
         model.action_noise = noise
         buffer = replay_buffer_path(run.resume)
         if buffer.is_file():
@@ -191,14 +188,16 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     return final
 
 
-def _check_resume(model: Path, hp: dict[str, Any], cls: type) -> None:
-    """A resume rebuilds ``model`` from the run.yml beside it, so this run's model keywords
+def _resume_record(model: Path, hp: dict[str, Any], cls: type) -> dict[str, Any]:
+    """The validated run record ``model`` is rebuilt from: the run.yml beside it, else this
+    run's hyperparameters ``hp``. The model's keywords come from that record, so this run's
     (``--config``, ``--hyperparams``) would be ignored while its record listed them: those that
     differ from the record's are a :class:`PolicyFileError` naming the first."""
     record = record_path(model)
     if not record.is_file():
-        return
-    recorded = read_run_record(record)["hyperparameters"]
+        return {"algo": cls.algo_name, "hyperparameters": hp}
+    found = read_record(record, cls)
+    recorded = found["hyperparameters"]
     mine, theirs = model_kwargs(hp), model_kwargs(recorded)
     mine["policy"], theirs["policy"] = policy_name(hp, cls), policy_name(recorded, cls)
     differ = [k for k in sorted({*mine, *theirs}) if mine.get(k, ...) != theirs.get(k, ...)]
@@ -210,6 +209,7 @@ def _check_resume(model: Path, hp: dict[str, Any], cls: type) -> None:
             f"{model}: a resume rebuilds the model from {record}, where {differ[0]} is "
             f"{value(theirs, differ[0])}, not this run's {value(mine, differ[0])}{more}; give "
             f"the --config it was trained with and no --hyperparams, or start a new run")
+    return found
 
 
 def _relative(path: Path) -> str:

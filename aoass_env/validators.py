@@ -13,6 +13,11 @@ message naming the parameter, its valid range and its unit.
 each field is declared with :func:`param` (default, one-line meaning, unit, valid range) and is
 checked from that metadata, so the documentation and the checks cannot drift apart; unknown
 keywords get a did-you-mean error; :meth:`ValidatedConfig.markdown` is the docs table.
+
+**One-line messages.** :func:`one_line` embeds a library's error text in a one-line message,
+:func:`torch_load_problem` keeps only the reason of torch's weights-only refusal (never its
+advice to load with ``weights_only=False``), and :func:`float_array` names an array argument
+whose entries are not numbers.
 """
 
 from __future__ import annotations

@@ -687,8 +687,6 @@ def make_training_env(*, split: str = "train", field_size: float = 100.0,
     if split not in TRAINING_SPLITS:
         raise ValueError(f"split={split!r} must be one of {TRAINING_SPLITS} (maps/test is for "
                          f"reported results only)")
-    if not isinstance(cycle, bool):
-        raise ValueError(f"cycle must be a bool, got {cycle!r}")
     fit, held_out = validation_split(list_maps("train", field_size=field_size,
                                                densities=densities))
     maps = fit if split == "train" else held_out
