@@ -153,7 +153,10 @@ def _agent_parser() -> argparse.ArgumentParser:
                    help="continue training a saved model (.zip; its replay buffer is loaded "
                         "when saved beside it, as last.zip's is)")
     p.add_argument("--out", type=_path, default=None,
-                   help="folder of the run's models (default: checkpoints/aoass_<algo>)")
+                   help="folder of the run's models, one run per folder (default: "
+                        "out/train/aoass_<algo>; the shipped policies are in checkpoints/)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the files another run left in --out (else refused)")
     p.add_argument("--log-dir", type=_path, default=Path("out/tensorboard"),
                    help="TensorBoard folder (default: out/tensorboard)")
     p.add_argument("--no-tensorboard", action="store_true", help="do not write TensorBoard logs")
@@ -167,11 +170,17 @@ def _run_agent(argv: list[str]) -> None:
     from agents.checkpoints import PolicyFileError
     from agents.hyperparams import HyperparameterError
     from agents.seeds import parse_seeds, report_line, seed_runs, train_seeds
-    from agents.training import TrainRun, run_hyperparams, train_agent
+    from agents.training import (
+        TrainRun,
+        occupied_message,
+        other_run_files,
+        run_hyperparams,
+        train_agent,
+    )
     parser = _agent_parser()
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
-    out = args.out or Path(f"checkpoints/aoass_{args.algo.replace('-', '_')}")
+    out = args.out or Path(f"out/train/aoass_{args.algo.replace('-', '_')}")
     try:
         if args.config.is_dir():
             raise ValueError(f"--config {args.config}: is a folder, not a hyperparameter file")
@@ -188,11 +197,16 @@ def _run_agent(argv: list[str]) -> None:
                        command="python train.py " + " ".join(shlex.quote(a) for a in argv),
                        hyperparams=dict(args.hyperparams), env_kwargs=dict(args.env_kwargs),
                        eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
-                       checkpoint_freq=args.checkpoint_freq, log_interval=args.log_interval)
+                       checkpoint_freq=args.checkpoint_freq, log_interval=args.log_interval,
+                       overwrite=args.overwrite)
         run_hyperparams(run)      # bad files and overrides fail here, before any work
         if args.seeds is not None and args.resume is not None:
             raise ValueError("--resume continues one run; it does not combine with --seeds")
         runs = [run] if args.seeds is None else seed_runs(run, parse_seeds(args.seeds))
+        for r in runs:            # a folder holding another run, refused before any run starts
+            others = other_run_files(r)
+            if others and not args.overwrite:
+                raise ValueError(f"--out {occupied_message(r, others)}")
         # local: the runs one after another in this process; ray: a task per run, no retry
         # (a retry would start training again from step 0)
         backend = make_backend(args.backend, workers=1 if args.backend == "local" else None,

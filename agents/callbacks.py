@@ -7,22 +7,27 @@
   and its replay buffer, an ``.npz``, as a pair) to temporary files that are renamed over the
   targets: a crash mid-training leaves the previous checkpoint intact and loadable.
 * :class:`SaveBestAtomically` is the ``callback_on_new_best`` of an ``EvalCallback``.
+* :class:`RunEvalCallback` is SB3's ``EvalCallback`` writing ``evaluations.npz`` atomically and
+  continuing the :class:`Evaluations` a run made before a resume (:func:`read_evaluations`).
 """
 
 from __future__ import annotations
 
 import contextlib
+import io
+import zipfile
 from pathlib import Path
+from typing import Any, NamedTuple
 
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 
 from aoass_env.atomic import atomic_open
-from aoass_env.validators import integer
+from aoass_env.validators import integer, one_line
 
-__all__ = ["AOASSMetricsCallback", "AtomicCheckpointCallback", "SaveBestAtomically",
-           "save_atomic"]
+__all__ = ["AOASSMetricsCallback", "AtomicCheckpointCallback", "Evaluations", "RunEvalCallback",
+           "SaveBestAtomically", "read_evaluations", "save_atomic"]
 
 
 def save_atomic(model: BaseAlgorithm, path: str | Path, *, replay_buffer: bool = False) -> None:
@@ -108,3 +113,74 @@ class SaveBestAtomically(BaseCallback):
         if self.verbose:
             print(f"new best model: {self.path} at {self.num_timesteps} steps")
         return True
+
+
+class Evaluations(NamedTuple):
+    """A run's evaluation record (``evaluations.npz``): one row per evaluation."""
+
+    timesteps: np.ndarray   # (k,) env steps of the model evaluated
+    results: np.ndarray     # (k, episodes) returns
+    ep_lengths: np.ndarray  # (k, episodes) episode lengths (steps)
+
+
+def read_evaluations(path: str | Path) -> Evaluations:
+    """The evaluation record at ``path``, read without unpickling; ValueError naming the file
+    when it is not one (unreadable, a key missing, arrays of other shapes or non-finite
+    returns)."""
+    try:
+        data = np.load(path, allow_pickle=False)
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise ValueError("an array, not an .npz archive")
+        with data:
+            arrays = {key: data[key] for key in Evaluations._fields if key in data.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: not a readable evaluation record ({one_line(exc)})") from None
+    missing = [key for key in Evaluations._fields if key not in arrays]
+    if missing:
+        raise ValueError(f"{path}: not an evaluation record (no {missing[0]!r})")
+    found = Evaluations(**arrays)
+    k = len(found.timesteps) if found.timesteps.ndim == 1 else -1
+    if (k < 0 or found.results.ndim != 2 or found.results.shape[0] != k
+            or found.ep_lengths.shape != found.results.shape
+            or not np.issubdtype(found.timesteps.dtype, np.integer)
+            or not np.issubdtype(found.results.dtype, np.floating)
+            or not np.isfinite(found.results).all() or (found.timesteps < 0).any()):
+        raise ValueError(f"{path}: not an evaluation record (timesteps {found.timesteps.dtype}"
+                         f"{list(found.timesteps.shape)}, results {found.results.dtype}"
+                         f"{list(found.results.shape)}, ep_lengths "
+                         f"{list(found.ep_lengths.shape)}; want k steps and k rows of finite "
+                         f"returns)")
+    return found
+
+
+class RunEvalCallback(EvalCallback):
+    """SB3's ``EvalCallback`` with the run's record at ``path`` (``evaluations.npz``), written
+    atomically after each evaluation, that may continue the record ``previous`` of the same
+    run (a resume): its rows stay first, and a new best is an evaluation better than every one
+    of them (the best model saved then stays the best of the whole run). Other arguments as
+    ``EvalCallback``'s (``log_path`` and ``best_model_save_path`` are not taken: use
+    ``path`` and ``callback_on_new_best``)."""
+
+    def __init__(self, eval_env: Any, path: str | Path, previous: Evaluations | None = None,
+                 **kwargs: Any) -> None:
+        super().__init__(eval_env, log_path=None, best_model_save_path=None, **kwargs)
+        self.path = Path(path)
+        if previous is not None and len(previous.timesteps):
+            self.evaluations_timesteps = previous.timesteps.tolist()
+            self.evaluations_results = previous.results.tolist()
+            self.evaluations_length = previous.ep_lengths.tolist()
+            self.best_mean_reward = float(previous.results.mean(axis=1).max())
+
+    def _on_step(self) -> bool:
+        # SB3 keeps its record only with a log path, and writes it there with np.savez: the
+        # path is a buffer for the length of the step, whose bytes then replace the file whole
+        self.log_path = io.BytesIO()  # type: ignore[assignment]
+        try:
+            go_on = super()._on_step()
+            record = self.log_path.getvalue()
+        finally:
+            self.log_path = None
+        if record:
+            with atomic_open(self.path, "wb") as f:
+                f.write(record)
+        return go_on

@@ -17,6 +17,12 @@ shipped test maps are never used in training or selection. A run writes into its
 and TensorBoard logs (SB3's metrics plus ``aoass/``) under the log folder. Every file is
 written atomically (temporary files an interrupted run left behind are removed at the start);
 models are read back without unpickling anything (:mod:`agents.checkpoints`).
+
+A folder holds one run: a new run refuses a folder holding another run's files
+(:func:`other_run_files`) unless told to overwrite them, which removes them first, so the
+folder never pairs one run's models with another's record. A resume from a model of the
+folder continues its run there: the record gains the resume, ``evaluations.npz`` keeps the
+evaluations made before it, and ``best.zip`` is replaced only by a better evaluation than all.
 """
 
 from __future__ import annotations
@@ -32,14 +38,17 @@ import gymnasium as gym
 import stable_baselines3
 import torch
 import yaml
-from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from agents.callbacks import (
     AOASSMetricsCallback,
     AtomicCheckpointCallback,
+    Evaluations,
+    RunEvalCallback,
     SaveBestAtomically,
+    read_evaluations,
     replay_buffer_path,
     save_atomic,
 )
@@ -51,9 +60,13 @@ from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
 from aoass_env.data import shipped_dir
 from aoass_env.validators import integer
 
-__all__ = ["TRAINING_SPLITS", "TrainRun", "make_training_env", "run_hyperparams", "train_agent"]
+__all__ = ["RUN_FILES", "TRAINING_SPLITS", "TrainRun", "make_training_env", "occupied_message",
+           "other_run_files", "run_hyperparams", "train_agent"]
 
 DEFAULT_CONFIG = shipped_dir("configs") / "aoass.yml"
+#: The files a run writes into its folder (the table above).
+RUN_FILES = ("best.zip", "last.zip", replay_buffer_path("last.zip").name, "final.zip",
+             "evaluations.npz", "run.yml")
 
 
 @dataclasses.dataclass
@@ -67,7 +80,7 @@ class TrainRun:
         n_envs: parallel training environments (subprocesses when > 1).
         config: hyperparameter YAML file.
         resume: a saved model (.zip) to continue from (its replay buffer too, if saved beside).
-        out: folder of the run's models and records.
+        out: folder of the run's models and records (one run per folder: see ``overwrite``).
         log_dir: TensorBoard folder (None: no TensorBoard).
         progress_bar: show SB3's progress bar.
         command: the command line, recorded in run.yml.
@@ -76,6 +89,8 @@ class TrainRun:
         eval_freq, eval_episodes, checkpoint_freq: env steps between evaluations, episodes
             per evaluation, env steps between checkpoints (None: the file's).
         log_interval: episodes between SB3's log rows (a last row is written at the end).
+        overwrite: remove another run's files from ``out`` (:func:`other_run_files`) before
+            starting; without it such a folder is refused (ValueError).
     """
 
     algo: str = "td3-lstm"
@@ -84,7 +99,7 @@ class TrainRun:
     n_envs: int = 1
     config: Path = DEFAULT_CONFIG
     resume: Path | None = None
-    out: Path = Path("checkpoints/aoass_td3_lstm")
+    out: Path = Path("out/train/aoass_td3_lstm")
     log_dir: Path | None = Path("out/tensorboard")
     progress_bar: bool = True
     command: str = ""
@@ -94,10 +109,13 @@ class TrainRun:
     eval_episodes: int | None = None
     checkpoint_freq: int | None = None
     log_interval: int = 4
+    overwrite: bool = False
 
     def __post_init__(self) -> None:
         if self.algo not in ALGORITHMS:
             raise ValueError(f"algo={self.algo!r} must be one of {sorted(ALGORITHMS)}")
+        if not isinstance(self.overwrite, bool):
+            raise TypeError(f"overwrite must be a bool, got {self.overwrite!r}")
         self.log_interval = integer("log_interval", self.log_interval, "episodes", low=1)
         for name in ("timesteps", "n_envs", "eval_freq", "eval_episodes", "checkpoint_freq"):
             value = getattr(self, name)
@@ -110,6 +128,49 @@ class TrainRun:
 def _vec_env(n_envs: int, seed: int, env_kwargs: dict[str, Any]) -> Any:
     return make_vec_env(make_training_env, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs,
                         vec_env_cls=DummyVecEnv if n_envs == 1 else SubprocVecEnv)
+
+
+def _continues(run: TrainRun) -> bool:
+    """Does ``run`` resume a model of its own folder (continuing that folder's run)?"""
+    return run.resume is not None and Path(run.resume).resolve().parent == Path(run.out).resolve()
+
+
+def other_run_files(run: TrainRun) -> list[str]:
+    """The files of :data:`RUN_FILES` that another run left in ``run.out`` (none when ``run``
+    resumes a model of that folder: its files are the run's own)."""
+    out = Path(run.out)
+    if _continues(run) or not out.is_dir():
+        return []
+    return [name for name in RUN_FILES if (out / name).exists()]
+
+
+def occupied_message(run: TrainRun, files: list[str]) -> str:
+    """Why ``run`` may not write into its folder, which holds ``files`` of another run."""
+    resume = (f", --resume {Path(run.out) / 'last.zip'} to continue it"
+              if "last.zip" in files and run.resume is None else "")
+    return (f"{run.out}: holds another run's files ({', '.join(files)}); give another --out"
+            f"{resume}, or --overwrite to replace them")
+
+
+def _previous_evaluations(run: TrainRun, episodes: int) -> Evaluations | None:
+    """The evaluations ``run`` continues (its folder's, when it resumes a model of the
+    folder); PolicyFileError when they cannot be read or hold another number of episodes
+    per evaluation than ``episodes``."""
+    path = Path(run.out) / "evaluations.npz"
+    if not (_continues(run) and path.is_file()):
+        return None
+    try:
+        found = read_evaluations(path)
+    except ValueError as exc:
+        raise PolicyFileError(f"{exc}; the resume continues it: move it aside, or resume into "
+                              f"another --out") from None
+    held = found.results.shape[1]
+    if len(found.timesteps) and held != episodes:
+        raise PolicyFileError(
+            f"{path}: the run's evaluations are of {held} episode{'s' * (held != 1)} each, "
+            f"this resume's of {episodes}; continue them with --eval-episodes {held}, or "
+            f"resume into another --out")
+    return found
 
 
 def run_hyperparams(run: TrainRun) -> dict[str, Any]:
@@ -136,11 +197,16 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     """Train (or resume) the agent of ``run``; returns the path of the final model."""
     hp = run_hyperparams(run)
     cls = ALGORITHMS[run.algo]
+    others = other_run_files(run)
+    if others and not run.overwrite:
+        raise ValueError(occupied_message(run, others))
     if run.resume is not None:      # the record the model is rebuilt from, read once
         record = _resume_record(Path(run.resume), hp, cls)
     timesteps = run.timesteps or int(hp.get("n_timesteps", 100_000))
     env_kwargs = dict(hp.get("env", {}))
     evaluation = dict(hp.get("eval", {}))
+    eval_episodes = int(evaluation.get("episodes", 4))
+    previous = _previous_evaluations(run, eval_episodes)
     env = _vec_env(run.n_envs, run.seed, env_kwargs)
     eval_env = _vec_env(1, run.seed + 1_000_000,
                         {**env_kwargs, "split": "validation", "cycle": True})
@@ -150,6 +216,10 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     for stale in remove_stale_temporaries(out):
         report(f"removed {stale}, left by an interrupted write")
+    if others:                          # run.overwrite: another run's files, removed first
+        for name in others:
+            (out / name).unlink()
+        report(f"removed another run's files from {out} (overwrite): {', '.join(others)}")
 
     if run.resume is not None:
         # rebuilt from its run.yml (else this run's hyperparameters), nothing unpickled
@@ -158,8 +228,10 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
         buffer = replay_buffer_path(run.resume)
         if buffer.is_file():
             model.load_replay_buffer(buffer)
+        kept = 0 if previous is None else len(previous.timesteps)
+        continued = f", continuing the run's evaluations ({kept} so far)" if kept else ""
         report(f"resumed {run.resume} at {model.num_timesteps} steps"
-               f"{' with its replay buffer' if buffer.is_file() else ''}")
+               f"{' with its replay buffer' if buffer.is_file() else ''}{continued}")
     else:
         model = cls(policy_name(hp, cls), env, action_noise=noise, tensorboard_log=tb,
                     seed=run.seed, device="cpu", verbose=0, **model_kwargs(hp))
@@ -168,11 +240,11 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     checkpoint_every = max(int(hp.get("checkpoint_freq", 10_000)) // n, 1)
     callbacks = [AOASSMetricsCallback(),
                  AtomicCheckpointCallback(checkpoint_every, out / "last.zip"),
-                 EvalCallback(eval_env, n_eval_episodes=int(evaluation.get("episodes", 4)),
-                              eval_freq=max(int(evaluation.get("freq", 10_000)) // n, 1),
-                              log_path=str(out), best_model_save_path=None,
-                              deterministic=True, verbose=0,
-                              callback_on_new_best=SaveBestAtomically(out / "best.zip"))]
+                 RunEvalCallback(eval_env, out / "evaluations.npz", previous,
+                                 n_eval_episodes=eval_episodes,
+                                 eval_freq=max(int(evaluation.get("freq", 10_000)) // n, 1),
+                                 deterministic=True, verbose=0,
+                                 callback_on_new_best=SaveBestAtomically(out / "best.zip"))]
     _write_record(out / "run.yml", run, hp, timesteps)
     model.learn(timesteps, callback=CallbackList(callbacks), progress_bar=run.progress_bar,
                 tb_log_name=f"{run.algo}_seed{run.seed}", log_interval=run.log_interval,

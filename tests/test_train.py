@@ -302,3 +302,113 @@ def test_bad_overrides_are_one_line_errors_naming_the_flag(tiny: Path, tmp_path:
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert message in err
     assert not (tmp_path / "run" / "run.yml").exists()
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in folder.iterdir()}
+
+
+def test_a_folder_holds_one_run(tiny: Path, tmp_path: Path, capsys: pytest.CaptureFixture,
+                                train_script):
+    """A new run into a folder holding another run's files is refused before any work (it
+    used to write its run.yml beside the other run's models, which a resume or an evaluation
+    then paired); --overwrite removes them first."""
+    import agents.training as training
+    out = tmp_path / "run"
+    train_script.main(["--config", str(tiny), "--timesteps", "120", "--out", str(out),
+                       "--no-tensorboard", "--no-progress"])
+    before = _files(out)
+    assert {"best.zip", "evaluations.npz", "last.zip", "run.yml"} <= set(before)
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
+                           "--no-tensorboard", "--no-progress"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"train.py: error: --out {out}: holds another run's files (best.zip, "
+                   f"last.zip, last_replay_buffer.npz, final.zip, evaluations.npz, run.yml); "
+                   f"give another --out, --resume {out / 'last.zip'} to continue it, or "
+                   f"--overwrite to replace them"]
+    assert _files(out) == before
+    with pytest.raises(ValueError, match="holds another run's files"):     # the API too
+        training.train_agent(training.TrainRun(config=tiny, out=out, log_dir=None,
+                                               progress_bar=False))
+    assert _files(out) == before
+    # a model of another folder resumed into it is another run as well
+    (tmp_path / "elsewhere").mkdir()
+    moved = tmp_path / "elsewhere" / "model.zip"
+    moved.write_bytes(before["last.zip"])
+    with pytest.raises(SystemExit):
+        train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
+                           "--resume", str(moved), "--no-tensorboard", "--no-progress"])
+    assert _files(out) == before
+
+    train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
+                       "--overwrite", "--eval-freq", "1000", "--no-tensorboard",
+                       "--no-progress"])
+    assert sorted(p.name for p in out.iterdir()) == [
+        "final.zip", "last.zip", "last_replay_buffer.npz", "run.yml"]   # nothing of the first
+    assert yaml.safe_load((out / "run.yml").read_text())["timesteps"] == 60
+    assert "removed another run's files from" in capsys.readouterr().out
+
+
+def test_seeds_check_every_folder_before_the_first_run(tiny: Path, tmp_path: Path,
+                                                       train_script):
+    out = tmp_path / "runs"
+    (out / "seed1").mkdir(parents=True)
+    (out / "seed1" / "run.yml").write_text("algo: td3-lstm\n")
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["--config", str(tiny), "--timesteps", "20", "--seeds", "0-1",
+                           "--out", str(out), "--no-tensorboard", "--no-progress"])
+    assert exit_.value.code == 2
+    assert sorted(p.name for p in out.iterdir()) == ["seed1"]     # seed 0 did not start
+
+
+@pytest.mark.parametrize("previous, replaced", [(1e9, False), (-1e9, True)])
+def test_a_resume_continues_the_runs_evaluations(tiny: Path, tmp_path: Path, train_script,
+                                                 previous: float, replaced: bool):
+    """A resume in the run's folder keeps the evaluations made before it (SB3's EvalCallback
+    started a new evaluations.npz) and saves a new best.zip only for an evaluation better than
+    all of them (it saved the resume's first evaluation, however bad)."""
+    out = tmp_path / "run"
+    train_script.main(["--config", str(tiny), "--timesteps", "120", "--out", str(out),
+                       "--no-tensorboard", "--no-progress"])
+    with np.load(out / "evaluations.npz") as data:
+        assert data["timesteps"].tolist() == [100]
+        lengths = data["ep_lengths"]
+    # the first evaluation's return, replaced by one no evaluation reaches (or all exceed)
+    np.savez(out / "evaluations.npz", timesteps=[100], results=[[previous]], ep_lengths=lengths)
+    best = (out / "best.zip").read_bytes()
+    train_script.main(["--config", str(tiny), "--timesteps", "100", "--out", str(out),
+                       "--resume", str(out / "last.zip"), "--no-tensorboard",
+                       "--no-progress"])
+    with np.load(out / "evaluations.npz", allow_pickle=False) as data:
+        assert data["timesteps"].tolist() == [100, 200]
+        assert data["results"][0, 0] == previous and data["results"].shape == (2, 1)
+    assert ((out / "best.zip").read_bytes() != best) == replaced
+    if replaced:
+        assert RecurrentTD3.load(out / "best.zip", device="cpu").num_timesteps == 200
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda path: path.write_bytes(b"not a zip"), "not a readable evaluation record"),
+    (lambda path: np.savez(path, timesteps=[100], results=[[1.0, 2.0]], ep_lengths=[[5, 5]]),
+     "the run's evaluations are of 2 episodes each, this resume's of 1; continue them with "
+     "--eval-episodes 2, or resume into another --out"),
+])
+def test_a_resume_refuses_evaluations_it_cannot_continue(tiny: Path, tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture,
+                                                         train_script, damage, message):
+    out = tmp_path / "run"
+    train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
+                       "--no-tensorboard", "--no-progress"])
+    damage(out / "evaluations.npz")
+    final = (out / "final.zip").read_bytes()
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
+                           "--resume", str(out / "last.zip"), "--no-tensorboard",
+                           "--no-progress"])
+    assert exit_.value.code == 2
+    (err,) = capsys.readouterr().err.strip().splitlines()
+    assert err.startswith(f"train.py: error: --resume: {out / 'evaluations.npz'}: ")
+    assert message in err
+    assert (out / "final.zip").read_bytes() == final        # refused before any step
