@@ -6,7 +6,8 @@
    with N in {500, 1000}. The validation maps of :func:`aoass_env.maps.validation_split` are held
    out. :func:`generate_logs` simulates them into ``<folder>/train`` and ``<folder>/val`` with the
    anchor's true DOI pattern beside each log (``*_K.npy``, the training target; never read at
-   inference), and reuses what is there.
+   inference), and reuses what is there when its recorded config is the one the episode would
+   run now (a log simulated before a config default changed is simulated again).
 2. **Examples.** Per log with DOI > 0: the first consensus pass, the pair record of its reliable
    nodes (:func:`~aoass_env.localization.reception.pair_statistics`) and the target
    z_K = (K - 1) / DOI per degree. Each training draw keeps a random 50-100 % share of the nodes
@@ -20,6 +21,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import re
 import time
@@ -31,7 +33,7 @@ import numpy as np
 import torch
 
 from aoass_env.atomic import atomic_open
-from aoass_env.beacon_log import BeaconLog, BeaconLogError
+from aoass_env.beacon_log import BeaconLog, BeaconLogError, episode_config_json
 from aoass_env.config import AOASSConfig
 from aoass_env.localization.consensus import RELIABLE_SPREAD, node_consensus
 from aoass_env.localization.episode import Episode, prepare
@@ -75,12 +77,18 @@ def map_density(name: str) -> tuple[float, float]:
     return float(match["density"]), float(match["field"])
 
 
+def spec_config(spec: EpisodeSpec) -> AOASSConfig:
+    """The config of the episode of ``spec`` (today's defaults for everything it does not
+    name)."""
+    density, field = map_density(spec.map_name)
+    return AOASSConfig(field_size=field, n_nodes=spec.n_nodes, obstacle_density=density,
+                       map=spec.map_name, doi=spec.doi)
+
+
 def simulate(spec: EpisodeSpec) -> tuple[BeaconLog, np.ndarray]:
     """Run one square-spiral episode of ``spec``: its beacon log and the anchor's DOI pattern
     K (360,)."""
-    density, field = map_density(spec.map_name)
-    config = AOASSConfig(field_size=field, n_nodes=spec.n_nodes, obstacle_density=density,
-                         map=spec.map_name, doi=spec.doi)
+    config = spec_config(spec)
     sim = Simulator(config, np.random.default_rng(spec.seed),
                     obstacle_map=load_map(spec.map_name), seed=spec.seed)
     return sim.run(), np.array(sim.radio.anchor_pattern)
@@ -107,16 +115,45 @@ def pattern_path(log_path: Path) -> Path:
     return log_path.with_name(log_path.stem + "_K.npy")
 
 
+def _changed_settings(path: Path, spec: EpisodeSpec) -> str:
+    """How the config recorded in the cached log at ``path`` differs from the one ``spec``'s
+    episode runs now ("" when it does not); :class:`CachedLogError` naming the file when its
+    record cannot be read."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            recorded = json.loads(str(data["config_json"]))["config"]
+    except Exception as exc:  # noqa: BLE001 -- any failure to read the file's record
+        raise CachedLogError(f"{path}: no readable config_json ({one_line(exc)}); "
+                             f"delete it and its pair to simulate them again") from None
+    now = json.loads(episode_config_json(spec_config(spec), seed=spec.seed,
+                                         method="spiral"))["config"]
+    keys = [k for k in sorted({*recorded, *now}) if recorded.get(k, ...) != now.get(k, ...)]
+    if not keys:
+        return ""
+    def value(config: dict, key: str) -> str:
+        return repr(config[key]) if key in config else "unset"
+    more = f" and {len(keys) - 1} more" if keys[1:] else ""
+    return f"{keys[0]} {value(recorded, keys[0])}, now {value(now, keys[0])}{more}"
+
+
 def generate_logs(specs: Sequence[EpisodeSpec], folder: str | Path,
                   report: Callable[[str], None] = print) -> list[Path]:
-    """Simulate the episodes of ``specs`` into ``folder``, each log with its anchor pattern
-    (existing logs are reused)."""
+    """Simulate the episodes of ``specs`` into ``folder``, each log with its anchor pattern.
+    A log already there is reused when its recorded config is the one its episode runs now;
+    one simulated with other settings (a config default changed since) is simulated again,
+    and the report says so. (Changes of the code that leave the config alone are not
+    detected: delete the folder after such a change.)"""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     for i, spec in enumerate(specs):
         path = folder / spec.file_name
-        if not (path.is_file() and pattern_path(path).is_file()):
+        cached = path.is_file() and pattern_path(path).is_file()
+        changed = _changed_settings(path, spec) if cached else ""
+        if changed:
+            report(f"  log {i + 1}/{len(specs)} {path.name}: simulated with other settings "
+                   f"({changed}); simulating it again")
+        if not cached or changed:
             start = time.perf_counter()
             log, pattern = simulate(spec)
             with atomic_open(pattern_path(path), "wb") as f:

@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
+
 import numpy as np
 import pytest
 import torch
 
+from aoass_env.beacon_log import BeaconLog
 from aoass_env.localization.episode import prepare
 from aoass_env.localization.olstm import OLSTM
 from aoass_env.localization.training import (
     CachedLogError,
+    EpisodeSpec,
     TrainConfig,
     _examples,
     augment,
@@ -17,6 +22,7 @@ from aoass_env.localization.training import (
     episode_specs,
     example,
     gaussian_nll,
+    generate_logs,
     map_density,
     pattern_path,
 )
@@ -158,3 +164,31 @@ def test_a_damaged_cached_log_or_pattern_is_named(doi_sim, tmp_path, train_scrip
     assert exit_.value.code == 2
     assert capsys.readouterr().err.strip().splitlines()[-1] == \
         "train.py localizer: error: --data-dir: x.npz: damaged"
+
+
+def test_a_cached_log_of_other_settings_is_simulated_again(tmp_path) -> None:
+    """The data folder outlives config changes: a log simulated before a default changed
+    (here its recorded radio range) was reused, and the localizer trained on the old radio."""
+    spec = EpisodeSpec("train/d0.10_f100_s000", 100, 0.05, 1)
+    lines: list[str] = []
+    (path,) = generate_logs([spec], tmp_path, lines.append)
+    assert len(lines) == 1 and spec.file_name in lines[0]          # simulated
+    fresh = path.read_bytes()
+    assert generate_logs([spec], tmp_path, lines.append) == [path]
+    assert len(lines) == 1 and path.read_bytes() == fresh            # reused as it is
+
+    log = BeaconLog.load(path)
+    record = json.loads(log.config_json)
+    now = record["config"]["radio_range"]
+    record["config"]["radio_range"] = now + 2.0
+    dataclasses.replace(log, config_json=json.dumps(record, sort_keys=True)).save(path)
+    generate_logs([spec], tmp_path, lines.append)
+    assert f"{spec.file_name}: simulated with other settings (radio_range {now + 2.0!r}, now " \
+           f"{now!r}); simulating it again" in lines[1]
+    again = BeaconLog.load(path)                                      # the same episode again
+    assert again.config_json == log.config_json
+    assert np.array_equal(again.receptions, log.receptions)
+
+    path.write_bytes(b"garbage")
+    with pytest.raises(CachedLogError, match=rf"^{path}: no readable config_json .*; delete it"):
+        generate_logs([spec], tmp_path, lines.append)
