@@ -11,6 +11,7 @@ the training setup, whose agent step is 16 control periods) stepped
   environments: what a batch in one process starts from),
 * in worker processes: Gymnasium's ``AsyncVectorEnv`` (shared memory) and SB3's
   ``SubprocVecEnv``,
+* as independent processes, each stepping its own environment (no vector env: the summed rate),
 
 and prints environment steps per wall second and per CPU second of this process, each as a
 ratio to the single environment measured in the same run, and the share of a single
@@ -31,6 +32,7 @@ import argparse
 import os
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 import gymnasium as gym
@@ -146,6 +148,20 @@ def mergeable_share(env_id: str, steps: int, seed: int) -> tuple[float, float, f
     return 1e6 * total / steps, 1e6 * spent[0] / steps, 1e6 * (total - spent[0]) / steps
 
 
+def _alone(env_id: str, seed: int, steps: int, warm_up: int) -> float:
+    """Env steps per wall second of a single environment in this (worker) process."""
+    wall, _, done = _timed(single(env_id, seed), single_step, steps, warm_up)
+    return done / wall
+
+
+def independent(env_id: str, n: int, seed: int, steps: int, warm_up: int) -> float:
+    """Summed env steps per wall second of ``n`` processes each stepping its own environment
+    at the same time, with no vector env between them (the way evaluation sweeps use cores)."""
+    with ProcessPoolExecutor(n) as pool:
+        return sum(pool.map(_alone, [env_id] * n, [seed + k for k in range(n)], [steps] * n,
+                            [warm_up] * n))
+
+
 def lockstep_bound(env_id: str, steps: int, seed: int, n: int) -> tuple[float, np.ndarray]:
     """The speed-up of ``n`` environments stepped in lock step on ``n`` free cores with no
     round trip, from a single environment's per-step wall times (s): each vector step lasts
@@ -222,6 +238,9 @@ def main() -> None:
             reference = (rate, cpu_rate)
         print(f"{label:28s} {n:4d} {rate:9.0f} {rate / reference[0]:6.2f} {cpu_rate:12.0f} "
               f"{cpu_rate / reference[1]:6.2f}")
+    for n in args.envs:
+        rate = independent(env_id, n, args.seed, args.steps, args.warm_up)
+        print(f"{'independent processes':28s} {n:4d} {rate:9.0f} {rate / reference[0]:6.2f}")
     print(f"\nPendulum-v1, 2 envs, wall µs per vector step: DummyVecEnv "
           f"{round_trip(DummyVecEnv):.0f}, SubprocVecEnv {round_trip(SubprocVecEnv):.0f} (the "
           f"difference: the workers' round trip)")
