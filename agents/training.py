@@ -246,6 +246,7 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
                                  deterministic=True, verbose=0,
                                  callback_on_new_best=SaveBestAtomically(out / "best.zip"))]
     _write_record(out / "run.yml", run, hp, timesteps)
+    report(f"training {timesteps} steps; the run's models go to {out}")
     model.learn(timesteps, callback=CallbackList(callbacks), progress_bar=run.progress_bar,
                 tb_log_name=f"{run.algo}_seed{run.seed}", log_interval=run.log_interval,
                 reset_num_timesteps=run.resume is None)
