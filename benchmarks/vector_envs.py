@@ -30,9 +30,11 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -45,6 +47,9 @@ from aoass_env.planning.follower import WaypointFollower
 from aoass_env.simulator import Simulator
 from aoass_env.validators import argparse_number
 from aoass_env.world import World
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from env_throughput import part_timers  # noqa: E402  (benchmarks/env_throughput.py)
 
 
 def _timed(make: Callable[[], Any], step: Callable[[Any, np.random.Generator], int],
@@ -109,43 +114,41 @@ def sb3_vector_step(venv: Any, rng: np.random.Generator) -> int:
     return venv.num_envs
 
 
-#: The per-environment library work inside ``AOASSEnv.step``: what stays per environment in
-#: any batch (each its own Chipmunk space, obstacle map and planner grid).
-_OWN_WORLD = ((Simulator, "step"), (WaypointFollower, "command"), (Observer, "sense"),
-              (World, "ray_distances"))
+#: The per-environment library work inside ``AOASSEnv.step``, as ``part_timers`` parts: what
+#: stays per environment in any batch (each its own Chipmunk space, obstacle map and planner
+#: grid). None calls another.
+OWN_WORLD: tuple[tuple[str, type, str], ...] = (
+    ("Simulator.step", Simulator, "step"),
+    ("WaypointFollower.command", WaypointFollower, "command"),
+    ("Observer.sense", Observer, "sense"),
+    ("World.ray_distances", World, "ray_distances"))
 
 
-def mergeable_share(env_id: str, steps: int, seed: int) -> tuple[float, float, float]:
-    """(wall µs per step in all, of which per-environment world work, of which the rest) of
-    a single environment, the world work timed around :data:`_OWN_WORLD`'s calls."""
-    spent = [0.0]
-    originals = []
-    for owner, name in _OWN_WORLD:
-        method = getattr(owner, name)
-        originals.append((owner, name, method))
-
-        def timed(*args: Any, _method: Any = method, **kwargs: Any) -> Any:
+def single_profile(env_id: str, steps: int, seed: int) -> tuple[np.ndarray, float]:
+    """The wall time (s) of each of ``steps`` random steps of one environment (after a
+    warm-up), and the seconds of them spent in :data:`OWN_WORLD`'s calls (the timers' own
+    cost, a few calls per step, is in the step times)."""
+    env = single(env_id, seed)()
+    rng = np.random.default_rng(0)
+    for _ in range(min(steps, 500)):
+        single_step(env, rng)
+    times = np.empty(steps)
+    with part_timers(OWN_WORLD) as totals:
+        for k in range(steps):
             start = time.perf_counter()
-            try:
-                return _method(*args, **kwargs)
-            finally:
-                spent[0] += time.perf_counter() - start
-        setattr(owner, name, timed)
-    try:
-        env = single(env_id, seed)()
-        rng = np.random.default_rng(0)
-        for _ in range(min(steps, 500)):
             single_step(env, rng)
-        spent[0] = 0.0
-        start = time.perf_counter()
-        for _ in range(steps):
-            single_step(env, rng)
-        total = time.perf_counter() - start
-        env.close()
-    finally:
-        for owner, name, method in originals:
-            setattr(owner, name, method)
-    return 1e6 * total / steps, 1e6 * spent[0] / steps, 1e6 * (total - spent[0]) / steps
+            times[k] = time.perf_counter() - start
+    env.close()
+    return times, sum(seconds for seconds, _ in totals.values())
+
+
+def lockstep_bound(times: np.ndarray, n: int) -> float:
+    """The speed-up of ``n`` environments stepped in lock step on ``n`` free cores with no
+    round trip, from one environment's step times ``times`` (s): each vector step lasts as long
+    as its slowest environment's step, so the bound is n x mean / E[max of n steps] (over
+    random n-tuples of the recorded steps)."""
+    draws = np.random.default_rng(0).choice(times, size=(100_000, n))
+    return n * times.mean() / draws.max(axis=1).mean()
 
 
 def _alone(env_id: str, seed: int, steps: int, warm_up: int) -> float:
@@ -160,25 +163,6 @@ def independent(env_id: str, n: int, seed: int, steps: int, warm_up: int) -> flo
     with ProcessPoolExecutor(n) as pool:
         return sum(pool.map(_alone, [env_id] * n, [seed + k for k in range(n)], [steps] * n,
                             [warm_up] * n))
-
-
-def lockstep_bound(env_id: str, steps: int, seed: int, n: int) -> tuple[float, np.ndarray]:
-    """The speed-up of ``n`` environments stepped in lock step on ``n`` free cores with no
-    round trip, from a single environment's per-step wall times (s): each vector step lasts
-    as long as its slowest environment's step, so the bound is n x mean / E[max of n steps]
-    (the expectation over random n-tuples of the recorded steps); and those times."""
-    env = single(env_id, seed)()
-    rng = np.random.default_rng(0)
-    for _ in range(min(steps, 500)):
-        single_step(env, rng)
-    times = np.empty(steps)
-    for k in range(steps):
-        start = time.perf_counter()
-        single_step(env, rng)
-        times[k] = time.perf_counter() - start
-    env.close()
-    draws = rng.choice(times, size=(100_000, n))
-    return n * times.mean() / draws.max(axis=1).mean(), times
 
 
 def round_trip(cls: type, steps: int = 3000) -> float:
@@ -244,19 +228,20 @@ def main() -> None:
     print(f"\nPendulum-v1, 2 envs, wall µs per vector step: DummyVecEnv "
           f"{round_trip(DummyVecEnv):.0f}, SubprocVecEnv {round_trip(SubprocVecEnv):.0f} (the "
           f"difference: the workers' round trip)")
+    times, world = single_profile(env_id, args.steps, args.seed)
     for n in args.envs:
-        bound, times = lockstep_bound(env_id, args.steps, args.seed, n)
-        print(f"{n} envs in lock step, free cores and no round trip: at most {bound:.2f} x the "
-              f"single env (each vector step waits for its slowest env; a step's wall time: "
-              f"median {1e6 * np.median(times):.0f} µs, 99th percentile "
-              f"{1e6 * np.quantile(times, 0.99):.0f} µs, longest {1e3 * times.max():.1f} ms)")
-    total, world, rest = mergeable_share(env_id, args.steps, args.seed)
+        print(f"{n} envs in lock step, free cores and no round trip: at most "
+              f"{lockstep_bound(times, n):.2f} x the single env (each vector step waits for its "
+              f"slowest env; a step's wall time: median {1e6 * np.median(times):.0f} µs, 99th "
+              f"percentile {1e6 * np.quantile(times, 0.99):.0f} µs, longest "
+              f"{1e3 * times.max():.1f} ms)")
+    total, world, rest = (1e6 * t / args.steps for t in (times.sum(), world,
+                                                          times.sum() - world))
     print(f"\na single env's step: {total:.1f} µs wall; per-environment world work (Simulator."
           f"step, WaypointFollower.command, Observer.sense and the rays) {world:.1f} µs "
           f"({world / total:.0%}); the rest, which a batch could merge at best, {rest:.1f} µs "
           f"({rest / total:.0%}): a batch in one process is at most {total / world:.2f} x "
           f"the single env")
-
 
 if __name__ == "__main__":
     main()
