@@ -58,7 +58,7 @@ from agents.hyperparams import ALGORITHMS, action_noise, load_hyperparams, read_
 from agents.sections import model_kwargs, override_section, policy_name
 from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
 from aoass_env.data import shipped_dir
-from aoass_env.validators import integer
+from aoass_env.validators import first_difference, integer
 
 __all__ = ["RUN_FILES", "TRAINING_SPLITS", "TrainRun", "make_training_env", "occupied_message",
            "other_run_files", "run_hyperparams", "train_agent"]
@@ -273,15 +273,14 @@ def _resume_record(model: Path, hp: dict[str, Any], cls: type) -> dict[str, Any]
     recorded = found["hyperparameters"]
     mine, theirs = model_kwargs(hp), model_kwargs(recorded)
     mine["policy"], theirs["policy"] = policy_name(hp, cls), policy_name(recorded, cls)
-    differ = [k for k in sorted({*mine, *theirs}) if mine.get(k, ...) != theirs.get(k, ...)]
-    if differ:
-        def value(kwargs: dict[str, Any], key: str) -> str:
-            return repr(kwargs[key]) if key in kwargs else "unset"
-        more = f" (and {len(differ) - 1} more: {', '.join(differ[1:])})" if differ[1:] else ""
+    differ = first_difference(theirs, mine)
+    if differ is not None:
+        key, was, this, others = differ
+        more = f" (and {len(others)} more: {', '.join(others)})" if others else ""
         raise PolicyFileError(
-            f"{model}: a resume rebuilds the model from {record}, where {differ[0]} is "
-            f"{value(theirs, differ[0])}, not this run's {value(mine, differ[0])}{more}; give "
-            f"the --config it was trained with and no --hyperparams, or start a new run")
+            f"{model}: a resume rebuilds the model from {record}, where {key} is {was}, not "
+            f"this run's {this}{more}; give the --config it was trained with and no "
+            f"--hyperparams, or start a new run")
     return found
 
 

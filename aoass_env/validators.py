@@ -16,8 +16,9 @@ keywords get a did-you-mean error; :meth:`ValidatedConfig.markdown` is the docs 
 
 **One-line messages.** :func:`one_line` embeds a library's error text in a one-line message,
 :func:`torch_load_problem` keeps only the reason of torch's weights-only refusal (never its
-advice to load with ``weights_only=False``), and :func:`float_array` names an array argument
-whose entries are not numbers.
+advice to load with ``weights_only=False``), :func:`float_array` names an array argument
+whose entries are not numbers, and :func:`first_difference` names where a recorded setting
+differs from today's.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import difflib
 import json
 import math
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import field
 from numbers import Integral, Real
 from pathlib import Path
@@ -36,8 +37,9 @@ from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
-__all__ = ["ConfigError", "ValidatedConfig", "float_array", "integer", "one_line", "param",
-           "positive", "real", "torch_load_problem", "unknown_key_message", "vec2"]
+__all__ = ["ConfigError", "ValidatedConfig", "first_difference", "float_array", "integer",
+           "one_line", "param", "positive", "real", "torch_load_problem", "unknown_key_message",
+           "vec2"]
 
 
 class ConfigError(ValueError):
@@ -61,6 +63,20 @@ def one_line(error: BaseException | str) -> str:
     exception without text gives its type's name. For embedding in a one-line message."""
     text = " ".join(_COLOUR_CODE.sub("", str(error)).split())
     return text or (type(error).__name__ if isinstance(error, BaseException) else "")
+
+
+def first_difference(recorded: Mapping[str, Any], current: Mapping[str, Any]
+                     ) -> tuple[str, str, str, list[str]] | None:
+    """Where two settings mappings differ: the first differing key in sorted order, its value
+    in ``recorded`` and in ``current`` (``repr``, or "unset" where the key is missing) and the
+    other differing keys; None when they agree."""
+    keys = [k for k in sorted({*recorded, *current})
+            if recorded.get(k, ...) != current.get(k, ...)]
+    if not keys:
+        return None
+    def shown(mapping: Mapping[str, Any]) -> str:
+        return repr(mapping[keys[0]]) if keys[0] in mapping else "unset"
+    return keys[0], shown(recorded), shown(current), keys[1:]
 
 
 def torch_load_problem(error: BaseException) -> str:

@@ -20,6 +20,7 @@ from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.orca import orca_lines
 from aoass_env.validators import (
     argparse_number,
+    first_difference,
     float_array,
     integer,
     one_line,
@@ -245,3 +246,11 @@ def test_torch_load_problem_keeps_the_reason_and_drops_the_advice(tmp_path) -> N
     assert reasons["empty"] == "EOFError"
     assert all("weights_only" not in r and "\n" not in r for r in reasons.values())
     assert torch_load_problem(ValueError("another\nproblem")) == "another problem"
+
+
+def test_first_difference_names_the_first_key_in_sorted_order() -> None:
+    assert first_difference({"a": 1, "b": [2]}, {"b": [2], "a": 1}) is None
+    assert first_difference({"b": 2.0, "c": 3, "a": 1}, {"a": 1, "b": 2.5, "d": "x"}) == \
+        ("b", "2.0", "2.5", ["c", "d"])
+    assert first_difference({}, {"n": None}) == ("n", "unset", "None", [])
+    assert first_difference({"n": 1}, {"n": True}) is None   # equal values, as == sees them

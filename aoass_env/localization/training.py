@@ -41,7 +41,7 @@ from aoass_env.localization.olstm import DEFAULT_CHECKPOINT, OLSTM, olstm_dvhop,
 from aoass_env.localization.reception import PairRecord, pair_histograms, pair_statistics
 from aoass_env.maps import list_maps, load_map, validation_split
 from aoass_env.simulator import Simulator
-from aoass_env.validators import integer, one_line, real
+from aoass_env.validators import first_difference, integer, one_line, real
 
 __all__ = ["BAND_WIDTHS", "TRAIN_RANGES", "CachedLogError", "EpisodeSpec", "Example",
            "TrainConfig", "augment", "draw_episodes", "episode_specs", "example", "gaussian_nll",
@@ -122,18 +122,18 @@ def _changed_settings(path: Path, spec: EpisodeSpec) -> str:
     try:
         with np.load(path, allow_pickle=False) as data:
             recorded = json.loads(str(data["config_json"]))["config"]
+        if not isinstance(recorded, dict):
+            raise TypeError(f"its config is a {type(recorded).__name__}, not an object")
     except Exception as exc:  # noqa: BLE001 -- any failure to read the file's record
         raise CachedLogError(f"{path}: no readable config_json ({one_line(exc)}); "
                              f"delete it and its pair to simulate them again") from None
     now = json.loads(episode_config_json(spec_config(spec), seed=spec.seed,
                                          method="spiral"))["config"]
-    keys = [k for k in sorted({*recorded, *now}) if recorded.get(k, ...) != now.get(k, ...)]
-    if not keys:
+    differ = first_difference(recorded, now)
+    if differ is None:
         return ""
-    def value(config: dict, key: str) -> str:
-        return repr(config[key]) if key in config else "unset"
-    more = f" and {len(keys) - 1} more" if keys[1:] else ""
-    return f"{keys[0]} {value(recorded, keys[0])}, now {value(now, keys[0])}{more}"
+    key, was, this, others = differ
+    return f"{key} {was}, now {this}{f' and {len(others)} more' if others else ''}"
 
 
 def generate_logs(specs: Sequence[EpisodeSpec], folder: str | Path,

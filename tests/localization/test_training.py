@@ -189,6 +189,11 @@ def test_a_cached_log_of_other_settings_is_simulated_again(tmp_path) -> None:
     assert again.config_json == log.config_json
     assert np.array_equal(again.receptions, log.receptions)
 
+    record["config"] = [1, 2]                        # valid JSON, but not a config
+    dataclasses.replace(log, config_json=json.dumps(record, sort_keys=True)).save(path)
+    with pytest.raises(CachedLogError, match=rf"^{path}: no readable config_json \(its config "
+                                             rf"is a list, not an object\); delete it"):
+        generate_logs([spec], tmp_path, lines.append)
     path.write_bytes(b"garbage")
     with pytest.raises(CachedLogError, match=rf"^{path}: no readable config_json .*; delete it"):
         generate_logs([spec], tmp_path, lines.append)
