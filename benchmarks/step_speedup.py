@@ -4,8 +4,12 @@ The earlier tree is unpacked with ``git archive`` into a temporary folder; this 
 then run in turn, each in a fresh interpreter whose ``PYTHONPATH`` puts the tree first: random
 actions in ``gymnasium.make("AOASS-v0")`` (default config), ``--steps`` steps from each of seeds
 0, 1, ... after 3 000 steps of warm-up on seed 9 999 (imports, caches, compiled kernels),
-resets included, timed in the process's CPU time. The fingerprint test pins the same episodes
-for the same seeds since before issue 20, so both trees step through the same states.
+resets included, timed in the process's CPU time: once with each action drawn by
+``action_space.sample()`` inside the loop (issue 20's measure), once with the same actions
+drawn before the clock starts (the step alone; the difference is the draw, whose cost depends
+on the tree's action space: ``aoass_env.action.ActionBox`` since 2026-11-29). The
+fingerprint test pins the same episodes for the same seeds since before issue 20, and both
+trees' action spaces draw the same actions, so both trees step through the same states.
 Pendulum-v1 is timed the same way in this tree's process, as the reference of issue 20's
 second target (AOASS-v0 at >= 0.22 x its steps/s).
 
@@ -30,33 +34,37 @@ from pathlib import Path
 
 import gymnasium as gym
 
-from aoass_env.validators import argparse_number
-
 ROOT = Path(__file__).resolve().parents[1]
 
 #: the warm-up's seed and length, used by no timed run
 WARM_UP_SEED, WARM_UP_STEPS = 9_999, 3_000
 
 
-def cpu_us_per_step(env_id: str, steps: int, seeds: int) -> float:
+def cpu_us_per_step(env_id: str, steps: int, seeds: int) -> tuple[float, float]:
     """CPU microseconds per random step of ``env_id`` (resets included) over ``steps`` steps
-    from each of seeds 0 .. ``seeds`` - 1, after the warm-up."""
+    from each of seeds 0 .. ``seeds`` - 1, after the warm-up: (each action drawn with
+    ``action_space.sample()`` in the loop, issue 20's measure; the same actions drawn before
+    the clock starts, the step alone)."""
     import aoass_env  # noqa: F401  (registers AOASS-v0 of the tree first on the path)
 
     env = gym.make(env_id)
-    spent = 0.0
+    spent = [0.0, 0.0]
     for seed in (WARM_UP_SEED, *range(seeds)):
-        env.reset(seed=seed)
-        env.action_space.seed(seed)
-        start = time.process_time()
-        for _ in range(WARM_UP_STEPS if seed == WARM_UP_SEED else steps):
-            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-            if terminated or truncated:
-                env.reset()
-        if seed != WARM_UP_SEED:
-            spent += time.process_time() - start
+        n = WARM_UP_STEPS if seed == WARM_UP_SEED else steps
+        for k in range(2):
+            env.reset(seed=seed)
+            env.action_space.seed(seed)
+            drawn = [env.action_space.sample() for _ in range(n)] if k else None
+            start = time.process_time()
+            for i in range(n):
+                action = drawn[i] if drawn else env.action_space.sample()
+                _, _, terminated, truncated, _ = env.step(action)
+                if terminated or truncated:
+                    env.reset()
+            if seed != WARM_UP_SEED:
+                spent[k] += time.process_time() - start
     env.close()
-    return 1e6 * spent / (steps * seeds)
+    return 1e6 * spent[0] / (steps * seeds), 1e6 * spent[1] / (steps * seeds)
 
 
 def unpack(ref: str, folder: Path) -> None:
@@ -70,7 +78,7 @@ def unpack(ref: str, folder: Path) -> None:
         tar.extractall(folder, filter="data")
 
 
-def in_tree(tree: Path, env_id: str, steps: int, seeds: int) -> float:
+def in_tree(tree: Path, env_id: str, steps: int, seeds: int) -> tuple[float, float]:
     """:func:`cpu_us_per_step` in a fresh interpreter, run in ``tree``, that imports
     ``aoass_env`` from it; exits in one line when another copy was imported."""
     code = ("import json, sys, aoass_env; sys.path.insert(0, sys.argv[1]); "
@@ -85,13 +93,17 @@ def in_tree(tree: Path, env_id: str, steps: int, seeds: int) -> float:
     if run.returncode:
         raise SystemExit(f"the tree {tree} failed to step {env_id}: "
                          f"{(run.stderr.strip().splitlines() or ['no error output'])[-1]}")
-    module, us = json.loads(run.stdout.strip().splitlines()[-1])
+    module, (sampled, alone) = json.loads(run.stdout.strip().splitlines()[-1])
     if not Path(module).resolve().is_relative_to(tree.resolve()):
         raise SystemExit(f"the run meant for {tree} imported aoass_env from {module}")
-    return us
+    return sampled, alone
 
 
 def main(argv: list[str] | None = None) -> None:
+    # imported here, not at the top: the earlier tree's interpreter imports this module with
+    # its own aoass_env, which may predate argparse_number
+    from aoass_env.validators import argparse_number
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--against", default="94e941b", help="the earlier commit")
     parser.add_argument("--steps", type=argparse_number(int, 1), default=20_000,
@@ -106,20 +118,26 @@ def main(argv: list[str] | None = None) -> None:
         unpack(args.against, before)
         print(f"AOASS-v0, random actions, resets included, CPU us per step ({args.steps} steps "
               f"from each of {args.seeds} seeds); {args.against} against this tree:")
-        ratios, pendulum = [], []
+        ratios, alone, pendulum = [], [], []
         for i in range(args.rounds):
-            old = in_tree(before, "AOASS-v0", args.steps, args.seeds)
-            new = in_tree(ROOT, "AOASS-v0", args.steps, args.seeds)
-            ref = in_tree(ROOT, "Pendulum-v1", 3 * args.steps, args.seeds)
+            old, old_alone = in_tree(before, "AOASS-v0", args.steps, args.seeds)
+            new, new_alone = in_tree(ROOT, "AOASS-v0", args.steps, args.seeds)
+            ref, ref_alone = in_tree(ROOT, "Pendulum-v1", 3 * args.steps, args.seeds)
             ratios.append(old / new)
+            alone.append(old_alone / new_alone)
             pendulum.append((ref / old, ref / new))
             print(f"  round {i + 1}: {old:7.1f} -> {new:7.1f} us, {old / new:5.2f} x faster "
                   f"(target 3); Pendulum-v1 {ref:5.1f} us: {ref / old:.3f} x -> "
                   f"{ref / new:.3f} x its steps/s (target 0.22)")
-        print(f"median speed-up {statistics.median(ratios):.2f} x; against Pendulum-v1 "
+            print(f"           the step alone (actions drawn before the clock): {old_alone:7.1f} "
+                  f"-> {new_alone:7.1f} us, {old_alone / new_alone:5.2f} x; drawing the action "
+                  f"in the loop {old - old_alone:5.1f} -> {new - new_alone:5.1f} us "
+                  f"(Pendulum-v1's step alone {ref_alone:4.1f} us, its draw "
+                  f"{ref - ref_alone:4.1f})")
+        print(f"median speed-up {statistics.median(ratios):.2f} x (the step alone "
+              f"{statistics.median(alone):.2f} x); against Pendulum-v1 "
               f"{statistics.median(p[0] for p in pendulum):.3f} x -> "
               f"{statistics.median(p[1] for p in pendulum):.3f} x")
-
 
 if __name__ == "__main__":
     main()

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import copy
 import math
+import pickle
 
+import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium import spaces
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aoass_env.action import AdaptiveAction, ResidualAction, checked_action
+from aoass_env.action import ActionBox, AdaptiveAction, ResidualAction, checked_action
 from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.env import AOASSEnv
 from aoass_env.wrappers import make_safe_env
@@ -174,3 +178,78 @@ def test_residual_action_in_floats_is_the_array_code():
         want = _residual_action_arrays(act, speed, heading, (nominal_speed, nominal_heading))
         assert got.dtype == np.float32 and got.shape == (2,)
         assert _same_floats(got.tolist(), want.tolist())
+
+
+def _draws(space: spaces.Box, seed: int, n: int = 4) -> list[np.ndarray]:
+    space.seed(seed)
+    return [space.sample() for _ in range(n)]
+
+
+def _same_draws(a: list[np.ndarray], b: list[np.ndarray]) -> bool:
+    return all(type(x) is type(y) and x.dtype == y.dtype and x.shape == y.shape
+               and np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b, strict=True))
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1),
+       shape=st.lists(st.integers(1, 3), min_size=1, max_size=3).map(tuple),
+       dtype=st.sampled_from([np.float16, np.float32, np.float64]),
+       bounds=st.tuples(st.floats(-1e4, 1e4), st.floats(0.0, 1e4)))
+def test_action_box_draws_what_box_draws(seed, shape, dtype, bounds):
+    """The same seed gives the same samples (values, dtype, shape) and leaves the generator
+    in the same state; a zero-width box included."""
+    low, width = bounds
+    args = (np.full(shape, low, dtype), np.full(shape, low + width, dtype), shape, dtype)
+    fast, box = ActionBox(*args), spaces.Box(*args)
+    assert fast._uniform
+    assert _same_draws(_draws(fast, seed), _draws(box, seed))
+    assert fast.np_random.bit_generator.state == box.np_random.bit_generator.state
+
+
+def test_action_box_draws_what_box_draws_with_mixed_bounds():
+    low = np.array([-1.0, 0.0, -3.5, 2.0], dtype=np.float32)
+    high = np.array([1.0, 5.0, -3.0, 2.0], dtype=np.float32)
+    assert _same_draws(_draws(ActionBox(low, high), 7, 50), _draws(spaces.Box(low, high), 7, 50))
+
+
+@pytest.mark.parametrize("args", [
+    (np.array([-np.inf, -1.0]), np.array([0.0, np.inf]), (2,), np.float64),  # unbounded sides
+    (-np.inf, np.inf, (3,), np.float64),
+    (0, 10, (2,), np.int64),                            # integers
+    (-1.0, 1.0, (), np.float32),                        # a scalar shape
+    (-1e308, 1e308, (2,), np.float64),                  # the range overflows a double
+], ids=["half-bounded", "unbounded", "integers", "scalar", "overflow"])
+def test_other_boxes_sample_as_box_does(args):
+    fast, box = ActionBox(*args), spaces.Box(*args)
+    assert not fast._uniform
+    with np.errstate(over="ignore"):                    # Box's own high - low overflows
+        try:
+            expected = _draws(box, 3)
+        except OverflowError as err:                    # Generator.uniform's refusal
+            with pytest.raises(OverflowError, match=str(err)):
+                _draws(fast, 3)
+        else:
+            assert _same_draws(_draws(fast, 3), expected)
+
+
+def test_a_mask_is_refused_as_box_refuses_it():
+    with pytest.raises(gym.error.Error, match="cannot be provided a mask"):
+        ActionBox(-1.0, 1.0, (2,)).sample(mask=np.ones(2, dtype=np.int8))
+
+
+def test_the_registered_ids_act_in_action_boxes():
+    """Every registered id's action space is an ActionBox: a Box to Gymnasium and SB3, equal
+    to the plain Box, kept by pickling and copying, and batched into a plain Box."""
+    for env_id, size in [("AOASS-v0", 2), ("AOASS-Safe-v0", 2), ("AOASS-Adaptive-v0", 5)]:
+        env = gym.make(env_id, config=SMALL)
+        space = env.action_space
+        assert type(space) is ActionBox and isinstance(space, spaces.Box)
+        assert space == spaces.Box(-1.0, 1.0, (size,), np.float32)
+        for other in (pickle.loads(pickle.dumps(space)), copy.deepcopy(space)):
+            assert type(other) is ActionBox
+            assert _same_draws(_draws(other, 5), _draws(space, 5))
+        env.close()
+    vec = gym.make_vec("AOASS-v0", num_envs=2, vectorization_mode="sync", config=SMALL)
+    assert type(vec.single_action_space) is ActionBox
+    assert type(vec.action_space) is spaces.Box and vec.action_space.shape == (2, 2)
+    vec.close()
