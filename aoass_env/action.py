@@ -58,6 +58,11 @@ def checked_action(action: Any, names: tuple[str, ...] = ("dv", "dtheta")) -> li
         # Python floats (a float32 converts to float64 exactly; min/max clip as np.clip,
         # signed zeros included); NaN and infinities go on to the checked path's error
         values = action.tolist()
+        for x in values:
+            if not -1.0 <= x <= 1.0:     # outside the box, or NaN
+                break
+        else:
+            return values                # inside: the clip changes nothing
         if all(-math.inf < x < math.inf for x in values):
             return [_unit_clip(x) for x in values]
     layout = f"[{', '.join(names)}]"

@@ -158,7 +158,8 @@ def test_checked_action_fast_path_is_the_array_code():
                 assert _same_floats(checked_action(action, names),
                                     _checked_action_arrays(action, names))
     # NaN, infinities and wrong shapes still fail on the checked path
-    for bad in (np.array([np.nan, 0.0]), np.array([np.inf, 0.0], np.float32), np.zeros(3)):
+    for bad in (np.array([np.nan, 0.0]), np.array([0.5, np.nan]), np.array([-1.0, -np.inf]),
+                np.array([np.inf, 0.0], np.float32), np.zeros(3)):
         with pytest.raises(ValueError, match="action"):
             checked_action(bad)
 
