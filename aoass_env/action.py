@@ -90,8 +90,9 @@ class ActionBox(spaces.Box):
     ``Box.sample``'s interval masks and ``uniform``'s broadcasting (about 20 µs of a random
     AOASS-v0 step, ``benchmarks/step_speedup.py``). Any other box (an unbounded side, integers,
     a scalar shape, a bound range that overflows) and any ``mask`` or ``probability`` go to
-    ``Box.sample`` itself. Like the Box's own ``bounded_below`` and ``bounded_above``, which
-    kind of box it is is decided at construction; the bounds are read at every draw.
+    ``Box.sample`` itself. Which of the two draws a box takes is decided at construction, as
+    the Box's own ``bounded_below`` and ``bounded_above`` are; the bounds are read at every
+    draw.
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
