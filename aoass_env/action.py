@@ -104,8 +104,10 @@ class ActionBox(spaces.Box):
 
     def sample(self, mask: None = None, probability: None = None) -> np.ndarray:
         """A uniform draw from the box, as ``Box.sample`` draws it (class docstring)."""
-        if not self._uniform or mask is not None or probability is not None:
+        if probability is not None:      # Gymnasium 1.0's Box.sample has no such argument
             return super().sample(mask, probability)
+        if not self._uniform or mask is not None:
+            return super().sample(mask)
         low = self.low.astype(np.float64)
         return (low + (self.high - low) * self.np_random.random(self.shape)).astype(self.dtype)
 

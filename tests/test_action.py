@@ -238,6 +238,15 @@ def test_a_mask_is_refused_as_box_refuses_it():
         ActionBox(-1.0, 1.0, (2,)).sample(mask=np.ones(2, dtype=np.int8))
 
 
+def test_a_probability_is_refused_as_box_refuses_it():
+    """Gymnasium >= 1.1 refuses it in Box.sample; 1.0 has no such argument (a TypeError)."""
+    def refusal(space: spaces.Box) -> type:
+        with pytest.raises((gym.error.Error, TypeError)) as refused:
+            space.sample(probability=np.ones(2))
+        return refused.type
+    assert refusal(ActionBox(-1.0, 1.0, (2,))) is refusal(spaces.Box(-1.0, 1.0, (2,)))
+
+
 def test_the_registered_ids_act_in_action_boxes():
     """Every registered id's action space is an ActionBox: a Box to Gymnasium and SB3, equal
     to the plain Box, kept by pickling and copying, and batched into a plain Box."""
