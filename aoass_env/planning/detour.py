@@ -13,10 +13,11 @@ grid paths to it (adding a weight is monotone and never decreases a sum), and a 
 by a limit finds every cell whose distance is within it. Its predecessor of a cell is the first
 scanned neighbour through which that distance is reached. When exactly one neighbour reaches it,
 for every cell of the path, every search that reaches the goal traces the same path, whatever
-its heap does with ties. A search therefore first explores a small neighbourhood
-(:data:`QUICK_FACTOR`, growing while the goal lies beyond); when that path is forced at every
-cell it is the answer, and otherwise (a tie on the path, or the goal beyond the bounded search)
-the planner runs the searches it ran before, whose heap settles the ties.
+its heap does with ties. A search therefore first runs a compiled search that stops at the goal
+(:func:`~aoass_env.planning.goal_search.forced_path`); when its path is forced at every cell it
+is the answer, and only for a tie on the path does the planner run a scipy search: the bounded
+one (cost up to :data:`SEARCH_FACTOR` x the straight distance + :data:`SEARCH_SLACK`) when the
+goal lies within it, else the whole grid's, as it always did, whose heap settles the tie.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from aoass_env.maps import ObstacleMap
+from aoass_env.planning.goal_search import FORCED, UNREACHABLE, forced_path
 from aoass_env.segments import CLEAR, CROSSES, EdgeGrid
 
 #: A detour search first explores paths of cost up to SEARCH_FACTOR x the straight distance +
@@ -40,12 +42,6 @@ from aoass_env.segments import CLEAR, CROSSES, EdgeGrid
 #: searches the whole grid only when the goal lies beyond.
 SEARCH_FACTOR = 4.0
 SEARCH_SLACK = 40.0
-#: The quick first search explores paths of cost up to QUICK_FACTOR x the straight distance +
-#: QUICK_SLACK (m; most hops of the follower cost under 2.5 x their straight distance), the next
-#: ones QUICK_GROWTH times further each while below the bounded search's limit.
-QUICK_FACTOR = 2.5
-QUICK_SLACK = 3.0
-QUICK_GROWTH = 2.0
 #: Cost factor of grid moves inside a keep-out (:meth:`DetourPlanner.path`).
 KEEPOUT_COST = 25.0
 #: Extra clearance (m) the nominal follower's detours keep from obstacles beyond the anchor
@@ -90,7 +86,11 @@ class DetourPlanner:
         # nearest free cell of every cell, to snap starts and goals onto the grid
         _, nearest = ndimage.distance_transform_edt(~self.free, return_indices=True)
         self._nearest = np.ravel_multi_index((nearest[0], nearest[1]), self.shape).ravel()
-        self._graph = self._build_graph(1.0 + 1.0 / np.maximum(clearance, 1e-3))
+        cost = 1.0 + 1.0 / np.maximum(clearance, 1e-3)
+        self._graph = self._build_graph(cost)
+        # the compiled search's A* slope: every edge weighs its length x the mean cost of its
+        # two cells, so at least its length x the least cost of a free cell; 0.1 % below it
+        self._slope = 0.999 * float(cost[self.free].min(initial=1.0))
         # the largest 8-connected region of free cells: where most of the field can be reached
         labels, count = ndimage.label(self.free, structure=np.ones((3, 3), dtype=bool))
         sizes = np.bincount(labels.ravel(), minlength=count + 1)[1:]
@@ -274,20 +274,35 @@ class DetourPlanner:
         straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
         limit = SEARCH_FACTOR * straight + SEARCH_SLACK
         kept = self._tree is not None and self._tree[0] == s and self._tree[1] >= limit
-        cells = None
         if not (kept and self._arrays is not None):
-            cells = self._quick(self._graph, s, g, QUICK_FACTOR * straight + QUICK_SLACK, limit)
-        if cells is not None:
-            if not kept:     # the tree the bounded search would have kept (it reaches g)
+            status, cells, cost = self._forced_path(s, g)
+            # the tree the searches below would keep, built when a tie needs it: the bounded
+            # search's (the kept one's) if it reaches g, else the whole grid's
+            if cost > (self._tree[1] if kept else limit):
+                self._tree, self._arrays = (s, math.inf), None
+            elif not kept:
                 self._tree, self._arrays = (s, limit), None
-        else:
-            dist, pred = self._tree_from(s, limit)
-            if not np.isfinite(dist[g]):
-                dist, pred = self._tree_from(s, math.inf)
-            if not np.isfinite(dist[g]):
+            if status == FORCED:
+                return self._pull(self._trace(start, goal, cells))
+            if status == UNREACHABLE:
                 return None
-            cells = self._cells(s, g, pred)
-        return self._pull(self._trace(start, goal, cells))
+        dist, pred = self._tree_from(s, limit)
+        if not np.isfinite(dist[g]):
+            dist, pred = self._tree_from(s, math.inf)
+        if not np.isfinite(dist[g]):
+            return None
+        return self._pull(self._trace(start, goal, self._cells(s, g, pred)))
+
+    def _forced_path(self, s: int, g: int, near: np.ndarray | None = None,
+                     factor: float = 1.0) -> tuple[int, list[int], float]:
+        """(status, cells, cost) of :func:`~aoass_env.planning.goal_search.forced_path` on
+        the grid graph (reweighted by ``factor`` at the ``near`` cells); ``cells`` (``g``
+        first) when the status is FORCED."""
+        graph = self._graph
+        status, cells, cost = forced_path(graph.indptr, graph.indices, graph.data, s, g,
+                                          xy=self.centres, slope=self._slope, near=near,
+                                          factor=factor)
+        return status, cells.tolist(), cost
 
     @staticmethod
     def _cells(s: int, g: int, pred: np.ndarray) -> list[int]:
@@ -309,14 +324,19 @@ class DetourPlanner:
         :data:`KEEPOUT_COST` times more (a path crosses a keep-out only when going round it is
         much longer); legs of the shortened path keep clear of the keep-outs where the grid
         path does."""
-        graph = self._reweighted(self._near(keepout, radius), math.sqrt(KEEPOUT_COST))
+        near = self._near(keepout, radius)
         s, g = self._cell(start), self._cell(goal)
-        # quick and bounded first, as in path()
-        straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
-        limit = SEARCH_FACTOR * straight + SEARCH_SLACK
-        cells = self._quick(graph, s, g, QUICK_FACTOR * straight + QUICK_SLACK, limit)
-        if cells is None:
-            dist, pred = dijkstra(graph, indices=s, return_predecessors=True, limit=limit)
+        # the compiled search first; on a tie, scipy's bounded search if it reaches g, else the
+        # whole grid's, as in path()
+        status, cells, cost = self._forced_path(s, g, near, math.sqrt(KEEPOUT_COST))
+        if status == UNREACHABLE:
+            return None
+        if status != FORCED:
+            straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
+            limit = SEARCH_FACTOR * straight + SEARCH_SLACK
+            graph = self._reweighted(near, math.sqrt(KEEPOUT_COST))
+            dist, pred = dijkstra(graph, indices=s, return_predecessors=True,
+                                  limit=limit if cost <= limit else math.inf)
             if not np.isfinite(dist[g]):
                 dist, pred = dijkstra(graph, indices=s, return_predecessors=True)
             if not np.isfinite(dist[g]):
@@ -374,35 +394,6 @@ class DetourPlanner:
             self._arrays = dijkstra(self._graph, indices=s, return_predecessors=True,
                                     limit=self._tree[1])
         return self._arrays
-
-    def _quick(self, graph: csr_matrix, s: int, g: int, quick: float,
-               limit: float) -> list[int] | None:
-        """The cells (``g`` first) of a search of ``graph`` from cell ``s`` whose path to cell
-        ``g`` is forced (:meth:`_forced`), so every search that reaches ``g`` traces it;
-        searched up to path cost ``quick`` (m), then :data:`QUICK_GROWTH` times more while
-        below ``limit``, until a search reaches ``g``. None when a tie is on the path or ``g``
-        lies beyond."""
-        while quick < limit:
-            dist, pred = dijkstra(graph, indices=s, return_predecessors=True, limit=quick)
-            if np.isfinite(dist[g]):
-                cells = self._cells(s, g, pred)
-                return cells if self._forced(graph, dist, cells) else None
-            quick *= QUICK_GROWTH
-        return None
-
-    def _forced(self, graph: csr_matrix, dist: np.ndarray, cells: list[int]) -> bool:
-        """Whether every cell v but the start of a searched path ``cells`` (the start last) has
-        exactly one neighbour u with ``dist[u] + w(u, v) == dist[v]`` in the search's
-        distances ``dist``: the sum Dijkstra compares (module docstring)."""
-        v = np.array(cells[:-1], dtype=np.int64)
-        lo = graph.indptr[v][:, None]
-        j = lo + np.arange(self._degree)
-        ok = j < graph.indptr[v + 1][:, None]
-        j = np.where(ok, j, 0)
-        # w(u, v) == w(v, u) bit for bit (both directions get the same weight, and a keep-out
-        # multiplies both by the same factor or by 1), so row v gives every edge into v
-        reach = ok & (dist[graph.indices[j]] + graph.data[j] == dist[v][:, None])
-        return bool(np.all(np.count_nonzero(reach, axis=1) == 1))
 
     def _pull(self, pts: np.ndarray,
               clear: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> np.ndarray:

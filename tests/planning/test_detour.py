@@ -8,7 +8,8 @@ from hypothesis import strategies as st
 from scipy.sparse.csgraph import dijkstra
 
 from aoass_env.maps import ObstacleMap, generate_map
-from aoass_env.planning.detour import DetourPlanner
+from aoass_env.planning.detour import SEARCH_FACTOR, SEARCH_SLACK, DetourPlanner
+from aoass_env.planning.goal_search import FORCED, TIE, forced_path
 
 WALL = [(40, 10), (45, 10), (45, 90), (40, 90)]
 # a C-shaped obstacle whose mouth (0.6 m) is too narrow for a 0.5 m disc
@@ -121,13 +122,17 @@ def test_planners_of_one_map_share_the_grid_with_a_fresh_search_state():
         DetourPlanner(m, 0.8).path(np.array([20.0, 50.0]), np.array([70.0, 50.0])), path)
     assert DetourPlanner.for_map(m, 1.0)._graph is not a._graph
     assert DetourPlanner.for_map(ObstacleMap(100, 100, [WALL]), 0.8)._graph is not a._graph
-    # the keep-out searches' reverse entries: built once, by whichever planner needs them first
     keepout = dict(keepout=np.array([[30.0, 50.0]]), keepout_radius=2.0)
     around = b.path(np.array([20.0, 50.0]), np.array([70.0, 50.0]), **keepout)
-    entries = b._reverse["entries"]
     c = DetourPlanner.for_map(m, 0.8)
     np.testing.assert_array_equal(
         c.path(np.array([20.0, 50.0]), np.array([70.0, 50.0]), **keepout), around)
+    # the reverse entries of the reweighted keep-out grid (scipy's searches, after a tie):
+    # built once, by whichever planner needs them first
+    near = b._near(keepout["keepout"], keepout["keepout_radius"])
+    graph = b._reweighted(near, 5.0)
+    entries = b._reverse["entries"]
+    np.testing.assert_array_equal(c._reweighted(near, 5.0).data, graph.data)
     assert c._reverse["entries"] is entries and a._reverse["entries"] is entries
 
 
@@ -196,34 +201,25 @@ def test_a_point_leads_out_only_through_cells_of_exact_clearance():
 
 
 class _SearchesOnly(DetourPlanner):
-    """The planner before its quick searches (the oracle): with no forced quick path, path()
-    and the keep-out searches run the bounded search, the kept tree and the whole-grid search
-    as they did."""
+    """The planner before its compiled searches (the oracle): with no forced path found,
+    path() and the keep-out searches run the bounded search, the kept tree and the whole-grid
+    search as they did."""
 
-    def _quick(self, graph, s, g, quick, limit):
-        return None
+    def _forced_path(self, s, g, near=None, factor=1.0):
+        return TIE, [], 0.0
 
 
-def _spy_outcomes(monkeypatch) -> Counter:
-    """Counts of the quick searches' outcomes: forced (taken), tie (goal reached, path not
-    forced), beyond (goal past the quick limit)."""
-    seen: Counter = Counter()
-    forced = DetourPlanner._forced
+def _spy_outcomes(monkeypatch) -> list:
+    """The compiled searches' (status, goal's cost), in order."""
+    seen: list = []
+    search = DetourPlanner._forced_path
 
-    def spy(self, graph, dist, cells):
-        seen["forced" if (answer := forced(self, graph, dist, cells)) else "tie"] += 1
-        return answer
+    def spy(self, s, g, near=None, factor=1.0):
+        status, cells, cost = search(self, s, g, near, factor)
+        seen.append((status, cost))
+        return status, cells, cost
 
-    quick = DetourPlanner._quick
-
-    def beyond(self, graph, s, g, first, limit):
-        before = seen.total()
-        cells = quick(self, graph, s, g, first, limit)
-        seen["beyond"] += seen.total() == before
-        return cells
-
-    monkeypatch.setattr(DetourPlanner, "_forced", spy)
-    monkeypatch.setattr(DetourPlanner, "_quick", beyond)
+    monkeypatch.setattr(DetourPlanner, "_forced_path", spy)
     return seen
 
 
@@ -233,27 +229,57 @@ def _same(got, want):
         np.testing.assert_array_equal(got, want)
 
 
-def test_quick_searches_give_the_paths_of_the_bounded_and_full_searches(monkeypatch):
+def test_compiled_searches_give_the_paths_of_the_bounded_and_full_searches(monkeypatch):
     # a follower's pattern on a dense map: short hops from a moving start, repeated starts
-    # (the kept tree), long ways, costs() between, keep-outs; ties occur on the long ways
-    seen = _spy_outcomes(monkeypatch)
-    m = generate_map(100.0, 0.4, np.random.default_rng(7))
-    rng = np.random.default_rng(8)
-    quick, oracle = DetourPlanner(m, 0.8), _SearchesOnly(m, 0.8)
-    start = m.sample_free_points(1, rng)[0]
-    for k in range(120):
-        if k % 4:
-            start = np.clip(start + rng.normal(scale=1.5, size=2), 0.5, 99.5)
-        near = start + rng.normal(scale=[2.0, 6.0, 30.0][k % 3], size=2)
-        goal = np.clip(near, 0.5, 99.5) if k % 5 else m.sample_free_points(1, rng)[0]
-        if k % 7 == 0:
-            goals = m.sample_free_points(3, rng)
-            np.testing.assert_array_equal(quick.costs(start, goals), oracle.costs(start, goals))
-        if k % 9 == 0:
-            keep = (start + goal) / 2 + rng.normal(scale=1.0, size=(2, 2))
-            _same(quick.path(start, goal, keep, 2.0), oracle.path(start, goal, keep, 2.0))
-        _same(quick.path(start, goal), oracle.path(start, goal))
-    assert seen["forced"] > 40 and seen["tie"] > 0 and seen["beyond"] > 0
+    # (the kept tree), long ways, costs() between, keep-outs; ties occur on the long ways. Run
+    # again with a bounded search too short for any goal (every tie goes to the whole grid).
+    from aoass_env.planning import detour
+
+    seen, outcomes = _spy_outcomes(monkeypatch), Counter()
+    m, wall = generate_map(100.0, 0.4, np.random.default_rng(7)), ObstacleMap(100, 100, [WALL])
+
+    def compare(start, goal):
+        searched = len(seen)
+        _same(compiled.path(start, goal), oracle.path(start, goal))
+        if len(seen) > searched:     # (no search when the kept tree answers)
+            status, cost = seen[-1]
+            limit = detour.SEARCH_FACTOR * np.hypot(*(goal - start)) + detour.SEARCH_SLACK
+            outcomes[("forced" if status == FORCED else "tie", bool(cost > limit))] += 1
+
+    for factor, slack in ((SEARCH_FACTOR, SEARCH_SLACK), (1.0, 0.0)):
+        monkeypatch.setattr(detour, "SEARCH_FACTOR", factor)
+        monkeypatch.setattr(detour, "SEARCH_SLACK", slack)
+        rng = np.random.default_rng(8)
+        compiled, oracle = DetourPlanner(m, 0.8), _SearchesOnly(m, 0.8)
+        start = m.sample_free_points(1, rng)[0]
+        for k in range(120):
+            if k % 4:
+                start = np.clip(start + rng.normal(scale=1.5, size=2), 0.5, 99.5)
+            near = start + rng.normal(scale=[2.0, 6.0, 30.0][k % 3], size=2)
+            goal = np.clip(near, 0.5, 99.5) if k % 5 else m.sample_free_points(1, rng)[0]
+            if k % 7 == 0:
+                goals = m.sample_free_points(3, rng)
+                np.testing.assert_array_equal(compiled.costs(start, goals),
+                                              oracle.costs(start, goals))
+            if k % 9 == 0:
+                keep = (start + goal) / 2 + rng.normal(scale=1.0, size=(2, 2))
+                _same(compiled.path(start, goal, keep, 2.0), oracle.path(start, goal, keep, 2.0))
+            compare(start, goal)
+    # goals just behind the long wall: the way round costs more than the bounded search's limit
+    monkeypatch.setattr(detour, "SEARCH_FACTOR", SEARCH_FACTOR)
+    monkeypatch.setattr(detour, "SEARCH_SLACK", SEARCH_SLACK)
+    compiled, oracle = DetourPlanner(wall, 0.8), _SearchesOnly(wall, 0.8)
+    for k, (y0, y1) in enumerate(rng.uniform(15.0, 85.0, (12, 2))):
+        start = np.array([37.0 + k % 3, y0])
+        compare(start, np.array([47.5, y1]))
+        compare(start, np.array([47.5, 100.0 - y1]))      # from the kept tree
+        if k % 3 == 0:
+            keep = np.array([[35.0, y0 + 3.0]])
+            _same(compiled.path(start, np.array([47.5, y1]), keep, 2.0),
+                  oracle.path(start, np.array([47.5, y1]), keep, 2.0))
+    # forced paths and ties, within the bounded search's limit and beyond it
+    assert outcomes[("forced", False)] > 40 and outcomes[("tie", False)] > 0
+    assert outcomes[("forced", True)] > 40 and outcomes[("tie", True)] > 0
 
 
 @settings(max_examples=30, deadline=None)
@@ -264,15 +290,15 @@ def test_quick_searches_give_the_paths_of_the_bounded_and_full_searches(monkeypa
 # scipy 1.10.0's dijkstra looped forever on this keep-out search (scipy#17782; the floor is 1.10.1)
 @example(boxes=[(7, 2, 1, 1), (6, 15, 2, 2)],
          ends=[(0.9456024169921876, 1.9), (2.00001, 19.499999999999996)])
-def test_quick_searches_on_symmetric_grids_with_many_ties(boxes, ends):
+def test_compiled_searches_on_symmetric_grids_with_many_ties(boxes, ends):
     # axis-aligned boxes on whole metres: equal clearances everywhere, equal-cost paths
     polys = [[(x, y), (x + w, y), (x + w, y + h), (x, y + h)] for x, y, w, h in boxes]
     m = ObstacleMap(20, 20, polys)
-    quick, oracle = DetourPlanner(m, 0.5), _SearchesOnly(m, 0.5)
+    compiled, oracle = DetourPlanner(m, 0.5), _SearchesOnly(m, 0.5)
     pts = np.array(ends)
     for a, b in zip(pts[:-1], pts[1:], strict=True):
-        _same(quick.path(a, b), oracle.path(a, b))
-        _same(quick.path(a, b, pts[:1], 1.0), oracle.path(a, b, pts[:1], 1.0))
+        _same(compiled.path(a, b), oracle.path(a, b))
+        _same(compiled.path(a, b, pts[:1], 1.0), oracle.path(a, b, pts[:1], 1.0))
 
 
 def test_a_forced_path_is_the_path_of_every_search_limit():
@@ -283,15 +309,15 @@ def test_a_forced_path_is_the_path_of_every_search_limit():
     for a, b in (m.sample_free_points(2, rng) for _ in range(30)):
         s, g = p._cell(a), p._cell(b)
         dist, pred = dijkstra(p._graph, indices=s, return_predecessors=True)
-        if not (np.isfinite(dist[g]) and p._forced(p._graph, dist, p._cells(s, g, pred))):
+        status, cells, _ = forced_path(p._graph.indptr, p._graph.indices, p._graph.data, s, g)
+        if status != FORCED:
             continue
+        assert cells.tolist() == p._cells(s, g, pred)
         forced += 1
         for limit in (1.0 + dist[g], np.nextafter(dist[g], np.inf)):   # the tightest too
             _, other = dijkstra(p._graph, indices=s, return_predecessors=True, limit=limit)
             assert p._cells(s, g, other) == p._cells(s, g, pred)
     assert forced > 10
-    a, b = m.sample_free_points(2, rng)
-    assert p._quick(p._graph, p._cell(a), p._cell(b), 0.1, 1.0) is None    # beyond the limit
 
 
 @settings(max_examples=25, deadline=None)
