@@ -1,0 +1,48 @@
+"""benchmarks/detour_search.py: recorded planner calls replayed on this tree and an earlier one."""
+
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+
+from tests.benchmarks.conftest import ROOT, load_benchmark
+
+
+def test_the_calls_replay_to_the_same_answers_on_the_tree_before(capsys):
+    bench = load_benchmark("detour_search")
+    if subprocess.run(["git", "cat-file", "-e", f"{bench.BEFORE}^{{commit}}"], cwd=ROOT,
+                      capture_output=True).returncode:
+        pytest.skip(f"needs the repository's history ({bench.BEFORE})")
+    bench.main(["--steps", "1500", "--seeds", "0"])      # exits when the answers differ
+    out = capsys.readouterr().out
+    assert "answers identical to the bit" in out and f"{bench.BEFORE}:" in out
+
+
+def test_recording_restores_the_planner_and_sees_every_call():
+    from aoass_env.planning.detour import DetourPlanner
+
+    bench = load_benchmark("detour_search")
+    methods = (DetourPlanner.__dict__["for_map"], DetourPlanner.path, DetourPlanner.costs)
+    recorded = bench.record([0], 1500)
+    assert (DetourPlanner.__dict__["for_map"].__func__, DetourPlanner.path,
+            DetourPlanner.costs) == (methods[0].__func__, methods[1], methods[2])
+    assert recorded and all(calls for _, calls in recorded)
+    arguments, calls = recorded[0]
+    seconds, answers = bench.replay(DetourPlanner, arguments, calls)
+    assert seconds > 0.0 and len(answers) == len(calls)
+    assert bench.same(answers, bench.replay(DetourPlanner, arguments, calls)[1])
+    assert not bench.same(answers, [None if a is not None else np.zeros((2, 2)) for a in answers])
+
+
+def test_bad_arguments_are_refused_in_one_line(capsys, tmp_path):
+    bench = load_benchmark("detour_search")
+    for argv, message in ((["--steps", "0"], "--steps must be an integer >= 1"),
+                          (["--seeds", "a,b"], "--seeds must be comma-separated integers")):
+        with pytest.raises(SystemExit):
+            bench.main(argv)
+        assert message in capsys.readouterr().err
+    with pytest.raises(SystemExit) as refused:
+        bench.module_at("no-such-commit", "aoass_env/planning/detour.py", tmp_path)
+    assert str(refused.value).startswith("--against no-such-commit: cannot read")
