@@ -27,10 +27,11 @@ import math
 import weakref
 from collections.abc import Callable
 
+import numba
 import numpy as np
 import shapely
 from scipy import ndimage
-from scipy.sparse import coo_matrix, csr_matrix
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from aoass_env.maps import ObstacleMap
@@ -128,26 +129,12 @@ class DetourPlanner:
 
     def _build_graph(self, cost: np.ndarray) -> csr_matrix:
         """8-connected graph of the free cells with both directions of every edge (so Dijkstra
-        needs no symmetrising per search), edge weight = length x mean cost."""
+        needs no symmetrising per search), edge weight = length x mean cost
+        (:func:`_grid_graph`)."""
         nx, ny = self.shape
-        idx = np.arange(nx * ny).reshape(nx, ny)
-        rows, cols, weights = [], [], []
-        for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
-            i0, i1 = max(0, -dx), nx - max(0, dx)
-            j0, j1 = max(0, -dy), ny - max(0, dy)
-            a = idx[i0:i1, j0:j1]
-            b = idx[i0 + dx:i1 + dx, j0 + dy:j1 + dy]
-            a, b = a.ravel(), b.ravel()
-            ok = self.free.ravel()[a] & self.free.ravel()[b]
-            a, b = a[ok], b[ok]
-            step = math.hypot(dx, dy) * self.res
-            rows.append(a)
-            cols.append(b)
-            weights.append(step * 0.5 * (cost.ravel()[a] + cost.ravel()[b]))
-        n, w = nx * ny, np.concatenate(weights)
-        a, b = np.concatenate(rows), np.concatenate(cols)
-        return coo_matrix((np.concatenate([w, w]), (np.concatenate([a, b]),
-                           np.concatenate([b, a]))), shape=(n, n)).tocsr()
+        indptr, indices, data = _grid_graph(self.free, cost, math.hypot(1, 0) * self.res,
+                                            math.hypot(1, 1) * self.res)
+        return csr_matrix((data, indices, indptr), shape=(nx * ny, nx * ny))
 
     def _index(self, point: np.ndarray) -> int:
         """Flat index of the grid cell holding ``point`` (clipped to the field)."""
@@ -408,6 +395,34 @@ class DetourPlanner:
             out.append(pts[j])
             i = j
         return np.array(out)
+
+
+@numba.njit(cache=True)
+def _grid_graph(free: np.ndarray, cost: np.ndarray, straight: float,
+                diagonal: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(indptr, indices, data) of the CSR graph of the (nx, ny) grid's ``free`` cells (flat
+    index i ny + j): an entry (u, v) for every pair of 8-neighbours both free, each row's
+    columns in increasing order, weighing ``step * 0.5 * (cost[u] + cost[v])`` with ``step``
+    the ``straight`` or ``diagonal`` move (m) -- the canonical CSR form scipy's ``tocsr`` gives
+    the same entries, the same floats."""
+    nx, ny = free.shape
+    indptr = np.zeros(nx * ny + 1, dtype=np.int32)
+    indices = np.empty(8 * nx * ny, dtype=np.int32)
+    data = np.empty(8 * nx * ny)
+    k = 0
+    for i in range(nx):
+        for j in range(ny):
+            if free[i, j]:
+                for di in range(-1, 2):          # neighbours in increasing flat index
+                    for dj in range(-1, 2):
+                        ni, nj = i + di, j + dj
+                        if ((di or dj) and 0 <= ni < nx and 0 <= nj < ny and free[ni, nj]):
+                            step = diagonal if di and dj else straight
+                            indices[k] = ni * ny + nj
+                            data[k] = step * 0.5 * (cost[i, j] + cost[ni, nj])
+                            k += 1
+            indptr[i * ny + j + 1] = k
+    return indptr, indices[:k].copy(), data[:k].copy()
 
 
 def _row_entries(indptr: np.ndarray, rows: np.ndarray) -> np.ndarray:

@@ -373,3 +373,60 @@ def test_reverse_entries_pair_every_edge_with_its_other_direction():
     one_way = csr_matrix((np.ones(1), (np.array([0]), np.array([1]))), shape=(2, 2))
     with pytest.raises(ValueError, match="both directions"):
         _reverse_entries(one_way)
+
+
+def _graph_by_coo(free: np.ndarray, cost: np.ndarray, res: float):
+    """The oracle: the grid graph as the planner built it before (issue 20, eighteenth round),
+    each direction's pairs of free cells as a COO matrix of both directions, made CSR."""
+    from scipy.sparse import coo_matrix
+
+    nx, ny = free.shape
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    rows, cols, weights = [], [], []
+    for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
+        i0, i1 = max(0, -dx), nx - max(0, dx)
+        j0, j1 = max(0, -dy), ny - max(0, dy)
+        a = idx[i0:i1, j0:j1].ravel()
+        b = idx[i0 + dx:i1 + dx, j0 + dy:j1 + dy].ravel()
+        ok = free.ravel()[a] & free.ravel()[b]
+        a, b = a[ok], b[ok]
+        step = np.hypot(dx, dy) * res
+        rows.append(a)
+        cols.append(b)
+        weights.append(step * 0.5 * (cost.ravel()[a] + cost.ravel()[b]))
+    w, a, b = np.concatenate(weights), np.concatenate(rows), np.concatenate(cols)
+    return coo_matrix((np.concatenate([w, w]), (np.concatenate([a, b]), np.concatenate([b, a]))),
+                      shape=(nx * ny, nx * ny)).tocsr()
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), nx=st.integers(1, 30), ny=st.integers(1, 30),
+       share=st.floats(0.0, 1.0))
+def test_the_grid_graph_is_the_coo_built_graph_to_the_bit(seed, nx, ny, share):
+    from aoass_env.planning.detour import _grid_graph
+
+    rng = np.random.default_rng(seed)
+    free = rng.random((nx, ny)) < share
+    cost = 1.0 + 1.0 / rng.uniform(1e-3, 20.0, (nx, ny))
+    want = _graph_by_coo(free, cost, 0.5)
+    indptr, indices, data = _grid_graph(free, cost, np.hypot(1, 0) * 0.5, np.hypot(1, 1) * 0.5)
+    np.testing.assert_array_equal(indptr, want.indptr)
+    np.testing.assert_array_equal(indices, want.indices)
+    np.testing.assert_array_equal(data.view(np.uint64), want.data.view(np.uint64))
+
+
+def test_a_planners_graph_is_the_coo_built_graph_on_generated_maps(monkeypatch):
+    costs = []
+    build = DetourPlanner._build_graph
+
+    def keeping_the_cost(self, cost):
+        costs.append(cost)
+        return build(self, cost)
+
+    monkeypatch.setattr(DetourPlanner, "_build_graph", keeping_the_cost)
+    for k, (side, density) in enumerate(((100.0, 0.2), (100.0, 0.5), (60.0, 0.0))):
+        p = DetourPlanner(generate_map(side, density, np.random.default_rng(20 + k)), 0.8)
+        want = _graph_by_coo(p.free, costs[-1], p.res)
+        np.testing.assert_array_equal(p._graph.indptr, want.indptr)
+        np.testing.assert_array_equal(p._graph.indices, want.indices)
+        np.testing.assert_array_equal(p._graph.data.view(np.uint64), want.data.view(np.uint64))
