@@ -15,41 +15,20 @@ kept search tree, carries from call to call as in the episode).
 from __future__ import annotations
 
 import argparse
-import importlib.util
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from git_history import module_at
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env.planning import detour
 
-ROOT = Path(__file__).resolve().parents[1]
 #: the commit before the compiled goal search (issue 20's eighteenth round)
 BEFORE = "6d39d57"
-
-
-def module_at(commit: str, path: str, folder: Path) -> ModuleType:
-    """The module ``path`` (relative to the repository root) as it was at ``commit``."""
-    try:
-        source = subprocess.run(["git", "show", f"{commit}:{path}"], cwd=ROOT, check=True,
-                                capture_output=True, text=True).stdout
-    except (OSError, subprocess.CalledProcessError) as err:
-        raise SystemExit(f"--against {commit}: cannot read {path} there with git ({err})") \
-            from None
-    file = folder / f"{Path(path).stem}_{commit}.py"
-    file.write_text(source)
-    spec = importlib.util.spec_from_file_location(f"at_{commit}_{Path(path).stem}", file)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module        # dataclasses look their module up while it runs
-    spec.loader.exec_module(module)
-    return module
 
 
 def record(seeds: list[int], steps: int) -> list[tuple[tuple, list[tuple]]]:

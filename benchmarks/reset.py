@@ -15,41 +15,24 @@ trees' maps and coverage rasters agree bit for bit.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import gymnasium as gym
+from git_history import module_at
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env import simulator
 from aoass_env.maps import generator
 from aoass_env.planning import coverage
 
-ROOT = Path(__file__).resolve().parents[1]
 TARGET_MS = 50.0
 #: the commit before issue 20's reset work
 BEFORE = "086f580"
-
-
-def module_at(commit: str, path: str, folder: Path) -> ModuleType:
-    """The module ``path`` (relative to the repository root) as it was at ``commit``."""
-    source = subprocess.run(["git", "show", f"{commit}:{path}"], cwd=ROOT, check=True,
-                            capture_output=True, text=True).stdout
-    file = folder / Path(path).name
-    file.write_text(source)
-    spec = importlib.util.spec_from_file_location(f"at_{commit}_{file.stem}", file)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module        # dataclasses look their module up while it runs
-    spec.loader.exec_module(module)
-    return module
 
 
 #: what is timed: the whole reset and two of its parts

@@ -11,7 +11,11 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def load_benchmark(name: str) -> ModuleType:
-    """``benchmarks/<name>.py`` loaded as a module (the scripts are not a package)."""
+    """``benchmarks/<name>.py`` loaded as a module (the scripts are not a package), their
+    folder on ``sys.path`` as when run by path (their shared module ``git_history``)."""
+    folder = str(ROOT / "benchmarks")
+    if folder not in sys.path:
+        sys.path.append(folder)
     spec = importlib.util.spec_from_file_location(f"aoass_bench_{name}",
                                                   ROOT / "benchmarks" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
