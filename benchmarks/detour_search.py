@@ -1,8 +1,10 @@
 """The detour planner's searches against an earlier commit's planner, on recorded calls.
 
     python3 benchmarks/detour_search.py [--against 6d39d57] [--steps 20000] [--seeds 0,1,2]
+                                        [--field 100] [--density 0.2]
 
-Random-action episodes of AOASS-v0 (the issue-20 measure: resets included) record every call
+Random-action episodes of AOASS-v0 (the issue-20 measure: resets included; the default config
+unless ``--field`` or ``--density`` say otherwise) record every call
 the follower makes to its detour planner (``path`` with and without keep-outs, ``costs``),
 with the map each planner plans on. The calls are then replayed map by map, in the order made,
 on a fresh planner of this tree and on one of ``--against`` (its
@@ -31,10 +33,10 @@ from aoass_env.planning import detour
 BEFORE = "6d39d57"
 
 
-def record(seeds: list[int], steps: int) -> list[tuple[tuple, list[tuple]]]:
+def record(seeds: list[int], steps: int, **config: Any) -> list[tuple[tuple, list[tuple]]]:
     """[(planner arguments (map, radius, resolution), [calls in order])] of the planners the
-    episodes built; a call is ``("path", start, goal, keepout, radius)`` or ``("costs",
-    start, goals)``, arrays copied."""
+    episodes (AOASS-v0 with ``config``) built; a call is ``("path", start, goal, keepout,
+    radius)`` or ``("costs", start, goals)``, arrays copied."""
     planners: dict[int, tuple[tuple, list[tuple]]] = {}
     keep: list[Any] = []                 # the planners stay alive: their ids stay theirs
     for_map, path, costs = (detour.DetourPlanner.for_map, detour.DetourPlanner.path,
@@ -62,7 +64,7 @@ def record(seeds: list[int], steps: int) -> list[tuple[tuple, list[tuple]]]:
     detour.DetourPlanner.path, detour.DetourPlanner.costs = recording_path, recording_costs
     try:
         for seed in seeds:
-            env = gym.make("AOASS-v0")
+            env = gym.make("AOASS-v0", **config)
             env.reset(seed=seed)
             env.action_space.seed(seed)
             for _ in range(steps):
@@ -104,6 +106,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--steps", type=int, default=20_000,
                         help="random steps per seed (default 20000)")
     parser.add_argument("--seeds", default="0,1,2", help="comma-separated (default 0,1,2)")
+    parser.add_argument("--field", type=float, default=None, help="field side (m; default the "
+                        "config's, 100)")
+    parser.add_argument("--density", type=float, default=None, help="obstacle density (default "
+                        "the config's, 0.2)")
     args = parser.parse_args(argv)
     try:
         seeds = [int(s) for s in args.seeds.split(",")]
@@ -113,7 +119,14 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--steps must be an integer >= 1, got {args.steps}")
     with tempfile.TemporaryDirectory() as folder:
         old = module_at(args.against, "aoass_env/planning/detour.py", Path(folder))
-    recorded = record(seeds, args.steps)
+    config = {key: value for key, value in (("field_size", args.field),
+                                             ("obstacle_density", args.density))
+              if value is not None}
+    try:
+        gym.make("AOASS-v0", **config).close()
+    except ValueError as err:                  # the config's own one-line message
+        parser.error(str(err).splitlines()[0])
+    recorded = record(seeds, args.steps, **config)
     classes = {args.against: old.DetourPlanner, "now": detour.DetourPlanner}
     if recorded:                          # first-use costs (compilation, caches)
         for cls in classes.values():

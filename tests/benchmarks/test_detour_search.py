@@ -39,7 +39,9 @@ def test_recording_restores_the_planner_and_sees_every_call():
 def test_bad_arguments_are_refused_in_one_line(capsys, tmp_path):
     bench = load_benchmark("detour_search")
     for argv, message in ((["--steps", "0"], "--steps must be an integer >= 1"),
-                          (["--seeds", "a,b"], "--seeds must be comma-separated integers")):
+                          (["--seeds", "a,b"], "--seeds must be comma-separated integers"),
+                          (["--field", "-3"], "field_size=-3.0 must be a number"),
+                          (["--density", "0.9"], "obstacle_density=0.9 must be a number")):
         with pytest.raises(SystemExit):
             bench.main(argv)
         assert message in capsys.readouterr().err
