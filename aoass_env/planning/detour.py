@@ -101,7 +101,6 @@ class DetourPlanner:
         shapely.prepare(self._blocker)
         self._blocker_edges = EdgeGrid(_ring_edges(self._blocker))
         self._last_inside = (math.nan, math.nan, False)   # (x, y, answer) of _inside
-        self._degree = int(np.diff(self._graph.indptr).max(initial=0))   # at most 8
         # (start cell, limit) of the kept shortest-path tree, and its (dist, pred) arrays once a
         # search has needed them (a forced quick path needs no tree)
         self._tree: tuple[int, float] | None = None
