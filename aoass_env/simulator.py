@@ -35,25 +35,8 @@ from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
 from aoass_env.planning.square_spiral import config_spacing, episode_spiral
 from aoass_env.planning.sweep import Controller
 from aoass_env.radio import Radio, receivers_at
-from aoass_env.trajectory import _SHORT_PATH, beacons_along
+from aoass_env.trajectory import beacons_of_rows
 from aoass_env.world import World
-
-#: The beacons of a control period that passed no beacon mark (read-only).
-_NO_BEACONS = np.zeros((0, 3))
-_NO_BEACONS.flags.writeable = False
-
-
-def _rows_length(rows: list[tuple[float, float, float]]) -> float:
-    """Length (m) of the path through the (t, x, y) rows, its segments summed in order: the
-    float of :func:`~aoass_env.trajectory.beacons_along`'s odometer."""
-    total = 0.0
-    _, x0, y0 = rows[0]
-    for _, x1, y1 in rows[1:]:
-        dx, dy = x1 - x0, y1 - y0
-        total += math.sqrt(dx * dx + dy * dy)
-        x0, y0 = x1, y1
-    return total
-
 
 @dataclass(frozen=True)
 class StepRecord:
@@ -172,13 +155,8 @@ class Simulator:
     def step(self, speed_cmd: float, heading_cmd: float) -> StepRecord:
         """Advance one control period with a commanded speed (m/s) and heading (rad)."""
         rows = self.world.advance(speed_cmd, heading_cmd)
-        start, interval = self._odometer, self.config.beacon_interval
-        odometer = start + _rows_length(rows)
-        if len(rows) <= _SHORT_PATH and math.floor(odometer / interval + 1e-9) \
-                <= math.floor(start / interval + 1e-9):
-            beacons = _NO_BEACONS    # no beacon mark passed: beacons_along's own fast path
-        else:
-            beacons, odometer = beacons_along(np.array(rows), start, interval)
+        start = self._odometer
+        beacons, odometer = beacons_of_rows(rows, start, self.config.beacon_interval)
         distance = odometer - start
         self._odometer = odometer
         self.network.charge_motion(distance)

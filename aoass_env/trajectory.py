@@ -65,6 +65,26 @@ def beacons_along(path: np.ndarray, start_distance: float,
     return out, end
 
 
+#: The beacons of a period that passes no beacon mark (shared, read-only).
+NO_BEACONS = np.zeros((0, 3))
+NO_BEACONS.flags.writeable = False
+
+
+def beacons_of_rows(rows: list[tuple[float, float, float]], start_distance: float,
+                    interval: float) -> tuple[np.ndarray, float]:
+    """:func:`beacons_along` of a path given as rows (t [s], x [m], y [m]) of plain floats (the
+    simulator's control period), the same beacons and odometer float: a short path stays in
+    floats (no array, no second pass for its length), and one that passes no beacon mark
+    returns :data:`NO_BEACONS`. ``interval`` (m) must be positive (a config's, already
+    checked)."""
+    if len(rows) > _SHORT_PATH:
+        return beacons_along(np.array(rows), start_distance, interval)
+    end = start_distance + _xy_length(rows)
+    if math.floor(end / interval + 1e-9) <= math.floor(start_distance / interval + 1e-9):
+        return NO_BEACONS, end
+    return _short_beacons(rows, start_distance, interval), end
+
+
 def _short_beacons(rows: list[list[float]], start_distance: float,
                    interval: float) -> np.ndarray:
     """The beacons of :func:`beacons_along` on a short path of rows (t, x, y) (plain floats)

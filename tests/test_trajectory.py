@@ -73,3 +73,24 @@ def test_short_path_beacons_are_numpys_bit_for_bit(points, start, interval):
         slow, slow_end = beacons_along(path, start, interval)
     assert fast_end == slow_end and fast.shape == slow.shape and fast.dtype == slow.dtype
     assert fast.tobytes() == slow.tobytes()
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(COORD, COORD), min_size=1, max_size=12),
+       st.one_of(st.integers(0, 9).map(float), st.floats(0.0, 30.0)),
+       st.one_of(st.sampled_from([0.5, 1.0, 2.0]), st.floats(0.3, 5.0)),
+       st.booleans())
+def test_beacons_of_rows_are_beacons_along_bit_for_bit(points, start, interval, long):
+    """The simulator's rows of plain floats give beacons_along's beacons and odometer float,
+    on short paths (with no mark passed: the shared empty array) and, with the short-path
+    bound at 0, through the array code."""
+    rows = [(0.1 * k, x, y) for k, (x, y) in enumerate(points)]
+    with pytest.MonkeyPatch.context() as m:
+        if long:
+            m.setattr(trajectory, "_SHORT_PATH", 0)
+        got, got_end = trajectory.beacons_of_rows(rows, start, interval)
+        want, want_end = beacons_along(np.array(rows), start, interval)
+    assert got_end == want_end and got.shape == want.shape and got.dtype == want.dtype
+    assert got.tobytes() == want.tobytes()
+    if not len(got) and not long:
+        assert got is trajectory.NO_BEACONS and not got.flags.writeable
