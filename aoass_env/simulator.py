@@ -38,6 +38,7 @@ from aoass_env.radio import Radio, receivers_at
 from aoass_env.trajectory import beacons_of_rows
 from aoass_env.world import World
 
+
 @dataclass(frozen=True)
 class StepRecord:
     """What one control period produced.
