@@ -75,8 +75,10 @@ def beacons_of_rows(rows: list[tuple[float, float, float]], start_distance: floa
     """:func:`beacons_along` of a path given as rows (t [s], x [m], y [m]) of plain floats (the
     simulator's control period), the same beacons and odometer float: a short path stays in
     floats (no array, no second pass for its length), and one that passes no beacon mark
-    returns :data:`NO_BEACONS`. ``interval`` (m) must be positive (a config's, already
-    checked)."""
+    returns :data:`NO_BEACONS`. ``interval`` (m) must be positive (ValueError naming it, as
+    :func:`beacons_along` says; one comparison on the common path)."""
+    if not interval > 0.0:
+        positive("interval", interval, "m")
     if len(rows) > _SHORT_PATH:
         return beacons_along(np.array(rows), start_distance, interval)
     end = start_distance + _xy_length(rows)

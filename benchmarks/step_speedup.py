@@ -139,5 +139,6 @@ def main(argv: list[str] | None = None) -> None:
               f"{statistics.median(p[0] for p in pendulum):.3f} x -> "
               f"{statistics.median(p[1] for p in pendulum):.3f} x")
 
+
 if __name__ == "__main__":
     main()

@@ -30,15 +30,14 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from env_throughput import part_timers  # benchmarks/env_throughput.py, a sibling
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
@@ -47,9 +46,6 @@ from aoass_env.planning.follower import WaypointFollower
 from aoass_env.simulator import Simulator
 from aoass_env.validators import argparse_number
 from aoass_env.world import World
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from env_throughput import part_timers  # noqa: E402  (benchmarks/env_throughput.py)
 
 
 def _timed(make: Callable[[], Any], step: Callable[[Any, np.random.Generator], int],
@@ -242,6 +238,7 @@ def main() -> None:
           f"({world / total:.0%}); the rest, which a batch could merge at best, {rest:.1f} µs "
           f"({rest / total:.0%}): a batch in one process is at most {total / world:.2f} x "
           f"the single env")
+
 
 if __name__ == "__main__":
     main()

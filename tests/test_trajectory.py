@@ -1,3 +1,5 @@
+import math
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -94,3 +96,11 @@ def test_beacons_of_rows_are_beacons_along_bit_for_bit(points, start, interval, 
     assert got.tobytes() == want.tobytes()
     if not len(got) and not long:
         assert got is trajectory.NO_BEACONS and not got.flags.writeable
+
+
+@pytest.mark.parametrize("interval", [0.0, -1.0, math.nan])
+def test_beacons_of_rows_refuse_a_bad_interval_in_one_line(interval):
+    rows = [(0.0, 0.0, 0.0), (0.1, 3.0, 0.0)]
+    with pytest.raises(ValueError, match="^interval=") as refused:
+        trajectory.beacons_of_rows(rows, 0.0, interval)
+    assert "\n" not in str(refused.value)

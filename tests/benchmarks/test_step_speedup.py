@@ -34,7 +34,6 @@ def test_an_unknown_commit_is_refused_in_one_line(tmp_path):
     assert "\n" not in message
 
 
-
 def test_the_tree_before_issue_20_runs(tmp_path):
     """The earlier tree's interpreter imports this module with that tree's aoass_env: the module
     must not need anything newer (it imported argparse_number at the top, which 94e941b lacks,
