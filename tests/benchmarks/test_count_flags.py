@@ -34,9 +34,11 @@ CASES = [
 ]
 
 #: one interpreter runs every case (some scripts set thread variables when imported): each
-#: script is loaded, its main() called with the bad flag, and argparse's exit recorded
+#: script is loaded, its main() called with the bad flag, and argparse's exit recorded; the
+#: scripts' folder first on the path, as when a script is run by path (their sibling imports)
 _DRIVER = """
 import contextlib, importlib.util, io, json, sys
+sys.path.insert(0, "benchmarks")
 out = []
 for script, flag, value in json.loads(sys.argv[1]):
     spec = importlib.util.spec_from_file_location("bench_" + script, f"benchmarks/{script}.py")
