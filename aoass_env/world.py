@@ -9,6 +9,7 @@ model (dynamics, moving obstacles, sensing, contact semantics) in full.
 from __future__ import annotations
 
 import math
+import weakref
 from typing import Any
 
 import numpy as np
@@ -18,6 +19,7 @@ import shapely
 from aoass_env.clearance import MARGIN, ClearanceCertificates
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
+from aoass_env.rays import StaticShapes, cast_rays, compiled_rays
 from aoass_env.trig import SCALAR_TRIG
 from aoass_env.validators import real, vec2
 
@@ -84,6 +86,11 @@ _TWO_PI = 2.0 * math.pi
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """Angle(s) (rad) wrapped to ``(-pi, pi]``."""
     return math.pi - (math.pi - angle) % (2.0 * math.pi)
+
+
+#: :meth:`World._static_shapes` per map (maps are immutable; the episodes on one map share them)
+_STATIC_SHAPES: weakref.WeakKeyDictionary[ObstacleMap, StaticShapes] = \
+    weakref.WeakKeyDictionary()
 
 
 def _obstacle_ids(obstacle_map: ObstacleMap) -> np.ndarray:
@@ -187,6 +194,8 @@ class World:
         self._substeps_done = 0
         self._xy: np.ndarray | None = None    # position's array, until the anchor moves
         self._ray_offsets = 2.0 * math.pi * np.arange(config.n_rays) / config.n_rays
+        # the static shapes as the compiled rays read them, where those give Chipmunk's floats
+        self._ray_shapes = self._static_shapes() if compiled_rays() else None
 
     # Chipmunk handles and query buffers (cffi objects): not picklable, rebuilt from the pymunk
     # objects, which pymunk pickles itself
@@ -230,6 +239,15 @@ class World:
         for part, k in zip(self.obstacle_map.convex_parts, ids.tolist(), strict=True):
             shape = pymunk.Poly(self._space.static_body, part.tolist())
             self._add_static(shape, _STATIC, _CAT_STATIC, ("static", k))
+
+    def _static_shapes(self) -> StaticShapes:
+        """The walls and static parts as Chipmunk holds them (:class:`~aoass_env.rays.
+        StaticShapes`), read once per map: they depend on the map alone."""
+        shapes = _STATIC_SHAPES.get(self.obstacle_map)
+        if shapes is None:
+            shapes = _STATIC_SHAPES[self.obstacle_map] = StaticShapes.of(
+                shape for shape in self._owner if shape.body is self._space.static_body)
+        return shapes
 
     def _add_static(self, shape: pymunk.Shape, ctype: int, category: int,
                     owner: tuple[str, int]) -> None:
@@ -545,6 +563,11 @@ class World:
         obstacle along each ray of :meth:`ray_angles`; ``sensing_range`` where none is hit."""
         reach = self.config.sensing_range
         start = _cp.cpBodyGetPosition(self._c_anchor)
+        shapes = self._ray_shapes
+        if shapes is not None:       # Chipmunk's segment queries, compiled (aoass_env.rays)
+            return cast_rays(start.x, start.y, self._heading, self._ray_offsets, reach,
+                             shapes.vertices, shapes.normals, shapes.first, shapes.boxes,
+                             self.moving_positions, self._r_moving)
         if SCALAR_TRIG:
             # the ray ends of the array code below in Python floats: the same operations
             x, y, h = start.x, start.y, self._heading

@@ -26,6 +26,7 @@ LAYERS = {
     "aoass_env.localization.multilateration": 0, "aoass_env.localization.ragged": 0,
     "aoass_env.config": 1,
     "aoass_env.maps": 2, "aoass_env.clearance": 2, "aoass_env.radio": 2, "aoass_env.world": 2,
+    "aoass_env.rays": 2,
     "aoass_env.network": 2, "aoass_env.beacon_log": 2,
     "aoass_env.planning": 3,
     "aoass_env.simulator": 4,

@@ -404,7 +404,8 @@ def test_skipped_sweeps_give_the_same_world(monkeypatch):
 def test_rays_in_floats_are_the_array_code_bit_for_bit(monkeypatch):
     """The rays' ends in Python floats give the array code's distances, bit for bit, from
     random positions and headings (multiples of pi/8 and huge headings included) on a
-    dense grid map with moving obstacles, for 16, 7 and 1 rays."""
+    dense grid map with moving obstacles, for 16, 7 and 1 rays; so do the compiled rays
+    (aoass_env.rays), which the world casts where they are Chipmunk's."""
     rng = np.random.default_rng(11)
     hits = 0
     for n_rays in (16, 7, 1):
@@ -415,11 +416,16 @@ def test_rays_in_floats_are_the_array_code_bit_for_bit(monkeypatch):
                                                rng.uniform(-1e6, 1e6)]))
             if i % 10 == 0:
                 world.step(float(rng.uniform(0.0, 1.0)), float(rng.uniform(-4.0, 4.0)))
+            compiled, shapes = world.ray_distances(), world._ray_shapes
+            world._ray_shapes = None                 # the queries ray by ray
             fast = world.ray_distances()
             monkeypatch.setattr(world_module, "SCALAR_TRIG", False)
             slow = world.ray_distances()
             monkeypatch.setattr(world_module, "SCALAR_TRIG", True)
+            world._ray_shapes = shapes
+            assert shapes is not None
             assert fast.tobytes() == slow.tobytes() and fast.dtype == slow.dtype
+            assert compiled.tobytes() == slow.tobytes() and compiled.dtype == slow.dtype
             hits += int((slow < world.config.sensing_range).sum())
     assert hits > 1000
 
