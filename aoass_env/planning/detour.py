@@ -199,24 +199,47 @@ class DetourPlanner:
         return self._leads[key]
 
     def _leads_out(self, point: np.ndarray, reach: float) -> bool:
+        """:meth:`leads_out` by a depth-first search from the start cell over the cells of
+        the window ``reach`` around it, farthest neighbour first, that measures the exact
+        clearance of a cell only when the search reaches it (a few cells on the way out in
+        the open, a pocket's cells in a pocket): the same answer as labelling every cell of
+        the window, with each cell's clearance the same floats."""
         nx, ny = self.shape
         k = math.ceil(reach / self.res) + 1
         si, sj = divmod(self._cell(point), ny)
-        i_lo, j_lo = max(0, si - k), max(0, sj - k)
-        gi, gj = np.meshgrid(np.arange(i_lo, min(nx, si + k + 1)),
-                             np.arange(j_lo, min(ny, sj + k + 1)), indexing="ij")
+        i_lo, i_hi = max(0, si - k), min(nx, si + k + 1)
+        j_lo, j_hi = max(0, sj - k), min(ny, sj + k + 1)
+        px, py = float(point[0]), float(point[1])
+        res, far = self.res, reach * reach
+        seen = {(si, sj)}
+        stack = [(si, sj)]                    # the anchor stands on the start cell already
+        while stack:
+            i, j = stack.pop()
+            dx, dy = (i + 0.5) * res - px, (j + 0.5) * res - py
+            if dx * dx + dy * dy > far:
+                return True
+            cells = [(a, b) for a in (i - 1, i, i + 1) for b in (j - 1, j, j + 1)
+                     if i_lo <= a < i_hi and j_lo <= b < j_hi and (a, b) not in seen]
+            if not cells:
+                continue
+            seen.update(cells)
+            cells.sort(key=lambda c: ((c[0] + 0.5) * res - px) ** 2
+                       + ((c[1] + 0.5) * res - py) ** 2)
+            stack.extend(c for c, ok in zip(cells, self._clear(cells), strict=True) if ok)
+        return False
+
+    def _clear(self, cells: list[tuple[int, int]]) -> np.ndarray:
+        """Whether each grid cell's centre is at least the planner's radius from the field's
+        border and, by exact distance, from every obstacle."""
+        gi, gj = np.array(cells, dtype=np.int64).T
         cx, cy = (gi + 0.5) * self.res, (gj + 0.5) * self.res
         width, height = self._size
         clear = np.minimum(np.minimum(cx, width - cx), np.minimum(cy, height - cy))
-        if not self._obstacles.is_empty:
-            clear = np.minimum(clear, shapely.distance(
-                self._obstacles, shapely.points(cx.ravel(), cy.ravel())).reshape(cx.shape))
         ok = clear >= self.radius
-        far = (cx - point[0]) ** 2 + (cy - point[1]) ** 2 > reach * reach
-        start = (si - i_lo, sj - j_lo)
-        ok[start] = True                      # the anchor stands there already
-        labels, _ = ndimage.label(ok, structure=np.ones((3, 3), dtype=bool))
-        return bool(np.any(far & (labels == labels[start])))
+        if ok.any() and not self._obstacles.is_empty:
+            ok[ok] = shapely.distance(self._obstacles, shapely.points(cx[ok], cy[ok])) \
+                >= self.radius
+        return ok
 
     def visible(self, a: np.ndarray, b: np.ndarray) -> bool:
         """True when a disc of the planner's radius can move straight from ``a`` to ``b``: the

@@ -1,3 +1,4 @@
+import math
 from collections import Counter
 
 import numpy as np
@@ -199,6 +200,49 @@ def test_a_point_leads_out_only_through_cells_of_exact_clearance():
     assert not first.leads_out(centre, reach=15.0)
     assert second._leads == {(70.0, 70.0, 15.0): False}
 
+
+
+def _leads_out_by_labels(p: DetourPlanner, point: np.ndarray, reach: float) -> bool:
+    """The oracle: every cell of the window around the start cell measured, the ok cells
+    labelled 8-connected, and the start's component asked for a cell beyond ``reach``."""
+    from scipy import ndimage
+    nx, ny = p.shape
+    k = math.ceil(reach / p.res) + 1
+    si, sj = divmod(p._cell(point), ny)
+    i_lo, j_lo = max(0, si - k), max(0, sj - k)
+    gi, gj = np.meshgrid(np.arange(i_lo, min(nx, si + k + 1)),
+                         np.arange(j_lo, min(ny, sj + k + 1)), indexing="ij")
+    cx, cy = (gi + 0.5) * p.res, (gj + 0.5) * p.res
+    width, height = p._size
+    clear = np.minimum(np.minimum(cx, width - cx), np.minimum(cy, height - cy))
+    if not p._obstacles.is_empty:
+        clear = np.minimum(clear, shapely.distance(
+            p._obstacles, shapely.points(cx.ravel(), cy.ravel())).reshape(cx.shape))
+    ok = clear >= p.radius
+    far = (cx - point[0]) ** 2 + (cy - point[1]) ** 2 > reach * reach
+    start = (si - i_lo, sj - j_lo)
+    ok[start] = True
+    labels, _ = ndimage.label(ok, structure=np.ones((3, 3), dtype=bool))
+    return bool(np.any(far & (labels == labels[start])))
+
+
+@pytest.mark.parametrize("density, seed", [(0.3, 50), (0.5, 51)])
+def test_leads_out_answers_as_labelling_the_whole_window(density, seed):
+    """The search that measures cells only as it reaches them answers as the labelling of
+    every cell: from random points of generated maps (in free space, in obstacles, on the
+    border) and from the spiral-like points beside obstacles, for several reaches."""
+    obstacle_map = generate_map(60.0, density, np.random.default_rng(seed))
+    p = DetourPlanner(obstacle_map, radius=0.75)
+    rng = np.random.default_rng(seed + 10)
+    points = np.concatenate([rng.uniform(0.0, 60.0, (80, 2)),
+                             shapely.get_coordinates(obstacle_map.union)[:40] + 0.8])
+    answers = []
+    for point in points:
+        for reach in (10.0, float(rng.uniform(0.5, 25.0))):
+            want = _leads_out_by_labels(p, point, reach)
+            assert p._leads_out(point, reach) == want, (point, reach)
+            answers.append(want)
+    assert 0 < sum(answers) < len(answers)          # both answers occur
 
 class _SearchesOnly(DetourPlanner):
     """The planner before its compiled searches (the oracle): with no forced path found,
