@@ -263,7 +263,8 @@ class DetourPlanner:
         last = self._last_inside
         if last[0] == x and last[1] == y:
             return last[2]
-        inside = bool(shapely.intersects_xy(self._blocker, x, y))
+        # shapely.intersects_xy's own ufunc, without its wrapper (the blocker is prepared)
+        inside = bool(shapely.lib.intersects_xy(self._blocker, x, y))
         self._last_inside = (x, y, inside)
         return inside
 
