@@ -14,7 +14,10 @@ def test_the_readings_agree_and_both_are_timed(capsys):
     assert "Chipmunk, ray by ray" in out and "x faster" in out
 
 
-def test_a_density_beyond_the_generators_is_refused_in_one_line(capsys):
+def test_a_density_outside_the_generators_is_refused_in_one_line(capsys):
     with pytest.raises(SystemExit):
         load_benchmark("rays").main(["--density", "0.7"])
     assert "--density must be at most 0.6, got 0.7" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        load_benchmark("rays").main(["--density", "-0.1"])
+    assert "argument --density: must be a finite number >= 0" in capsys.readouterr().err
