@@ -13,8 +13,9 @@ order, after its convex hull), operation for operation, as Munk2D 2.0 (pymunk 7)
   edges' right perpendiculars, ``SetVerts``);
 * a disc is hit at the smaller root of its quadratic (``CircleSegmentQuery``);
 * a polygon is tested only when the segment meets its bounding box (``cpBBSegmentQuery``), as
-  Chipmunk's tree visits only those, and the ray reads the least ``alpha`` below 1 of all the
-  shapes it hits (``SegmentQueryFirst``), times its reach, or its reach where none is.
+  Chipmunk's tree visits only those (unless the polygon is the only static shape: the tree's
+  root is then its leaf, visited untested), and the ray reads the least ``alpha`` below 1 of
+  all the shapes it hits (``SegmentQueryFirst``), times its reach, or its reach where none is.
 
 The one place the two could part: Chipmunk's tree also skips a box that starts farther along
 the ray than the best hit so far, so where two shapes are hit within a few units in the last
@@ -109,28 +110,28 @@ def _fmax(a: float, b: float) -> float:
     return a if a > b else b               # cpfmax
 
 
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _slab(lo: float, hi: float, a: float, d: float, tmin: float,
+          tmax: float) -> tuple[bool, float, float]:
+    """One axis of ``cpBBSegmentQuery``: the box's slab [lo, hi] against the segment's start
+    coordinate ``a`` and extent ``d``; (missed, tmin, tmax)."""
+    if d == 0.0:
+        return a < lo or hi < a, tmin, tmax
+    t1 = (lo - a) / d
+    t2 = (hi - a) / d
+    return False, _fmax(tmin, _fmin(t1, t2)), _fmin(tmax, _fmax(t1, t2))
+
+
 @numba.njit(cache=True, error_model="numpy")
 def _box_t(left: float, bottom: float, right: float, top: float, ax: float, ay: float,
            bx: float, by: float) -> float:
     """``cpBBSegmentQuery``: where (0 to 1) the segment a -> b enters the box, inf if never."""
-    dx, dy = bx - ax, by - ay
-    tmin, tmax = -math.inf, math.inf
-    if dx == 0.0:
-        if ax < left or right < ax:
-            return math.inf
-    else:
-        t1 = (left - ax) / dx
-        t2 = (right - ax) / dx
-        tmin = _fmax(tmin, _fmin(t1, t2))
-        tmax = _fmin(tmax, _fmax(t1, t2))
-    if dy == 0.0:
-        if ay < bottom or top < ay:
-            return math.inf
-    else:
-        t1 = (bottom - ay) / dy
-        t2 = (top - ay) / dy
-        tmin = _fmax(tmin, _fmin(t1, t2))
-        tmax = _fmin(tmax, _fmax(t1, t2))
+    missed, tmin, tmax = _slab(left, right, ax, bx - ax, -math.inf, math.inf)
+    if missed:
+        return math.inf
+    missed, tmin, tmax = _slab(bottom, top, ay, by - ay, tmin, tmax)
+    if missed:
+        return math.inf
     if tmin <= tmax and 0.0 <= tmax and tmin <= 1.0:
         return _fmax(tmin, 0.0)
     return math.inf
@@ -233,6 +234,8 @@ def cast_rays(x: float, y: float, heading: float, offsets: np.ndarray, reach: fl
                 and boxes[p, 1] <= y + slack and boxes[p, 3] >= y - slack):
             near[count] = p
             count += 1
+    # the tree tests a leaf's box before visiting it, unless the leaf is its root (one shape)
+    tested = len(boxes) > 1
     holds = np.empty(count, dtype=np.bool_)       # the point query at the rays' start
     for q in range(count):
         p = near[q]
@@ -245,8 +248,8 @@ def cast_rays(x: float, y: float, heading: float, offsets: np.ndarray, reach: fl
         best = 1.0
         for q in range(count):
             p = near[q]
-            if not _box_t(boxes[p, 0], boxes[p, 1], boxes[p, 2], boxes[p, 3], x, y, ex,
-                          ey) < 1.0:
+            if tested and not _box_t(boxes[p, 0], boxes[p, 1], boxes[p, 2], boxes[p, 3], x,
+                                     y, ex, ey) < 1.0:
                 continue
             alpha = 0.0 if holds[q] else _polygon_alpha(x, y, ex, ey, vertices, normals,
                                                          first[p], first[p + 1])
