@@ -6,6 +6,7 @@ import pytest
 import shapely
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from scipy import ndimage
 from scipy.sparse.csgraph import dijkstra
 
 from aoass_env.maps import ObstacleMap, generate_map
@@ -205,7 +206,6 @@ def test_a_point_leads_out_only_through_cells_of_exact_clearance():
 def _leads_out_by_labels(p: DetourPlanner, point: np.ndarray, reach: float) -> bool:
     """The oracle: every cell of the window around the start cell measured, the ok cells
     labelled 8-connected, and the start's component asked for a cell beyond ``reach``."""
-    from scipy import ndimage
     nx, ny = p.shape
     k = math.ceil(reach / p.res) + 1
     si, sj = divmod(p._cell(point), ny)
