@@ -39,6 +39,7 @@ from aoass_env.maps import ObstacleMap, list_maps, load_map, validation_split
 from aoass_env.observation import MOVING_FIELDS, clip_like_numpy, velocity_scale
 from aoass_env.planning import AdaptiveConfig
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
+from aoass_env.safety.filter_period import ACTIVE_SLACK, PeriodSettings, filter_period, fused
 from aoass_env.safety.fuzzy import FuzzyController
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.lookahead import (
@@ -49,6 +50,7 @@ from aoass_env.safety.lookahead import (
     position_std,
 )
 from aoass_env.safety.orca import (
+    _NO_MOVING,
     OrcaAgent,
     OrcaLines,
     StaticObstacles,
@@ -297,6 +299,13 @@ def _track_slots(observation: np.ndarray, states: np.ndarray, ax: float, ay: flo
     return clipped
 
 
+def _braking_reach(c: AOASSConfig, radius: float) -> float:
+    """How far (m) from the anchor the braking envelope takes the static edges: one period and
+    a full stop from top speed, plus its disc ``radius`` (m)."""
+    top = c.anchor_max_speed
+    return top * c.dt + top * top / (2.0 * c.anchor_max_accel) + radius
+
+
 class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
     """Fuzzy-logic + ORCA velocity filter between the agent and AOASS-v0 (Eq. 7-10).
 
@@ -370,6 +379,10 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         #: the look-ahead's escape budget and whether it escaped last period (hysteresis)
         self.escape_budget = EscapeBudget(config.escape_budget)
         self._escaping = False
+        #: whether filter_period gives this wrapper's floats here, and its settings (for the
+        #: ORCA settings they were made with)
+        self._fused = fused()
+        self._period: tuple[OrcaAgent | None, PeriodSettings | None] = (None, None)
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
@@ -405,11 +418,19 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         BrakingEnvelope`; the anchor's radius is inflated by ``margin``, as for ORCA)."""
         c = self._base.config
         radius = c.anchor_radius + self.config.margin
-        top = c.anchor_max_speed
-        reach = top * c.dt + top * top / (2.0 * c.anchor_max_accel) + radius
-        starts, ends = static.segments_near(position, reach)
+        starts, ends = static.segments_near(position, _braking_reach(c, radius))
         return BrakingEnvelope(starts, ends, np.asarray(position, dtype=np.float64), radius,
                                c.anchor_max_accel, c.dt)
+
+    def _period_settings(self, c: AOASSConfig) -> PeriodSettings:
+        """:func:`filter_period`'s settings under the env's config ``c`` (made once per
+        config, with :meth:`_orca_agent`'s)."""
+        agent = self._orca_agent(c)
+        if self._period[0] is not agent:
+            self._period = (agent, PeriodSettings(
+                agent, max_turn=c.anchor_max_turn_rate * c.dt, max_dv=c.anchor_max_accel * c.dt,
+                reach=_braking_reach(c, agent.radius), max_accel=c.anchor_max_accel, dt=c.dt))
+        return self._period[1]
 
     def _moving_obstacles(self) -> np.ndarray | None:
         """Kalman-tracked moving obstacles (x, y, vx, vy, radius + moving_margin +
@@ -481,30 +502,40 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         pref = (speed_pref * math.cos(heading_pref), speed_pref * math.sin(heading_pref))
 
         static = self._static_obstacles()
-        lines, v_star = self._orca_agent(c).velocity(anchor.position, anchor.velocity, pref,
-                                                     static, self._moving_obstacles())
+        moving = self._moving_obstacles()
         escape = None
-        if cfg.look_ahead and len(lines) > lines.n_static:
-            escape = self._look_ahead(v_star, np.array(pref), anchor, static)
-            if escape.escaping:
-                # the rollouts chose among the moving obstacles: the static lines stay hard
-                lines = OrcaLines(lines.point[:lines.n_static],
-                                  lines.direction[:lines.n_static], lines.n_static,
-                                  lines.table[:lines.n_static])
-                v_star = solve_velocity(lines, escape.velocity, c.anchor_max_speed)
-        speed_cmd, heading_cmd = unicycle_command(
-            v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt, lines.point,
-            lines.direction, heading_pref, self._braking_envelope(anchor.position, static))
+        done = False
+        if self._fused:     # the periods where ORCA and the lines alone decide, in one call
+            done, sx, sy, speed_cmd, heading_cmd, n_lines, n_static, active, active_static = \
+                filter_period(static, _NO_MOVING if moving is None else moving,
+                              self._period_settings(c), anchor.position.tolist(),
+                              anchor.velocity.tolist(), pref, heading, anchor.speed,
+                              heading_pref, cfg.look_ahead)
+        if not done:
+            lines, v_star = self._orca_agent(c).velocity(anchor.position, anchor.velocity, pref,
+                                                         static, moving)
+            if cfg.look_ahead and len(lines) > lines.n_static:
+                escape = self._look_ahead(v_star, np.array(pref), anchor, static)
+                if escape.escaping:
+                    # the rollouts chose among the moving obstacles: the static lines stay hard
+                    lines = OrcaLines(lines.point[:lines.n_static],
+                                      lines.direction[:lines.n_static], lines.n_static,
+                                      lines.table[:lines.n_static])
+                    v_star = solve_velocity(lines, escape.velocity, c.anchor_max_speed)
+            speed_cmd, heading_cmd = unicycle_command(
+                v_star, heading, anchor.speed, max_turn, c.anchor_max_accel * c.dt,
+                lines.point, lines.direction, heading_pref,
+                self._braking_envelope(anchor.position, static))
+            # constraints active at v*: on the line (within ACTIVE_SLACK m/s) or violated
+            sx, sy = v_star.tolist()
+            active, active_static = active_constraints(lines, v_star, ACTIVE_SLACK)
+            n_lines, n_static = len(lines), lines.n_static
         executed = base.action_type.action(speed_cmd, heading_cmd, nominal, knobs)
-
-        # constraints active at v*: on the line (within 1e-6 m/s) or violated
-        sx, sy = v_star.tolist()
-        active, active_static = active_constraints(lines, v_star, 1e-6)
         report = {"intervention": float(np.hypot(sx - v_des[0], sy - v_des[1])),
                   "orca_correction": float(np.hypot(sx - pref[0], sy - pref[1])),
                   "flc_turn": float(turn), "flc_speed": float(slow),
                   "speed_cmd": speed_cmd, "heading_cmd": heading_cmd,
-                  "constraints": len(lines), "static": lines.n_static,
+                  "constraints": n_lines, "static": n_static,
                   "active": active, "active_static": active_static,
                   "escaping": bool(escape is not None and escape.escaping),
                   "look_ahead_shortfall": 0.0 if escape is None else escape.shortfall,

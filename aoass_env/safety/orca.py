@@ -77,6 +77,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
+from aoass_env.trig import hypot
 from aoass_env.validators import positive, real, vec2
 
 __all__ = ["OrcaAgent", "OrcaLines", "StaticObstacles", "active_constraints", "orca_lines",
@@ -565,7 +566,7 @@ def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_spee
 # RVO2's linear programs, compiled on the lines' (n, 4) rows [px, py, dx, dy]. Until issue 20's
 # tenth round they ran on Python floats; that code is the tests' oracle
 # (tests/safety/orca_floats.py, ``reference_solve``), whose floats these give bit for bit (the
-# norms from the correctly rounded ``_hypot``, as Python's ``math.hypot`` since 3.11).
+# norms from the correctly rounded ``hypot``, as Python's ``math.hypot`` since 3.11).
 
 @numba.njit(cache=True)
 def _lp1(lines: np.ndarray, k: int, speed: float, ox: float, oy: float,
@@ -621,7 +622,7 @@ def _lp2(lines: np.ndarray, count: int, speed: float, ox: float, oy: float,
     if along_direction:
         rx, ry = ox * speed, oy * speed
     elif ox * ox + oy * oy > speed * speed:
-        scale = speed / _hypot(ox, oy)
+        scale = speed / hypot(ox, oy)
         rx, ry = ox * scale, oy * scale
     else:
         rx, ry = ox, oy
@@ -662,7 +663,7 @@ def _lp3(lines: np.ndarray, n_static: int, begin: int, speed: float, rx: float,
                 along = (ex * (py - qy) - ey * (px - qx)) / cross
                 mx, my = px + along * dx, py + along * dy
             nx, ny = ex - dx, ey - dy
-            norm = _hypot(nx, ny)
+            norm = hypot(nx, ny)
             projected[count, 0] = mx
             projected[count, 1] = my
             projected[count, 2] = nx / norm
@@ -776,53 +777,9 @@ def orca_velocity(position: ArrayLike, velocity: ArrayLike, preferred_velocity: 
 # `_compiled_lines` is RVO2's `Agent::computeNewVelocity` case by case, compiled with numba.
 # Until issue 20's ninth round it ran on Python floats; that code is the tests' oracle
 # (tests/safety/orca_floats.py), whose floats the compiled lines give bit for bit. The norms it
-# took from Python's `math.hypot`, correctly rounded since Python 3.11, come from `_hypot`,
-# correctly rounded as well (the C library's hypot, which numba would call, is not): the lines
-# are the same on every Python version.
-
-#: Veltkamp's splitter for doubles, 2^27 + 1: splits a float into two halves of 26 bits.
-_SPLITTER = 134217729.0
-
-
-@numba.njit(cache=True)
-def _exact_square(a: float) -> tuple[float, float]:
-    """(p, e) with p = fl(a * a) and p + e = a * a exactly (Dekker's product, no FMA), for
-    |a| < 1 and not tiny enough to underflow."""
-    p = a * a
-    t = _SPLITTER * a
-    hi = t - (t - a)
-    lo = a - hi
-    return p, ((hi * hi - p) + 2.0 * hi * lo) + lo * lo
-
-
-@numba.njit(cache=True)
-def _hypot(x: float, y: float) -> float:
-    """sqrt(x^2 + y^2), correctly rounded but in cases within about 2^-100 of a tie.
-
-    Both are scaled by the power of two that brings the larger into [0.5, 1); the sum of the
-    squares is kept exactly as two floats (Dekker's products, then a two-sum); the square
-    root of its leading float is corrected by one Newton step on the residual, which is
-    computed exactly. A ratio below 2^-30 leaves the larger unchanged after rounding.
-    """
-    x, y = abs(x), abs(y)
-    if x == math.inf or y == math.inf:
-        return math.inf
-    if x != x or y != y:
-        return math.nan
-    big, small = (x, y) if x >= y else (y, x)
-    if small == 0.0 or small < big * 9.313225746154785e-10:        # 2^-30
-        return big
-    _, e = math.frexp(big)
-    a, b = math.ldexp(big, -e), math.ldexp(small, -e)
-    a2, a2e = _exact_square(a)
-    b2, b2e = _exact_square(b)
-    s = a2 + b2
-    lo = ((a2 - s) + b2) + (a2e + b2e)        # a2 >= b2: the two-sum's error is exact
-    h = math.sqrt(s)
-    h2, h2e = _exact_square(h)
-    h += (((s - h2) - h2e) + lo) / (2.0 * h)
-    return math.ldexp(h, e)
-
+# took from Python's `math.hypot`, correctly rounded since Python 3.11, come from
+# `aoass_env.trig.hypot`, correctly rounded as well (the C library's hypot, which numba would
+# call, is not): the lines are the same on every Python version.
 
 @numba.njit(cache=True)
 def _stable_order(keys: np.ndarray) -> np.ndarray:
@@ -932,10 +889,10 @@ def _unit_or_away(wx: float, wy: float, cx: float, cy: float) -> tuple[float, fl
     """(ux, uy, |w|): the unit vector along (wx, wy); for w = 0, the one along -(cx, cy), the
     way away from a centre at (cx, cy) (RVO2 divides by zero there), or (-1, 0) when that is 0
     too."""
-    norm = _hypot(wx, wy)
+    norm = hypot(wx, wy)
     if norm > 0.0:
         return wx / norm, wy / norm, norm
-    away = _hypot(cx, cy)
+    away = hypot(cx, cy)
     if away > 0.0:
         return -cx / away, -cy / away, norm
     return -1.0, 0.0, norm

@@ -25,11 +25,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
 
-from aoass_env.trig import SCALAR_TRIG, compiled_trig
+from aoass_env.trig import SCALAR_TRIG, compiled_polar, compiled_trig, hypot
 
 __all__ = ["BrakingEnvelope", "braking_speed", "clearance", "free_travel", "speed_bounds",
            "turn_headings", "unicycle_command"]
@@ -246,6 +247,20 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
         raise ValueError(f"the envelope's starts and ends must be (m, 2) arrays of the same "
                          f"edges, got shapes {envelope.starts.shape} and {envelope.ends.shape}")
     vx, vy = float(v_star[0]), float(v_star[1])
+    if SCALAR_TRIG and compiled_trig() and compiled_polar():
+        if envelope is None:
+            edges: tuple[Any, ...] = (_NO_EDGES, _NO_EDGES, 0.0, 0.0, 0.0, 1.0, 1.0)
+        else:
+            px, py = envelope.position.tolist()
+            edges = (envelope.starts, envelope.ends, px, py, float(envelope.radius),
+                     float(envelope.max_accel), float(envelope.dt))
+        done, speed_cmd, heading_cmd, wanted, target, floor, gap = _compiled_command(
+            vx, vy, float(heading), float(speed), float(max_turn), float(max_dv), points,
+            directions, float(fallback_heading), *edges)
+        if done:
+            return speed_cmd, heading_cmd
+        return _command_with_caps(wanted, target, heading, max_turn, floor, points, directions,
+                                  envelope, gap)
     wanted = math.hypot(vx, vy)
     target = math.atan2(vy, vx) if wanted > _STILL else fallback_heading
     floor = max(speed - max_dv, 0.0)
@@ -256,17 +271,6 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
     if envelope is not None and len(envelope.starts):
         gap = _clearance_compiled(envelope.starts, envelope.ends,
                                   float(envelope.position[0]), float(envelope.position[1]))
-    if compiled_trig():
-        # no cap of the envelope can bind, or none can change the command (notes below): the
-        # ORCA lines alone decide
-        if envelope is None or _envelope_floor(envelope, gap) >= max(wanted, floor, _TINY):
-            command = _command_on_lines(wanted, target, heading, max_turn, floor, points,
-                                        directions)
-        else:
-            command = _command_on_lines(wanted, target, heading, max_turn, floor, points,
-                                        directions, envelope, gap)
-        if command is not None:
-            return command
     return _command_with_caps(wanted, target, heading, max_turn, floor, points, directions,
                               envelope, gap)
 
@@ -332,17 +336,27 @@ def _clearance_compiled(starts: np.ndarray, ends: np.ndarray, px: float, py: flo
     return math.sqrt(best)     # the square root is monotone: sqrt of the min = min of sqrts
 
 
-def _envelope_floor(envelope: BrakingEnvelope, gap: float) -> float:
-    """A speed (m/s) no cap of ``envelope`` falls below on any heading (notes above), the
-    anchor's clearance being ``gap`` (m)."""
+@numba.njit(cache=True)
+def _held_radius(radius: float, gap: float) -> float:
+    """The disc's radius (m) the caps use, the anchor's clearance being ``gap`` (m):
+    ``max(min(radius, gap - _HELD), 0.0)`` as Python's min and max pick."""
+    held = gap - _HELD
+    if held < radius:
+        radius = held
+    return 0.0 if 0.0 > radius else radius
+
+
+@numba.njit(cache=True)
+def _envelope_floor(radius: float, max_accel: float, dt: float, gap: float) -> float:
+    """A speed (m/s) no cap of a braking envelope (disc ``radius``, m, braking at ``max_accel``,
+    m/s^2, after ``dt``, s) falls below on any heading (notes above), the anchor's clearance
+    being ``gap`` (m)."""
     if math.isinf(gap):
         return math.inf
-    radius = max(min(envelope.radius, gap - _HELD), 0.0)
-    travel = gap - radius - _CERTIFICATE_SLACK
+    travel = gap - _held_radius(radius, gap) - _CERTIFICATE_SLACK
     if not travel > 0.0:
         return 0.0
-    a, dt = envelope.max_accel, envelope.dt
-    return a * (math.sqrt(dt * dt + 2.0 * travel / a) - dt)
+    return max_accel * (math.sqrt(dt * dt + 2.0 * travel / max_accel) - dt)
 
 
 def _lines(points: np.ndarray, directions: np.ndarray) -> list[tuple[float, float, float]]:
@@ -496,7 +510,7 @@ def _reach_on_lines(heading: float, turn: float, floor: float, points: np.ndarra
                     directions: np.ndarray, need: float, starts: np.ndarray, ends: np.ndarray,
                     px: float, py: float, radius: float, max_accel: float,
                     dt: float) -> tuple[int, float, bool]:
-    """(k, safe speed, certified) of :func:`_command_on_lines`: the last heading of the arc
+    """(k, safe speed, certified) of :func:`_compiled_command`: the last heading of the arc
     ``heading + turn * i / 8`` (i = 0..8) reached before the running minimum of :func:`_bound`
     falls short of ``floor`` (-1: the first does), and that minimum there (m/s). Compiled, with
     the float code's operations in its order (``math.cos``/``sin`` must be compiled_trig's).
@@ -530,37 +544,75 @@ def _reach_on_lines(heading: float, turn: float, floor: float, points: np.ndarra
     return k, last, True
 
 
-#: No edges: the certificate of :func:`_reach_on_lines` has nothing to bound (read only, as
-#: the edge arrays of ``StaticObstacles.segments_near``: one compiled version serves both).
+#: No edges (no braking envelope): :func:`_compiled_command` has no clearance to measure and
+#: no cap to bound (read only, as the edge arrays of ``StaticObstacles.segments_near``: one
+#: compiled version serves both).
 _NO_EDGES = np.zeros((0, 2))
 _NO_EDGES.flags.writeable = False
 
 
-def _command_on_lines(wanted: float, target: float, heading: float, max_turn: float,
-                      floor: float, points: np.ndarray, directions: np.ndarray,
-                      envelope: BrakingEnvelope | None = None, gap: float = math.inf
-                      ) -> tuple[float, float] | None:
-    """:func:`unicycle_command` on the ORCA lines alone (compiled: :func:`_reach_on_lines`),
-    looking only at the headings up to the first that falls short (notes above); None when
-    the anchor must brake (the caller decides on all headings) or when the ``envelope``'s
-    caps (the anchor's clearance to its edges being ``gap``, m) might change the command."""
-    turn = math.remainder(target - heading, 2.0 * math.pi)
-    clipped = min(max(turn, -max_turn), max_turn)            # as _arc
-    if envelope is None:
+@numba.njit(cache=True)
+def _remainder(x: float) -> float:
+    """``math.remainder(x, 2 pi)`` of a finite x (rad), compiled: x less the nearest multiple
+    of 2 pi (the even one at a tie), exact; a zero takes the sign of x. ``%`` of two positive
+    floats is their exact ``fmod``."""
+    period = 2.0 * math.pi
+    size = abs(x)
+    m = size % period
+    c = period - m
+    if m < c:
+        r = m
+    elif m > c:
+        r = -c
+    else:                   # half way: the even multiple
+        r = m - 2.0 * ((0.5 * (size - m)) % period)
+    return math.copysign(1.0, x) * r
+
+
+@numba.njit(cache=True)
+def _compiled_command(vx: float, vy: float, heading: float, speed: float, max_turn: float,
+                      max_dv: float, points: np.ndarray, directions: np.ndarray,
+                      fallback_heading: float, starts: np.ndarray, ends: np.ndarray,
+                      px: float, py: float, radius: float, max_accel: float,
+                      dt: float) -> tuple[bool, float, float, float, float, float, float]:
+    """(done, speed, heading, wanted, target, floor, gap) of :func:`unicycle_command` for ORCA's
+    v* = (vx, vy) (m/s) on the ORCA lines alone (:func:`_reach_on_lines`), compiled, looking
+    only at the headings up to the first that falls short (notes above); ``math.hypot`` and
+    ``math.atan2`` must be compiled_polar's. The braking envelope's edges ``starts`` ->
+    ``ends`` (none: no envelope) around the anchor at (px, py) (m), its disc ``radius`` (m)
+    and braking ``max_accel`` (m/s^2) over ``dt`` (s). Not ``done`` when the anchor must brake
+    or when the envelope's caps might change the command: the caller decides on all headings
+    (:func:`_command_with_caps`) from |v*| (``wanted``, m/s), its heading (``target``, rad),
+    the speed floor (m/s) and the anchor's clearance (``gap``, m)."""
+    wanted = hypot(vx, vy)
+    target = math.atan2(vy, vx) if wanted > _STILL else fallback_heading
+    floor = speed - max_dv
+    if 0.0 > floor:
+        floor = 0.0
+    gap = _clearance_compiled(starts, ends, px, py) if starts.shape[0] else math.inf
+    turn = _remainder(target - heading)
+    clipped = -max_turn if -max_turn > turn else turn          # as _arc
+    if max_turn < clipped:
+        clipped = max_turn
+    need = wanted                                              # max(wanted, floor, _TINY)
+    if floor > need:
+        need = floor
+    if _TINY > need:
+        need = _TINY
+    if _envelope_floor(radius, max_accel, dt, gap) >= need:
+        # no cap can bind, or none can change the command: the ORCA lines alone decide
         k, last, certified = _reach_on_lines(heading, clipped, floor, points, directions, 0.0,
-                                             _NO_EDGES, _NO_EDGES, 0.0, 0.0, 0.0, 1.0, 1.0)
+                                             starts[:0], ends[:0], 0.0, 0.0, 0.0, 1.0, 1.0)
     else:
-        px, py = envelope.position.tolist()
-        k, last, certified = _reach_on_lines(
-            heading, clipped, floor, points, directions, max(wanted, floor, _TINY),
-            envelope.starts, envelope.ends, px, py,
-            max(min(envelope.radius, gap - _HELD), 0.0), envelope.max_accel, envelope.dt)
+        k, last, certified = _reach_on_lines(heading, clipped, floor, points, directions, need,
+                                             starts, ends, px, py, _held_radius(radius, gap),
+                                             max_accel, dt)
     if k < 0 or not certified:
-        return None
-    command = target if k == len(_FRACTIONS) - 1 else heading + clipped * _FRACTIONS[k]
+        return False, 0.0, 0.0, wanted, target, floor, gap
+    command = target if k == 8 else heading + clipped * (k / 8.0)     # _FRACTIONS[k]
     if abs(turn) > math.pi - _OPPOSITE:
-        command = heading + clipped * _FRACTIONS[k]      # see _command_on_arrays
-    return float(min(wanted, last)), float(command)
+        command = heading + clipped * (k / 8.0)                      # see _command_on_arrays
+    return True, last if last < wanted else wanted, command, wanted, target, floor, gap
 
 
 def _command_with_caps(wanted: float, target: float, heading: float, max_turn: float,

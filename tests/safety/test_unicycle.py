@@ -448,18 +448,21 @@ def test_the_float_path_commands_what_the_array_code_commands(monkeypatch, path)
         monkeypatch.setattr(unicycle, "compiled_trig", lambda: False)
     rng = np.random.default_rng(20)
     paths = {"lines": 0, "caps": 0, "braking": 0}
-    lines_only, with_caps = unicycle._command_on_lines, unicycle._command_with_caps
+    lines_only, with_caps = unicycle._compiled_command, unicycle._command_with_caps
 
     def counted(name, function):
         def wrapper(*args):
             result = function(*args)
-            if result is not None:
+            if name == "caps":
                 paths[name] += 1
                 paths["braking"] += result[0] == 0.0
+            elif result[0]:
+                paths[name] += 1
+                paths["braking"] += result[1] == 0.0
             return result
         return wrapper
 
-    monkeypatch.setattr(unicycle, "_command_on_lines", counted("lines", lines_only))
+    monkeypatch.setattr(unicycle, "_compiled_command", counted("lines", lines_only))
     monkeypatch.setattr(unicycle, "_command_with_caps", counted("caps", with_caps))
     for _ in range(3000):
         args = _random_case(rng)
@@ -502,7 +505,7 @@ def test_the_envelope_floor_is_below_every_cap(segments, x, y, radius, heading, 
     envelope = BrakingEnvelope(starts, ends, position, radius, 1.0, 0.5)
     vertex = starts[0] - position
     headings = np.array([heading, math.atan2(vertex[1], vertex[0]) + 1e-9 * skew])
-    assert np.all(unicycle._envelope_floor(envelope, gap) <= envelope(headings))
+    assert np.all(unicycle._envelope_floor(radius, 1.0, 0.5, gap) <= envelope(headings))
 
 
 def test_mismatched_lines_or_edges_name_the_arrays():
@@ -518,3 +521,31 @@ def test_mismatched_lines_or_edges_name_the_arrays():
     envelope = BrakingEnvelope(np.zeros((2, 2)), np.ones((1, 2)), np.zeros(2), 0.5, 1.0, 0.5)
     with pytest.raises(ValueError, match="the envelope's starts and ends"):
         unicycle_command(np.array([1.0, 0.0]), 0.0, 0.5, 0.5, 0.5, *lines, 0.0, envelope)
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.one_of(st.floats(-1e6, 1e6), st.integers(-40, 40).map(lambda k: k * math.pi),
+                 st.integers(-40, 40).map(lambda k: (k + 0.5) * 2.0 * math.pi),
+                 st.sampled_from([0.0, -0.0, 5e-324, -5e-324, math.pi, -math.pi])))
+def test_the_compiled_remainder_is_maths(x):
+    """The compiled turn's wrap is math.remainder(x, 2 pi), sign of a zero included: odd and
+    even multiples of pi (the float nearest a half-way case, and the ties the even rule
+    breaks), huge and tiny angles."""
+    import aoass_env.safety.unicycle as unicycle
+    got, want = unicycle._remainder(x), math.remainder(x, 2.0 * math.pi)
+    assert got == want and math.copysign(1.0, got) == math.copysign(1.0, want)
+
+
+def test_the_compiled_remainder_breaks_a_tie_to_the_even_multiple():
+    """Half periods x = (k + 1/2) 2 pi: where x lies exactly half way between two multiples
+    of the float period (at least four of them), the even multiple wins, as in math."""
+    import aoass_env.safety.unicycle as unicycle
+    period = 2.0 * math.pi
+    ties = 0
+    for k in range(-7, 8):
+        x = (k + 0.5) * period
+        m = math.fmod(abs(x), period)
+        ties += m == period - m              # the half-way branch
+        got, want = unicycle._remainder(x), math.remainder(x, period)
+        assert got == want and math.copysign(1.0, got) == math.copysign(1.0, want), x
+    assert ties >= 4

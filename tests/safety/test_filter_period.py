@@ -1,0 +1,84 @@
+"""Tests of aoass_env.safety.filter_period: one compiled call for a period of the velocity
+filter gives the wrapper's own path's floats, and hands the periods it does not decide back."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aoass_env import wrappers
+from aoass_env.safety import filter_period as period
+from aoass_env.safety.config import SafetyConfig
+
+pytestmark = pytest.mark.skipif(not period.fused(),
+                                reason="compiled trigonometry, atan2 or hypot unlike math's")
+
+#: a dense field with many fast moving obstacles: with the look-ahead on, ORCA's moving lines
+#: hand about half the periods back; without it, the braking envelope's caps hand back a few
+#: of the periods on the smaller field
+BUSY = {"field_size": 60.0, "obstacle_density": 0.35, "n_moving_obstacles": 16,
+        "moving_obstacle_speed": (0.5, 1.5)}
+CRAMPED = dict(BUSY, field_size=40.0)
+
+
+def _episode(fused: bool, field: dict, safety: SafetyConfig | None, seed: int, steps: int,
+             monkeypatch: pytest.MonkeyPatch) -> tuple[list, dict[str, int]]:
+    """What each step of a seeded random-action AOASS-Safe-v0 episode returns (observation,
+    reward, flags, the safety report) with the fused call on or off, and how the calls went."""
+    calls = {"done": 0, "handed back": 0}
+    compiled = period.filter_period
+
+    def counted(*args):
+        out = compiled(*args)
+        calls["done" if out[0] else "handed back"] += 1
+        return out
+
+    monkeypatch.setattr(wrappers, "filter_period", counted)
+    env = wrappers.make_safe_env(**field, safety=safety)
+    safe = env
+    while not isinstance(safe, wrappers.FuzzyORCASafety):
+        safe = safe.env
+    safe._fused = fused
+    env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(steps):
+        observation, reward, terminated, truncated, info = env.step(
+            rng.uniform(-1.0, 1.0, 2).astype(np.float32))
+        out.append((observation.tobytes(), reward, terminated, truncated,
+                    sorted(info["safety"].items())))
+        if terminated or truncated:
+            env.reset()
+    return out, calls
+
+
+@pytest.mark.parametrize(("field", "safety", "least"),
+                         [(BUSY, None, 100), (CRAMPED, SafetyConfig(look_ahead=False), 5)],
+                         ids=["look-ahead", "caps"])
+def test_the_fused_period_is_the_wrappers_path(monkeypatch, field, safety, least):
+    """Bit for bit over busy seeded episodes: every observation, reward and safety report
+    (v*, the command, the line and active counts, types included) is the same with the
+    fused call as without; the call decides many periods and hands at least ``least`` back
+    (the look-ahead's; without it, the caps')."""
+    want, off = _episode(False, field, safety, 31, 500, monkeypatch)
+    got, calls = _episode(True, field, safety, 31, 500, monkeypatch)
+    assert off == {"done": 0, "handed back": 0}
+    assert len(got) == len(want)
+    for step, (g, w) in enumerate(zip(got, want, strict=True)):
+        assert g == w, step
+        assert [type(v) for _, v in g[4]] == [type(v) for _, v in w[4]], step
+    assert calls["done"] > 100 and calls["handed back"] >= least, calls
+
+
+def test_the_fused_period_needs_the_maths_probes(monkeypatch):
+    """Where compiled atan2 or hypot are not math's, the wrapper never calls it."""
+    monkeypatch.setattr(period, "compiled_polar", lambda: False)
+    assert period.fused() is False
+    monkeypatch.setattr(wrappers, "fused", period.fused)
+    calls = []
+    monkeypatch.setattr(wrappers, "filter_period", lambda *args: calls.append(args))
+    env = wrappers.make_safe_env(**BUSY)
+    env.reset(seed=32)
+    for _ in range(20):
+        env.step(env.action_space.sample())
+    assert calls == []
