@@ -39,7 +39,13 @@ from aoass_env.maps import ObstacleMap, list_maps, load_map, validation_split
 from aoass_env.observation import MOVING_FIELDS, clip_like_numpy, velocity_scale
 from aoass_env.planning import AdaptiveConfig
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
-from aoass_env.safety.filter_period import ACTIVE_SLACK, PeriodSettings, filter_period, fused
+from aoass_env.safety.filter_period import (
+    ACTIVE_SLACK,
+    PeriodSettings,
+    filter_period,
+    fused,
+    orca_lines_of,
+)
 from aoass_env.safety.fuzzy import FuzzyController
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.lookahead import (
@@ -504,16 +510,20 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         static = self._static_obstacles()
         moving = self._moving_obstacles()
         escape = None
-        done = False
-        if self._fused:     # the periods where ORCA and the lines alone decide, in one call
-            done, sx, sy, speed_cmd, heading_cmd, n_lines, n_static, active, active_static = \
+        if self._fused:     # where ORCA and the lines alone decide, one call decides
+            done, rows, n_static, sx, sy, speed_cmd, heading_cmd, active, active_static = \
                 filter_period(static, _NO_MOVING if moving is None else moving,
                               self._period_settings(c), anchor.position.tolist(),
                               anchor.velocity.tolist(), pref, heading, anchor.speed,
                               heading_pref, cfg.look_ahead)
-        if not done:
+            n_lines = len(rows)
+            if not done:    # handed back: the same lines and v*
+                lines, v_star = orca_lines_of(rows, n_static), np.array([sx, sy])
+        else:
+            done = False
             lines, v_star = self._orca_agent(c).velocity(anchor.position, anchor.velocity, pref,
                                                          static, moving)
+        if not done:
             if cfg.look_ahead and len(lines) > lines.n_static:
                 escape = self._look_ahead(v_star, np.array(pref), anchor, static)
                 if escape.escaping:

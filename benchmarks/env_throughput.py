@@ -72,6 +72,7 @@ SAFE_PARTS: tuple[tuple[str, Any, str], ...] = (
     ("    MultiTargetTracker.step", MultiTargetTracker, "step"),
     ("  FuzzyORCASafety._filter", wrappers.FuzzyORCASafety, "_filter"),
     ("    FuzzyController (fuzzy.py)", FuzzyController, "__call__"),
+    ("    filter_period (ORCA, braking edges, command, in one call)", wrappers, "filter_period"),
     ("    OrcaAgent.velocity (ORCA, Eq. 10)", OrcaAgent, "velocity"),
     ("    solve_velocity", wrappers, "solve_velocity"),
     ("    escape_velocity (look-ahead)", wrappers, "escape_velocity"),

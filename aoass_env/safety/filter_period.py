@@ -26,15 +26,17 @@ import numpy as np
 
 from aoass_env.safety.orca import (
     OrcaAgent,
+    OrcaLines,
     StaticObstacles,
     _active,
     _lines_and_velocity,
     _near_compiled,
+    _read_only_lines,
 )
 from aoass_env.safety.unicycle import _compiled_command
 from aoass_env.trig import SCALAR_TRIG, compiled_polar, compiled_trig
 
-__all__ = ["PeriodSettings", "filter_period", "fused"]
+__all__ = ["PeriodSettings", "filter_period", "fused", "orca_lines_of"]
 
 #: The slack (m/s) within which v* counts as on a constraint (``info["safety"]["active"]``).
 ACTIVE_SLACK = 1e-6
@@ -74,7 +76,8 @@ def _period(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, grid: np.nda
             cells: np.ndarray, point: np.ndarray, nxt: np.ndarray, moving: np.ndarray,
             settings: np.ndarray, px: float, py: float, vx: float, vy: float, ox: float,
             oy: float, heading: float, speed: float, fallback_heading: float,
-            look_ahead: bool) -> tuple[bool, float, float, float, float, int, int, int, int]:
+            look_ahead: bool
+            ) -> tuple[bool, np.ndarray, int, float, float, float, float, int, int]:
     """:func:`filter_period` on the static obstacles' tables."""
     radius, max_speed, tau_obst, tau, step, share = (settings[0], settings[1], settings[2],
                                                      settings[3], settings[4], settings[5])
@@ -83,9 +86,8 @@ def _period(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, grid: np.nda
     lines, n_static, sx, sy = _lines_and_velocity(edges, links, bbox, grid, cells, px, py, vx,
                                                   vy, radius, max_speed, tau_obst, moving,
                                                   tau, step, share, ox, oy)
-    n = lines.shape[0]
-    if look_ahead and n > n_static:
-        return False, sx, sy, 0.0, 0.0, n, n_static, 0, 0
+    if look_ahead and lines.shape[0] > n_static:
+        return False, lines, n_static, sx, sy, 0.0, 0.0, 0, 0
     near = _near_compiled(edges, bbox, grid, cells, px, py, reach)
     starts = np.empty((near.shape[0], 2))
     ends = np.empty((near.shape[0], 2))
@@ -97,28 +99,36 @@ def _period(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, grid: np.nda
         sx, sy, heading, speed, max_turn, max_dv, lines[:, :2], lines[:, 2:], fallback_heading,
         starts, ends, px, py, radius, max_accel, dt)
     if not done:
-        return False, sx, sy, 0.0, 0.0, n, n_static, 0, 0
+        return False, lines, n_static, sx, sy, 0.0, 0.0, 0, 0
     active, active_static = _active(lines, n_static, sx, sy, ACTIVE_SLACK)
-    return True, sx, sy, speed_cmd, heading_cmd, n, n_static, active, active_static
+    return True, lines, n_static, sx, sy, speed_cmd, heading_cmd, active, active_static
 
 
 def filter_period(static: StaticObstacles, moving: np.ndarray, settings: PeriodSettings,
                   position: tuple[float, float], velocity: tuple[float, float],
                   preferred: tuple[float, float], heading: float, speed: float,
                   fallback_heading: float, look_ahead: bool
-                  ) -> tuple[bool, float, float, float, float, int, int, int, int]:
-    """(done, v*x, v*y, speed, heading, lines, static lines, active, active static): ORCA's
-    velocity v* (m/s) closest to ``preferred`` (m/s) for the anchor at ``position`` (m) moving
-    at ``velocity`` (m/s) among ``static`` and the ``moving`` (k, 5) discs [x, y, vx, vy,
-    radius] (checked, float64), the unicycle's command (m/s, rad) for v* from ``heading``
-    (rad) and ``speed`` (m/s) under the braking envelope of the edges within ``settings``'
-    reach (``fallback_heading``, rad, for a v* of almost zero), the number of ORCA lines and
-    of static ones, and of those active at v* (within :data:`ACTIVE_SLACK`). Not ``done``
-    (speed and heading 0, no active count) where the look-ahead (``look_ahead`` on and a
-    moving obstacle's line) or the braking envelope's caps decide: the caller runs its own
-    path. Only where :func:`fused` holds."""
+                  ) -> tuple[bool, np.ndarray, int, float, float, float, float, int, int]:
+    """(done, lines, static lines, v*x, v*y, speed, heading, active, active static): ORCA's
+    lines (n, 4) rows [px, py, dx, dy] (static lines first) and velocity v* (m/s) closest to
+    ``preferred`` (m/s) for the anchor at ``position`` (m) moving at ``velocity`` (m/s) among
+    ``static`` and the ``moving`` (k, 5) discs [x, y, vx, vy, radius] (checked, float64), the
+    unicycle's command (m/s, rad) for v* from ``heading`` (rad) and ``speed`` (m/s) under the
+    braking envelope of the edges within ``settings``' reach (``fallback_heading``, rad, for a
+    v* of almost zero), and how many of the lines, and of the static ones, are active at v*
+    (within :data:`ACTIVE_SLACK`). Not ``done`` (speed, heading and the active counts 0) where
+    the look-ahead (``look_ahead`` on and a moving obstacle's line) or the braking envelope's
+    caps decide: the caller runs its own path from the lines (:func:`orca_lines_of`) and v*.
+    Only where :func:`fused` holds."""
     cache = static._cache
     return _period(cache.edges, cache.links, cache.bbox, cache.grid, cache.cells, static.point,
                    static.next, moving, settings.values, position[0], position[1],
                    velocity[0], velocity[1], preferred[0], preferred[1], heading, speed,
                    fallback_heading, look_ahead)
+
+
+def orca_lines_of(rows: np.ndarray, n_static: int) -> OrcaLines:
+    """The ORCA lines of :func:`filter_period`'s ``rows`` and ``n_static``, as
+    :meth:`OrcaAgent.velocity <aoass_env.safety.orca.OrcaAgent.velocity>` returns them (the
+    rows made read-only): for a period handed back."""
+    return _read_only_lines(rows, n_static)
