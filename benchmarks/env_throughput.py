@@ -39,7 +39,6 @@ from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import WaypointFollower
 from aoass_env.safety.fuzzy import FuzzyController
 from aoass_env.safety.kalman import MultiTargetTracker
-from aoass_env.safety.orca import OrcaAgent
 from aoass_env.simulator import Simulator
 from aoass_env.world import World
 
@@ -72,8 +71,7 @@ SAFE_PARTS: tuple[tuple[str, Any, str], ...] = (
     ("    MultiTargetTracker.step", MultiTargetTracker, "step"),
     ("  FuzzyORCASafety._filter", wrappers.FuzzyORCASafety, "_filter"),
     ("    FuzzyController (fuzzy.py)", FuzzyController, "__call__"),
-    ("    filter_period (ORCA, braking edges, command, in one call)", wrappers, "filter_period"),
-    ("    OrcaAgent.velocity (ORCA, Eq. 10)", OrcaAgent, "velocity"),
+    ("    filter_period (ORCA Eq. 10, braking edges, command)", wrappers, "filter_period"),
     ("    solve_velocity", wrappers, "solve_velocity"),
     ("    escape_velocity (look-ahead)", wrappers, "escape_velocity"),
     ("    _braking_envelope", wrappers.FuzzyORCASafety, "_braking_envelope"),
