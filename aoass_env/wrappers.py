@@ -56,7 +56,6 @@ from aoass_env.safety.lookahead import (
     position_std,
 )
 from aoass_env.safety.orca import (
-    _NO_MOVING,
     OrcaAgent,
     OrcaLines,
     StaticObstacles,
@@ -512,10 +511,9 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         escape = None
         if self._fused:     # where ORCA and the lines alone decide, one call decides
             done, rows, n_static, sx, sy, speed_cmd, heading_cmd, active, active_static = \
-                filter_period(static, _NO_MOVING if moving is None else moving,
-                              self._period_settings(c), anchor.position.tolist(),
-                              anchor.velocity.tolist(), pref, heading, anchor.speed,
-                              heading_pref, cfg.look_ahead)
+                filter_period(static, moving, self._period_settings(c),
+                              anchor.position.tolist(), anchor.velocity.tolist(), pref,
+                              heading, anchor.speed, heading_pref, cfg.look_ahead)
             n_lines = len(rows)
             if not done:    # handed back: the same lines and v*
                 lines, v_star = orca_lines_of(rows, n_static), np.array([sx, sy])

@@ -30,6 +30,7 @@ from aoass_env.safety.orca import (
     StaticObstacles,
     _active,
     _lines_and_velocity,
+    _moving,
     _near_compiled,
     _read_only_lines,
 )
@@ -104,7 +105,7 @@ def _period(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, grid: np.nda
     return True, lines, n_static, sx, sy, speed_cmd, heading_cmd, active, active_static
 
 
-def filter_period(static: StaticObstacles, moving: np.ndarray, settings: PeriodSettings,
+def filter_period(static: StaticObstacles, moving: np.ndarray | None, settings: PeriodSettings,
                   position: tuple[float, float], velocity: tuple[float, float],
                   preferred: tuple[float, float], heading: float, speed: float,
                   fallback_heading: float, look_ahead: bool
@@ -112,17 +113,21 @@ def filter_period(static: StaticObstacles, moving: np.ndarray, settings: PeriodS
     """(done, lines, static lines, v*x, v*y, speed, heading, active, active static): ORCA's
     lines (n, 4) rows [px, py, dx, dy] (static lines first) and velocity v* (m/s) closest to
     ``preferred`` (m/s) for the anchor at ``position`` (m) moving at ``velocity`` (m/s) among
-    ``static`` and the ``moving`` (k, 5) discs [x, y, vx, vy, radius] (checked, float64), the
-    unicycle's command (m/s, rad) for v* from ``heading`` (rad) and ``speed`` (m/s) under the
-    braking envelope of the edges within ``settings``' reach (``fallback_heading``, rad, for a
-    v* of almost zero), and how many of the lines, and of the static ones, are active at v*
-    (within :data:`ACTIVE_SLACK`). Not ``done`` (speed, heading and the active counts 0) where
-    the look-ahead (``look_ahead`` on and a moving obstacle's line) or the braking envelope's
-    caps decide: the caller runs its own path from the lines (:func:`orca_lines_of`) and v*.
-    Only where :func:`fused` holds."""
+    ``static`` and the ``moving`` (k, 5) discs [x, y, vx, vy, radius] (m, m/s, m; checked as
+    ORCA checks them; None: none), the unicycle's command (m/s, rad) for v* from ``heading``
+    (rad) and ``speed`` (m/s) under the braking envelope of the edges within ``settings``'
+    reach (``fallback_heading``, rad, for a v* of almost zero), and how many of the lines, and
+    of the static ones, are active at v* (within :data:`ACTIVE_SLACK`). Not ``done`` (speed,
+    heading and the active counts 0) where the look-ahead (``look_ahead`` on and a moving
+    obstacle's line) or the braking envelope's caps decide: the caller runs its own path from
+    the lines (:func:`orca_lines_of`) and v*. Only where :func:`fused` holds.
+
+    Raises:
+        ValueError: ``moving`` of another shape, not finite, or with a negative radius.
+    """
     cache = static._cache
     return _period(cache.edges, cache.links, cache.bbox, cache.grid, cache.cells, static.point,
-                   static.next, moving, settings.values, position[0], position[1],
+                   static.next, _moving(moving), settings.values, position[0], position[1],
                    velocity[0], velocity[1], preferred[0], preferred[1], heading, speed,
                    fallback_heading, look_ahead)
 

@@ -82,3 +82,24 @@ def test_the_fused_period_needs_the_maths_probes(monkeypatch):
     for _ in range(20):
         env.step(env.action_space.sample())
     assert calls == []
+
+
+def test_bad_moving_obstacles_are_named_as_orca_names_them():
+    """The call checks the moving discs as ORCA does: a NaN, a wrong shape or a negative
+    radius is a one-line error naming moving_obstacles, never a silent command."""
+    from aoass_env.maps import generate_map
+    from aoass_env.safety.orca import OrcaAgent, StaticObstacles
+    static = StaticObstacles.from_loops(generate_map(30.0, 0.2, np.random.default_rng(60))
+                                        .free_space_loops)
+    agent = OrcaAgent(0.7, 1.0, 4.0, 2.5, 0.5)
+    settings = period.PeriodSettings(agent, max_turn=0.3, max_dv=0.5, reach=4.0,
+                                     max_accel=1.0, dt=0.5)
+    for bad, what in ((np.array([[5.0, 5.0, np.nan, 0.0, 1.0]]), "finite"),
+                      (np.zeros((2, 4)), "shape"),
+                      (np.array([[5.0, 5.0, 0.0, 0.0, -1.0]]), "radii")):
+        with pytest.raises(ValueError, match=f"moving_obstacles.*{what}"):
+            period.filter_period(static, bad, settings, (15.0, 15.0), (0.0, 0.0), (0.5, 0.0),
+                                 0.0, 0.0, 0.0, True)
+    done, rows, *_ = period.filter_period(static, None, settings, (15.0, 15.0), (0.0, 0.0),
+                                          (0.5, 0.0), 0.0, 0.0, 0.0, True)
+    assert isinstance(done, bool) and rows.shape[1] == 4
