@@ -84,7 +84,9 @@ def test_a_passed_polar_probe_holds_on_other_pairs():
 
 def test_the_polar_probe_fails_on_one_unit_in_the_last_place(monkeypatch):
     """One angle of the probe's 8 202 off by one unit in the last place, or one norm: the probe
-    says no."""
+    says no (asked only where it says yes unperturbed: elsewhere this could not fail)."""
+    if not trig.compiled_polar():
+        pytest.skip("numba's atan2 or the compiled hypot differ from math's here")
     compiled = trig._compiled_polar
     for column in (0, 1):
         def off(y, x, column=column):
@@ -94,4 +96,4 @@ def test_the_polar_probe_fails_on_one_unit_in_the_last_place(monkeypatch):
         monkeypatch.setattr(trig, "_compiled_polar", off)
         assert trig.compiled_polar.__wrapped__() is False
     monkeypatch.setattr(trig, "_compiled_polar", compiled)
-    assert trig.compiled_polar.__wrapped__() is trig.compiled_polar()
+    assert trig.compiled_polar.__wrapped__() is True
