@@ -21,6 +21,7 @@ import io
 import json
 import os
 import zipfile
+import zlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
@@ -44,7 +45,9 @@ STATE_FIELDS = ("num_timesteps", "_n_updates", "_episode_num")
 #: Weight files of a model .zip: the policy (required) and the optimizers (read to resume).
 _OPTIMIZERS = ("actor.optimizer", "critic.optimizer")
 #: Arrays of a saved replay buffer besides the buffer's own arrays.
-_BUFFER_META = ("pos", "full", "num_timesteps")
+#: The replay buffer file's scalar tags: key -> (dtype kinds accepted, what it must be)
+_BUFFER_META = {"pos": ("iu", "an integer"), "full": ("b", "a bool"),
+                "num_timesteps": ("iu", "an integer")}
 
 SelfSafe = TypeVar("SelfSafe", bound="SafeLoading")
 
@@ -167,7 +170,7 @@ def _load_optimizer(path: Path, name: str, optimizer: th.optim.Optimizer,
 def _read_state(path: Path, archive: zipfile.ZipFile) -> dict[str, int]:
     try:
         data = json.loads(archive.read("data"))
-    except (KeyError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (KeyError, UnicodeDecodeError, json.JSONDecodeError, zlib.error) as exc:
         raise PolicyFileError(f"{path}: data: missing or not JSON ({one_line(exc)})"
                               ) from None
     if not isinstance(data, dict):
@@ -233,7 +236,7 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
             if env is not None:
                 weights.update({n: _read_weights(path, archive, n, device)
                                 for n in _OPTIMIZERS if f"{n}.pth" in names})
-    except (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError) as exc:
+    except (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError, zlib.error) as exc:
         raise PolicyFileError(f"{path}: not a readable model .zip ({one_line(exc)})"
                               ) from None
     _check_finite(path, "policy", weights["policy"])
@@ -304,6 +307,13 @@ def load_replay_buffer(model: Any, path: str | os.PathLike[str]) -> None:
         if arrays[key].shape != value.shape or arrays[key].dtype != value.dtype:
             raise PolicyFileError(f"{path}: {key}: shape {arrays[key].shape} {arrays[key].dtype}"
                                   f", the model's buffer holds {value.shape} {value.dtype}")
+        if arrays[key].dtype.kind == "f" and not np.isfinite(arrays[key]).all():
+            raise PolicyFileError(f"{path}: {key}: holds NaN or infinite values (the model's "
+                                  f"transitions are finite)")
+    for key, (kinds, what) in _BUFFER_META.items():
+        if arrays[key].shape != () or arrays[key].dtype.kind not in kinds:
+            raise PolicyFileError(f"{path}: {key}: must be {what} (a 0-d array), got shape "
+                                  f"{arrays[key].shape} {arrays[key].dtype}")
     pos, steps = int(arrays["pos"]), int(arrays["num_timesteps"])
     if not 0 <= pos < buffer.buffer_size:
         raise PolicyFileError(f"{path}: pos: {pos} is outside [0, {buffer.buffer_size})")

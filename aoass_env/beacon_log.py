@@ -71,6 +71,8 @@ _SCHEMA: dict[str, tuple[str, tuple[int | str, ...]]] = {
 }
 #: The schema keys, in file order.
 KEYS = tuple(_SCHEMA)
+#: Names ``np.savez`` takes as its own arguments: an extra array cannot be saved under them.
+_SAVEZ_ARGUMENTS = ("file", "allow_pickle")
 _KINDS = {"int": ("iu", np.int64, "an integer"), "float": ("fiu", np.float64, "a real number"),
           "str": ("U", np.str_, "a string")}
 
@@ -218,9 +220,11 @@ class BeaconLog:
                                  "radio_range")
         extras = {}
         for name, value in dict(self.extras).items():
-            if not isinstance(name, str) or not name or name in _SCHEMA or "/" in name:
+            if (not isinstance(name, str) or not name or name in _SCHEMA or "/" in name
+                    or name in _SAVEZ_ARGUMENTS):
                 raise BeaconLogError(f"extra key {name!r} must be a new, non-empty name "
-                                     f"without '/'")
+                                     f"without '/', and not {' or '.join(_SAVEZ_ARGUMENTS)} "
+                                     f"(np.savez's own arguments)")
             a = np.array(value)
             if a.dtype.hasobject:
                 raise BeaconLogError("extra arrays must not hold Python objects", name)

@@ -10,8 +10,10 @@ from aoass_env.validators import float_array, integer, real
 def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, float]:
     """Eq. 15: RMSE (m) over the nodes that have an estimate, and the localized fraction.
 
-    Nodes whose estimate is NaN are left out of the RMSE; the fraction of nodes that were
-    localized is returned beside it so that the two are always reported together.
+    Nodes whose estimate is NaN (both coordinates: a localizer's "not localized") are left out
+    of the RMSE; the fraction of nodes that were localized is returned beside it so that the
+    two are always reported together. Any other non-finite estimate (an infinity, one NaN
+    coordinate) is a localizer's fault, not a missing estimate: ValueError.
     """
     t, e = float_array("true_xy", true_xy), float_array("est_xy", est_xy)
     if t.shape != e.shape or t.ndim != 2 or t.shape[1] != 2:
@@ -19,6 +21,11 @@ def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, f
     if not np.isfinite(t).all():
         raise ValueError("true_xy must be finite (the nodes' true positions, m)")
     ok = np.all(np.isfinite(e), axis=1)
+    bad = ~ok & ~np.all(np.isnan(e), axis=1)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"est_xy row {row} is {e[row].tolist()}: an estimate must be a finite "
+                         f"position (m) or NaN in both coordinates (not localized)")
     if not ok.any():
         return float("nan"), 0.0
     err2 = np.sum((t[ok] - e[ok]) ** 2, axis=1)
@@ -43,13 +50,19 @@ def _energy_and_beacons(energy_total: float, n_beacons: int) -> tuple[float, int
 
 
 def coverage_ratio(covered: np.ndarray) -> float:
-    """Eq. 18: share of nodes (in [0, 1]; x 100 for %) that heard >= 3 non-collinear beacons."""
+    """Eq. 18: share of nodes (in [0, 1]; x 100 for %) that heard >= 3 non-collinear beacons.
+
+    ``covered`` is one flag per node, (N,) with N >= 1: the coverage of no nodes is undefined.
+    """
     c = np.asarray(covered)
+    if c.ndim != 1 or c.size == 0:
+        raise ValueError(f"covered must be a non-empty (N,) array of one flag per node, got "
+                         f"shape {c.shape}")
     if c.dtype != bool:
         if not (np.issubdtype(c.dtype, np.number) and np.isin(c, (0, 1)).all()):
             raise ValueError(f"covered must hold booleans (or 0 and 1), got dtype {c.dtype}")
         c = c.astype(bool)
-    return float(c.mean()) if c.size else 0.0
+    return float(c.mean())
 
 
 def trajectory_efficiency(l_ideal: float, l_actual: float, t_ideal: float,

@@ -83,7 +83,7 @@ def _masked_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.nda
     """``localization_rmse(true_xy[localized], estimate_xy[localized])[0]``, 0 without a
     localized node: the squared errors (dx^2 + dy^2) of the rows with a finite estimate, their
     sum in NumPy's order (:func:`~aoass_env.pairwise.pairwise_sum`) over their count, its
-    square root."""
+    square root; rows NaN in both coordinates left out, any other non-finite row refused."""
     err2 = np.empty(len(localized))
     count = 0
     any_localized = False
@@ -95,6 +95,9 @@ def _masked_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.nda
                 dx, dy = true_xy[i, 0] - ex, true_xy[i, 1] - ey
                 err2[count] = dx * dx + dy * dy
                 count += 1
+            elif not (math.isnan(ex) and math.isnan(ey)):
+                raise ValueError("est_xy: an estimate must be a finite position (m) or NaN in "
+                                 "both coordinates (not localized)")
     if not any_localized:
         return 0.0
     if count == 0:

@@ -263,6 +263,15 @@ class ValidatedConfig:
     #: What the config is called in error messages ("config keyword", "safety keyword", ...).
     KEYWORD: ClassVar[str] = "config keyword"
 
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        """Unknown keywords get a did-you-mean :class:`ConfigError` (before the dataclass's
+        ``__init__`` would raise a bare TypeError)."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        for key in kwargs:
+            if key not in names:
+                raise ConfigError(unknown_key_message(key, names, cls.KEYWORD))
+        return super().__new__(cls)
+
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             object.__setattr__(self, f.name, _validate(f, getattr(self, f.name)))
@@ -273,11 +282,8 @@ class ValidatedConfig:
 
     @classmethod
     def from_kwargs(cls: type[Config], **kwargs: Any) -> Config:
-        """Build a config from keywords; unknown keywords get a did-you-mean error."""
-        names = [f.name for f in dataclasses.fields(cls)]
-        for key in kwargs:
-            if key not in names:
-                raise ConfigError(unknown_key_message(key, names, cls.KEYWORD))
+        """Build a config from keywords; unknown keywords get a did-you-mean error (as from
+        the constructor itself)."""
         return cls(**kwargs)
 
     @classmethod

@@ -275,6 +275,13 @@ def test_object_extras_and_bad_extra_names_are_rejected(tmp_path):
     for name in ("nodes", "", "a/b"):
         with pytest.raises(BeaconLogError, match="extra key"):
             make_log(extras={name: np.zeros(1)})
+    # np.savez's own arguments: "allow_pickle" used to vanish on save, "file" to crash it
+    for name in ("file", "allow_pickle"):
+        with pytest.raises(BeaconLogError, match=f"extra key '{name}' must be .* not file or "
+                                                 f"allow_pickle .np.savez's own arguments."):
+            make_log(extras={name: np.zeros(1)})
+    make_log(extras={"files": np.zeros(1)}).save(tmp_path / "ok.npz")
+    assert set(BeaconLog.load(tmp_path / "ok.npz").extras) == {"files"}
     arrays = good_arrays()
     arrays["pickled"] = np.array([None, 1], dtype=object)
     write_npz(tmp_path / "obj.npz", arrays)

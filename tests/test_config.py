@@ -1,4 +1,6 @@
+import dataclasses
 import math
+import pickle
 
 import pytest
 from hypothesis import given, settings
@@ -39,6 +41,13 @@ def test_bad_values_name_parameter_and_range(key, value, fragment):
 def test_unknown_keyword_suggests_close_match():
     with pytest.raises(ConfigError, match="did you mean 'radio_range'"):
         AOASSConfig.from_kwargs(radio_rang=20)
+    # the constructor itself used to raise the dataclass's bare TypeError
+    with pytest.raises(ConfigError, match="unknown config keyword 'radio_rang'; did you mean "
+                                          "'radio_range'"):
+        AOASSConfig(radio_rang=20)
+    config = AOASSConfig(radio_range=20)        # copies still go through the constructor
+    assert pickle.loads(pickle.dumps(config)) == config
+    assert dataclasses.replace(config, n_nodes=5).n_nodes == 5
 
 
 def test_cross_field_checks():

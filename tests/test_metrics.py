@@ -31,6 +31,16 @@ def test_rmse_eq15_and_localized_fraction():
         localization_rmse(true, [["a", 1]] * 4)
 
 
+@pytest.mark.parametrize("row", [[np.inf, 1.0], [1.0, -np.inf], [np.nan, 1.0], [2.0, np.nan]])
+def test_rmse_refuses_estimates_that_are_neither_positions_nor_unlocalized(row):
+    """An infinite or half-NaN estimate (a localizer's fault) used to count as "not localized":
+    a lower localized share beside a plausible RMSE, nothing said."""
+    est = np.array([[0.0, 0.0], row, [1.0, 1.0]])
+    with pytest.raises(ValueError, match=r"est_xy row 1 is \[.*\]: an estimate must be a "
+                                         r"finite position \(m\) or NaN in both coordinates"):
+        localization_rmse(np.zeros((3, 2)), est)
+
+
 def test_energy_metrics_eq16_eq17():
     assert energy_per_beacon(10.0, 4) == pytest.approx(2.5)
     assert energy_efficiency_ratio(10.0, 4) == pytest.approx(0.4)
@@ -54,8 +64,12 @@ def test_energy_metrics_refuse_impossible_inputs(energy, beacons, message):
 
 def test_coverage_eq18():
     assert coverage_ratio(np.array([True, False, True, True])) == 0.75
-    assert coverage_ratio(np.array([], bool)) == 0.0
     assert coverage_ratio(np.array([1, 0, 0, 1])) == 0.5
+    # no nodes used to read as 0 % covered; a 2-D mask and a bare flag were flattened
+    for covered in (np.array([], bool), np.ones((2, 2), bool), True):
+        with pytest.raises(ValueError, match=r"covered must be a non-empty \(N,\) array of one "
+                                             r"flag per node, got shape"):
+            coverage_ratio(covered)
     # any non-zero float used to count as covered: [0.5, 2.0] gave 100 %
     with pytest.raises(ValueError, match="covered must hold booleans .or 0 and 1., got dtype "
                                          "float64"):

@@ -102,3 +102,10 @@ def test_the_compiled_online_rmse_is_the_metrics_float():
                                   np.array([True, False])))
     assert online_rmse([[0.0, 0.0], [1.0, 1.0]], [[3.0, 4.0], [1.0, 1.0]], [True, True]) == \
         pytest.approx(math.sqrt(12.5))
+    # an infinite or half-NaN estimate is refused by both paths, as by the metric
+    for row in ([np.inf, 0.0], [np.nan, 0.0]):
+        est = np.array([[0.0, 0.0], row])
+        for true in (np.zeros((2, 2)), [[0.0, 0.0], [0.0, 0.0]]):
+            with pytest.raises(ValueError, match="finite position"):
+                online_rmse(true, est, np.array([True, True]))
+        assert online_rmse(np.zeros((2, 2)), est, np.array([True, False])) == 0.0

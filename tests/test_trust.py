@@ -192,6 +192,16 @@ def _log(tmp_path: Path, **changes) -> Path:
     return path
 
 
+def _foreign_log(tmp_path: Path, **config) -> Path:
+    """A log without the evaluation record whose config_json has ``config`` merged in."""
+    with np.load(_log(tmp_path), allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["config_json"] = np.array(json.dumps({**json.loads(str(arrays["config_json"])),
+                                                 **config}))
+    np.savez(tmp_path / "log.npz", **arrays)
+    return tmp_path / "log.npz"
+
+
 def _nan_checkpoint(tmp_path: Path) -> Path:
     payload = torch.load(DEFAULT_CHECKPOINT, weights_only=True)
     name = next(iter(payload["state_dict"]))
@@ -273,6 +283,20 @@ AUDIT = [
         "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
         _log(t, evaluation_episode=np.array("{not json"))), BeaconLogError,
      "evaluation_episode"),
+    ("evaluation record of objects", lambda t, s: lambda: __import__(
+        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
+        _log(t, evaluation_episode=np.array([{}], dtype=object))), BeaconLogError,
+     "log.npz: beacon log key 'evaluation_episode': unreadable (Object arrays"),
+    ("foreign log's seed 'abc'", lambda t, s: lambda: __import__(
+        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(_foreign_log(t, seed="abc")),
+     BeaconLogError, "'config_json': its seed must be an integer or null, got 'abc'"),
+    ("foreign log's seed 1.5", lambda t, s: lambda: __import__(
+        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(_foreign_log(t, seed=1.5)),
+     BeaconLogError, "its seed must be an integer or null, got 1.5"),
+    ("foreign log's config [1]", lambda t, s: lambda: __import__(
+        "aoass_env.evaluation.episode", fromlist=["x"]).localize_log(
+        _foreign_log(t, config=[1]), ("dv-hop",)), BeaconLogError,
+     "its config must be a JSON object, got [1]"),
     ("NaN localizer checkpoint", lambda t, s: lambda: load_checkpoint(_nan_checkpoint(t)),
      CheckpointError, "nan.pt"),
     ("reset(options={'map': 42})", lambda t, s: lambda: AOASSEnv(n_nodes=5).reset(

@@ -39,6 +39,7 @@ from aoass_env.localization import localize
 from aoass_env.maps import ObstacleMap, generate_map, load_map
 from aoass_env.metrics import localization_rmse
 from aoass_env.simulator import episode_summary
+from aoass_env.validators import one_line
 
 __all__ = ["GENERATED_PREFIX", "ROBUSTNESS_MAP_SEED", "episode_map", "episode_metrics",
            "localization_row", "localize_log", "log_key", "robustness_map",
@@ -173,9 +174,15 @@ def _config_key(log: BeaconLog, path: Path) -> EpisodeKey:
     """The key of a log without the evaluation extra: method, seed (-1 if unknown), map
     (config, else the file name), field size, node count and the map's density (2 decimals)."""
     cfg = log.config
-    seed = cfg.get("seed")
+    seed, config = cfg.get("seed"), cfg.get("config", {})
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
+        raise BeaconLogError(f"its seed must be an integer or null, got {seed!r}",
+                             "config_json", path)
+    if not isinstance(config, dict):
+        raise BeaconLogError(f"its config must be a JSON object, got {config!r}",
+                             "config_json", path)
     return EpisodeKey(method=str(cfg.get("method")),
-                      map=str(cfg.get("config", {}).get("map") or path.name.removesuffix(".npz")),
+                      map=str(config.get("map") or path.name.removesuffix(".npz")),
                       field_size=float(log.field[0]), n_nodes=log.n_nodes,
                       obstacle_density=round(log.obstacle_map.density, 2),
                       seed=-1 if seed is None else int(seed))
@@ -189,9 +196,15 @@ def log_key(path: Path) -> EpisodeKey:
         BeaconLogError: the file is not a valid beacon log.
     """
     if zipfile.is_zipfile(path):
-        with np.load(path, allow_pickle=False) as data:
-            if EPISODE_EXTRA in data.files:
-                return _saved_key(_saved_episode(data[EPISODE_EXTRA], path))
+        text = None
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                if EPISODE_EXTRA in data.files:
+                    text = data[EPISODE_EXTRA]
+        except Exception as exc:  # an object array, a damaged member: numpy, zipfile, zlib...
+            raise BeaconLogError(f"unreadable ({one_line(exc)})", EPISODE_EXTRA, path) from None
+        if text is not None:
+            return _saved_key(_saved_episode(text, path))
     return _config_key(BeaconLog.load(path), path)
 
 

@@ -21,7 +21,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from aoass_env.beacon_log import BeaconLog, BeaconLogError
-from aoass_env.validators import float_array
+from aoass_env.validators import float_array, integer
 
 __all__ = ["DEFAULT_FLOOD_LIMIT", "HopCounts", "hop_counts", "hop_size", "radio_graph",
            "require_beacons"]
@@ -68,11 +68,10 @@ def radio_graph(log: BeaconLog) -> sp.csr_matrix:
     return graph
 
 
-def check_flood_limit(flood_limit: object) -> None:
-    """ValueError naming ``flood_limit`` unless it is an integer >= 1."""
-    if isinstance(flood_limit, bool) or not isinstance(flood_limit, (int, np.integer)) \
-            or flood_limit < 1:
-        raise ValueError(f"flood_limit={flood_limit!r} must be an integer number of hops >= 1")
+def check_flood_limit(flood_limit: object) -> int:
+    """``flood_limit`` as an int; ValueError naming it unless it is a whole number >= 1 (hops;
+    ``32.0`` is 32, as for every integer parameter)."""
+    return integer("flood_limit", flood_limit, "hops", low=1)
 
 
 def hop_counts(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> HopCounts:

@@ -67,6 +67,10 @@ class ObstacleMap:
         height = positive("map height", self.height, "m", error=MapError)
         polys = []
         for i, p in enumerate(self.polygons):
+            shape = np.shape(p)
+            if len(shape) != 2 or shape[1] != 2:
+                raise MapError(f"obstacle {i}: a polygon must be a (k, 2) array of (x, y) "
+                               f"vertices (m), got shape {shape}")
             v = _as_ccw(p)
             if len(v) < 3 or not np.all(np.isfinite(v)):
                 raise MapError(f"obstacle {i}: a polygon needs >= 3 finite vertices, got {p!r}")

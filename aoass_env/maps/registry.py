@@ -99,6 +99,9 @@ def _read_cached(path: Path, field_size: float | tuple[float, float] | None) -> 
 def load_map(name_or_path: str | os.PathLike,
              field_size: float | tuple[float, float] | None = None) -> ObstacleMap:
     """A map from a file path, or a shipped map by name ("test/d0.30_f100_s500" or its stem)."""
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise TypeError(f"name_or_path must be a shipped map's name or a map file's path, got "
+                        f"{type(name_or_path).__name__}")
     path = Path(name_or_path)
     if path.is_file():
         return _read_cached(path, field_size)

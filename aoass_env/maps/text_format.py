@@ -100,10 +100,12 @@ def read_map(path: str | os.PathLike, field_size: float | tuple[float, float] | 
     :class:`MapFormatError` naming the file and line.
     """
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
+    try:   # utf-8-sig: a byte-order mark some editors write is not part of the text
+        lines = path.read_text(encoding="utf-8-sig").splitlines()
     except UnicodeDecodeError as err:
         raise MapError(f"{path}: not a UTF-8 text map file ({err.reason})") from None
+    except (IsADirectoryError, PermissionError) as err:
+        raise MapError(f"{path}: not a readable map file ({err.strerror})") from None
     sections = _parse_sections(path, lines)
     end = max(len(lines), 1)
     found = {kind: (line, rows) for kind, line, rows in sections if kind != "[OBSTACLE]"}

@@ -142,3 +142,48 @@ def test_a_replay_buffer_that_is_not_an_npz_is_named(saved: Path, tmp_path: Path
             model.load_replay_buffer(path)
         assert str(err.value) == (f"{path}: not a replay buffer .npz (no such file, or no zip "
                                   f"structure)")
+
+
+def test_a_damaged_deflated_data_member_is_named(saved: Path, tmp_path: Path) -> None:
+    """A corrupt deflate stream in ``data`` used to escape as a raw zlib.error."""
+    path = tmp_path / "deflated.zip"
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, data in _members(saved).items():
+            archive.writestr(name, data, compress_type=zipfile.ZIP_DEFLATED)
+    with zipfile.ZipFile(path) as archive:
+        info = archive.getinfo("data")
+        start = info.header_offset + 30 + len(info.filename) + len(info.extra)
+    raw = bytearray(path.read_bytes())
+    raw[start:start + 8] = b"\xff" * 8                # the stream, not the headers
+    path.write_bytes(bytes(raw))
+    assert "data: missing or not JSON (Error -3 while decompressing data" in _refusal(path)
+
+
+def test_a_replay_buffer_with_bad_tags_or_values_is_named(saved: Path, tmp_path: Path) -> None:
+    """Tags of another shape or type used to fail deep in numpy; NaN transitions and a
+    fractional step count were taken as they were."""
+    import numpy as np
+    model = RecurrentTD3.load(saved, env=_env(), record=RECORD)
+    good = tmp_path / "good.npz"
+    model.save_replay_buffer(good)
+    with np.load(good, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    steps = int(arrays["num_timesteps"])
+    nan_obs = arrays["observations"].copy()
+    nan_obs[0, 0, 0] = np.nan
+    cases = {
+        "pos": (np.array([0, 1]), r"pos: must be an integer \(a 0-d array\), got shape \(2,\) "
+                                  r"int64"),
+        "num_timesteps": (np.array(steps + 0.7), r"num_timesteps: must be an integer \(a 0-d "
+                                                 r"array\), got shape \(\) float64"),
+        "full": (np.array([True, False]), r"full: must be a bool \(a 0-d array\)"),
+        "observations": (nan_obs, r"observations: holds NaN or infinite values"),
+    }
+    for key, (value, message) in cases.items():
+        path = tmp_path / f"{key}.npz"
+        np.savez(path, **{**arrays, key: value})
+        with pytest.raises(PolicyFileError, match=rf"^{path}: {message}") as err:
+            model.load_replay_buffer(path)
+        assert len(str(err.value).splitlines()) == 1
+    model.load_replay_buffer(good)
+    assert model.replay_buffer.pos == int(arrays["pos"])

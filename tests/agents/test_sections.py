@@ -16,6 +16,13 @@ from agents.sections import HyperparameterError, key_value, read_yaml
     ("a: [1,2\n", "not valid YAML (line 2, column 1: expected ',' or ']', but got "
                   "'<stream end>')"),
     ("a: 1\na: 2\n", "not valid YAML (line 2, column 1: key 'a' is given twice)"),
+    ("b: &b {x: 1}\nc:\n  <<: *b\n  y: 1\n  y: 2\n",
+     "not valid YAML (line 5, column 3: key 'y' is given twice)"),
+    # an unhashable key used to escape as a raw TypeError
+    ("{[1, 2]: 3}\n", "not valid YAML (line 1, column 2: a key must be a scalar, not a list or "
+                     "a mapping)"),
+    ("? {a: 1}\n: 3\n", "not valid YAML (line 1, column 3: a key must be a scalar, not a list "
+                       "or a mapping)"),
     ("a: b: c\n", "not valid YAML (line 1, column 5: mapping values are not allowed here)"),
     ("x: !!python/object/apply:os.system [echo]\n",
      "not valid YAML (line 1, column 4: could not determine a constructor for the tag "
@@ -30,6 +37,17 @@ def test_invalid_yaml_is_one_line_naming_the_file_and_the_place(tmp_path: Path, 
     with pytest.raises(HyperparameterError) as err:
         read_yaml(path)
     assert str(err.value) == f"{path}: {message}"
+
+
+def test_merge_keys_share_a_block_and_the_mapping_s_own_keys_win(tmp_path: Path) -> None:
+    """``<<: *base`` used to be refused as "not valid YAML", though YAML's safe loader reads
+    it; a key of the mapping itself overrides the merged one, as there."""
+    path = tmp_path / "merged.yml"
+    text = "base: &b {x: 1, y: [1, 2]}\nc:\n  <<: *b\n  x: 2\nd: {<<: [*b, {z: 3}]}\n"
+    path.write_text(text, encoding="utf-8")
+    assert read_yaml(path) == yaml.safe_load(text) == {
+        "base": {"x": 1, "y": [1, 2]}, "c": {"x": 2, "y": [1, 2]},
+        "d": {"x": 1, "y": [1, 2], "z": 3}}
 
 
 def test_invalid_run_record_is_one_line(tmp_path: Path) -> None:

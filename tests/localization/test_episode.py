@@ -67,6 +67,13 @@ def test_flood_limit_of_a_prepared_episode(small_log) -> None:
                                "flood_limit=2; pass the log, or prepare it with this flood_limit")
     with pytest.raises(ValueError, match="flood_limit=0 must be an integer"):
         localize(episode, "dvhop", flood_limit=0)       # was silently ignored
+    # a whole float is that integer, as for every integer parameter (2.0 used to be refused)
+    assert np.array_equal(localize(episode, "dvhop", flood_limit=2.0),
+                          localize(episode, "dvhop"), equal_nan=True)
+    for bad in (2.5, True):
+        with pytest.raises(ValueError, match=rf"flood_limit={bad!r} must be an integer in "
+                                             r"\[1, inf\) hops"):
+            localize(small_log, "dvhop", flood_limit=bad)
 
 
 @pytest.mark.parametrize("checkpoint", [3, b"m.pt", ["m.pt"]])

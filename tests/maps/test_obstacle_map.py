@@ -103,3 +103,14 @@ def test_convex_parts_reproduce_each_obstacle_exactly(dense_map):
         assert sum(p.area for p in parts) == pytest.approx(sum(s.area for s in m.shapes),
                                                            rel=1e-12)
         assert shapely.symmetric_difference(shapely.union_all(parts), m.union).area < 1e-9
+
+
+@pytest.mark.parametrize("vertices", [
+    np.array([[10.0, 30.0, 20.0], [10.0, 12.0, 40.0]]),   # (2, k): xs and ys, not vertices
+    np.zeros((3, 3)), [10.0, 10.0, 30.0, 12.0, 20.0, 40.0], np.zeros((2, 3, 2))])
+def test_a_polygon_must_be_k_by_2_vertices(vertices):
+    """A (2, k) array of [xs, ys] used to be reshaped into other vertices, a different
+    polygon without a word; other shapes failed deep in numpy."""
+    with pytest.raises(MapError, match=r"obstacle 0: a polygon must be a \(k, 2\) array of "
+                                       r"\(x, y\) vertices \(m\), got shape"):
+        ObstacleMap(100.0, 100.0, [vertices])

@@ -92,6 +92,11 @@ def test_unknown_map_name_lists_valid_names():
         load_map("d0.30_f100_s999")
     with pytest.raises(MapError, match=rf"unknown map 'nothing-like-it'.*e\.g\. {shipped}, "):
         load_map("nothing-like-it")
+    # neither a name nor a path: used to be Path()'s TypeError, naming nothing
+    for thing in (None, 5):
+        with pytest.raises(TypeError, match=r"name_or_path must be a shipped map's name or a map "
+                                            rf"file's path, got {type(thing).__name__}"):
+            load_map(thing)
 
 
 def test_validation_split_holds_out_the_highest_seed_of_each_group():

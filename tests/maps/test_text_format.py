@@ -147,6 +147,21 @@ def test_binary_file_is_a_clear_error(tmp_path):
         read_map(path)
 
 
+def test_a_byte_order_mark_is_not_part_of_the_text(tmp_path):
+    """A UTF-8 byte-order mark (some editors write one) used to make "[SCALE]" unreadable."""
+    plain = read_map(write(tmp_path, IMR_SAMPLE, "plain.txt"))
+    path = tmp_path / "bom.txt"
+    path.write_bytes(b"\xef\xbb\xbf" + IMR_SAMPLE.encode())
+    assert_same_polygons(read_map(path), plain)
+
+
+def test_a_folder_is_a_clear_error(tmp_path):
+    """A folder used to escape as IsADirectoryError."""
+    with pytest.raises(MapError, match=rf"^{re.escape(str(tmp_path))}: not a readable map file "
+                                       r"\(Is a directory\)$"):
+        read_map(tmp_path)
+
+
 _LINE = st.one_of(
     st.sampled_from(["[SCALE]", "[BORDER]", "[OBSTACLE]", "[OBSTACLES]", "", "1", "0.5",
                      "-1", "0 0", "10 0", "10 10", "0 10", "3 3", "nan 1", "1 2 3", "x y"]),
