@@ -13,15 +13,16 @@ paper is silent (docs/interpretations.md).
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from aoass_env.validators import ConfigError, ValidatedConfig, param, unknown_key_message
 
-__all__ = ["AOASSConfig", "ConfigError", "config_for_map", "config_with", "map_side",
-           "unknown_key_message"]
+__all__ = ["AOASSConfig", "ConfigError", "check_keywords", "config_for_map", "config_with",
+           "map_side", "unknown_key_message"]
 
 
 
@@ -178,15 +179,16 @@ class AOASSConfig(ValidatedConfig):
         lo, hi = self.moving_obstacle_speed
         if lo > hi:
             raise ConfigError(f"moving_obstacle_speed=({lo}, {hi}): min must be <= max")
-        if self.spiral_origin is not None:
-            x, y = self.spiral_origin
-            if not (0.0 <= x <= self.field_size and 0.0 <= y <= self.field_size):
-                raise ConfigError(
-                    f"spiral_origin={self.spiral_origin} must lie inside the field "
-                    f"[0, {self.field_size}] x [0, {self.field_size}] m")
         if 2 * self.edge_margin >= self.field_size:
             raise ConfigError(f"edge_margin={self.edge_margin} must be less than half of "
                               f"field_size={self.field_size}")
+        if self.spiral_origin is not None:    # the spiral runs inside the edge margin
+            x, y = self.spiral_origin
+            lo, hi = self.edge_margin, self.field_size - self.edge_margin
+            if not (lo <= x <= hi and lo <= y <= hi):
+                raise ConfigError(
+                    f"spiral_origin={self.spiral_origin} must lie inside the field shrunk by "
+                    f"edge_margin={self.edge_margin}: [{lo:g}, {hi:g}] x [{lo:g}, {hi:g}] m")
     # --- derived quantities ----------------------------------------------------------
     @property
     def substep_dt(self) -> float:
@@ -200,11 +202,24 @@ class AOASSConfig(ValidatedConfig):
         return self.waypoint_step or self.beacon_interval
 
 
-def config_with(config: AOASSConfig | Mapping[str, Any] | None,
-                keywords: Mapping[str, Any]) -> AOASSConfig:
+def check_keywords(keywords: Iterable[str], also: Iterable[str] = ()) -> None:
+    """:class:`ConfigError` for the first of ``keywords`` that is neither a field of
+    :class:`AOASSConfig` nor one of ``also`` (the caller's own keywords), with a did-you-mean
+    suggestion drawn from both."""
+    names = [f.name for f in dataclasses.fields(AOASSConfig)]
+    own = [name for name in also if name not in names]
+    for key in keywords:
+        if key not in names and key not in own:
+            raise ConfigError(unknown_key_message(key, [*names, *own], AOASSConfig.KEYWORD))
+
+
+def config_with(config: AOASSConfig | Mapping[str, Any] | None, keywords: Mapping[str, Any],
+                also: Iterable[str] = ()) -> AOASSConfig:
     """The config of ``config`` (an :class:`AOASSConfig`, a HighwayEnv-style dict of its
     fields, or None: the defaults) with ``keywords`` overriding it; :class:`ConfigError` naming
-    ``config`` for another type, or the unknown key with a did-you-mean suggestion."""
+    ``config`` for another type, or the unknown key with a did-you-mean suggestion among the
+    fields and ``also`` (the caller's own keywords, which a misspelling may have meant)."""
+    check_keywords(keywords, also)
     plain = dict(config) if isinstance(config, Mapping) else config
     return AOASSConfig.coerce(plain, "config").replace(**keywords)
 

@@ -26,6 +26,7 @@ from aoass_env.planning.adaptive import sweep_config
 from aoass_env.planning.square_spiral import episode_spiral
 from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
 from aoass_env.simulator import Simulator, check_waypoint_step, episode_summary
+from aoass_env.validators import keyword_names
 from aoass_env.world import wrap_angle
 
 __all__ = ["COST_KEYS", "AOASSEnv", "AnchorState", "EndOnTruncation", "EpisodeTimeLimit",
@@ -161,7 +162,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                  action_type: ActionType | str | None = None,
                  adaptive: AdaptiveConfig | Mapping[str, Any] | None = None,
                  **kwargs: Any) -> None:
-        self.config = config_with(config, kwargs)
+        self.config = config_with(config, kwargs, also=keyword_names(AOASSEnv.__init__))
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r} is not one of "
                              f"{self.metadata['render_modes']} or None")
@@ -207,6 +208,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
+        self.sim = None         # a reset that fails leaves no episode to step on
         options = dict(options or {})
         episode_map = options.pop("map", None)
         if options:
@@ -221,24 +223,24 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                     config = sweep_config(config, self.adaptive, side)
         self.episode_config = config
         self.max_episode_steps = max_episode_steps(limit)
-        self.sim = Simulator(config, self.np_random,
-                             obstacle_map=episode_map if episode_map is not None else self._map,
-                             seed=seed, method="aoass-env")
+        sim = Simulator(config, self.np_random,
+                        obstacle_map=episode_map if episode_map is not None else self._map,
+                        seed=seed, method="aoass-env")
         noise_rng = self.np_random.spawn(1)[0]
         self._follower: WaypointFollower | AdaptiveSweep = (
-            self.sim.adaptive_sweep(self.adaptive) if self._sweeps
-            else self.sim.follower(recovery=True))
+            sim.adaptive_sweep(self.adaptive) if self._sweeps else sim.follower(recovery=True))
         # the waypoints observed are those the follower walks (a pruned spiral's, with the sweep)
-        route = self._follower.follower if self._sweeps else self.sim.spiral
+        route = self._follower.follower if self._sweeps else sim.spiral
         self._observe = Observer(config, route, noise_rng)
         self._steps = 0
         self._deferred = False
         self._log = None
         self._static_contacts = self._moving_contacts = 0
         self._rmse = 0.0
-        self._imbalance = energy_imbalance(self.sim.network.node_energy)
-        self._command = self._follower.command(self.sim.world.position,
-                                               self.sim.world.heading, self.config.dt)
+        self._imbalance = energy_imbalance(sim.network.node_energy)
+        self._command = self._follower.command(sim.world.position, sim.world.heading,
+                                               self.config.dt)
+        self.sim = sim          # the episode exists once every part of it does
         if self.render_mode == "human":
             self.render()
         return self._observation(), self._info()

@@ -18,6 +18,7 @@ so it needs no window system (and no ``SDL_VIDEODRIVER=dummy``); ``"human"`` ope
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pygame
@@ -103,6 +104,17 @@ class Renderer:
         self._origin = (0.0, 0.0)       # screen position (px) of world (0, field height)
         self._n_path = 0                # path points already on the history layer
         self._n_beacons = 0             # beacons already on the history layer
+
+    # --- copies -------------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        """The settings alone: pygame's fonts and surfaces do not pickle. A copy draws its
+        first frame afresh (static layer, then the whole trail so far), the same frame."""
+        return {"render_mode": self.render_mode, "fps": self.fps, "size": self.size,
+                "show_rays": self.show_rays, "show_coverage": self.show_coverage}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        settings = dict(state)
+        self.__init__(settings.pop("render_mode"), settings.pop("fps"), **settings)
 
     # --- coordinates --------------------------------------------------------------------------
     def to_screen(self, points: np.ndarray) -> np.ndarray:

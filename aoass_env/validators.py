@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import difflib
+import inspect
 import json
 import math
 import re
@@ -52,6 +53,13 @@ def unknown_key_message(key: Any, valid: Iterable[str], what: str = "config keyw
     close = difflib.get_close_matches(str(key), names, n=1)
     hint = f"; did you mean {close[0]!r}?" if close else ""
     return f"unknown {what} {key!r}{hint} (valid: {', '.join(names)})"
+
+
+def keyword_names(function: Callable[..., Any]) -> tuple[str, ...]:
+    """The names ``function`` takes as keywords (not ``self``, not ``**kwargs``)."""
+    kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    return tuple(name for name, p in inspect.signature(function).parameters.items()
+                 if p.kind in kinds and name != "self")
 
 
 _COLOUR_CODE = re.compile(r"\x1b\[[0-9;]*m")

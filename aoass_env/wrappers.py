@@ -31,9 +31,10 @@ import numba
 import numpy as np
 from gymnasium import spaces
 from gymnasium.envs.registration import EnvSpec
+from gymnasium.utils import seeding
 
 from aoass_env.action import ResidualAction, action_type_named
-from aoass_env.config import AOASSConfig, config_with
+from aoass_env.config import AOASSConfig, ConfigError, check_keywords, config_with
 from aoass_env.env import COST_KEYS, AnchorState, AOASSEnv, make_env
 from aoass_env.maps import ObstacleMap, list_maps, load_map, validation_split
 from aoass_env.observation import MOVING_FIELDS, clip_like_numpy, velocity_scale
@@ -63,7 +64,7 @@ from aoass_env.safety.orca import (
     solve_velocity,
 )
 from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
-from aoass_env.validators import real
+from aoass_env.validators import keyword_names, real
 from aoass_env.world import wrap_angle
 
 __all__ = ["ActionRepeat", "EnergyCost", "FuzzyORCASafety", "KalmanObstacleTracker",
@@ -119,6 +120,8 @@ class MapSampler(_EntryPointWrapper):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         options = dict(options or {})
+        if seed is not None:
+            seeding.np_random(seed)      # Gymnasium's one-line refusal of a bad seed, first
         if seed is not None or self._rng is None:
             # a seed fixes the draws from here on; no seed ever: OS entropy, as in gymnasium
             self._rng = np.random.default_rng(None if seed is None else [seed, 0x4D4150])
@@ -585,7 +588,8 @@ class EnergyCost(_EntryPointWrapper):
 
 class ActionRepeat(_EntryPointWrapper):
     """Holds each action for ``repeat`` steps of the wrapped environment (fewer when the episode
-    ends first); the reward is their sum and the observation and info are the last step's.
+    ends first); the reward is their sum, and so are ``info["reward_terms"]`` (Eq. 14 term by
+    term) and the cost signal; the observation and the rest of info are the last step's.
 
     An agent's decision period becomes ``repeat`` x ``dt`` seconds: a residual speed command held
     for one 0.5 s period moves the anchor at most 0.5 m, too little for a critic to tell its
@@ -641,6 +645,7 @@ class ActionRepeat(_EntryPointWrapper):
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         total = 0.0
         costs = dict.fromkeys(COST_KEYS, 0.0)
+        terms: dict[str, float] | None = None      # the Eq. 14 terms of the held periods
         base = self.env.unwrapped if self._source is not None else None
         try:
             for k in range(self.repeat):
@@ -650,6 +655,10 @@ class ActionRepeat(_EntryPointWrapper):
                 total += float(reward)
                 for key in COST_KEYS:
                     costs[key] += info[key]
+                step_terms = info.get("reward_terms")
+                if step_terms is not None:
+                    terms = (dict(step_terms) if terms is None else
+                             {key: terms[key] + value for key, value in step_terms.items()})
                 if terminated or truncated:
                     break
         finally:
@@ -658,6 +667,8 @@ class ActionRepeat(_EntryPointWrapper):
         if obs is None and self._source is not None:    # the episode ended on a deferred step
             obs = self._source.deferred_observation()
         info.update(costs)
+        if terms is not None:
+            info["reward_terms"] = terms
         return obs, total, terminated, truncated, info
 
 
@@ -690,7 +701,7 @@ def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
         energy_weight: reward shaping outside Eq. 14, per J of E_total spent
             (:class:`EnergyCost`; 0: none, the reward is Eq. 14's).
     """
-    cfg = config_with(config, kwargs)
+    cfg = config_with(config, kwargs, also=keyword_names(make_safe_env))
     tracker_config = TrackerConfig.coerce(tracker, "tracker")
     safety_config = SafetyConfig.coerce(safety, "safety")
     env = make_env(config=cfg, render_mode=render_mode,
@@ -723,6 +734,8 @@ def make_training_env(*, split: str = "train", field_size: float = 100.0,
     selection (:func:`aoass_env.maps.validation_split`); maps/test is never used. ``config``:
     further :func:`make_safe_env` keywords (e.g. ``n_nodes``, ``action_repeat``).
     ``AOASS-Train-v0`` is the shipped policy's setup (docs/env.md)."""
+    check_keywords(config, also=(*keyword_names(make_training_env),
+                                 *keyword_names(make_safe_env)))
     if split not in TRAINING_SPLITS:
         raise ValueError(f"split={split!r} must be one of {TRAINING_SPLITS} (maps/test is for "
                          f"reported results only)")
@@ -733,6 +746,11 @@ def make_training_env(*, split: str = "train", field_size: float = 100.0,
         raise ValueError(f"no shipped {split} maps with field_size={field_size} and densities "
                          f"in {list(densities)}")
     env = make_safe_env(field_size=field_size, tracker=tracker, safety=safety, **config)
+    if env.unwrapped.config.map is not None:   # MapSampler would replace it every episode
+        raise ConfigError(f"map={env.unwrapped.config.map!r}: a training setup draws its map "
+                          f"from the shipped {split} maps (split, field_size, densities); for "
+                          f"one map use AOASS-Safe-v0 with map=..., or reset(options={{'map': "
+                          f"...}})")
     return MapSampler(env, maps, cycle=cycle)
 
 

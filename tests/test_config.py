@@ -59,6 +59,11 @@ def test_cross_field_checks():
         AOASSConfig(anchor_radius=1.0, map_clearance=1.5)
     with pytest.raises(ConfigError, match="spiral_origin"):
         AOASSConfig(spiral_origin=(150.0, 10.0))
+    # on the border, inside the edge margin: used to pass here and fail deep in the spiral
+    with pytest.raises(ConfigError, match=r"spiral_origin=\(0.0, 0.0\) must lie inside the "
+                                          r"field shrunk by edge_margin=1.5: \[1.5, 98.5\] x"):
+        AOASSConfig(spiral_origin=(0.0, 0.0))
+    assert AOASSConfig(spiral_origin=(1.5, 98.5)).spiral_origin == (1.5, 98.5)
 
 
 def test_integer_valued_float_accepted_and_normalised():

@@ -274,6 +274,19 @@ def test_bad_keywords_name_the_parameter(kwargs, match):
         gym.make("AOASS-v0", **kwargs)
 
 
+def test_a_failed_reset_leaves_no_episode_to_step_on():
+    """A reset that raised used to leave the previous episode running: step() went on with it."""
+    env = AOASSEnv(field_size=20.0, n_nodes=10)
+    for seed, options in ((3, None), (0, {"map": 42})):   # in the Simulator; in the options
+        env.reset(seed=0)
+        env.step(np.zeros(2))
+        with pytest.raises(ValueError, match="could not place moving obstacle|'map'"):
+            env.reset(seed=seed, options=options)
+        with pytest.raises(RuntimeError, match=r"call reset\(\) before step\(\)"):
+            env.step(np.zeros(2))
+
+
+
 def test_bad_render_mode_map_and_reset_option():
     with pytest.raises(ValueError, match="render_mode"):
         AOASSEnv(render_mode="ascii")

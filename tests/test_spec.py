@@ -104,6 +104,36 @@ def test_every_id_copies_mid_episode_and_the_copy_runs_on_identically(env_id, cl
         assert reward == reward_twin
 
 
+@pytest.mark.parametrize("clone", [pickled, copy.deepcopy], ids=["pickle", "deepcopy"])
+def test_a_rendering_env_copies_and_the_copy_draws_the_same_frames(clone):
+    """pygame's font and surfaces used to make an env that had rendered fail to pickle."""
+    env = gym.make("AOASS-v0", n_nodes=20, field_size=40.0, render_mode="rgb_array")
+    env.reset(seed=3)
+    for _ in range(4):
+        env.step(np.full(2, 0.2, np.float32))
+    first = env.render()
+    twin = clone(env)
+    for _ in range(4):
+        env.step(np.full(2, -0.4, np.float32))
+        twin.step(np.full(2, -0.4, np.float32))
+    frame = env.render()
+    assert not np.array_equal(frame, first)          # the anchor moved on the frame
+    np.testing.assert_array_equal(twin.render(), frame)
+
+
+@pytest.mark.parametrize("env_id, typo, meant", [
+    ("AOASS-v0", "action_typ", "action_type"), ("AOASS-v0", "render_mod", "render_mode"),
+    ("AOASS-Safe-v0", "action_repet", "action_repeat"),
+    ("AOASS-Safe-v0", "energy_weigth", "energy_weight"), ("AOASS-Safe-v0", "safty", "safety"),
+    ("AOASS-Train-v0", "splt", "split"), ("AOASS-Train-v0", "densitys", "densities"),
+    ("AOASS-Train-v0", "n_node", "n_nodes")])
+def test_a_misspelt_wrapper_keyword_gets_its_did_you_mean(env_id, typo, meant):
+    """Only the config's fields used to be suggested: "action_repet" got 'action_speed_scale'."""
+    with pytest.raises(ConfigError, match=rf"unknown config keyword '{typo}'; did you mean "
+                                          rf"'{meant}'\? \(valid: .*{meant}"):
+        gym.make(env_id, **{typo: 1})
+
+
 def test_config_dict_or_object_beside_keywords():
     env = gym.make("AOASS-v0", config={"n_nodes": 7, "field_size": 40.0}, n_nodes=9)
     assert (env.unwrapped.config.n_nodes, env.unwrapped.config.field_size) == (9, 40.0)

@@ -145,6 +145,12 @@ def test_action_repeat_holds_the_action_and_sums_the_rewards():
         np.testing.assert_array_equal(obs, plain[4 * k][0])
         assert reward == pytest.approx(sum(r for _, r, _ in plain[4 * k - 3:4 * k + 1]))
         assert info.get("safety") == plain[4 * k][2].get("safety")
+        # the terms of Eq. 14 too (they used to be the last period's alone)
+        periods = [i["reward_terms"] for _, _, i in plain[4 * k - 3:4 * k + 1]]
+        assert info["reward_terms"] == {key: sum(p[key] for p in periods)
+                                        for key in periods[0]}
+        assert sum(info["reward_terms"].values()) == pytest.approx(reward)
+    assert any(held[k][2]["reward_terms"]["coverage"] > 0 for k in range(1, len(held)))
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="action_repeat"):
             make_safe_env(**SMALL, action_repeat=bad)
@@ -308,6 +314,16 @@ def test_safety_filter_needs_full_range_actions_and_its_tracker():
         gym.make("AOASS-Train-v0", densities=[0.1, 0.2, 0.3])
     with pytest.raises(ValueError, match="cycle must be a bool, got 'yes'"):
         wrappers.make_training_env(cycle="yes")
+    # a map the sampler would replace every episode used to be taken and ignored
+    with pytest.raises(ConfigError, match=r"map='train/d0.10_f100_s000': a training setup "
+                                          r"draws its map from the shipped train maps"):
+        gym.make("AOASS-Train-v0", map="train/d0.10_f100_s000")
+    # a bad seed gets Gymnasium's one-line refusal (it used to be NumPy's, naming no seed)
+    sampled = gym.make("AOASS-Train-v0")
+    for seed, message in ((-1, "Seed must be greater or equal to zero, actual value: -1"),
+                          (3.5, "Seed must be a python integer")):
+        with pytest.raises(gym.error.Error, match=message):
+            sampled.reset(seed=seed)
     env = make_safe_env(**SMALL)
     env.reset(seed=0)
     with pytest.raises(ValueError, match="action must be finite"):
