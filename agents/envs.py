@@ -4,6 +4,6 @@ training maps (never maps/test), one map per episode; defined in :mod:`aoass_env
 
 from __future__ import annotations
 
-from aoass_env.wrappers import TRAINING_SPLITS, make_training_env
+from aoass_env.wrappers import POLICY_STACK_KEYS, TRAINING_SPLITS, make_training_env
 
-__all__ = ["TRAINING_SPLITS", "make_training_env"]
+__all__ = ["POLICY_STACK_KEYS", "TRAINING_SPLITS", "make_training_env"]

@@ -53,7 +53,7 @@ from agents.callbacks import (
     save_atomic,
 )
 from agents.checkpoints import PolicyFileError, read_record, record_path
-from agents.envs import TRAINING_SPLITS, make_training_env
+from agents.envs import POLICY_STACK_KEYS, TRAINING_SPLITS, make_training_env
 from agents.hyperparams import ALGORITHMS, action_noise, load_hyperparams, read_run_record
 from agents.sections import model_kwargs, override_section, policy_name
 from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
@@ -273,14 +273,19 @@ def _resume_record(model: Path, hp: dict[str, Any], cls: type) -> dict[str, Any]
     recorded = found["hyperparameters"]
     mine, theirs = model_kwargs(hp), model_kwargs(recorded)
     mine["policy"], theirs["policy"] = policy_name(hp, cls), policy_name(recorded, cls)
+    # the stack the policy acts in too: its record is what evaluate.py plays the policy in
+    mine.update({f"env.{k}": v for k, v in hp.get("env", {}).items() if k in POLICY_STACK_KEYS})
+    theirs.update({f"env.{k}": v for k, v in recorded.get("env", {}).items()
+                   if k in POLICY_STACK_KEYS})
     differ = first_difference(theirs, mine)
     if differ is not None:
         key, was, this, others = differ
         more = f" (and {len(others)} more: {', '.join(others)})" if others else ""
         raise PolicyFileError(
-            f"{model}: a resume rebuilds the model from {record}, where {key} is {was}, not "
-            f"this run's {this}{more}; give the --config it was trained with and no "
-            f"--hyperparams, or start a new run")
+            f"{model}: a resume rebuilds the model and its stack from {record}, where {key} is "
+            f"{was}, not this run's {this}{more}; give the --config, --hyperparams and "
+            f"--env-kwargs it was trained with (its command: {found.get('command', '?')}), or "
+            f"start a new run")
     return found
 
 

@@ -68,7 +68,8 @@ from aoass_env.validators import keyword_names, real
 from aoass_env.world import wrap_angle
 
 __all__ = ["ActionRepeat", "EnergyCost", "FuzzyORCASafety", "KalmanObstacleTracker",
-           "MapSampler", "TRAINING_SPLITS", "make_safe_env", "make_training_env"]
+           "MapSampler", "POLICY_STACK_KEYS", "TRAINING_SPLITS", "make_safe_env",
+           "make_training_env"]
 
 #: Measurement-noise floor of the tracker (m, m/s): a noiseless observation still needs a
 #: positive noise for the filter's innovation covariance.
@@ -721,6 +722,12 @@ make_safe_env.metadata = AOASSEnv.metadata  # lets gymnasium.make check render m
 
 #: Where training environments take their maps from: the maps to fit on, or the held-out ones.
 TRAINING_SPLITS = ("train", "validation")
+#: Training-environment keywords that set up the stack a policy acts in (reused when it is
+#: evaluated, kept by a resume): decisions held for ``action_repeat`` control periods, the
+#: tracker's and the safety filter's configs, and what its actions and observations mean (the
+#: residual's scales, the action type and its sweep, the coverage sectors).
+POLICY_STACK_KEYS = ("action_repeat", "tracker", "safety", "action_speed_scale",
+                     "action_heading_scale", "action_type", "adaptive", "obs_coverage_sectors")
 
 
 def make_training_env(*, split: str = "train", field_size: float = 100.0,

@@ -74,8 +74,20 @@ def test_cli_trains_checkpoints_and_resumes(tiny: Path, tmp_path: Path, train_sc
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.startswith(f"train.py: error: --resume: {out / 'last.zip'}: a resume rebuilds "
-                          f"the model from {out / 'run.yml'}, where learning_rate is ")
-    assert ", not this run's 0.5 (and 1 more: tau); give the --config" in err
+                          f"the model and its stack from {out / 'run.yml'}, where "
+                          f"learning_rate is ")
+    # the advice names what to repeat: the command recorded (it used to say "no
+    # --hyperparams", which could never work for a run trained with them)
+    assert (", not this run's 0.5 (and 1 more: tau); give the --config, --hyperparams and "
+            "--env-kwargs it was trained with (its command: python train.py --config") in err
+    # so is a change of the stack the policy acts in: evaluate.py plays a policy in its
+    # record's stack, which used to keep the first run's action_repeat after such a resume
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
+                           "--resume", str(out / "last.zip"), "--no-tensorboard",
+                           "--no-progress", "--env-kwargs", "action_repeat:4", "n_nodes:30"])
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "where env.action_repeat is unset, not this run's 4; give the --config" in err
     assert RecurrentTD3.load(out / "final.zip", device="cpu").num_timesteps == at + 60
 
 

@@ -22,7 +22,7 @@ from aoass_env.backends import (
     deliver_interrupts,
     make_backend,
 )
-from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
+from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED, log_name
 from aoass_env.evaluation.methods import (
     DEFAULT_POLICY,
     METHODS,
@@ -49,6 +49,7 @@ from aoass_env.evaluation.store import (
 from aoass_env.evaluation.sweep import (
     PRESETS,
     ROBUSTNESS_EPISODE_SEED_BASE,
+    Job,
     Preset,
     episode_jobs,
     log_jobs,
@@ -173,6 +174,19 @@ def _maps_note(preset: Preset | None) -> str:
             "seed (seed s: map s mod k), the episode's random generator seeded with s.")
 
 
+def _check_saved_logs(jobs: list[Job], store: EpisodeStore, logs: Path) -> None:
+    """:class:`EvaluationError` when ``--save-logs`` would leave logs out: episodes already in
+    ``store`` are not played again, so those without a saved log would never get one."""
+    missing = [job.key for job in jobs
+               if all((job.key, name) in store.done for name in job.localizers)
+               and not (logs / log_name(job.key)).is_file()]
+    if missing:
+        raise EvaluationError(
+            f"--save-logs: {len(missing)} episode(s) are already in {store.path} without a "
+            f"saved log (e.g. {logs / log_name(missing[0])}), and finished episodes are not "
+            f"played again; give another --out to save every log")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -226,6 +240,8 @@ def main(argv: list[str] | None = None) -> int:
         backend = make_backend(args.backend, workers=args.workers, address=args.address)
         store = EpisodeStore(out / "episodes.csv")
         check_inputs(store, inputs, scope, discard=args.discard_changed)
+        if args.save_logs:
+            _check_saved_logs(jobs, store, out / "logs")
     except (EvaluationError, BackendError) as exc:
         parser.error(str(exc))
 

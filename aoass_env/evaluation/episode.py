@@ -42,7 +42,7 @@ from aoass_env.simulator import episode_summary
 from aoass_env.validators import one_line
 
 __all__ = ["GENERATED_PREFIX", "ROBUSTNESS_MAP_SEED", "episode_map", "episode_metrics",
-           "localization_row", "localize_log", "log_key", "robustness_map",
+           "localization_row", "localize_log", "log_key", "log_name", "robustness_map",
            "robustness_map_name", "run_episode"]
 
 #: Name of the beacon-log extra (a JSON string) that holds the episode's key and metrics.
@@ -118,7 +118,8 @@ def localization_row(log: BeaconLog, localizer: str) -> dict[str, Any]:
             "localize_seconds": time.perf_counter() - t0}
 
 
-def _log_name(key: EpisodeKey) -> str:
+def log_name(key: EpisodeKey) -> str:
+    """Where ``--save-logs`` saves the log of ``key``, relative to its logs folder."""
     return f"{key.method}/{Path(key.map).name.removesuffix('.txt')}_n{key.n_nodes}_s{key.seed}.npz"
 
 
@@ -140,7 +141,7 @@ def run_episode(key: EpisodeKey, localizers: tuple[str, ...], options: RunOption
     run = METHODS[key.method].runner(config, obstacle_map, key.seed, options)
     episode = {**asdict(key), **episode_metrics(run), "wall_seconds": time.perf_counter() - t0}
     if log_dir is not None:
-        path = log_dir / _log_name(key)
+        path = log_dir / log_name(key)
         path.parent.mkdir(parents=True, exist_ok=True)
         dataclasses.replace(run.log, extras={EPISODE_EXTRA: np.array(json.dumps(episode))}
                             ).save(path)

@@ -46,7 +46,7 @@ from aoass_env.planning.classical import CLASSICAL_METHODS
 from aoass_env.planning.sweep import Controller
 from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.simulator import Simulator
-from aoass_env.wrappers import make_safe_env
+from aoass_env.wrappers import POLICY_STACK_KEYS, make_safe_env
 
 __all__ = ["DEFAULT_POLICY", "METHODS", "MethodRun", "MethodSpec",
            "RunOptions", "config_defaults_digest", "select_methods"]
@@ -70,11 +70,6 @@ ADAPTIVE_CONFIGS: tuple[type, ...] = (*STACK_CONFIGS, AdaptiveConfig)
 #: The shipped AOASS policy and the algorithm that saved it.
 DEFAULT_POLICY = shipped_dir("checkpoints") / "aoass_td3_lstm" / "best.zip"
 POLICY_ALGO = "td3-lstm"
-#: Training-environment keywords that set up the stack the policy acts in (reused when it is
-#: evaluated): decisions held for ``action_repeat`` control periods, the tracker's and the
-#: safety filter's configs, and what its actions mean (the residual's scales).
-POLICY_STACK_KEYS = ("action_repeat", "tracker", "safety", "action_speed_scale",
-                     "action_heading_scale", "action_type", "adaptive", "obs_coverage_sectors")
 #: The keys of :data:`POLICY_STACK_KEYS` that are environment config fields.
 _ACTION_KEYS = ("action_speed_scale", "action_heading_scale", "obs_coverage_sectors")
 #: The shipped adaptive policy (``aoass-adaptive``) and the command that produces it.

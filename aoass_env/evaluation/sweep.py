@@ -30,10 +30,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from tqdm import tqdm
 
 from aoass_env.backends import Backend, LocalBackend, set_threads
-from aoass_env.beacon_log import BeaconLogError
+from aoass_env.beacon_log import BeaconLog, BeaconLogError
 from aoass_env.evaluation.episode import (
     localize_log,
     log_key,
@@ -157,12 +158,13 @@ def _generated_jobs(preset: Preset, methods: list[str], localizers: tuple[str, .
 
 
 def log_jobs(folder: Path, localizers: tuple[str, ...]) -> list[Job]:
-    """A job per beacon log (``*.npz``, searched recursively) in ``folder``; a second log with
-    the key of an earlier one is left out with a warning.
+    """A job per beacon log (``*.npz``, searched recursively) in ``folder``; a copy of an
+    earlier log (the same arrays) is left out with a warning.
 
     Raises:
-        EvaluationError: ``folder`` is not a folder, holds no ``.npz`` file, or one that is
-            not a beacon log.
+        EvaluationError: ``folder`` is not a folder, holds no ``.npz`` file, one that is not a
+            beacon log, or two different logs with one episode key (logs recorded without a
+            seed, say: their rows could not be told apart).
     """
     if not folder.is_dir():
         raise EvaluationError(f"--logs {folder}: no such folder")
@@ -176,11 +178,26 @@ def log_jobs(folder: Path, localizers: tuple[str, ...]) -> list[Job]:
         except BeaconLogError as exc:
             raise EvaluationError(f"--logs {folder}: {exc}") from None
         if key in jobs:
-            warnings.warn(f"{path} has the episode key of {jobs[key].log}; left out",
-                          stacklevel=2)
+            first = jobs[key].log
+            if not _same_log(first, path):
+                raise EvaluationError(
+                    f"--logs {folder}: {path} and {first} are different episodes with one "
+                    f"key (method {key.method}, map {key.map}, N={key.n_nodes}, seed "
+                    f"{key.seed}{', unknown' if key.seed < 0 else ''}); localize them in "
+                    f"separate runs")
+            warnings.warn(f"{path} is a copy of {first}; left out", stacklevel=2)
             continue
         jobs[key] = Job(key, localizers, path)
     return list(jobs.values())
+
+
+def _same_log(a: Path, b: Path) -> bool:
+    """Do the beacon logs at ``a`` and ``b`` hold the same arrays, bit for bit (extras
+    included)?"""
+    first, second = BeaconLog.load(a).arrays(), BeaconLog.load(b).arrays()
+    return first.keys() == second.keys() and all(
+        (x.dtype, x.shape, x.tobytes()) == (y.dtype, y.shape, y.tobytes())
+        for x, y in ((np.asarray(first[k]), np.asarray(second[k])) for k in first))
 
 
 def job_rows(job: Job, options: RunOptions, log_dir: Path | None) -> list[dict[str, Any]]:

@@ -63,6 +63,23 @@ def test_smoke_preset_writes_csvs_table_and_logs(smoke_run, capsys):
     assert 0 < run["wall_seconds"] < 600
 
 
+def test_save_logs_refuses_finished_episodes_without_their_logs(smoke_run, tmp_path, capsys):
+    """Episodes already in episodes.csv are not played again: --save-logs used to exit 0
+    without their logs, saying nothing."""
+    out, _ = smoke_run
+    argv = ["--preset", "smoke", "--methods", "spiral", "--localizers", "dvhop", "--workers",
+            "1", "--save-logs", "--no-progress"]
+    full = tmp_path / "full"
+    shutil.copytree(out, full)
+    assert cli.main([*argv, "--out", str(full)]) == 0           # every log there: all skipped
+    bare = tmp_path / "bare"
+    shutil.copytree(out, bare, ignore=shutil.ignore_patterns("logs"))
+    err = _usage_error(capsys, [*argv, "--out", str(bare)])
+    assert (f"--save-logs: 1 episode(s) are already in {bare / 'episodes.csv'} without a saved "
+            f"log (e.g. {bare / 'logs' / 'spiral'}") in err
+    assert not (bare / "logs").exists()
+
+
 def test_logs_mode_localizes_saved_logs(smoke_run, tmp_path):
     out, _ = smoke_run
     assert cli.main(["--logs", str(out / "logs"), "--localizers", "dvhop", "consensus",

@@ -1,15 +1,18 @@
 """Presets, the episode grid, resume, the worker pool and --logs jobs."""
 
 import math
+import shutil
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from aoass_env.env import AOASSEnv
 from aoass_env.evaluation.episode import (
     GENERATED_PREFIX,
     ROBUSTNESS_MAP_SEED,
     episode_map,
+    log_key,
     robustness_map,
     robustness_map_name,
     run_episode,
@@ -110,6 +113,31 @@ def test_log_jobs_read_the_key_of_each_saved_log(small_key, tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(EvaluationError, match="no beacon log"):
         log_jobs(tmp_path / "empty", ("dvhop",))
+
+
+def test_log_jobs_skip_copies_and_refuse_different_logs_with_one_key(tmp_path):
+    """Logs recorded without a seed share the key seed -1: the second used to be left out
+    with a warning, a different episode dropped from the table."""
+    env = AOASSEnv(map="test/d0.10_f100_s500", n_nodes=20)
+    env.reset(seed=0)
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    for name in ("b", "c"):                  # unseeded resets: the logs record no seed
+        env.reset()
+        for _ in range(30):
+            env.step(np.zeros(2))
+        env.beacon_log.save(folder / f"{name}.npz")
+    b, c = (log_key(folder / f"{n}.npz") for n in "bc")
+    assert b == c and b.seed == -1
+    with pytest.raises(EvaluationError, match=r"c.npz and .*b.npz are different episodes with "
+                                              r"one key \(method aoass-env, .*seed -1, "
+                                              r"unknown\); localize them in separate runs"):
+        log_jobs(folder, ("dvhop",))
+    (folder / "c.npz").unlink()
+    shutil.copy(folder / "b.npz", folder / "b_copy.npz")
+    with pytest.warns(UserWarning, match=r"b_copy.npz is a copy of .*b.npz; left out"):
+        (job,) = log_jobs(folder, ("dvhop",))
+    assert job.log.name == "b.npz"
 
 
 def test_robustness_maps_are_regenerated_from_their_name():
