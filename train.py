@@ -27,6 +27,7 @@ from aoass_env.backends import add_backend_arguments, deliver_interrupts, make_b
 from aoass_env.localization.training import (
     TRAIN_RANGES,
     CachedLogError,
+    DivergedError,
     TrainConfig,
     draw_episodes,
     train_localizer,
@@ -107,6 +108,8 @@ def _run_localizer(argv: list[str]) -> None:
         train_localizer(cfg, report=lambda line: print(line, flush=True))
     except CachedLogError as exc:      # a file an earlier run left in --data-dir
         parser.error(f"--data-dir: {exc}")
+    except DivergedError as exc:
+        parser.error(f"--learning-rate {args.learning_rate:g}: {exc}")
 
 
 def _agent_parser() -> argparse.ArgumentParser:

@@ -45,14 +45,16 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from agents.checkpoints import PolicyFileError
 from aoass_env.action import AdaptiveAction, ResidualAction
 from aoass_env.atomic import write_text_atomic
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation.episode import episode_metrics, localization_row
-from aoass_env.evaluation.methods import METHODS, RunOptions
+from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, RunOptions, load_policy
 from aoass_env.localization import METHODS as LOCALIZERS
 from aoass_env.maps import ObstacleMap, generate_map, list_maps, load_map
 from aoass_env.maps.registry import validation_split
+from aoass_env.validators import argparse_number
 
 DENSITIES = ("0.10", "0.20", "0.30", "0.40")
 #: An action entry at or beyond this magnitude counts as at its bound (``saturated``).
@@ -146,14 +148,16 @@ def paired(rows: list[dict], key: str) -> tuple[float, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--model", type=Path, default=Path("checkpoints/aoass_td3_lstm/best.zip"))
+    parser.add_argument("--model", type=Path, default=DEFAULT_POLICY,
+                        help="the policy .zip (default: the shipped residual policy)")
     parser.add_argument("--algo", choices=["td3-lstm", "td3"], default="td3-lstm",
                         help="the algorithm that saved --model (default: td3-lstm)")
     parser.add_argument("--adaptive", action="store_true",
                         help="--model is an adaptive policy (checkpoints/aoass_adaptive/best.zip):"
                              " compare it with the hand-written rule, the adaptive zero action")
-    parser.add_argument("--seeds", type=int, default=30, help="episodes per density")
-    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--seeds", type=argparse_number(int, 1), default=30,
+                        help="episodes per density")
+    parser.add_argument("--jobs", type=argparse_number(int, 1), default=2)
     parser.add_argument("--maps", choices=("test", "validation", "fresh"), default="test",
                         help="maps/test (reported tables), the validation split of maps/train "
                              "(choosing between policies) or maps generated from --fresh")
@@ -169,6 +173,10 @@ def main() -> None:
     args = parser.parse_args()
     if not args.model.is_file():
         parser.error(f"--model {args.model}: no such file")
+    try:              # here, in one line, rather than in every worker of the pool
+        load_policy(str(args.model.resolve()), "td3-lstm" if args.adaptive else args.algo)
+    except PolicyFileError as err:
+        parser.error(f"--model: {err}")
     try:
         constant = (parse_constant(args.constant, args.adaptive) if args.constant is not None
                     else None)

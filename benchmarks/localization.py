@@ -47,12 +47,14 @@ import torch  # noqa: E402
 
 from aoass_env.atomic import write_text_atomic  # noqa: E402
 from aoass_env.beacon_log import BeaconLog  # noqa: E402
+from aoass_env.config import AOASSConfig, ConfigError  # noqa: E402
 from aoass_env.localization import localize, prepare  # noqa: E402
 from aoass_env.localization.consensus import RELIABLE_SPREAD, node_consensus  # noqa: E402
 from aoass_env.localization.dvhop import dvhop  # noqa: E402
 from aoass_env.localization.olstm import (  # noqa: E402
     DEFAULT_CHECKPOINT,
     OLSTM,
+    CheckpointError,
     load_checkpoint,
     olstm_dvhop,
     predict_pattern,
@@ -65,6 +67,7 @@ from aoass_env.localization.reception import (  # noqa: E402
 )
 from aoass_env.localization.training import EpisodeSpec, generate_logs, pattern_path  # noqa: E402
 from aoass_env.maps import list_maps  # noqa: E402
+from aoass_env.validators import argparse_number  # noqa: E402
 
 NODES = (100, 300, 500)
 DENSITIES = (0.1, 0.2, 0.3, 0.4)
@@ -312,10 +315,12 @@ def neighbour_rounds(folder: Path, model: OLSTM, rounds: tuple[int, ...] = (0, 1
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=30, help="episodes per cell (default 30)")
+    parser.add_argument("--seeds", type=argparse_number(int, 1), default=30,
+                        help="episodes per cell (default 30)")
     parser.add_argument("--out", type=Path, default=Path("out/bench_localization"))
     parser.add_argument("--checkpoint", type=Path, default=DEFAULT_CHECKPOINT)
-    parser.add_argument("--repeats", type=int, default=5, help="speed runs per method")
+    parser.add_argument("--repeats", type=argparse_number(int, 1), default=5,
+                        help="speed runs per method")
     parser.add_argument("--logs-only", action="store_true", help="only simulate the logs")
     parser.add_argument("--cached-only", action="store_true",
                         help="only use logs already simulated (a partial run)")
@@ -337,14 +342,32 @@ def main() -> None:
                         help="only the ablation table, on the validation logs of `train.py "
                              "localizer` (e.g. out/localizer_logs/val)")
     args = parser.parse_args()
+    shipped = sorted({_density(EpisodeSpec(m, 0, 0.0, 0)) for m in list_maps("test")
+                      if "_f100_" in m})
+    for density in args.densities:
+        if round(density, 2) not in shipped:
+            parser.error(f"--densities: {density:g} is not the density of a shipped 100 m test "
+                         f"map; valid: {' '.join(f'{d:g}' for d in shipped)}")
+    for doi in args.dois:
+        try:
+            AOASSConfig(doi=doi)
+        except ConfigError as err:
+            parser.error(f"--dois: {err}")
+
+    def checkpoint() -> OLSTM:
+        try:
+            return load_checkpoint(args.checkpoint)
+        except CheckpointError as err:
+            parser.error(f"--checkpoint: {err}")
+
     torch.set_num_threads(1)
     if args.neighbour_rounds is not None:
-        report = neighbour_rounds(args.neighbour_rounds, load_checkpoint(args.checkpoint))
+        report = neighbour_rounds(args.neighbour_rounds, checkpoint())
         print(report)
         write_text_atomic(args.out / "neighbour_rounds.md", report)
         return
     if args.ablation is not None:
-        report = ablation(args.ablation, load_checkpoint(args.checkpoint))
+        report = ablation(args.ablation, checkpoint())
         print(report)
         write_text_atomic(args.out / "ablation.md", report)
         return
@@ -353,10 +376,12 @@ def main() -> None:
     logs = args.out / "logs" if args.logs is None else args.logs
     if args.cached_only:
         specs = [s for s in specs if (logs / s.file_name).is_file()]
+        if not specs:
+            parser.error(f"--cached-only: no log of these cells in {logs}")
     paths = generate_logs(specs, logs, lambda line: print(line, flush=True))
     if args.logs_only:
         return
-    model = load_checkpoint(args.checkpoint)
+    model = checkpoint()
     if args.ceiling:
         report = ceiling(paths, specs, model)
         print(report)

@@ -54,6 +54,12 @@ def main() -> None:
             ev = {key: data[key] for key in ("timesteps", "results")}
     except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
         parser.error(f"{npz}: not an evaluation log with timesteps and results ({exc})")
+    steps, results = ev["timesteps"], ev["results"]
+    if (steps.ndim != 1 or results.ndim != 2 or len(steps) != len(results) or not len(steps)
+            or steps.dtype.kind not in "iuf" or results.dtype.kind not in "iuf"):
+        parser.error(f"{npz}: timesteps must be (E,) and results (E, episodes) numbers with "
+                     f"E >= 1, got {steps.shape} {steps.dtype} and {results.shape} "
+                     f"{results.dtype}")
     scalars = tensorboard_scalars(args.tensorboard) if args.tensorboard else {}
     panels = 1 + sum(tag in scalars for tag, _ in SCALARS)
     fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 3.4), squeeze=False)

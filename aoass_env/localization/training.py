@@ -43,9 +43,9 @@ from aoass_env.maps import list_maps, load_map, validation_split
 from aoass_env.simulator import Simulator
 from aoass_env.validators import first_difference, integer, one_line, real
 
-__all__ = ["BAND_WIDTHS", "TRAIN_RANGES", "CachedLogError", "EpisodeSpec", "Example",
-           "TrainConfig", "augment", "draw_episodes", "episode_specs", "example", "gaussian_nll",
-           "generate_logs", "map_density", "train_localizer"]
+__all__ = ["BAND_WIDTHS", "TRAIN_RANGES", "CachedLogError", "DivergedError", "EpisodeSpec",
+           "Example", "TrainConfig", "augment", "draw_episodes", "episode_specs", "example",
+           "gaussian_nll", "generate_logs", "map_density", "train_localizer"]
 
 _MAP_NAME = re.compile(r"d(?P<density>[0-9.]+)_f(?P<field>[0-9]+)_s[0-9]+$")
 #: Candidate band widths [standard deviations], chosen on validation.
@@ -254,6 +254,10 @@ class CachedLogError(ValueError):
     be read; the message names the file."""
 
 
+class DivergedError(ValueError):
+    """Training gave no epoch with a finite validation loss: nothing to save."""
+
+
 def _load_cached(path: Path) -> tuple[Episode, np.ndarray | None]:
     """The prepared episode of the log at ``path`` and, with DOI > 0, its anchor pattern (360,);
     :class:`CachedLogError` naming the file otherwise."""
@@ -341,6 +345,10 @@ def train_localizer(cfg: TrainConfig, report: Callable[[str], None] = print) -> 
         if nll < best:
             best, best_epoch = nll, epoch
             best_state = {k: v.detach().clone() for k, v in model.state_dict().items()}
+    if best_state is None:
+        raise DivergedError(f"training diverged: the validation NLL was not finite in any of "
+                            f"{cfg.epochs} epoch(s) (learning_rate={cfg.learning_rate:g}); "
+                            f"nothing was written")
     model.load_state_dict(best_state)
     widths = {}
     for width in BAND_WIDTHS:

@@ -97,6 +97,10 @@ def test_a_fresh_map_is_the_generator_s_map_of_its_seed_density_and_index():
     (["--maps", "fresh"], "--fresh SEED goes with --maps fresh"),
     (["--fresh", "3"], "--fresh SEED goes with --maps fresh"),
     (["--maps", "fresh", "--fresh", "-1"], "--fresh must be a non-negative seed"),
+    # these used to fail in the pool: an IndexError, multiprocessing's error, a traceback
+    (["--seeds", "0"], "argument --seeds: must be an integer >= 1, got '0'"),
+    (["--jobs", "0"], "argument --jobs: must be an integer >= 1, got '0'"),
+    (["--model", "README.md"], "README.md: no run.yml beside it"),
 ])
 def test_fresh_flags_are_checked_before_any_episode(monkeypatch, capsys, argv, message):
     monkeypatch.setattr("sys.argv", ["agent_vs_spiral.py", "--adaptive", "--model",

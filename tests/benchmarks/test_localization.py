@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from aoass_env.config import AOASSConfig
 from aoass_env.localization import consensus as module
@@ -65,3 +66,22 @@ def test_ceiling_table_is_the_consensus_with_the_true_pattern_beside_localize(tm
                                            band=(pattern, pattern)).estimate)
     c, o = float(cells[3]), float(cells[4])
     assert abs(float(cells[5].rstrip(" %")) - 100 * (1 - o / c)) < 0.2
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seeds", "0"], "argument --seeds: must be an integer >= 1, got '0'"),
+    (["--repeats", "0"], "argument --repeats: must be an integer >= 1, got '0'"),
+    (["--densities", "0.9"], "--densities: 0.9 is not the density of a shipped 100 m test map; "
+                             "valid: 0.1 0.2 0.3 0.4 0.5 0.6"),
+    (["--dois", "2"], "--dois: doi=2.0 must be a number in [0.0, 0.5]"),
+])
+def test_bad_flags_are_one_line_before_any_log(monkeypatch, capsys, tmp_path, argv, message):
+    """These used to fail later: an IndexError, a ZeroDivisionError, a ConfigError traceback."""
+    bench = load_benchmark("localization")
+    monkeypatch.setattr("sys.argv", ["localization.py", "--out", str(tmp_path), *argv])
+    with pytest.raises(SystemExit) as exit_:
+        bench.main()
+    assert exit_.value.code == 2
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert line.startswith(f"localization.py: error: {message}")
+    assert not list(tmp_path.iterdir())

@@ -197,3 +197,25 @@ def test_a_cached_log_of_other_settings_is_simulated_again(tmp_path) -> None:
     path.write_bytes(b"garbage")
     with pytest.raises(CachedLogError, match=rf"^{path}: no readable config_json .*; delete it"):
         generate_logs([spec], tmp_path, lines.append)
+
+
+def test_a_diverged_training_is_one_line_and_writes_nothing(doi_sim, tmp_path, train_script,
+                                                            monkeypatch, capsys) -> None:
+    """No epoch with a finite validation loss (too large a learning rate) used to end in
+    torch's TypeError from ``load_state_dict(None)``."""
+    from aoass_env.localization import training
+    log = tmp_path / "a.npz"
+    doi_sim.finish().save(log)
+    np.save(pattern_path(log), doi_sim.radio.anchor_pattern)
+    monkeypatch.setattr(training, "draw_episodes", lambda cfg: ([], [], [], []))
+    monkeypatch.setattr(training, "generate_logs", lambda specs, folder, report: [log])
+    monkeypatch.setattr(training, "gaussian_nll",
+                        lambda mean, logstd, y: (mean * float("nan")).mean())
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main(["localizer", "--data-dir", str(tmp_path / "logs"), "--checkpoint",
+                           str(tmp_path / "m.pt"), "--epochs", "2", "--learning-rate", "0.5"])
+    assert exit_.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        "train.py localizer: error: --learning-rate 0.5: training diverged: the validation NLL "
+        "was not finite in any of 2 epoch(s) (learning_rate=0.5); nothing was written")
+    assert not (tmp_path / "m.pt").exists()

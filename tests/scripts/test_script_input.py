@@ -36,6 +36,14 @@ def test_plot_training_names_a_run_folder_without_its_log(capsys, monkeypatch, t
     np.savez(tmp_path / "evaluations.npz", other=np.zeros(2))
     assert "not an evaluation log with timesteps and results" in refused(
         capsys, monkeypatch, "plot_training", str(tmp_path))
+    # arrays of other shapes used to fail deep in numpy or matplotlib
+    for steps, results, shapes in ((np.arange(3), np.zeros(3), "(3,) int64 and (3,)"),
+                                   (np.arange(3), np.zeros((2, 4)), "(3,) int64 and (2, 4)"),
+                                   (np.arange(0), np.zeros((0, 4)), "(0,) int64 and (0, 4)")):
+        np.savez(tmp_path / "evaluations.npz", timesteps=steps, results=results)
+        assert refused(capsys, monkeypatch, "plot_training", str(tmp_path)) == (
+            f"{tmp_path / 'evaluations.npz'}: timesteps must be (E,) and results (E, episodes) "
+            f"numbers with E >= 1, got {shapes} float64")
     assert refused(capsys, monkeypatch, "plot_training", "--tensorboard",
                    str(tmp_path / "none")) == f"--tensorboard {tmp_path / 'none'}: not a folder"
 
