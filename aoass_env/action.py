@@ -51,7 +51,8 @@ def _unit_clip(x: float) -> float:
 
 def checked_action(action: Any, names: tuple[str, ...] = ("dv", "dtheta")) -> list[float]:
     """The entries of an action with one entry per name, clipped to [-1, 1]; ValueError for a
-    wrong shape, non-numbers (strings, complex numbers, ...), NaN or infinite values."""
+    wrong shape, non-numbers (strings, complex numbers, booleans, None, ...), NaN or infinite
+    values."""
     if (type(action) is np.ndarray and action.shape == (len(names),)
             and action.dtype in _FLOAT_DTYPES):
         # a float array, as a Gymnasium Box samples it: the checks and the clip below in
@@ -67,7 +68,7 @@ def checked_action(action: Any, names: tuple[str, ...] = ("dv", "dtheta")) -> li
             return [_unit_clip(x) for x in values]
     layout = f"[{', '.join(names)}]"
     try:
-        if np.iscomplexobj(action) or np.asarray(action).dtype.kind in "SUMmV":
+        if np.iscomplexobj(action) or np.asarray(action).dtype.kind in "SUMmVbO":
             raise TypeError("not real numbers")
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError) as exc:
