@@ -13,8 +13,8 @@
 
 from __future__ import annotations
 
-import contextlib
 import io
+import os
 import zipfile
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -27,28 +27,49 @@ from aoass_env.atomic import atomic_open
 from aoass_env.validators import integer, one_line
 
 __all__ = ["AOASSMetricsCallback", "AtomicCheckpointCallback", "Evaluations", "RunEvalCallback",
-           "SaveBestAtomically", "read_evaluations", "save_atomic"]
+           "SaveBestAtomically", "pending_buffer_path", "read_evaluations", "replay_buffer_paths",
+           "save_atomic"]
 
 
 def save_atomic(model: BaseAlgorithm, path: str | Path, *, replay_buffer: bool = False) -> None:
     """Save ``model`` to ``path`` (a .zip) atomically; with ``replay_buffer``, also its replay
-    buffer to ``<path stem>_replay_buffer.npz`` as a pair: both are written to temporary files
-    first, then renamed one right after the other, and the buffer carries the model's step count
-    so that a buffer left from another save is refused at resume."""
+    buffer to ``<path stem>_replay_buffer.npz`` as a pair, so that a kill at any moment leaves
+    a model and a buffer of one save: the buffer is written whole beside the pair
+    (:func:`pending_buffer_path`), then the model replaces the old one, then the buffer. Between
+    the last two renames the pending buffer is the model's (:func:`replay_buffer_paths`). The
+    buffer carries the model's step count, so that one from another save is refused at
+    resume."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with contextlib.ExitStack() as stack:
-        if replay_buffer and getattr(model, "replay_buffer", None) is not None:
-            model.save_replay_buffer(stack.enter_context(
-                atomic_open(replay_buffer_path(path), "wb")))
+    if not (replay_buffer and getattr(model, "replay_buffer", None) is not None):
         with atomic_open(path, "wb") as f:
             model.save(f)
+        return
+    pending = pending_buffer_path(path)
+    with atomic_open(pending, "wb") as f:
+        model.save_replay_buffer(f)
+    with atomic_open(path, "wb") as f:
+        model.save(f)
+    os.replace(pending, replay_buffer_path(path))
 
 
 def replay_buffer_path(model_path: str | Path) -> Path:
     """Where :func:`save_atomic` puts the replay buffer of the model saved at ``model_path``."""
     model_path = Path(model_path)
     return model_path.with_name(f"{model_path.stem}_replay_buffer.npz")
+
+
+def pending_buffer_path(model_path: str | Path) -> Path:
+    """Where :func:`save_atomic` writes the next buffer of ``model_path`` before the model."""
+    model_path = Path(model_path)
+    return model_path.with_name(f"{model_path.stem}_replay_buffer.next.npz")
+
+
+def replay_buffer_paths(model_path: str | Path) -> tuple[Path, Path]:
+    """The buffers that may be the one of the model at ``model_path``, in the order to try:
+    its pair's, then a pending one (a save killed between the model's rename and the
+    buffer's)."""
+    return replay_buffer_path(model_path), pending_buffer_path(model_path)
 
 
 class AOASSMetricsCallback(BaseCallback):

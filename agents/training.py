@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 import stable_baselines3
 import torch
 import yaml
@@ -49,7 +50,7 @@ from agents.callbacks import (
     RunEvalCallback,
     SaveBestAtomically,
     read_evaluations,
-    replay_buffer_path,
+    replay_buffer_paths,
     save_atomic,
 )
 from agents.checkpoints import PolicyFileError, read_record, record_path
@@ -61,12 +62,12 @@ from aoass_env.data import shipped_dir
 from aoass_env.validators import first_difference, integer
 
 __all__ = ["RUN_FILES", "TRAINING_SPLITS", "TrainRun", "make_training_env", "occupied_message",
-           "other_run_files", "run_hyperparams", "train_agent"]
+           "other_run_files", "resume_seed", "run_hyperparams", "train_agent"]
 
 DEFAULT_CONFIG = shipped_dir("configs") / "aoass.yml"
 #: The files a run writes into its folder (the table above).
-RUN_FILES = ("best.zip", "last.zip", replay_buffer_path("last.zip").name, "final.zip",
-             "evaluations.npz", "run.yml")
+RUN_FILES = ("best.zip", "last.zip", *(p.name for p in replay_buffer_paths("last.zip")),
+             "final.zip", "evaluations.npz", "run.yml")
 
 
 @dataclasses.dataclass
@@ -225,13 +226,16 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
         # rebuilt from its run.yml (else this run's hyperparameters), nothing unpickled
         model = cls.load(run.resume, env=env, tensorboard_log=tb, device="cpu", record=record)
         model.action_noise = noise
-        buffer = replay_buffer_path(run.resume)
-        if buffer.is_file():
-            model.load_replay_buffer(buffer)
+        # the random state of the run at the saved step is not in the model: seed everything
+        # (Python, NumPy, torch, the action space, the training envs' next maps) from the run's
+        # seed and that step, so that the same resume gives the same run, and the envs do not
+        # draw the run's first maps again
+        model.set_random_seed(resume_seed(run.seed, model.num_timesteps))
+        buffer = _load_buffer(model, run.resume)
         kept = 0 if previous is None else len(previous.timesteps)
         continued = f", continuing the run's evaluations ({kept} so far)" if kept else ""
         report(f"resumed {run.resume} at {model.num_timesteps} steps"
-               f"{' with its replay buffer' if buffer.is_file() else ''}{continued}")
+               f"{' with its replay buffer' if buffer is not None else ''}{continued}")
     else:
         model = cls(policy_name(hp, cls), env, action_noise=noise, tensorboard_log=tb,
                     seed=run.seed, device="cpu", verbose=0, **model_kwargs(hp))
@@ -259,6 +263,29 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     eval_env.close()
     report(f"trained {model.num_timesteps} steps; models in {out}")
     return final
+
+
+def resume_seed(seed: int, step: int) -> int:
+    """The seed of a run of ``seed`` resumed at ``step`` (a 32-bit integer)."""
+    return int(np.random.SeedSequence([seed, step]).generate_state(1)[0])
+
+
+def _load_buffer(model: Any, path: Path) -> Path | None:
+    """Fill ``model``'s replay buffer from the buffer saved with it at ``path`` (its pair's,
+    else one a killed save left pending, :func:`~agents.callbacks.replay_buffer_paths`);
+    the buffer loaded, or None without one. A buffer of another save is a
+    :class:`PolicyFileError` (the pair's refusal, when no pending one fits either)."""
+    refusal = None
+    for buffer in replay_buffer_paths(path):
+        if buffer.is_file():
+            try:
+                model.load_replay_buffer(buffer)
+                return buffer
+            except PolicyFileError as exc:
+                refusal = refusal or exc
+    if refusal is not None:
+        raise refusal
+    return None
 
 
 def _resume_record(model: Path, hp: dict[str, Any], cls: type) -> dict[str, Any]:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import shutil
 import string
 import sys
 import tempfile
@@ -28,7 +27,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from aoass_env.atomic import write_text_atomic
+from aoass_env.atomic import atomic_open, write_text_atomic
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation import cli
 from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
@@ -463,7 +462,8 @@ def main(argv: list[str] | None = None) -> int:
         with tempfile.TemporaryDirectory() as tmp:
             drawn = {p.name: p for p in draw_figures(rows[name], Path(tmp))}
             target = FIGURES / f"results_{name}.png"
-            shutil.copyfile(drawn[FIGURE[name]], target)
+            with atomic_open(target, "wb") as f:       # a kill leaves the old figure
+                f.write(drawn[FIGURE[name]].read_bytes())
         figures[name] = target.relative_to(PAGE.parent).as_posix()
     missing = [p for p in ("fig2", "fig3", "fig4") if
                {r["field_size"] for r in rows[p]} != set(PRESETS[p].field_sizes)]

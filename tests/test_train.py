@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import shutil
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+import torch as th
 import yaml
 
 from agents.callbacks import save_atomic
@@ -60,11 +62,20 @@ def test_cli_trains_checkpoints_and_resumes(tiny: Path, tmp_path: Path, train_sc
 
     at = RecurrentTD3.load(out / "last.zip", device="cpu").num_timesteps   # periodic: 100
     assert at == 100
-    train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
-                       "--resume", str(out / "last.zip"), "--no-tensorboard",
-                       "--no-progress"])
+    twin = tmp_path / "twin"
+    shutil.copytree(out, twin)
+    for folder in (out, twin):
+        train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(folder),
+                           "--resume", str(folder / "last.zip"), "--no-tensorboard",
+                           "--no-progress"])
     resumed = RecurrentTD3.load(out / "final.zip", device="cpu")
     assert resumed.num_timesteps == at + 60
+    # the same resume gives the same run (nothing was seeded: the weights used to differ)
+    other = RecurrentTD3.load(twin / "final.zip", device="cpu").policy.state_dict()
+    mine = resumed.policy.state_dict()
+    assert all(th.equal(mine[k], other[k]) for k in mine)
+    assert not all(th.equal(mine[k], v) for k, v in RecurrentTD3.load(
+        out / "last.zip", device="cpu").policy.state_dict().items())   # it trained on
     # a model keyword the resume would ignore (it rebuilds the model from run.yml) is refused
     # before any step; it used to train on with the old value and record the new one
     with pytest.raises(SystemExit) as exit_:
@@ -117,6 +128,44 @@ def test_interrupted_save_keeps_the_previous_checkpoint(tiny: Path, tmp_path: Pa
         save_atomic(model, path)
     assert path.read_bytes() == before and not list(tmp_path.glob(".*.tmp"))
     assert TD3.load(path, device="cpu") is not None
+
+
+def test_a_save_killed_between_its_renames_leaves_a_pair_of_one_save(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    """The model used to be renamed before its buffer: a kill between the two left a new model
+    beside an old buffer, refused at resume with the advice to delete it (the replay data
+    lost)."""
+    from stable_baselines3.common.env_util import make_vec_env
+
+    from agents import callbacks, training
+    env = make_vec_env("Pendulum-v1", n_envs=1, seed=0, env_kwargs=dict(max_episode_steps=20))
+    tiny = dict(batch_size=8, burn_in=2, train_length=4, buffer_size=200, learning_starts=5,
+                policy_kwargs=dict(lstm_hidden_size=4, net_arch=[4]))
+    model = RecurrentTD3("MlpLstmPolicy", env, seed=0, device="cpu", **tiny)
+    path = tmp_path / "last.zip"
+    model.learn(10)
+    save_atomic(model, path, replay_buffer=True)              # a pair at step 10
+    model.learn(10, reset_num_timesteps=False)
+
+    rename = callbacks.os.replace
+
+    def killed(source, target):                               # at the buffer's rename
+        if Path(source) == callbacks.pending_buffer_path(path):
+            raise KeyboardInterrupt
+        rename(source, target)
+    monkeypatch.setattr(callbacks.os, "replace", killed)
+    with pytest.raises(KeyboardInterrupt):
+        save_atomic(model, path, replay_buffer=True)          # the model at step 20 is in place
+    monkeypatch.undo()
+    record = {"algo": "td3-lstm", "hyperparameters": tiny}
+    again = RecurrentTD3.load(path, env=env, record=record)
+    assert again.num_timesteps == 20
+    assert training._load_buffer(again, path) == callbacks.pending_buffer_path(path)
+    assert again.replay_buffer.pos == model.replay_buffer.pos
+    np.testing.assert_array_equal(again.replay_buffer.rewards, model.replay_buffer.rewards)
+    callbacks.pending_buffer_path(path).unlink()              # the old buffer alone: refused
+    with pytest.raises(training.PolicyFileError, match="saved at step 10, the model at step 20"):
+        training._load_buffer(again, path)
 
 
 @pytest.mark.parametrize("section, message", [

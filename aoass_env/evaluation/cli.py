@@ -15,7 +15,7 @@ from pathlib import Path
 
 import torch
 
-from aoass_env.atomic import write_text_atomic
+from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
 from aoass_env.backends import (
     BackendError,
     add_backend_arguments,
@@ -239,7 +239,11 @@ def main(argv: list[str] | None = None) -> int:
             inputs["olstm-dvhop"] = file_digest(DEFAULT_CHECKPOINT)
         backend = make_backend(args.backend, workers=args.workers, address=args.address)
         store = EpisodeStore(out / "episodes.csv")
-        check_inputs(store, inputs, scope, discard=args.discard_changed)
+        for folder in (out, *sorted(p for p in (out / "logs").glob("*") if p.is_dir())):
+            for stale in remove_stale_temporaries(folder):
+                print(f"removed {stale}, left by an interrupted write", file=sys.stderr)
+        check_inputs(store, inputs, scope, discard=args.discard_changed,
+                     localizers={"olstm-dvhop": "olstm-dvhop"})
         if args.save_logs:
             _check_saved_logs(jobs, store, out / "logs")
     except (EvaluationError, BackendError) as exc:

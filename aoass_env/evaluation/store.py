@@ -17,7 +17,7 @@ import json
 import math
 import os
 import warnings
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -208,14 +208,16 @@ def _input_phrase(name: str) -> str:
 
 def check_inputs(store: EpisodeStore, inputs: dict[str, str],
                  scope: Mapping[str, Collection[str]] | None = None,
-                 discard: bool = False) -> None:
+                 discard: bool = False, localizers: Mapping[str, str] | None = None) -> None:
     """Refuse to resume ``store`` with other checkpoints or config defaults than its rows were
     produced with, or with ``discard`` drop those rows (the episodes then run again).
 
     ``inputs`` maps a name (``"policy"``, ``"olstm-dvhop"``, :func:`config_input` of a
     method) to the digest (:func:`file_digest`, or :func:`~aoass_env.evaluation.methods.
     config_defaults_digest`) of what that name stands for; ``scope`` maps a name to the
-    methods whose rows depend on it (a name not in it: every row). An input changed for the
+    methods whose rows depend on it (a name not in it: every row), and ``localizers`` a name
+    to the one localizer whose rows alone depend on it (a localizer's checkpoint: the other
+    rows of its episodes stay). An input changed for the
     rows in its scope when the record gives another digest, or none while such rows exist
     (they were made by an older evaluate.py that did not record it). The inputs are recorded
     in :data:`INPUTS_FILE` beside the CSV (written atomically, merged with earlier records;
@@ -233,12 +235,18 @@ def check_inputs(store: EpisodeStore, inputs: dict[str, str],
         except (OSError, TypeError, ValueError) as exc:
             raise EvaluationError(f"{record_path} is unreadable ({exc}); delete it and "
                                   f"{store.path}, or choose another --out folder") from None
-    present = {row["method"] for row in store.rows}
-    changed: dict[str, set[str]] = {}
+    def depends(name: str, row: dict[str, Any]) -> bool:
+        """Does ``row`` depend on the input ``name``?"""
+        only = (localizers or {}).get(name)
+        return ((scope is None or name not in scope or row["method"] in scope[name])
+                and (only is None or row["localizer"] == only))
+
+    changed: dict[str, set[str]] = {}     # input -> the methods of the rows that depend on it
     for name, value in inputs.items():
-        methods = present if scope is None or name not in scope else present & set(scope[name])
-        if methods and recorded.get(name) != value:
-            changed[name] = methods
+        if recorded.get(name) != value:
+            methods = {row["method"] for row in store.rows if depends(name, row)}
+            if methods:
+                changed[name] = methods
     if changed and not discard:
         stale = sorted(set().union(*changed.values()))
         raise EvaluationError(
@@ -248,7 +256,7 @@ def check_inputs(store: EpisodeStore, inputs: dict[str, str],
             f"table. Run again with --discard-changed to drop those episodes and run them "
             f"anew, delete {store.path} (or the folder), or choose another --out folder")
     if changed:
-        store.discard(set().union(*changed.values()))
+        store.discard(lambda row: any(depends(name, row) for name in changed))
     try:
         write_text_atomic(record_path, json.dumps(recorded | inputs, indent=1,
                                                   sort_keys=True) + "\n")
@@ -269,8 +277,11 @@ def record_run(store: EpisodeStore, record: dict[str, Any]) -> None:
     """
     path = store.path.with_name(RUNS_FILE)
     try:
+        torn = path.is_file() and path.stat().st_size > 0 and not path.read_bytes().endswith(b"\n")
         with open(path, "a", encoding="utf-8") as f:
-            f.write(json.dumps(record, sort_keys=True) + "\n")
+            # a torn last line (a run killed mid-write) is ended first, or this record would
+            # join it and be read as one broken line with it
+            f.write(("\n" if torn else "") + json.dumps(record, sort_keys=True) + "\n")
             f.flush()
             os.fsync(f.fileno())
     except OSError as exc:
@@ -318,11 +329,12 @@ class EpisodeStore:
         #: (episode key, localizer) pairs already in the file
         self.done = {row_key(r) for r in self.rows}
 
-    def discard(self, methods: Collection[str]) -> None:
-        """Drop the rows of ``methods`` from the file (rewritten atomically): their episodes
-        count as not done."""
+    def discard(self, drop: Callable[[dict[str, Any]], bool]) -> None:
+        """Drop the rows for which ``drop(row)`` holds from the file (rewritten atomically):
+        they count as not done (an episode with some of its localizers' rows left runs again
+        for the others alone)."""
         self._file.close()
-        self.rows = [r for r in self.rows if r["method"] not in methods]
+        self.rows = [r for r in self.rows if not drop(r)]
         try:
             write_text_atomic(self.path, _csv_text(self.rows, header=True))
             self._file = open(self.path, "a", encoding="utf-8", newline="")  # noqa: SIM115

@@ -72,6 +72,13 @@ def test_save_logs_refuses_finished_episodes_without_their_logs(smoke_run, tmp_p
     full = tmp_path / "full"
     shutil.copytree(out, full)
     assert cli.main([*argv, "--out", str(full)]) == 0           # every log there: all skipped
+    # what a killed run's atomic writes leave is removed (it used to pile up)
+    stale = [full / ".summary.md.0123abcd.tmp", full / "logs" / "spiral" / ".x.npz.4567ef.tmp"]
+    for path in stale:
+        path.write_bytes(b"half")
+    assert cli.main([*argv, "--out", str(full)]) == 0
+    assert not any(path.exists() for path in stale)
+    assert f"removed {stale[1]}, left by an interrupted write" in capsys.readouterr().err
     bare = tmp_path / "bare"
     shutil.copytree(out, bare, ignore=shutil.ignore_patterns("logs"))
     err = _usage_error(capsys, [*argv, "--out", str(bare)])

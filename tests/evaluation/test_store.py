@@ -213,6 +213,28 @@ def test_changed_inputs_concern_the_methods_of_their_scope_whose_rows_can_be_dis
         assert len(store.rows) == 3
 
 
+def test_a_localizer_s_checkpoint_concerns_that_localizer_s_rows_alone(tmp_path):
+    """The OLSTM checkpoint's digest used to count as an input of every row: a folder of
+    dvhop and consensus rows was refused when olstm-dvhop joined, and --discard-changed
+    deleted its consensus rows for good and ran its dvhop rows again."""
+    path = tmp_path / "episodes.csv"
+    only = {"olstm-dvhop": "olstm-dvhop"}
+    with EpisodeStore(path) as store:
+        check_inputs(store, {}, localizers=only)
+        store.append([row(0), row(0, "consensus")])
+    with EpisodeStore(path) as store:          # no olstm-dvhop row yet: nothing changed
+        check_inputs(store, {"olstm-dvhop": "k1"}, localizers=only)
+        store.append([row(0, "olstm-dvhop")])
+        store.append([row(1), row(1, "olstm-dvhop")])
+    with EpisodeStore(path) as store:          # a retrained checkpoint
+        with pytest.raises(EvaluationError, match="another olstm-dvhop checkpoint"):
+            check_inputs(store, {"olstm-dvhop": "k2"}, localizers=only)
+        check_inputs(store, {"olstm-dvhop": "k2"}, localizers=only, discard=True)
+        assert sorted((r["seed"], r["localizer"]) for r in store.rows) == [
+            (0, "consensus"), (0, "dvhop"), (1, "dvhop")]
+    assert len(path.read_text().splitlines()) == 4
+
+
 def test_a_record_of_one_digest_for_every_methods_defaults_is_not_resumed(tmp_path):
     """An older evaluate.py recorded one digest of every method's config defaults: which
     methods' rows it covered is unknown, so they count as changed."""
@@ -244,3 +266,7 @@ def test_run_records_append_and_a_torn_line_is_left_out(tmp_path):
         f.write('{"finished": 7, "wall_')                   # a write cut short
     assert read_runs(tmp_path) == [{"finished": 3, "wall_seconds": 1.5},
                                    {"finished": 0, "wall_seconds": 0.25}]
+    # the next run's record used to join the torn line and be lost with it
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        record_run(store, {"finished": 2, "wall_seconds": 0.5})
+    assert read_runs(tmp_path)[2:] == [{"finished": 2, "wall_seconds": 0.5}]
