@@ -64,7 +64,7 @@ from aoass_env.safety.orca import (
     solve_velocity,
 )
 from aoass_env.safety.unicycle import BrakingEnvelope, unicycle_command
-from aoass_env.validators import keyword_names, real
+from aoass_env.validators import integer, keyword_names, real
 from aoass_env.world import wrap_angle
 
 __all__ = ["ActionRepeat", "EnergyCost", "FuzzyORCASafety", "KalmanObstacleTracker",
@@ -108,8 +108,13 @@ class MapSampler(_EntryPointWrapper):
                  cycle: bool = False) -> None:
         super().__init__(env)
         base = _aoass(env, "MapSampler")
-        if isinstance(maps, str) or len(maps) == 0:
+        try:                                 # any iterable of names, paths or maps
+            given = [] if isinstance(maps, (str, ObstacleMap)) else list(maps)
+        except TypeError:
+            given = []
+        if not given:
             raise ValueError(f"maps must be a non-empty list of maps, got {maps!r}")
+        maps = given
         self.maps = [m if isinstance(m, ObstacleMap) else
                      load_map(m, field_size=base.config.field_size) for m in maps]
         if not isinstance(cycle, bool):
@@ -388,6 +393,11 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         #: the look-ahead's escape budget and whether it escaped last period (hysteresis)
         self.escape_budget = EscapeBudget(config.escape_budget)
         self._escaping = False
+        horizon, react = _look_ahead_times(base.config, config)
+        if config.look_ahead and react > horizon:
+            raise ConfigError(f"safety look_ahead_react={react:g} s must not exceed "
+                              f"look_ahead_horizon={horizon:g} s (the look-ahead rolls out no "
+                              f"farther; None gives each its default)")
         #: whether filter_period gives this wrapper's floats here, and its settings (for the
         #: ORCA settings they were made with)
         self._fused = fused()
@@ -460,14 +470,12 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         escape_velocity`) for the ``anchor`` as it is this period: the tracks' prediction and
         covariance against the anchor's unicycle rolled out among the static edges."""
         c, cfg = self._base.config, self.config
-        horizon = cfg.look_ahead_horizon or look_ahead_horizon(
-            c.anchor_max_speed, c.anchor_max_accel, c.anchor_max_turn_rate, c.dt)
+        horizon, react = _look_ahead_times(c, cfg)
         tracks = self._tracker.tracked_obstacles
         tracks[:, 4] += c.anchor_radius
         radius = c.anchor_radius + cfg.margin
         starts, ends = static.segments_near(
             anchor.position, c.anchor_max_speed * horizon + radius)
-        react = cfg.look_ahead_react or c.dt + c.anchor_max_speed / c.anchor_max_accel
         yielding = self.escape_budget.yielding
         return escape_velocity(
             v_star, v_pref, anchor.position, anchor.heading, anchor.speed, tracks,
@@ -565,10 +573,7 @@ class EnergyCost(_EntryPointWrapper):
     :class:`ActionRepeat`, a held action's term is the energy of all its periods."""
 
     def __init__(self, env: gym.Env, weight: float) -> None:
-        if (isinstance(weight, bool) or not isinstance(weight, (int, float))
-                or not math.isfinite(weight) or weight < 0.0):
-            raise ValueError(f"energy_weight must be a finite number >= 0 (per J), got "
-                             f"{weight!r}")
+        weight = real("energy_weight", weight, "per J", low=0.0)     # np.float32 too
         super().__init__(env)
         self.weight = float(weight)
         self._spent = 0.0
@@ -612,8 +617,7 @@ class ActionRepeat(_EntryPointWrapper):
     """
 
     def __init__(self, env: gym.Env, repeat: int, defer: bool = True) -> None:
-        if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
-            raise ValueError(f"action_repeat must be an integer >= 1, got {repeat!r}")
+        repeat = integer("action_repeat", repeat, "control periods", low=1)  # 16.0, np.int64
         if not isinstance(defer, bool):
             raise TypeError(f"defer must be a bool, got {type(defer).__name__}")
         super().__init__(env)
@@ -673,6 +677,16 @@ class ActionRepeat(_EntryPointWrapper):
         return obs, total, terminated, truncated, info
 
 
+def _look_ahead_times(config: AOASSConfig, safety: SafetyConfig) -> tuple[float, float]:
+    """(horizon, react) (s) of the look-ahead: ``safety``'s, else their defaults for the
+    anchor of ``config`` (:class:`~aoass_env.safety.config.SafetyConfig`)."""
+    horizon = safety.look_ahead_horizon or look_ahead_horizon(
+        config.anchor_max_speed, config.anchor_max_accel, config.anchor_max_turn_rate,
+        config.dt)
+    react = safety.look_ahead_react or config.dt + config.anchor_max_speed / config.anchor_max_accel
+    return horizon, react
+
+
 def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
                   render_mode: str | None = None,
                   tracker: TrackerConfig | dict[str, Any] | None = None,
@@ -710,10 +724,11 @@ def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,
                    adaptive=adaptive)
     tracked = KalmanObstacleTracker(env, tracker_config)
     env = FuzzyORCASafety(tracked, tracked, safety_config)
-    if not (type(action_repeat) is int and action_repeat == 1):
-        env = ActionRepeat(env, action_repeat)   # which checks action_repeat
-    if isinstance(energy_weight, bool) or energy_weight != 0:
-        env = EnergyCost(env, energy_weight)     # which checks energy_weight
+    action_repeat = integer("action_repeat", action_repeat, "control periods", low=1)
+    if action_repeat != 1:
+        env = ActionRepeat(env, action_repeat)
+    if real("energy_weight", energy_weight, "per J", low=0.0) != 0:
+        env = EnergyCost(env, energy_weight)
     return env
 
 

@@ -217,6 +217,8 @@ class CoverageMap:
 
     def near(self, point: np.ndarray, radius: float) -> np.ndarray:
         """Indices of the free cells whose centre lies within ``radius`` (m) of ``point``."""
+        if not radius >= 0:
+            raise ValueError(f"radius={radius!r} must be a number >= 0 m")
         d = self.centres - np.asarray(point, dtype=np.float64)
         return np.flatnonzero(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] <= radius * radius)
 
@@ -251,6 +253,14 @@ class CoverageMap:
         n_sectors counter-clockwise from straight ahead. An empty sector (all obstacle or
         outside the field) reads 0: nothing to cover there."""
         x, y = (float(v) for v in np.asarray(position, dtype=np.float64))
+        # the compiled sums index by sector: a NaN bearing or no sector would write out of
+        # bounds, so the scalars are checked here (a few comparisons per step)
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(heading)):
+            raise ValueError(f"position={[x, y]} and heading={heading!r} rad must be finite")
+        if isinstance(n_sectors, bool) or not isinstance(n_sectors, (int, np.integer)) \
+                or n_sectors < 1 or not radius >= 0:
+            raise ValueError(f"n_sectors={n_sectors!r} must be an integer >= 1 and "
+                             f"radius={radius!r} a number >= 0 m")
         cells = points_within(self._cx, self._cy, self._every, x, y, radius * radius)
         # the bearings by NumPy (its arctan2 and mod), the sectors' sums compiled, in order
         turned = np.mod(np.arctan2(self._cy[cells] - y, self._cx[cells] - x) - heading,

@@ -34,9 +34,10 @@ from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from aoass_env.maps import ObstacleMap
+from aoass_env.maps import MapError, ObstacleMap
 from aoass_env.planning.goal_search import FORCED, UNREACHABLE, forced_path
 from aoass_env.segments import CLEAR, CROSSES, EdgeGrid
+from aoass_env.validators import positive
 
 #: A detour search first explores paths of cost up to SEARCH_FACTOR x the straight distance +
 #: SEARCH_SLACK (m; cost = length x (1 + 1/clearance), at most about twice the length), and
@@ -67,8 +68,8 @@ class DetourPlanner:
     """
 
     def __init__(self, obstacle_map: ObstacleMap, radius: float, resolution: float = 0.5):
-        if not (radius > 0 and resolution > 0):
-            raise ValueError(f"radius={radius} and resolution={resolution} must be positive (m)")
+        radius, resolution = (positive(name, value, "m") for name, value in
+                              (("radius", radius), ("resolution", resolution)))
         self.radius, self.res = float(radius), float(resolution)
         nx = max(1, math.ceil(obstacle_map.width / resolution))
         ny = max(1, math.ceil(obstacle_map.height / resolution))
@@ -84,6 +85,9 @@ class DetourPlanner:
         clearance = np.minimum(clearance, np.minimum(np.minimum(gx, obstacle_map.width - gx),
                                                      np.minimum(gy, obstacle_map.height - gy)))
         self.free = clearance > radius + 0.5 * resolution
+        if not self.free.any():
+            raise MapError(f"no cell of the {resolution:g} m grid leaves a disc of radius "
+                           f"{radius:g} m clear of the obstacles and the border: nowhere to plan")
         # nearest free cell of every cell, to snap starts and goals onto the grid
         _, nearest = ndimage.distance_transform_edt(~self.free, return_indices=True)
         self._nearest = np.ravel_multi_index((nearest[0], nearest[1]), self.shape).ravel()

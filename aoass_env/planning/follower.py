@@ -31,6 +31,7 @@ import numpy as np
 
 from aoass_env.config import AOASSConfig
 from aoass_env.planning.detour import DetourPlanner
+from aoass_env.validators import positive, real
 
 #: Radius (m) around a spot where the follower got stuck that its re-plans avoid, and how long
 #: (s) the keep-out lasts (a moving obstacle parked in a passage may leave).
@@ -207,6 +208,25 @@ class WaypointFollower:
     _tries: int = 0
 
     def __post_init__(self) -> None:
+        w = self.waypoints
+        if not (isinstance(w, np.ndarray) and w.ndim == 2 and w.shape[1] == 2
+                and w.dtype.kind in "iuf" and np.isfinite(w).all()):
+            raise ValueError(f"waypoints must be a finite (W, 2) array of numbers (m), got "
+                             f"{type(w).__name__} {getattr(w, 'shape', '')}")
+        if np.shape(self.blocked) != (len(w),):
+            raise ValueError(f"blocked must be a (W,) mask, one flag per waypoint (W={len(w)}), "
+                             f"got shape {np.shape(self.blocked)}")
+        real("capture_radius", self.capture_radius, "m", low=0.0)
+        positive("cruise_speed", self.cruise_speed, "m/s")
+        for name, unit in (("max_accel", "m/s^2"), ("stall_time", "s"), ("watchdog_time", "s")):
+            value = getattr(self, name)       # inf: no limit
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+                raise ValueError(f"{name}={value!r} must be a number > 0 {unit} (inf: none)")
+        for name in ("watchdog_progress", "backout_distance"):
+            real(name, getattr(self, name), "m", low=0.0)
+        if not self.replan_excess >= 0:
+            raise ValueError(f"replan_excess={self.replan_excess!r} must be a number >= 0 m "
+                             f"(inf: none)")
         self.index = self._next_free(self.index)
         self._budget = self.stall_time
 

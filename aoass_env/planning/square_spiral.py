@@ -38,7 +38,7 @@ import numpy as np
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.planning.path import ArcLengthTiming
-from aoass_env.validators import positive
+from aoass_env.validators import integer, positive, real, vec2
 
 #: Unit direction vectors d_n of Eq. 1, cycling right, up, left, down.
 DIRECTIONS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
@@ -46,6 +46,9 @@ DIRECTIONS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
 
 def max_spacing(radio_range: float, beacon_interval: float, margin: float = 0.0) -> float:
     """Largest spacing (m) between passes that keeps every point covered (module docstring)."""
+    positive("radio_range", radio_range, "m")
+    positive("beacon_interval", beacon_interval, "m")
+    real("margin", margin, "m", low=0.0)
     if beacon_interval >= radio_range:
         raise ValueError(f"beacon_interval={beacon_interval} m must be below radio_range="
                          f"{radio_range} m for the coverage guarantee")
@@ -63,7 +66,8 @@ def default_spacing(width: float, height: float, radio_range: float, beacon_inte
     ring count is the fewest at :func:`max_spacing` or less, or with ``wide`` the most at
     :func:`max_spacing` or more (at least one): the adaptive sweep's passes, which leave the
     gaps to its densify phase (:mod:`aoass_env.planning.adaptive`)."""
-    x0, y0 = origin if origin is not None else (width / 2, height / 2)
+    width, height = positive("width", width, "m"), positive("height", height, "m")
+    x0, y0 = vec2("origin", origin, "m") if origin is not None else (width / 2, height / 2)
     h = max(x0 - margin, width - margin - x0, y0 - margin, height - margin - y0)
     s_max = max_spacing(radio_range, beacon_interval, margin)
     if h <= 0:
@@ -132,6 +136,10 @@ def square_spiral(width: float, height: float, spacing: float, step: float, *,
     for name, value in (("width", width), ("height", height), ("spacing", spacing),
                         ("step", step)):
         positive(name, value, "m")
+    margin = real("margin", margin, "m", low=0.0)
+    integer("max_legs", max_legs, low=1)
+    if origin is not None:
+        origin = vec2("origin", origin, "m")
     lo = np.array([margin, margin], dtype=np.float64)
     hi = np.array([width - margin, height - margin], dtype=np.float64)
     if np.any(hi <= lo):

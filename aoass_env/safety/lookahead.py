@@ -48,6 +48,7 @@ import numpy as np
 
 from aoass_env.pairwise import pairwise_sum
 from aoass_env.trig import SCALAR_TRIG, compiled_trig
+from aoass_env.validators import positive, real
 
 __all__ = ["Escape", "EscapeBudget", "candidate_commands", "escape_velocity", "look_ahead_horizon",
            "obstacle_radii", "position_std", "predict_obstacles", "rollout",
@@ -787,6 +788,10 @@ class EscapeBudget:
     refill: float = 0.5
     spent: float = 0.0
     yielding: bool = False
+
+    def __post_init__(self) -> None:
+        positive("budget", self.budget, "s")
+        real("refill", self.refill, "s per s", low=0.0)
 
     def reset(self) -> None:
         self.spent, self.yielding = 0.0, False

@@ -140,6 +140,16 @@ def test_sector_deficits_read_by_bearing_from_the_heading():
     assert east[0] == 1.0 and west[0] < east[0]
     np.testing.assert_allclose(west, np.roll(east, 2))
     assert np.all(cov.sector_deficits(np.array([-100.0, -100.0]), 0.0, 4, 5.0) == 0.0)
+    # a NaN heading used to read as "all covered" (its sector index out of bounds), no sector
+    # or a negative radius as something
+    for position, heading in (([20.0, 20.0], math.nan), ([math.inf, 20.0], 0.0)):
+        with pytest.raises(ValueError, match="must be finite"):
+            cov.sector_deficits(np.array(position), heading, 4, 15.0)
+    for n_sectors, radius in ((0, 15.0), (2.5, 15.0), (4, -5.0)):
+        with pytest.raises(ValueError, match=r"n_sectors=.* must be an integer >= 1 and radius"):
+            cov.sector_deficits(np.array([20.0, 20.0]), 0.0, n_sectors, radius)
+    with pytest.raises(ValueError, match=r"radius=-5 must be a number >= 0 m"):
+        cov.near(np.array([20.0, 20.0]), -5)
 
 
 def test_maps_of_one_obstacle_map_share_its_raster_but_not_their_coverage():

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from scipy import ndimage
 from scipy.sparse.csgraph import dijkstra
 
-from aoass_env.maps import ObstacleMap, generate_map
+from aoass_env.maps import MapError, ObstacleMap, generate_map
 from aoass_env.planning.detour import SEARCH_FACTOR, SEARCH_SLACK, DetourPlanner
 from aoass_env.planning.goal_search import FORCED, TIE, forced_path
 
@@ -474,3 +474,14 @@ def test_a_planners_graph_is_the_coo_built_graph_on_generated_maps(monkeypatch):
         np.testing.assert_array_equal(p._graph.indptr, want.indptr)
         np.testing.assert_array_equal(p._graph.indices, want.indices)
         np.testing.assert_array_equal(p._graph.data.view(np.uint64), want.data.view(np.uint64))
+
+
+def test_a_planner_names_a_bad_radius_and_a_map_with_no_room():
+    """A disc too large for every cell used to fail deep in numpy (ravel_multi_index), a
+    string radius in a comparison."""
+    for radius in ("0.5", -1.0, math.inf, math.nan):
+        with pytest.raises(ValueError, match=r"radius=.* must be a number in \(0.0, inf\) m"):
+            DetourPlanner(ObstacleMap(20, 20), radius)
+    with pytest.raises(MapError, match=r"no cell of the 0.5 m grid leaves a disc of radius 12 m "
+                                       r"clear of the obstacles and the border"):
+        DetourPlanner(ObstacleMap(20, 20), 12.0)

@@ -312,3 +312,26 @@ def test_the_pairwise_sum_is_numpys():
         for _ in range(10):
             x = rng.normal(0.0, 1.0, n) * 10.0 ** rng.uniform(-8.0, 8.0, n)
             assert _pairwise_sum(x.tolist(), 0, n) == float(x.sum())
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"waypoints": [[0.0, 0.0], [5.0, 0.0]]}, r"waypoints must be a finite \(W, 2\) array"),
+    ({"waypoints": np.array([[0.0, np.nan], [5.0, 0.0]])}, r"waypoints must be a finite"),
+    ({"blocked": np.zeros(3, bool)}, r"blocked must be a \(W,\) mask, one flag per waypoint "
+                                     r"\(W=2\), got shape \(3,\)"),
+    ({"capture_radius": -1.0}, r"capture_radius=-1.0 must be a number in \[0.0, inf\) m"),
+    ({"cruise_speed": -1.0}, r"cruise_speed=-1.0 must be a number in \(0.0, inf\) m/s"),
+    ({"cruise_speed": math.nan}, r"cruise_speed=nan must be a number"),
+    ({"max_accel": -1.0}, r"max_accel=-1.0 must be a number > 0 m/s\^2 \(inf: none\)"),
+    ({"stall_time": -1.0}, r"stall_time=-1.0 must be a number > 0 s"),
+    ({"watchdog_time": math.nan}, r"watchdog_time=nan must be a number > 0 s"),
+    ({"backout_distance": -3.0}, r"backout_distance=-3.0 must be a number in \[0.0, inf\) m"),
+    ({"replan_excess": math.nan}, r"replan_excess=nan must be a number >= 0 m"),
+])
+def test_a_follower_names_a_bad_setting(changes, message):
+    """The follower used to take these as they were: a negative cruise speed drove backwards,
+    a negative stall time gave up every waypoint, a NaN speed commanded NaN."""
+    settings = {"waypoints": np.array([[0.0, 0.0], [5.0, 0.0]]), "blocked": np.zeros(2, bool),
+                "capture_radius": 0.5, "cruise_speed": 1.0, **changes}
+    with pytest.raises(ValueError, match=message):
+        WaypointFollower(**settings)

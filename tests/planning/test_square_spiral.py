@@ -79,3 +79,29 @@ def test_nominal_time_and_blocked_marks():
 def test_bad_arguments(kw, fragment):
     with pytest.raises(ValueError, match=fragment):
         square_spiral(**kw)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"margin": -5.0}, r"margin=-5.0 must be a number in \[0.0, inf\) m"),
+    ({"margin": math.nan}, r"margin=nan must be a number"),
+    ({"margin": "1"}, r"margin='1' must be a number"),
+    ({"origin": (math.nan, 50.0)}, r"origin must be a pair of finite numbers"),
+    ({"origin": (1.0, 2.0, 3.0)}, r"origin must be a pair of finite numbers"),
+    ({"max_legs": 2.5}, r"max_legs=2.5 must be an integer in \[1, inf\)"),
+])
+def test_a_spiral_names_a_bad_margin_origin_or_leg_limit(kwargs, message):
+    """A negative margin used to put waypoints outside the field; a NaN one or a NaN origin
+    ran 100 000 legs before "did not close"; others failed deep in numpy."""
+    with pytest.raises(ValueError, match=message):
+        square_spiral(100.0, 100.0, 20.0, 2.0, **kwargs)
+
+
+def test_spacing_functions_name_a_bad_argument():
+    with pytest.raises(ValueError, match=r"beacon_interval=nan must be a number"):
+        max_spacing(25.0, math.nan)
+    with pytest.raises(ValueError, match=r"radio_range=-25.0 must be a number"):
+        max_spacing(-25.0, -30.0)
+    with pytest.raises(ValueError, match=r"origin must be a pair of finite numbers"):
+        default_spacing(100.0, 100.0, 25.0, 2.0, origin=(math.nan, 0.0))
+    with pytest.raises(ValueError, match=r"width=0.0 must be a number"):
+        default_spacing(0.0, 100.0, 25.0, 2.0)

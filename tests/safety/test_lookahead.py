@@ -253,6 +253,12 @@ def test_the_escape_budget_yields_with_hysteresis():
     budget.update(True, 0.5)
     budget.reset()
     assert budget.spent == 0.0 and not budget.yielding
+    # a negative or NaN budget used to be taken (yielding at once, or never)
+    for bad, message in ((-5.0, "budget=-5.0 must be"), (math.nan, "budget=nan must be")):
+        with pytest.raises(ValueError, match=message):
+            EscapeBudget(budget=bad)
+    with pytest.raises(ValueError, match=r"refill=-1.0 must be a number in \[0.0, inf\) s per s"):
+        EscapeBudget(budget=2.0, refill=-1.0)
 
 
 def _predict_step_by_step(states, step, n_steps, starts, ends, radii):
