@@ -393,11 +393,6 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         #: the look-ahead's escape budget and whether it escaped last period (hysteresis)
         self.escape_budget = EscapeBudget(config.escape_budget)
         self._escaping = False
-        horizon, react = _look_ahead_times(base.config, config)
-        if config.look_ahead and react > horizon:
-            raise ConfigError(f"safety look_ahead_react={react:g} s must not exceed "
-                              f"look_ahead_horizon={horizon:g} s (the look-ahead rolls out no "
-                              f"farther; None gives each its default)")
         #: whether filter_period gives this wrapper's floats here, and its settings (for the
         #: ORCA settings they were made with)
         self._fused = fused()
@@ -470,12 +465,14 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         escape_velocity`) for the ``anchor`` as it is this period: the tracks' prediction and
         covariance against the anchor's unicycle rolled out among the static edges."""
         c, cfg = self._base.config, self.config
-        horizon, react = _look_ahead_times(c, cfg)
+        horizon = cfg.look_ahead_horizon or look_ahead_horizon(
+            c.anchor_max_speed, c.anchor_max_accel, c.anchor_max_turn_rate, c.dt)
         tracks = self._tracker.tracked_obstacles
         tracks[:, 4] += c.anchor_radius
         radius = c.anchor_radius + cfg.margin
         starts, ends = static.segments_near(
             anchor.position, c.anchor_max_speed * horizon + radius)
+        react = cfg.look_ahead_react or c.dt + c.anchor_max_speed / c.anchor_max_accel
         yielding = self.escape_budget.yielding
         return escape_velocity(
             v_star, v_pref, anchor.position, anchor.heading, anchor.speed, tracks,
@@ -675,16 +672,6 @@ class ActionRepeat(_EntryPointWrapper):
         if terms is not None:
             info["reward_terms"] = terms
         return obs, total, terminated, truncated, info
-
-
-def _look_ahead_times(config: AOASSConfig, safety: SafetyConfig) -> tuple[float, float]:
-    """(horizon, react) (s) of the look-ahead: ``safety``'s, else their defaults for the
-    anchor of ``config`` (:class:`~aoass_env.safety.config.SafetyConfig`)."""
-    horizon = safety.look_ahead_horizon or look_ahead_horizon(
-        config.anchor_max_speed, config.anchor_max_accel, config.anchor_max_turn_rate,
-        config.dt)
-    react = safety.look_ahead_react or config.dt + config.anchor_max_speed / config.anchor_max_accel
-    return horizon, react
 
 
 def make_safe_env(*, config: AOASSConfig | Mapping[str, Any] | None = None,

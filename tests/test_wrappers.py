@@ -323,11 +323,6 @@ def test_safety_filter_needs_full_range_actions_and_its_tracker():
     assert len(MapSampler(AOASSEnv(**SMALL), iter(["test/d0.10_f100_s500"])).maps) == 1
     with pytest.raises(ValueError, match="maps must be a non-empty list of maps, got 5"):
         MapSampler(AOASSEnv(**SMALL), 5)
-    # a react time beyond the horizon used to be clipped to it, nothing said
-    with pytest.raises(ConfigError, match=r"safety look_ahead_react=10 s must not exceed "
-                                          r"look_ahead_horizon=4.5 s"):
-        make_safe_env(**SMALL, safety={"look_ahead_react": 10.0})
-    make_safe_env(**SMALL, safety={"look_ahead_react": 10.0, "look_ahead_horizon": 12.0})
     # a map the sampler would replace every episode used to be taken and ignored
     with pytest.raises(ConfigError, match=r"map='train/d0.10_f100_s000': a training setup "
                                           r"draws its map from the shipped train maps"):
