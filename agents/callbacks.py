@@ -177,31 +177,44 @@ def read_evaluations(path: str | Path) -> Evaluations:
 class RunEvalCallback(EvalCallback):
     """SB3's ``EvalCallback`` with the run's record at ``path`` (``evaluations.npz``), written
     atomically after each evaluation, that may continue the record ``previous`` of the same
-    run (a resume): its rows stay first, and a new best is an evaluation better than every one
-    of them (the best model saved then stays the best of the whole run). Other arguments as
-    ``EvalCallback``'s (``log_path`` and ``best_model_save_path`` are not taken: use
-    ``path`` and ``callback_on_new_best``)."""
+    run (a resume): its rows stay first, and a new best is an evaluation better than the best
+    model's (the best model saved then stays the best of the whole run). The new best model
+    (``callback_on_new_best``) is saved after the record that holds its evaluation, so a kill
+    between the two leaves a record whose rows name every saved model's step. ``best_step``:
+    the step the run's best model so far was saved at (a resume), whose evaluation in
+    ``previous`` is the one to beat (the best of the record when it is not there). Other
+    arguments as ``EvalCallback``'s (``log_path`` and ``best_model_save_path`` are not taken:
+    use ``path`` and ``callback_on_new_best``)."""
 
     def __init__(self, eval_env: Any, path: str | Path, previous: Evaluations | None = None,
-                 **kwargs: Any) -> None:
+                 *, best_step: int | None = None, **kwargs: Any) -> None:
         super().__init__(eval_env, log_path=None, best_model_save_path=None, **kwargs)
         self.path = Path(path)
         if previous is not None and len(previous.timesteps):
             self.evaluations_timesteps = previous.timesteps.tolist()
             self.evaluations_results = previous.results.tolist()
             self.evaluations_length = previous.ep_lengths.tolist()
-            self.best_mean_reward = float(previous.results.mean(axis=1).max())
+            means = previous.results.mean(axis=1)
+            saved = previous.timesteps == best_step
+            # a kill after a better evaluation's row, before its model: the saved one's counts
+            self.best_mean_reward = float(means[saved].max() if saved.any() else means.max())
 
     def _on_step(self) -> bool:
         # SB3 keeps its record only with a log path, and writes it there with np.savez: the
-        # path is a buffer for the length of the step, whose bytes then replace the file whole
+        # path is a buffer for the length of the step, whose bytes then replace the file whole;
+        # it would save a new best model before that: the callback runs here, after the record
+        on_new_best, self.callback_on_new_best = self.callback_on_new_best, None
+        best = self.best_mean_reward
         self.log_path = io.BytesIO()  # type: ignore[assignment]
         try:
             go_on = super()._on_step()
             record = self.log_path.getvalue()
         finally:
             self.log_path = None
+            self.callback_on_new_best = on_new_best
         if record:
             with atomic_open(self.path, "wb") as f:
                 f.write(record)
+        if on_new_best is not None and self.best_mean_reward > best:
+            go_on = on_new_best.on_step() and go_on
         return go_on

@@ -36,7 +36,7 @@ from aoass_env.atomic import atomic_open
 from aoass_env.validators import integer, one_line, torch_load_problem
 
 __all__ = ["RECORD_NAME", "STATE_FIELDS", "PolicyFileError", "SafeLoading", "TD3",
-           "load_model", "read_record", "record_path", "validate_record"]
+           "load_model", "read_record", "record_path", "saved_step", "validate_record"]
 
 #: The run record that ``train.py`` writes beside its models.
 RECORD_NAME = "run.yml"
@@ -180,6 +180,18 @@ def _read_state(path: Path, archive: zipfile.ZipFile) -> dict[str, int]:
         state[key] = integer(f"{path}: data: {key}", data.get(key, 0), low=0,
                              error=PolicyFileError)
     return state
+
+
+def saved_step(path: str | os.PathLike[str]) -> int:
+    """The step count (``num_timesteps``) a model .zip was saved at, read from its ``data``
+    member alone (no weights loaded); :class:`PolicyFileError` naming the file."""
+    path = Path(path)
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return _read_state(path, archive)["num_timesteps"]
+    except (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError, zlib.error) as exc:
+        raise PolicyFileError(f"{path}: not a readable model .zip ({one_line(exc)})"
+                              ) from None
 
 
 def _spaces(env: Any, hp: Mapping[str, Any]) -> tuple[Any, Any]:

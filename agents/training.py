@@ -53,7 +53,7 @@ from agents.callbacks import (
     replay_buffer_paths,
     save_atomic,
 )
-from agents.checkpoints import PolicyFileError, read_record, record_path
+from agents.checkpoints import PolicyFileError, read_record, record_path, saved_step
 from agents.envs import POLICY_STACK_KEYS, TRAINING_SPLITS, make_training_env
 from agents.hyperparams import ALGORITHMS, action_noise, load_hyperparams, read_run_record
 from agents.sections import model_kwargs, override_section, policy_name
@@ -245,6 +245,8 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     callbacks = [AOASSMetricsCallback(),
                  AtomicCheckpointCallback(checkpoint_every, out / "last.zip"),
                  RunEvalCallback(eval_env, out / "evaluations.npz", previous,
+                                 best_step=(saved_step(out / "best.zip") if previous is not None
+                                            and (out / "best.zip").is_file() else None),
                                  n_eval_episodes=eval_episodes,
                                  eval_freq=max(int(evaluation.get("freq", 10_000)) // n, 1),
                                  deterministic=True, verbose=0,

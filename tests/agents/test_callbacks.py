@@ -1,4 +1,5 @@
-"""agents.callbacks.read_evaluations: evaluations.npz read without unpickling, and checked."""
+"""agents.callbacks: evaluations.npz read without unpickling, and checked; the record written
+before the best model it names."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.callbacks import read_evaluations
+from agents import callbacks
+from agents.callbacks import Evaluations, RunEvalCallback, SaveBestAtomically, read_evaluations
 
 
 def test_reads_what_sb3_writes(tmp_path: Path):
@@ -59,3 +61,39 @@ def test_a_single_array_is_not_a_record(tmp_path: Path):
         np.save(f, np.zeros(3))
     with pytest.raises(ValueError, match="not a readable evaluation record \\(an array, not an"):
         read_evaluations(path)
+
+
+def _pendulum():
+    from stable_baselines3.common.env_util import make_vec_env
+    return make_vec_env("Pendulum-v1", n_envs=1, seed=0, env_kwargs=dict(max_episode_steps=20))
+
+
+def test_the_record_is_written_before_the_best_model_it_names(tmp_path: Path, monkeypatch):
+    """SB3 saves the new best model inside its evaluation, before the record: a kill between
+    the two left a best model that no row of the record accounts for, and a resume then let a
+    worse evaluation replace it."""
+    from agents import RecurrentTD3
+    model = RecurrentTD3("MlpLstmPolicy", _pendulum(), seed=0, device="cpu", batch_size=8,
+                         burn_in=2, train_length=4, buffer_size=200, learning_starts=5,
+                         policy_kwargs=dict(lstm_hidden_size=4, net_arch=[4]))
+    record, best = tmp_path / "evaluations.npz", tmp_path / "best.zip"
+
+    def killed(*args, **kwargs):
+        assert record.is_file()                          # the record holds the evaluation
+        raise KeyboardInterrupt
+    monkeypatch.setattr(callbacks, "save_atomic", killed)
+    evaluation = RunEvalCallback(_pendulum(), record, n_eval_episodes=1, eval_freq=10,
+                                 verbose=0, callback_on_new_best=SaveBestAtomically(best))
+    with pytest.raises(KeyboardInterrupt):
+        model.learn(12, callback=evaluation)
+    assert read_evaluations(record).timesteps.tolist() == [10] and not best.exists()
+
+
+def test_a_resume_beats_the_saved_best_model_s_evaluation(tmp_path: Path):
+    previous = Evaluations(timesteps=np.array([10, 20, 30]),
+                           results=np.array([[-5.0], [-1.0], [-3.0]]),
+                           ep_lengths=np.array([[20], [20], [20]]))
+    for best_step, threshold in ((10, -5.0), (20, -1.0), (None, -1.0), (40, -1.0)):
+        evaluation = RunEvalCallback(_pendulum(), tmp_path / "e.npz", previous,
+                                     best_step=best_step, verbose=0)
+        assert evaluation.best_mean_reward == threshold, best_step
