@@ -44,10 +44,13 @@ RECORD_NAME = "run.yml"
 STATE_FIELDS = ("num_timesteps", "_n_updates", "_episode_num")
 #: Weight files of a model .zip: the policy (required) and the optimizers (read to resume).
 _OPTIMIZERS = ("actor.optimizer", "critic.optimizer")
-#: Arrays of a saved replay buffer besides the buffer's own arrays.
-#: The replay buffer file's scalar tags: key -> (dtype kinds accepted, what it must be)
+#: The scalar tags of a saved replay buffer besides the buffer's own arrays: key -> (dtype
+#: kinds accepted, what it must be).
 _BUFFER_META = {"pos": ("iu", "an integer"), "full": ("b", "a bool"),
                 "num_timesteps": ("iu", "an integer")}
+
+#: What reading a damaged model .zip raises (zipfile, zlib and torch's many types).
+_UNREADABLE_ZIP = (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError, zlib.error)
 
 SelfSafe = TypeVar("SelfSafe", bound="SafeLoading")
 
@@ -189,7 +192,7 @@ def saved_step(path: str | os.PathLike[str]) -> int:
     try:
         with zipfile.ZipFile(path) as archive:
             return _read_state(path, archive)["num_timesteps"]
-    except (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError, zlib.error) as exc:
+    except _UNREADABLE_ZIP as exc:
         raise PolicyFileError(f"{path}: not a readable model .zip ({one_line(exc)})"
                               ) from None
 
@@ -248,7 +251,7 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
             if env is not None:
                 weights.update({n: _read_weights(path, archive, n, device)
                                 for n in _OPTIMIZERS if f"{n}.pth" in names})
-    except (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError, zlib.error) as exc:
+    except _UNREADABLE_ZIP as exc:
         raise PolicyFileError(f"{path}: not a readable model .zip ({one_line(exc)})"
                               ) from None
     _check_finite(path, "policy", weights["policy"])

@@ -65,7 +65,12 @@ from aoass_env.localization.reception import (  # noqa: E402
     pair_statistics,
     range_band,
 )
-from aoass_env.localization.training import EpisodeSpec, generate_logs, pattern_path  # noqa: E402
+from aoass_env.localization.training import (  # noqa: E402
+    EpisodeSpec,
+    generate_logs,
+    map_density,
+    pattern_path,
+)
 from aoass_env.maps import list_maps  # noqa: E402
 from aoass_env.validators import argparse_number  # noqa: E402
 
@@ -342,8 +347,7 @@ def main() -> None:
                         help="only the ablation table, on the validation logs of `train.py "
                              "localizer` (e.g. out/localizer_logs/val)")
     args = parser.parse_args()
-    shipped = sorted({_density(EpisodeSpec(m, 0, 0.0, 0)) for m in list_maps("test")
-                      if "_f100_" in m})
+    shipped = sorted({d for d, field in map(map_density, list_maps("test")) if field == 100})
     for density in args.densities:
         if round(density, 2) not in shipped:
             parser.error(f"--densities: {density:g} is not the density of a shipped 100 m test "

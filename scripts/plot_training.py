@@ -9,7 +9,6 @@ Run: ``python3 scripts/plot_training.py [RUN_DIR] [--tensorboard out/tensorboard
 from __future__ import annotations
 
 import argparse
-import zipfile
 from pathlib import Path
 
 import matplotlib
@@ -18,6 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from agents.callbacks import read_evaluations  # noqa: E402
 from aoass_env.atomic import save_figure_atomic  # noqa: E402
 
 SCALARS = (("rollout/ep_rew_mean", "training episodes: Eq. 14 return"),
@@ -49,24 +49,19 @@ def main() -> None:
                      f"e.g. checkpoints/aoass_td3_lstm)")
     if args.tensorboard is not None and not args.tensorboard.is_dir():
         parser.error(f"--tensorboard {args.tensorboard}: not a folder")
-    try:
-        with np.load(npz, allow_pickle=False) as data:
-            ev = {key: data[key] for key in ("timesteps", "results")}
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
-        parser.error(f"{npz}: not an evaluation log with timesteps and results ({exc})")
-    steps, results = ev["timesteps"], ev["results"]
-    if (steps.ndim != 1 or results.ndim != 2 or len(steps) != len(results) or not len(steps)
-            or steps.dtype.kind not in "iuf" or results.dtype.kind not in "iuf"):
-        parser.error(f"{npz}: timesteps must be (E,) and results (E, episodes) numbers with "
-                     f"E >= 1, got {steps.shape} {steps.dtype} and {results.shape} "
-                     f"{results.dtype}")
+    try:                          # the training's own reader: no pickles, shapes checked
+        ev = read_evaluations(npz)
+    except ValueError as exc:
+        parser.error(str(exc))
+    if not len(ev.timesteps):
+        parser.error(f"{npz}: holds no evaluation yet")
     scalars = tensorboard_scalars(args.tensorboard) if args.tensorboard else {}
     panels = 1 + sum(tag in scalars for tag, _ in SCALARS)
     fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 3.4), squeeze=False)
     ax = axes[0, 0]
-    returns = ev["results"]
-    ax.plot(ev["timesteps"], returns.mean(axis=1), marker="o", label="mean")
-    ax.fill_between(ev["timesteps"], returns.min(axis=1), returns.max(axis=1), alpha=0.25,
+    returns = ev.results
+    ax.plot(ev.timesteps, returns.mean(axis=1), marker="o", label="mean")
+    ax.fill_between(ev.timesteps, returns.min(axis=1), returns.max(axis=1), alpha=0.25,
                     label="min-max")
     ax.set(xlabel="environment steps", ylabel="return", title="evaluation on the validation maps")
     ax.legend(fontsize=8)

@@ -137,7 +137,7 @@ def square_spiral(width: float, height: float, spacing: float, step: float, *,
                         ("step", step)):
         positive(name, value, "m")
     margin = real("margin", margin, "m", low=0.0)
-    integer("max_legs", max_legs, low=1)
+    max_legs = integer("max_legs", max_legs, low=1)
     if origin is not None:
         origin = vec2("origin", origin, "m")
     lo = np.array([margin, margin], dtype=np.float64)

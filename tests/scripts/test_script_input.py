@@ -34,16 +34,19 @@ def test_plot_training_names_a_run_folder_without_its_log(capsys, monkeypatch, t
     assert refused(capsys, monkeypatch, "plot_training", str(tmp_path)).startswith(
         f"RUN {tmp_path}: holds no evaluations.npz")
     np.savez(tmp_path / "evaluations.npz", other=np.zeros(2))
-    assert "not an evaluation log with timesteps and results" in refused(
+    assert "not an evaluation record (no 'timesteps')" in refused(
         capsys, monkeypatch, "plot_training", str(tmp_path))
-    # arrays of other shapes used to fail deep in numpy or matplotlib
-    for steps, results, shapes in ((np.arange(3), np.zeros(3), "(3,) int64 and (3,)"),
-                                   (np.arange(3), np.zeros((2, 4)), "(3,) int64 and (2, 4)"),
-                                   (np.arange(0), np.zeros((0, 4)), "(0,) int64 and (0, 4)")):
-        np.savez(tmp_path / "evaluations.npz", timesteps=steps, results=results)
-        assert refused(capsys, monkeypatch, "plot_training", str(tmp_path)) == (
-            f"{tmp_path / 'evaluations.npz'}: timesteps must be (E,) and results (E, episodes) "
-            f"numbers with E >= 1, got {shapes} float64")
+    # arrays of other shapes used to fail deep in numpy or matplotlib: the training's own
+    # reader checks them
+    for steps, results in ((np.arange(3), np.zeros(3)), (np.arange(3), np.zeros((2, 4)))):
+        np.savez(tmp_path / "evaluations.npz", timesteps=steps, results=results,
+                 ep_lengths=np.zeros_like(results))
+        assert refused(capsys, monkeypatch, "plot_training", str(tmp_path)).startswith(
+            f"{tmp_path / 'evaluations.npz'}: not an evaluation record (timesteps int64[3]")
+    np.savez(tmp_path / "evaluations.npz", timesteps=np.arange(0), results=np.zeros((0, 4)),
+             ep_lengths=np.zeros((0, 4)))
+    assert refused(capsys, monkeypatch, "plot_training", str(tmp_path)) == (
+        f"{tmp_path / 'evaluations.npz'}: holds no evaluation yet")
     assert refused(capsys, monkeypatch, "plot_training", "--tensorboard",
                    str(tmp_path / "none")) == f"--tensorboard {tmp_path / 'none'}: not a folder"
 
