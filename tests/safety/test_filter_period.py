@@ -103,3 +103,12 @@ def test_bad_moving_obstacles_are_named_as_orca_names_them():
     done, rows, *_ = period.filter_period(static, None, settings, (15.0, 15.0), (0.0, 0.0),
                                           (0.5, 0.0), 0.0, 0.0, 0.0, True)
     assert isinstance(done, bool) and rows.shape[1] == 4
+    # float64 tracks take the compiled check, anything else ORCA's: the same period
+    discs = np.array([[16, 15, -1, 0, 1], [10, 12, 0, 1, 1]])
+    assert period._discs_ok(discs.astype(float)) and not period._discs_ok(
+        np.array([[16.0, 15.0, -np.inf, 0.0, 1.0]]))
+    args = (settings, (15.0, 15.0), (0.5, 0.0), (0.5, 0.0), 0.0, 0.5, 0.0, False)
+    fast = period.filter_period(static, discs.astype(float), *args)
+    other = period.filter_period(static, discs.tolist(), *args)
+    assert fast[0] == other[0] and np.array_equal(fast[1], other[1]) and fast[2:] == other[2:]
+    assert len(fast[1]) > fast[2]                      # the discs made lines
