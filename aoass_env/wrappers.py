@@ -260,6 +260,15 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
 
 
 @numba.njit(cache=True)
+def _deviations(sx: float, sy: float, dx: float, dy: float, px: float, py: float
+                ) -> tuple[float, float]:
+    """|v* - v_des| and |v* - v_pref| (m/s) of the velocities (``sx``, ``sy``), (``dx``,
+    ``dy``) and (``px``, ``py``): the C library's hypot, as ``np.hypot`` calls it (the same
+    floats, one compiled call instead of two ufunc calls)."""
+    return math.hypot(sx - dx, sy - dy), math.hypot(sx - px, sy - py)
+
+
+@numba.njit(cache=True)
 def _empty_slots(observation: np.ndarray, start: int, stop: int, low: np.ndarray,
                  high: np.ndarray) -> np.ndarray:
     """The tracker's observation without a confirmed track, from a float32 ``observation``:
@@ -548,8 +557,8 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
             active, active_static = active_constraints(lines, v_star, ACTIVE_SLACK)
             n_lines, n_static = len(lines), lines.n_static
         executed = base.action_type.action(speed_cmd, heading_cmd, nominal, knobs)
-        report = {"intervention": float(np.hypot(sx - v_des[0], sy - v_des[1])),
-                  "orca_correction": float(np.hypot(sx - pref[0], sy - pref[1])),
+        intervention, correction = _deviations(sx, sy, *v_des, *pref)
+        report = {"intervention": intervention, "orca_correction": correction,
                   "flc_turn": float(turn), "flc_speed": float(slow),
                   "speed_cmd": speed_cmd, "heading_cmd": heading_cmd,
                   "constraints": n_lines, "static": n_static,

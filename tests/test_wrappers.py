@@ -9,6 +9,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import aoass_env  # noqa: F401  (registers the environments)
@@ -657,3 +659,16 @@ def test_action_repeat_defers_the_unread_observations_and_plays_the_same_episode
         assert all(truncated for _, _, truncated in ends[True])
     assert vectors[True] == sum(len(episode) for episode in plays[True])   # resets included
     assert vectors[False] > 5 * vectors[True]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=6,
+                max_size=6))
+def test_safety_report_deviations_are_numpys_hypot(v):
+    """The report's compiled |v* - v_des| and |v* - v_pref| are ``np.hypot``'s floats, NaN,
+    infinities and subnormals included."""
+    sx, sy, dx, dy, px, py = v
+    with np.errstate(all="ignore"):
+        want = (float(np.hypot(sx - dx, sy - dy)), float(np.hypot(sx - px, sy - py)))
+    got = wrappers._deviations(sx, sy, dx, dy, px, py)
+    assert np.array(got).tobytes() == np.array(want).tobytes()

@@ -334,3 +334,87 @@ def test_stacked_queries_are_np_stack_bit_for_bit():
                     assert got.tobytes() == want.tobytes() and got.shape == want.shape
                     assert got.dtype == want.dtype and got.flags.c_contiguous
     assert {0, 1, 2, 3} <= seen
+
+
+def _random_tracks(tracker: MultiTargetTracker, rng: np.random.Generator, m: int) -> list:
+    """``m`` confirmed tracks at random states with random SPD covariances (as a run leaves
+    them: predicted, inflated, updated)."""
+    tracks = []
+    for _ in range(m):
+        t = tracker._birth(rng.uniform(-3, 3, tracker._dz))
+        t.filter.x[:, 0] = rng.uniform(-3, 3, 4)
+        a = rng.normal(0, rng.uniform(0.05, 1.5), (4, 4))
+        t.filter.P = a @ a.T + 0.01 * np.eye(4)
+        t.confirmed = True
+        tracks.append(t)
+    return tracks
+
+
+def _associated(tracker, tracks, z, extra, fast: bool, monkeypatch) -> tuple:
+    """:meth:`_associate`'s pairs, free mask and unpaired tracks, with or without the compiled
+    path."""
+    with monkeypatch.context() as patch:
+        if not fast:
+            patch.setattr(tracker, "_nearest", lambda *args: None)
+        free, pairs = np.ones(len(z), bool), []
+        left = tracker._associate(tracks, z, free, pairs, extra)
+    return [(t.id, j) for t, j in pairs], free.tolist(), [t.id for t in left]
+
+
+@pytest.mark.parametrize("velocity_noise", [None, 0.2])
+@pytest.mark.parametrize("maneuver", [False, True])
+def test_compiled_association_decides_as_numpy(velocity_noise, maneuver, monkeypatch):
+    """One track and several detections, or several tracks and one detection (the cases the
+    compiled gate takes): the same pairs, detections used and tracks left as NumPy's inverse
+    and linear_sum_assignment, over draws that put many detections near the gate; the compiled
+    distances are NumPy's to 1e-12."""
+    from aoass_env.safety.kalman import _gate_distances
+    rng = np.random.default_rng(31 + (velocity_noise is None) + 2 * maneuver)
+    tracker = MultiTargetTracker(DT, position_noise=SIGMA_P, velocity_noise=velocity_noise)
+    dz = tracker._dz
+    outcomes = set()
+    for draw in range(300):
+        m, n = (1, int(rng.integers(1, 5))) if draw % 2 else (int(rng.integers(1, 5)), 1)
+        tracks = _random_tracks(tracker, rng, m)
+        z = tracks[0].filter.x[:dz, 0] + rng.normal(0, rng.uniform(0.1, 3.0), (n, dz))
+        extra = tracker._dQ if maneuver else None
+        fast = _associated(tracker, tracks, z, extra, True, monkeypatch)
+        assert fast == _associated(tracker, tracks, z, extra, False, monkeypatch)
+        outcomes.add(len(fast[0]))
+        for t in tracks:
+            s = t.filter.P[:dz, :dz] + tracker._R + (0.0 if extra is None else extra[:dz, :dz])
+            y = z - t.filter.x[:dz, 0]
+            want = ((y @ np.linalg.inv(s)) * y).sum(axis=1)
+            got = np.empty(n)
+            assert _gate_distances(t.filter.x, t.filter.P, tracker._R,
+                                   tracker._no_extra if extra is None else extra, z,
+                                   np.arange(n), got)
+            np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert outcomes == {0, 1}                # draws both inside and outside the gate
+
+
+def test_compiled_association_defers_near_the_gate_and_on_ties():
+    """Within the decision band of the gate, or of another gated distance, NumPy decides
+    (None); otherwise the gated entry of least distance, or no pair."""
+    from aoass_env.safety.kalman import _DECISION_BAND, _nearest_pairs
+    gate = 13.28
+    near = gate * (1 + 0.5 * _DECISION_BAND)
+    assert _nearest_pairs(np.array([[near, 1.0]]), gate, _DECISION_BAND) is None
+    assert _nearest_pairs(np.array([[2.0], [2.0 + 1e-9]]), gate, _DECISION_BAND) is None
+    assert _nearest_pairs(np.array([[np.nan]]), gate, _DECISION_BAND) is None
+    assert _nearest_pairs(np.array([[3.0], [2.0], [20.0]]), gate, _DECISION_BAND).tolist() \
+        == [[1, 0]]
+    assert _nearest_pairs(np.array([[30.0, 14.0]]), gate, _DECISION_BAND).shape == (0, 2)
+
+
+def test_compiled_association_is_taken_in_a_run():
+    """The tracker of a single target pairs it by the compiled path (not NumPy's fallback)."""
+    tracker = MultiTargetTracker(DT, position_noise=SIGMA_P, velocity_noise=SIGMA_V)
+    truth = cv_truth([0.0, 0.0], [0.8, 0.3], 5)
+    for z in noisy(truth, np.random.default_rng(3), True):
+        tracker.step(z[None])
+    tracks = tracker.confirmed
+    assert len(tracks) == 1
+    tracks[0].filter.predict()
+    z = noisy(cv_truth(truth[-1, :2], truth[-1, 2:], 1), np.random.default_rng(4), True)
+    assert tracker._nearest(tracks, z, np.arange(1), None).tolist() == [[0, 0]]
