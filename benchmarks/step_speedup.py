@@ -31,6 +31,7 @@ import tarfile
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 
@@ -78,24 +79,31 @@ def unpack(ref: str, folder: Path) -> None:
         tar.extractall(folder, filter="data")
 
 
-def in_tree(tree: Path, env_id: str, steps: int, seeds: int) -> tuple[float, float]:
-    """:func:`cpu_us_per_step` in a fresh interpreter, run in ``tree``, that imports
-    ``aoass_env`` from it; exits in one line when another copy was imported."""
-    code = ("import json, sys, aoass_env; sys.path.insert(0, sys.argv[1]); "
-            "import step_speedup as s; "
-            "print(json.dumps([aoass_env.__file__, s.cpu_us_per_step(sys.argv[2], "
-            "int(sys.argv[3]), int(sys.argv[4]))]))")
+def run_in_tree(tree: Path, module: str, function: str, *args: Any) -> Any:
+    """``module.function(*args)`` (a module of this folder; JSON arguments and result) in a
+    fresh interpreter, run in ``tree``, that imports ``aoass_env`` from it; exits in one line
+    when the call fails or another copy of ``aoass_env`` was imported."""
+    code = ("import importlib, json, sys, aoass_env; sys.path.insert(0, sys.argv[1]); "
+            "f = getattr(importlib.import_module(sys.argv[2]), sys.argv[3]); "
+            "print(json.dumps([aoass_env.__file__, f(*json.loads(sys.argv[4]))]))")
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [str(tree), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    run = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), env_id,
-                          str(steps), str(seeds)], cwd=tree, env=env, capture_output=True,
+    run = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), module,
+                          function, json.dumps(args)], cwd=tree, env=env, capture_output=True,
                          text=True)
     if run.returncode:
-        raise SystemExit(f"the tree {tree} failed to step {env_id}: "
+        raise SystemExit(f"the tree {tree} failed to run {module}.{function}{args}: "
                          f"{(run.stderr.strip().splitlines() or ['no error output'])[-1]}")
-    module, (sampled, alone) = json.loads(run.stdout.strip().splitlines()[-1])
-    if not Path(module).resolve().is_relative_to(tree.resolve()):
-        raise SystemExit(f"the run meant for {tree} imported aoass_env from {module}")
+    path, result = json.loads(run.stdout.strip().splitlines()[-1])
+    if not Path(path).resolve().is_relative_to(tree.resolve()):
+        raise SystemExit(f"the run meant for {tree} imported aoass_env from {path}")
+    return result
+
+
+def in_tree(tree: Path, env_id: str, steps: int, seeds: int) -> tuple[float, float]:
+    """:func:`cpu_us_per_step` in a fresh interpreter that imports ``tree``'s ``aoass_env``
+    (:func:`run_in_tree`)."""
+    sampled, alone = run_in_tree(tree, "step_speedup", "cpu_us_per_step", env_id, steps, seeds)
     return sampled, alone
 
 

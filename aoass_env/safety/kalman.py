@@ -23,7 +23,10 @@ One :meth:`MultiTargetTracker.step` per control period ``dt`` (s):
    as many tracks and detections inside each other's gate as possible, at the least summed
    squared Mahalanobis distance. Tentative tracks come last because their wide covariance
    gives small Mahalanobis distances that would otherwise steal detections from established
-   tracks;
+   tracks. Where a stage has one track or one detection (the usual case), the distances are
+   computed compiled (by Cholesky) and the pair is the gated one of least distance, what the
+   assignment gives there; within a relative 1e-6 of the gate or of a tie, NumPy's inverse and
+   the assignment decide, so the pairs are theirs;
 4. **update** the associated tracks (hit), count a miss on the others;
 5. **manage**: a track is confirmed after ``birth_hits`` hits (its birth counts as one); a
    tentative track is deleted at its first miss, a confirmed one after ``max_misses``

@@ -29,6 +29,8 @@ CASES = [
     ("safety", "--first-seed", "-1", 0), ("safety", "--cost-first-seed", "-1", 0),
     ("step_speedup", "--steps", "0", 1), ("step_speedup", "--seeds", "0", 1),
     ("step_speedup", "--rounds", "0", 1),
+    ("safety_speedup", "--steps", "0", 1), ("safety_speedup", "--seeds", "0", 1),
+    ("safety_speedup", "--rounds", "0", 1),
     ("vector_envs", "--steps", "0", 1), ("vector_envs", "--envs", "0", 1),
     ("vector_envs", "--warm-up", "0", 1), ("vector_envs", "--seed", "-1", 0),
     ("rays", "--steps", "0", 1),

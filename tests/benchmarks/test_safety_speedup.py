@@ -1,0 +1,18 @@
+"""benchmarks/safety_speedup.py: a tree's run times both envs with that tree's aoass_env (its
+counts: tests/benchmarks/test_count_flags.py; the tree checks: test_step_speedup.py)."""
+
+from __future__ import annotations
+
+from tests.benchmarks.conftest import load_benchmark
+
+
+def test_a_run_times_the_bare_env_and_the_stack(monkeypatch):
+    bench = load_benchmark("safety_speedup")
+    import env_throughput  # the scripts' folder is on the path (load_benchmark)
+
+    warmed = []
+    monkeypatch.setattr(env_throughput, "warm_up_env", lambda env: warmed.append(env.spec.id))
+    bare, safe = bench.paired_us(20, 0)
+    assert warmed == ["AOASS-Safe-v0", "AOASS-v0"]
+    assert 0.0 < bare and 0.0 < safe
+
