@@ -38,9 +38,9 @@ from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
-__all__ = ["ConfigError", "ValidatedConfig", "first_difference", "float_array", "integer",
-           "one_line", "param", "positive", "real", "torch_load_problem", "unknown_key_message",
-           "vec2"]
+__all__ = ["ConfigError", "ValidatedConfig", "check_reals", "finite_array", "first_difference",
+           "float_array", "integer", "one_line", "param", "positive", "real",
+           "torch_load_problem", "unknown_key_message", "vec2"]
 
 
 class ConfigError(ValueError):
@@ -169,6 +169,40 @@ def positive(name: str, value: Any, unit: str = "", *, high: float | None = None
     return real(name, value, unit, low=0.0, low_open=True, high=high, error=error)
 
 
+def check_reals(checks: Iterable[tuple[str, Any, str, float | None]]) -> None:
+    """Each ``(name, value, unit, low)`` a finite real number, at least ``low`` (any when
+    ``low`` is None); else :func:`real`'s ValueError naming the first that is not. For the
+    per-call checks of library functions: their callers first test the sum of the values and
+    their bounds in a few float operations, and call this only when that test fails (a NaN, an
+    infinity, a value out of its bound, or a finite sum that overflowed)."""
+    for name, value, unit, low in checks:
+        real(name, value, unit, low=low)
+
+
+def finite_array(name: str, value: Any, unit: str = "", shape: tuple[int | None, ...] | None
+                 = None) -> np.ndarray:
+    """``value`` as a float64 array of numbers (integers or floats: not booleans, strings or
+    objects), every entry finite and, when ``shape`` is given, of that shape (None: any length
+    on that axis); else a ValueError naming ``name``."""
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be an array of numbers ({one_line(exc)})") from None
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must be an array of numbers{_unit(unit)}, got dtype "
+                         f"{raw.dtype}")
+    if shape is not None and (raw.ndim != len(shape) or any(
+            want is not None and got != want for got, want in zip(raw.shape, shape,
+                                                                  strict=True))):
+        axes = ", ".join("n" if n is None else str(n) for n in shape)
+        raise ValueError(f"{name} must be an array of shape ({axes}){_unit(unit)}, got "
+                         f"shape {raw.shape}")
+    array = raw.astype(np.float64, copy=False)
+    if not np.isfinite(array).all():
+        raise ValueError(f"{name} must be finite{_unit(unit)} (no NaN or infinity)")
+    return array
+
+
 def float_array(name: str, value: Any, error: type[Exception] = ValueError) -> np.ndarray:
     """``value`` as a float64 array (``np.asarray``); ``error`` naming ``name`` when its
     entries are not numbers (strings, objects, ragged lists)."""
@@ -181,6 +215,16 @@ def float_array(name: str, value: Any, error: type[Exception] = ValueError) -> n
 def vec2(name: str, value: Any, unit: str = "", *,
          error: type[Exception] = ValueError) -> tuple[float, float]:
     """A pair of finite real numbers (a sequence or a (2,) array) as two Python floats."""
+    # the usual cases first, in a few operations: a (2,) float64 array, two Python floats
+    if type(value) is np.ndarray and value.shape == (2,) and value.dtype == np.float64:
+        x, y = value.tolist()
+        if -math.inf < x < math.inf and -math.inf < y < math.inf:
+            return x, y
+    elif type(value) is tuple and len(value) == 2:
+        x, y = value
+        if type(x) is float and type(y) is float and -math.inf < x < math.inf \
+                and -math.inf < y < math.inf:
+            return x, y
     items = value.tolist() if isinstance(value, np.ndarray) and value.shape == (2,) else value
     if isinstance(items, (list, tuple)) and len(items) == 2 and all(
             _is_number(v) and math.isfinite(float(v)) for v in items):

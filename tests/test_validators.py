@@ -254,3 +254,25 @@ def test_first_difference_names_the_first_key_in_sorted_order() -> None:
         ("b", "2.0", "2.5", ["c", "d"])
     assert first_difference({}, {"n": None}) == ("n", "unset", "None", [])
     assert first_difference({"n": 1}, {"n": True}) is None   # equal values, as == sees them
+
+
+def test_finite_array_names_the_array_and_what_is_wrong() -> None:
+    from aoass_env.validators import finite_array
+    assert finite_array("a", [[1, 2]], "m", (None, 2)).dtype == np.float64
+    for value, match in ((np.array([[np.nan, 0.0]]), "a must be finite"),
+                         (np.zeros((1, 3)), r"a must be an array of shape \(n, 2\) \(m\)"),
+                         (np.zeros(2), r"shape \(n, 2\)"),
+                         (np.array([True, False]), "got bool values|got dtype bool"),
+                         (["1", "2"], "a must be an array of numbers"),
+                         ([[1.0], [2.0, 3.0]], "a must be an array of numbers")):
+        with pytest.raises(ValueError, match=match):
+            finite_array("a", value, "m", (None, 2))
+
+
+def test_check_reals_names_the_first_bad_value() -> None:
+    from aoass_env.validators import check_reals
+    check_reals((("x", 1.0, "m", None), ("y", 0.0, "m/s", 0.0)))
+    with pytest.raises(ValueError, match="y="):
+        check_reals((("x", 1.0, "m", None), ("y", -1.0, "m/s", 0.0), ("z", math.nan, "", None)))
+    with pytest.raises(ValueError, match="x="):
+        check_reals((("x", True, "m", None),))

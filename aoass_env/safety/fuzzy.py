@@ -38,9 +38,13 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
+from aoass_env.validators import one_line
+
 __all__ = ["FuzzyController", "FuzzyVariable", "membership"]
 
 _TWO_PI = 2.0 * math.pi
+#: the scalar inputs of the controller's fast path (booleans excepted)
+_REALS = (float, int, np.floating, np.integer)
 #: Inputs evaluated together at most (bounds the memory of one vectorised call).
 _BLOCK = 1024
 
@@ -438,6 +442,19 @@ class FuzzyController:
         speed = clipped[nt:].max(axis=0) @ tab["moments"][1]
         return np.concatenate([turn, speed], axis=1)
 
+    @staticmethod
+    def _numbers(name: str, value: ArrayLike, what: str) -> np.ndarray:
+        """``value`` as a float array when its entries are numbers (integers or floats), else a
+        ValueError naming ``name``: a boolean, a string ("1") or an object is no gap or
+        angle."""
+        try:
+            array = np.asarray(value)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{name} must be numbers ({what}): {one_line(exc)}") from None
+        if array.dtype.kind not in "iuf":
+            raise ValueError(f"{name} must be numbers ({what}), got {array.dtype} values")
+        return array.astype(float, copy=False)
+
     def __call__(self, d: ArrayLike, dtheta: ArrayLike) -> tuple[Any, Any]:
         """Evaluate f_FLC(d, dtheta) = [omega, v] (Eq. 7).
 
@@ -452,18 +469,19 @@ class FuzzyController:
             else arrays of the common broadcast shape.
 
         Raises:
-            ValueError: NaN in ``d``, non-finite ``dtheta``, or shapes that do not broadcast.
+            ValueError: NaN in ``d``, non-finite ``dtheta``, entries that are not numbers
+                (booleans, strings, objects), or shapes that do not broadcast.
         """
-        if isinstance(d, (float, int, np.floating, np.integer)) and \
-                isinstance(dtheta, (float, int, np.floating, np.integer)):
+        if isinstance(d, _REALS) and isinstance(dtheta, _REALS) and not (
+                isinstance(d, bool) or isinstance(dtheta, bool)):
             d, dtheta = float(d), float(dtheta)
             if math.isnan(d):
                 raise ValueError("d must not be NaN (gap to the nearest obstacle, m)")
             if not math.isfinite(dtheta):
                 raise ValueError("dtheta must be finite (heading error, rad)")
             return self._infer_scalar(d, dtheta - _TWO_PI * round(dtheta / _TWO_PI))
-        d_arr = np.asarray(d, dtype=float)
-        h_arr = np.asarray(dtheta, dtype=float)
+        d_arr = self._numbers("d", d, "gap to the nearest obstacle, m")
+        h_arr = self._numbers("dtheta", dtheta, "heading error, rad")
         try:
             d_arr, h_arr = np.broadcast_arrays(d_arr, h_arr)
         except ValueError:

@@ -48,7 +48,7 @@ import numpy as np
 
 from aoass_env.pairwise import pairwise_sum
 from aoass_env.trig import SCALAR_TRIG, compiled_trig
-from aoass_env.validators import positive, real
+from aoass_env.validators import check_reals, integer, positive, real, vec2
 
 __all__ = ["Escape", "EscapeBudget", "candidate_commands", "escape_velocity", "look_ahead_horizon",
            "obstacle_radii", "position_std", "predict_obstacles", "rollout",
@@ -386,6 +386,29 @@ def _rollout_many(x: float, y: float, heading: float, speed: float, headings: np
     return out
 
 
+def _check_motion(heading: float, speed: float, max_turn_rate: float, max_accel: float,
+                  step: float, starts: np.ndarray, ends: np.ndarray, radius: float,
+                  **limits: float) -> None:
+    """The anchor's state and limits and the static edges of :func:`rollout` and
+    :func:`escape_velocity` (``limits``: their other positive limits, by name): finite, the
+    speed and the radius >= 0, the limits > 0; else a ValueError naming the first that is
+    not. A few float operations when they are."""
+    values = (max_turn_rate, max_accel, step, *limits.values())
+    try:
+        ok = (math.isfinite(heading + speed + radius + sum(values)) and speed >= 0.0
+              and radius >= 0.0 and min(values) > 0.0)
+    except TypeError:
+        ok = False
+    if not ok:
+        check_reals((("heading", heading, "rad", None), ("speed", speed, "m/s", 0.0),
+                     ("radius", radius, "m", 0.0)))
+        for name, value in (("max_turn_rate", max_turn_rate), ("max_accel", max_accel),
+                            ("step", step), *limits.items()):
+            positive(name, value)
+    if not (np.isfinite(starts).all() and np.isfinite(ends).all()):
+        raise ValueError("starts and ends (the static edges, m) must be finite")
+
+
 def rollout(position: np.ndarray, heading: float, speed: float, headings: np.ndarray,
             speeds: np.ndarray, max_turn_rate: float, max_accel: float, step: float,
             n_steps: int, starts: np.ndarray, ends: np.ndarray, radius: float) -> np.ndarray:
@@ -404,6 +427,12 @@ def rollout(position: np.ndarray, heading: float, speed: float, headings: np.nda
     if headings.ndim != 1 or target_speed.shape != headings.shape:
         raise ValueError(f"headings and speeds must be (k,) arrays of one candidate each, got "
                          f"shapes {headings.shape} and {target_speed.shape}")
+    if not (np.isfinite(headings).all() and np.isfinite(target_speed).all()):
+        raise ValueError("headings (rad) and speeds (m/s) must be finite")
+    vec2("position", position, "m")
+    _check_motion(heading, speed, max_turn_rate, max_accel, step, starts, ends, radius)
+    if type(n_steps) is not int or n_steps < 1:
+        n_steps = integer("n_steps", n_steps, "steps", low=1)
     k = len(headings)
     max_dh, max_dv = max_turn_rate * step, max_accel * step
     if SCALAR_TRIG and compiled_trig():
@@ -691,6 +720,30 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     if len(covariances) != len(obstacles):
         raise ValueError(f"covariances must be (m, 4, 4) for the m = {len(obstacles)} "
                          f"obstacles, got {len(covariances)} of them")
+    # a NaN obstacle or anchor state reads as "nothing in the way" (no escape) and an infinite
+    # limit as any escape: refused, as a library call must not pass them on silently
+    vec2("velocity", velocity, "m/s")
+    vec2("preferred", preferred, "m/s")
+    vec2("position", position, "m")
+    if not (np.isfinite(obstacles).all() and np.isfinite(covariances).all()):
+        raise ValueError("obstacles and covariances (the tracks) must be finite")
+    _check_motion(heading, speed, max_turn_rate, max_accel, step, starts, ends, radius,
+                  max_speed=max_speed, horizon=horizon)
+    optional = (obstacle_radius or 0.0, react or 0.0, tolerance or 0.0)
+    try:
+        ok = (math.isfinite(sigma + maneuver + clearance + progress_weight + sum(optional))
+              and min(sigma, maneuver, clearance, progress_weight, *optional) >= 0.0)
+    except TypeError:
+        ok = False
+    if not ok:
+        check_reals((("sigma", sigma, "", 0.0), ("maneuver", maneuver, "per s", 0.0),
+                     ("clearance", clearance, "m", 0.0),
+                     ("progress_weight", progress_weight, "", 0.0),
+                     *((name, value, unit, 0.0) for name, value, unit in (
+                         ("obstacle_radius", obstacle_radius, "m"), ("react", react, "s"),
+                         ("tolerance", tolerance, "")) if value is not None)))
+    if type(n_headings) is not int or n_headings < 1:
+        integer("n_headings", n_headings, "headings", low=1)
     position = np.asarray(position, dtype=np.float64)
     n_steps = max(int(math.ceil(horizon / step - 1e-9)), 1)
     times = _times(float(step), n_steps)

@@ -112,22 +112,6 @@ def _positive(name: str, value: Any, unit: str, high: float | None = None) -> fl
     return positive(name, value, unit, high=high)
 
 
-def _vec2(name: str, value: Any, unit: str) -> tuple[float, float]:
-    """:func:`~aoass_env.validators.vec2`, with fast paths for a finite (2,) float64 array and
-    a pair of finite Python floats."""
-    if type(value) is np.ndarray and value.shape == (2,) and value.dtype == np.float64:
-        x, y = value.tolist()
-    elif type(value) is tuple and len(value) == 2:
-        x, y = value
-        if not (type(x) is float and type(y) is float):
-            return vec2(name, value, unit)
-    else:
-        return vec2(name, value, unit)
-    if -math.inf < x < math.inf and -math.inf < y < math.inf:
-        return x, y
-    return vec2(name, value, unit)
-
-
 #: No moving obstacles, as the compiled lines read them.
 _NO_MOVING = np.zeros((0, 5))
 
@@ -395,7 +379,7 @@ class StaticObstacles:
 
     def _near(self, position: ArrayLike, reach: float) -> list[int]:
         """:meth:`edges_near`'s indices as a list, the arguments checked."""
-        px, py = _vec2("position", position, "m")
+        px, py = vec2("position", position, "m")
         if not (type(reach) is float and 0.0 <= reach < math.inf):
             reach = real("reach", reach, "m", low=0.0)
         return self._cache.near(px, py, reach)
@@ -507,15 +491,15 @@ class OrcaAgent:
         ``preferred_velocity`` (2,) (m/s)): ``solve_velocity(lines, preferred_velocity,
         max_speed)``'s floats, the lines and the program in one compiled call."""
         args = self._arguments(position, velocity, static_obstacles, moving_obstacles)
-        ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
+        ox, oy = vec2("preferred_velocity", preferred_velocity, "m/s")
         array, n_static, x, y = _lines_and_velocity(*args, ox, oy)
         return _read_only_lines(array, n_static), np.array([x, y])
 
     def _arguments(self, position: Any, velocity: Any, static_obstacles: Any,
                    moving_obstacles: Any) -> tuple[Any, ...]:
         """:func:`_compiled_lines`'s arguments: the inputs checked, with these settings."""
-        px, py = _vec2("position", position, "m")
-        vx, vy = _vec2("velocity", velocity, "m/s")
+        px, py = vec2("position", position, "m")
+        vx, vy = vec2("velocity", velocity, "m/s")
         static = _static(static_obstacles)
         cache = (static if static is not None else _NO_STATIC)._cache
         return (cache.edges, cache.links, cache.bbox, cache.grid, cache.cells, px, py, vx, vy,
@@ -714,7 +698,7 @@ def solve_velocity(lines: OrcaLines, preferred_velocity: ArrayLike,
         (2,) float64 velocity (m/s).
     """
     table = _table(lines)
-    ox, oy = _vec2("preferred_velocity", preferred_velocity, "m/s")
+    ox, oy = vec2("preferred_velocity", preferred_velocity, "m/s")
     max_speed = _positive("max_speed", max_speed, "m/s")
     x, y = _solve(table, lines.n_static, ox, oy, max_speed)
     return np.array([x, y])
@@ -726,7 +710,7 @@ def active_constraints(lines: OrcaLines, velocity: ArrayLike,
     (m/s), or violates (``det(direction, point - v) > -slack``), and how many of those are
     static lines."""
     table = _table(lines)
-    vx, vy = _vec2("velocity", velocity, "m/s")
+    vx, vy = vec2("velocity", velocity, "m/s")
     if not (isinstance(slack, float) and 0.0 <= slack < math.inf):
         slack = real("slack", slack, "m/s", low=0.0)
     return _active(table, lines.n_static, vx, vy, slack)

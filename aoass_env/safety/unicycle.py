@@ -31,6 +31,7 @@ import numba
 import numpy as np
 
 from aoass_env.trig import SCALAR_TRIG, compiled_polar, compiled_trig, hypot
+from aoass_env.validators import check_reals, finite_array, positive, vec2
 
 __all__ = ["BrakingEnvelope", "braking_speed", "clearance", "free_travel", "speed_bounds",
            "turn_headings", "unicycle_command"]
@@ -206,6 +207,30 @@ class BrakingEnvelope:
     max_accel: float
     dt: float
 
+    def __post_init__(self) -> None:
+        # an infinite or NaN edge, position or limit would cap no speed (or every one) silently
+        for name in ("starts", "ends"):
+            array = getattr(self, name)
+            if not (isinstance(array, np.ndarray) and array.ndim == 2 and array.shape[1] == 2
+                    and array.dtype.kind == "f" and np.isfinite(array).all()):
+                finite_array(name, array, "m", (None, 2))
+                raise ValueError(f"{name} must be a float array of shape (m, 2) (m)")
+        position = self.position
+        if not (isinstance(position, np.ndarray) and position.shape == (2,)
+                and position.dtype.kind == "f"):
+            raise ValueError(f"position must be a (2,) float array (m), got "
+                             f"{getattr(position, 'shape', type(position).__name__)}")
+        vec2("position", position, "m")
+        try:
+            ok = (math.isfinite(self.radius + self.max_accel + self.dt) and self.radius >= 0.0
+                  and self.max_accel > 0.0 and self.dt > 0.0)
+        except TypeError:
+            ok = False
+        if not ok:
+            check_reals((("radius", self.radius, "m", 0.0),))
+            positive("max_accel", self.max_accel, "m/s^2")
+            positive("dt", self.dt, "s")
+
     def __call__(self, headings: np.ndarray) -> np.ndarray:
         """(k,) the speed cap on each heading (rad)."""
         return self._caps(headings, clearance(self.starts, self.ends, self.position))
@@ -246,7 +271,18 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
     if envelope is not None and envelope.starts.shape != envelope.ends.shape:
         raise ValueError(f"the envelope's starts and ends must be (m, 2) arrays of the same "
                          f"edges, got shapes {envelope.starts.shape} and {envelope.ends.shape}")
-    vx, vy = float(v_star[0]), float(v_star[1])
+    vx, vy = vec2("v_star", v_star, "m/s")
+    try:        # a NaN, an infinity or a negative limit would command nonsense silently
+        ok = (math.isfinite(heading + speed + max_turn + max_dv + fallback_heading)
+              and speed >= 0.0 and max_turn >= 0.0 and max_dv >= 0.0)
+    except TypeError:
+        ok = False
+    if not ok:
+        check_reals((("heading", heading, "rad", None), ("speed", speed, "m/s", 0.0),
+                     ("max_turn", max_turn, "rad", 0.0), ("max_dv", max_dv, "m/s", 0.0),
+                     ("fallback_heading", fallback_heading, "rad", None)))
+    if not (np.isfinite(points).all() and np.isfinite(directions).all()):
+        raise ValueError("points and directions (the ORCA lines) must be finite")
     if SCALAR_TRIG and compiled_trig() and compiled_polar():
         if envelope is None:
             edges: tuple[Any, ...] = (_NO_EDGES, _NO_EDGES, 0.0, 0.0, 0.0, 1.0, 1.0)

@@ -592,3 +592,59 @@ def test_mismatched_candidates_or_obstacles_name_the_arrays():
     with pytest.raises(ValueError, match="starts and ends must be"):
         rollout(np.zeros(2), 0.0, 1.0, np.zeros(2), np.zeros(2), 1.0, 1.0, 0.25, 18,
                 np.zeros((1, 3)), np.zeros((1, 3)), 0.5)
+
+
+_HEAD_ON = [[3.0, 0.0, -1.0, 0.0, 1.0]]
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(obstacles=[[math.nan, 0.0, -1.0, 0.0, 1.0]]), "obstacles and covariances"),
+    (dict(covariances=np.full((1, 4, 4), math.inf)), "obstacles and covariances"),
+    (dict(horizon=math.nan), "horizon="), (dict(step=0.0), "step="),
+    (dict(max_accel=-1.0), "max_accel="), (dict(radius=math.inf), "radius="),
+    (dict(sigma=-2.0), "sigma="), (dict(clearance=math.nan), "clearance="),
+    (dict(react=-1.0), "react="), (dict(tolerance=math.inf), "tolerance="),
+    (dict(obstacle_radius=math.nan), "obstacle_radius="), (dict(n_headings=0), "n_headings="),
+    (dict(starts=np.array([[math.nan, 0.0]]), ends=np.array([[1.0, 0.0]])), "static edges"),
+])
+def test_escape_velocity_refuses_nonfinite_or_negative_inputs(kw, match):
+    """A NaN obstacle used to read as nothing in the way (no escape), a NaN horizon crashed
+    deep inside; each is now an error naming the argument."""
+    obstacles = kw.pop("obstacles", _HEAD_ON)
+    covariances = kw.pop("covariances", None)
+    with pytest.raises(ValueError, match=match):
+        _escape([1.0, 0.0], obstacles, covariances, **kw)
+    assert _escape([1.0, 0.0], _HEAD_ON).escaping      # the same call, valid, escapes
+
+
+@pytest.mark.parametrize("where, match", [
+    ("velocity", "velocity must be a pair of finite"),
+    ("position", "position must be a pair of finite"),
+    ("heading", "heading="), ("speed", "speed="),
+])
+def test_escape_velocity_refuses_a_nonfinite_anchor(where, match):
+    args = dict(velocity=np.array([1.0, 0.0]), preferred=np.array([1.0, 0.0]),
+                position=np.zeros(2), heading=0.0, speed=1.0)
+    args[where] = np.array([math.nan, 0.0]) if where in ("velocity", "position") else (
+        -1.0 if where == "speed" else math.nan)
+    with pytest.raises(ValueError, match=match):
+        escape_velocity(**args, obstacles=np.array(_HEAD_ON),
+                        covariances=np.tile(np.eye(4) * 0.01, (1, 1, 1)), max_speed=2.0,
+                        max_accel=1.0, max_turn_rate=math.pi / 2, horizon=4.5, step=0.25,
+                        starts=np.zeros((0, 2)), ends=np.zeros((0, 2)), radius=0.7, sigma=2.0,
+                        maneuver=0.25, clearance=0.5)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(heading=math.nan), "heading="), (dict(speeds=np.array([math.nan])), "speeds"),
+    (dict(position=np.array([0.0, math.inf])), "position must be"),
+    (dict(max_turn_rate=0.0), "max_turn_rate="), (dict(n_steps=0), "n_steps="),
+    (dict(n_steps=2.5), "n_steps="),
+])
+def test_rollout_refuses_nonfinite_or_bad_inputs(kw, match):
+    args = dict(position=np.zeros(2), heading=0.0, speed=0.5, headings=np.array([0.0]),
+                speeds=np.array([1.0]), max_turn_rate=0.6, max_accel=0.5, step=0.25,
+                n_steps=4, starts=np.zeros((0, 2)), ends=np.zeros((0, 2)), radius=0.5)
+    with pytest.raises(ValueError, match=match):
+        rollout(**dict(args, **kw))
+    assert rollout(**dict(args, n_steps=4.0)).shape == (1, 4, 2)     # a whole float is a count

@@ -549,3 +549,45 @@ def test_the_compiled_remainder_breaks_a_tie_to_the_even_multiple():
         got, want = unicycle._remainder(x), math.remainder(x, period)
         assert got == want and math.copysign(1.0, got) == math.copysign(1.0, want), x
     assert ties >= 4
+
+
+_COMMAND = dict(v_star=np.array([1.0, 0.0]), heading=0.0, speed=0.5, max_turn=0.3, max_dv=0.25,
+                points=np.zeros((0, 2)), directions=np.zeros((0, 2)), fallback_heading=0.0)
+
+
+@pytest.mark.parametrize("name, value, match", [
+    ("v_star", np.array([math.nan, 0.0]), "v_star must be a pair of finite numbers"),
+    ("v_star", np.array([1.0, 0.0, 0.0]), "v_star must be a pair"),
+    ("heading", math.nan, "heading="), ("heading", "0", "heading="),
+    ("speed", -1.0, "speed="), ("speed", math.inf, "speed="),
+    ("max_turn", -0.3, "max_turn="), ("max_dv", math.nan, "max_dv="),
+    ("fallback_heading", -math.inf, "fallback_heading="),
+    ("points", np.array([[math.nan, 0.0]]), "must be finite"),
+])
+def test_unicycle_command_refuses_what_would_command_nonsense(name, value, match):
+    """A NaN heading used to give a full-speed command, a negative turn limit a turn beyond
+    it, a NaN in v* a NaN speed: each is now an error naming the argument."""
+    kwargs = dict(_COMMAND, **{name: value})
+    if name == "points":
+        kwargs["directions"] = np.array([[1.0, 0.0]])
+    with pytest.raises(ValueError, match=match):
+        unicycle_command(**kwargs)
+    assert unicycle_command(**_COMMAND) == (1.0, 0.0)      # the good call still commands
+
+
+@pytest.mark.parametrize("field, value, match", [
+    ("position", np.array([math.nan, 0.0]), "position must be a pair of finite"),
+    ("position", np.zeros(3), "position must be a"),
+    ("starts", np.array([[math.inf, 0.0]]), "starts must be finite"),
+    ("ends", np.zeros((1, 3)), r"ends must be an array of shape \(n, 2\)"),
+    ("ends", [[1.0, 1.0]], "ends must be a float array"),
+    ("radius", -0.5, "radius="), ("max_accel", 0.0, "max_accel="), ("dt", math.nan, "dt="),
+])
+def test_a_braking_envelope_of_nonfinite_or_bad_values_is_refused(field, value, match):
+    """A NaN position used to cap no heading (an infinite cap), a negative deceleration every
+    heading with NaN."""
+    good = dict(starts=np.array([[1.0, -1.0]]), ends=np.array([[1.0, 1.0]]),
+                position=np.zeros(2), radius=0.5, max_accel=0.5, dt=0.5)
+    with pytest.raises(ValueError, match=match):
+        BrakingEnvelope(**dict(good, **{field: value}))
+    assert np.isfinite(BrakingEnvelope(**good)(np.array([0.0]))).all()
