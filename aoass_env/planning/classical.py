@@ -54,6 +54,19 @@ def _check_field(width: float, height: float, spacing: float, margin: float,
          doc=f"for a {width:g} x {height:g} m field")
 
 
+#: most cells a cell-by-cell curve (HILBERT, the Z-curve) is built with: 4 194 304 cells,
+#: 64 MiB of vertices; a spacing that asks for more is refused, not met by a MemoryError
+MAX_CELLS = 1 << 22
+
+
+def _check_cells(cells: int, spacing: float, width: float, height: float) -> None:
+    """ValueError naming ``spacing`` when a curve of ``cells`` cells exceeds
+    :data:`MAX_CELLS`."""
+    if cells > MAX_CELLS:
+        raise ValueError(f"spacing={spacing!r} m asks for {cells} cells on a {width:g} x "
+                         f"{height:g} m field; at most {MAX_CELLS} are built (a larger spacing)")
+
+
 def _n_cells(extent: float, spacing: float) -> int:
     """Number of equal cells of side <= ``spacing`` (m) across ``extent`` (m)."""
     return max(1, math.ceil(extent / spacing - 1e-9))
@@ -132,6 +145,7 @@ def hilbert_vertices(width: float, height: float, spacing: float, margin: float)
     to the margin."""
     _check_field(width, height, spacing, margin)
     k = hilbert_order(width, height, spacing)
+    _check_cells(4**k, spacing, width, height)
     cells = hilbert_cells(k)
     xs = _cell_centres(width, 2**k, margin)
     ys = _cell_centres(height, 2**k, margin)
@@ -230,6 +244,7 @@ def z_curve_vertices(width: float, height: float, spacing: float, margin: float)
     Morton order (:func:`morton_cells`), centres clipped to the margin."""
     _check_field(width, height, spacing, margin)
     nx, ny = _n_cells(width, spacing), _n_cells(height, spacing)
+    _check_cells(nx * ny, spacing, width, height)
     cells = morton_cells(nx, ny)
     xs, ys = _cell_centres(width, nx, margin), _cell_centres(height, ny, margin)
     return np.stack([xs[cells[:, 0]], ys[cells[:, 1]]], axis=1)

@@ -37,7 +37,7 @@ from scipy.sparse.csgraph import dijkstra
 from aoass_env.maps import MapError, ObstacleMap
 from aoass_env.planning.goal_search import FORCED, UNREACHABLE, forced_path
 from aoass_env.segments import CLEAR, CROSSES, EdgeGrid
-from aoass_env.validators import positive
+from aoass_env.validators import positive, real, vec2
 
 #: A detour search first explores paths of cost up to SEARCH_FACTOR x the straight distance +
 #: SEARCH_SLACK (m; cost = length x (1 + 1/clearance), at most about twice the length), and
@@ -153,7 +153,10 @@ class DetourPlanner:
         clearance), so at least the length) from ``start`` to each of ``goals`` (K, 2), each
         snapped to its nearest free grid cell as :meth:`path` does; inf where there is no way.
         One search for all the goals."""
+        vec2("start", start, "m")
         goals = np.asarray(goals, dtype=np.float64).reshape(-1, 2)
+        if not np.isfinite(goals).all():     # a NaN goal would read another cell's cost
+            raise ValueError("goals must be finite (m)")
         dist, _ = self._tree_from(self._cell(start), math.inf)
         i = np.clip((goals[:, 0] / self.res).astype(np.int64), 0, self.shape[0] - 1)
         j = np.clip((goals[:, 1] / self.res).astype(np.int64), 0, self.shape[1] - 1)
@@ -252,7 +255,7 @@ class DetourPlanner:
         (:class:`~aoass_env.segments.EdgeGrid`) settles most segments: a crossing meets them,
         and a segment clear of every edge meets them when ``a`` does; contacts go to
         shapely."""
-        ax, ay, bx, by = float(a[0]), float(a[1]), float(b[0]), float(b[1])
+        (ax, ay), (bx, by) = vec2("a", a, "m"), vec2("b", b, "m")   # NaN read as visible
         status = self._blocker_edges.status(ax, ay, bx, by)
         if status == CROSSES:
             return False
@@ -282,8 +285,14 @@ class DetourPlanner:
         shortest-path tree of the last start cell is kept for searches without
         keep-outs, so trying several goals from one place costs one search.
         """
+        vec2("start", start, "m")
+        vec2("goal", goal, "m")
         if keepout is not None and len(keepout):
-            return self._path_avoiding(start, goal, np.asarray(keepout, float), keepout_radius)
+            keepout = np.asarray(keepout, float)
+            if not np.isfinite(keepout).all():
+                raise ValueError("keepout must be finite (m)")
+            return self._path_avoiding(start, goal, keepout,
+                                       real("keepout_radius", keepout_radius, "m", low=0.0))
         s, g = self._cell(start), self._cell(goal)
         straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
         limit = SEARCH_FACTOR * straight + SEARCH_SLACK

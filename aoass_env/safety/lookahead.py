@@ -47,6 +47,7 @@ import numba
 import numpy as np
 
 from aoass_env.pairwise import pairwise_sum
+from aoass_env.safety.checks import all_finite
 from aoass_env.trig import SCALAR_TRIG, compiled_trig
 from aoass_env.validators import check_reals, integer, positive, real, vec2
 
@@ -405,7 +406,7 @@ def _check_motion(heading: float, speed: float, max_turn_rate: float, max_accel:
         for name, value in (("max_turn_rate", max_turn_rate), ("max_accel", max_accel),
                             ("step", step), *limits.items()):
             positive(name, value)
-    if not (np.isfinite(starts).all() and np.isfinite(ends).all()):
+    if not all_finite(np.asarray(starts, dtype=np.float64), np.asarray(ends, dtype=np.float64)):
         raise ValueError("starts and ends (the static edges, m) must be finite")
 
 
@@ -427,7 +428,7 @@ def rollout(position: np.ndarray, heading: float, speed: float, headings: np.nda
     if headings.ndim != 1 or target_speed.shape != headings.shape:
         raise ValueError(f"headings and speeds must be (k,) arrays of one candidate each, got "
                          f"shapes {headings.shape} and {target_speed.shape}")
-    if not (np.isfinite(headings).all() and np.isfinite(target_speed).all()):
+    if not all_finite(headings, target_speed):
         raise ValueError("headings (rad) and speeds (m/s) must be finite")
     vec2("position", position, "m")
     _check_motion(heading, speed, max_turn_rate, max_accel, step, starts, ends, radius)
@@ -725,7 +726,7 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     vec2("velocity", velocity, "m/s")
     vec2("preferred", preferred, "m/s")
     vec2("position", position, "m")
-    if not (np.isfinite(obstacles).all() and np.isfinite(covariances).all()):
+    if not all_finite(obstacles, covariances):
         raise ValueError("obstacles and covariances (the tracks) must be finite")
     _check_motion(heading, speed, max_turn_rate, max_accel, step, starts, ends, radius,
                   max_speed=max_speed, horizon=horizon)

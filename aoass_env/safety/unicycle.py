@@ -30,6 +30,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from aoass_env.safety.checks import all_finite
 from aoass_env.trig import SCALAR_TRIG, compiled_polar, compiled_trig, hypot
 from aoass_env.validators import check_reals, finite_array, positive, vec2
 
@@ -209,18 +210,18 @@ class BrakingEnvelope:
 
     def __post_init__(self) -> None:
         # an infinite or NaN edge, position or limit would cap no speed (or every one) silently
-        for name in ("starts", "ends"):
-            array = getattr(self, name)
-            if not (isinstance(array, np.ndarray) and array.ndim == 2 and array.shape[1] == 2
-                    and array.dtype.kind == "f" and np.isfinite(array).all()):
-                finite_array(name, array, "m", (None, 2))
-                raise ValueError(f"{name} must be a float array of shape (m, 2) (m)")
-        position = self.position
-        if not (isinstance(position, np.ndarray) and position.shape == (2,)
-                and position.dtype.kind == "f"):
-            raise ValueError(f"position must be a (2,) float array (m), got "
-                             f"{getattr(position, 'shape', type(position).__name__)}")
-        vec2("position", position, "m")
+        starts, ends, position = self.starts, self.ends, self.position
+        arrays = (starts, ends, position)
+        if not (all(type(a) is np.ndarray and a.dtype == np.float64 for a in arrays)
+                and starts.ndim == ends.ndim == 2 and starts.shape[1] == ends.shape[1] == 2
+                and position.shape == (2,) and all_finite(starts, ends)
+                and all_finite(position, position)):
+            for name, array, shape in (("starts", starts, (None, 2)), ("ends", ends, (None, 2)),
+                                       ("position", position, (2,))):
+                finite_array(name, array, "m", shape)
+                if not (type(array) is np.ndarray and array.dtype == np.float64):
+                    raise ValueError(f"{name} must be a float64 array (m), got "
+                                     f"{type(array).__name__}")
         try:
             ok = (math.isfinite(self.radius + self.max_accel + self.dt) and self.radius >= 0.0
                   and self.max_accel > 0.0 and self.dt > 0.0)
@@ -281,7 +282,7 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
         check_reals((("heading", heading, "rad", None), ("speed", speed, "m/s", 0.0),
                      ("max_turn", max_turn, "rad", 0.0), ("max_dv", max_dv, "m/s", 0.0),
                      ("fallback_heading", fallback_heading, "rad", None)))
-    if not (np.isfinite(points).all() and np.isfinite(directions).all()):
+    if not all_finite(points, directions):
         raise ValueError("points and directions (the ORCA lines) must be finite")
     if SCALAR_TRIG and compiled_trig() and compiled_polar():
         if envelope is None:

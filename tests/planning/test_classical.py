@@ -11,6 +11,7 @@ from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.planning.classical import (
     CLASSICAL_METHODS,
+    MAX_CELLS,
     circles_vertices,
     double_scan_vertices,
     hilbert_cells,
@@ -247,3 +248,14 @@ def test_bad_grid_parameters():
         morton_cells(3, 0)
     with pytest.raises(ValueError, match="max_chord_error"):
         circles_vertices(100, 100, 10, 1, max_chord_error=0)
+
+
+@pytest.mark.parametrize("fn", [hilbert_vertices, z_curve_vertices])
+def test_a_spacing_asking_for_too_many_cells_is_refused_not_a_memory_error(fn):
+    """A tiny spacing used to allocate tens of GiB (HILBERT: 4**15 cells) and die in a
+    MemoryError; the limit is MAX_CELLS, and a grid at the limit is still built."""
+    with pytest.raises(ValueError, match=r"spacing=0.001 m asks for \d+ cells on a 100 x 100 m "
+                                         r"field; at most 4194304"):
+        fn(100, 100, 0.001, 0.0)
+    side = 2**11 * 0.5                         # 2048 x 2048 = 4**11 = MAX_CELLS cells of 0.5 m
+    assert len(fn(side, side, 0.5, 0.0)) == MAX_CELLS

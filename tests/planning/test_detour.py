@@ -485,3 +485,26 @@ def test_a_planner_names_a_bad_radius_and_a_map_with_no_room():
     with pytest.raises(MapError, match=r"no cell of the 0.5 m grid leaves a disc of radius 12 m "
                                        r"clear of the obstacles and the border"):
         DetourPlanner(ObstacleMap(20, 20), 12.0)
+
+
+def test_queries_refuse_nonfinite_points():
+    """A NaN end used to read as visible (no edge crosses a NaN segment), a NaN goal of
+    costs() as another cell's cost; each is now an error naming the argument."""
+    p = DetourPlanner(ObstacleMap(100, 100, [WALL]), 1.0)
+    a, b = np.array([20.0, 50.0]), np.array([70.0, 50.0])
+    assert not p.visible(a, b)
+    for where in ("a", "b"):
+        args = {"a": a, "b": b, where: np.array([math.nan, 50.0])}
+        with pytest.raises(ValueError, match=f"{where} must be a pair of finite numbers"):
+            p.visible(**args)
+    with pytest.raises(ValueError, match="goal must be a pair of finite numbers"):
+        p.path(a, np.array([70.0, math.inf]))
+    with pytest.raises(ValueError, match="keepout must be finite"):
+        p.path(a, b, keepout=np.array([[math.nan, 1.0]]), keepout_radius=2.0)
+    with pytest.raises(ValueError, match="keepout_radius="):
+        p.path(a, b, keepout=np.array([[40.0, 50.0]]), keepout_radius=-2.0)
+    with pytest.raises(ValueError, match="goals must be finite"):
+        p.costs(a, np.array([[70.0, 50.0], [math.nan, 1.0]]))
+    with pytest.raises(ValueError, match="start must be a pair"):
+        p.costs(np.array([1.0, 2.0, 3.0]), np.array([[70.0, 50.0]]))
+    assert np.isfinite(p.costs(a, np.array([[70.0, 50.0]]))).all()

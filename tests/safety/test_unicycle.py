@@ -576,11 +576,11 @@ def test_unicycle_command_refuses_what_would_command_nonsense(name, value, match
 
 
 @pytest.mark.parametrize("field, value, match", [
-    ("position", np.array([math.nan, 0.0]), "position must be a pair of finite"),
+    ("position", np.array([math.nan, 0.0]), r"position must be finite \(m\)"),
     ("position", np.zeros(3), "position must be a"),
     ("starts", np.array([[math.inf, 0.0]]), "starts must be finite"),
     ("ends", np.zeros((1, 3)), r"ends must be an array of shape \(n, 2\)"),
-    ("ends", [[1.0, 1.0]], "ends must be a float array"),
+    ("ends", [[1.0, 1.0]], "ends must be a float64 array"),
     ("radius", -0.5, "radius="), ("max_accel", 0.0, "max_accel="), ("dt", math.nan, "dt="),
 ])
 def test_a_braking_envelope_of_nonfinite_or_bad_values_is_refused(field, value, match):
