@@ -10,9 +10,16 @@ process's CPU time. Each process gives its own ratio (bare / Safe) and the stack
 (Safe - bare); the trees meet the same machine one process apart, so the per-seed pairs and
 the pooled figures are what to read on a shared or drifting machine.
 
+``--gate`` measures instead, in one process, what the tracker's compiled gate (issue 20's
+twenty-first round) takes off: AOASS-v0, AOASS-Safe-v0 and AOASS-Safe-v0 whose tracker
+associates by NumPy's inverse and ``linear_sum_assignment`` alone (its ``_nearest`` answering
+None: the tree before), stepped in turn in chunks of 200 steps, the order reversed every
+round; the three meet the same drift of the machine, and the two stacks play the same
+episodes (the pairs are the same, tests/safety/test_kalman.py).
+
 Run: ``python3 benchmarks/safety_speedup.py [--against 2b79768] [--steps 6000] [--seeds 3]
-[--rounds 2]`` (pin it to one core with ``taskset -c 1``). ``2b79768`` is the tree before
-issue 20's twenty-first round (docs/performance.md).
+[--rounds 2] [--gate]`` (pin it to one core with ``taskset -c 1``). ``2b79768`` is the tree
+before issue 20's twenty-first round (docs/performance.md).
 """
 
 from __future__ import annotations
@@ -36,6 +43,38 @@ def paired_us(steps: int, seed: int) -> tuple[float, float]:
     return interleaved(steps, seed)
 
 
+def gate_us(steps: int, seed: int, chunk: int = 200) -> tuple[float, float, float]:
+    """(AOASS-v0, AOASS-Safe-v0, AOASS-Safe-v0 with NumPy's association) CPU microseconds per
+    random step from ``seed``, stepped in turn (see the module docstring), after 1 500 steps
+    of each."""
+    import time
+
+    def run(env: gym.Env, n: int) -> float:
+        cpu = time.process_time()
+        for _ in range(n):
+            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+            if terminated or truncated:
+                env.reset()
+        return time.process_time() - cpu
+
+    envs = [gym.make(env_id) for env_id in ("AOASS-v0", "AOASS-Safe-v0", "AOASS-Safe-v0")]
+    tracker = envs[2]
+    while not hasattr(tracker, "tracker"):
+        tracker = tracker.env
+    tracker.tracker._nearest = lambda *args: None        # NumPy's association decides
+    for env in envs:
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        run(env, 1_500)
+    spent = [0.0, 0.0, 0.0]
+    rounds = max(steps // chunk, 1)
+    for r in range(rounds):
+        for i in ((0, 1, 2) if r % 2 == 0 else (2, 1, 0)):
+            spent[i] += run(envs[i], chunk)
+    bare, compiled, numpy_gate = (1e6 * s / (rounds * chunk) for s in spent)
+    return bare, compiled, numpy_gate
+
+
 def main(argv: list[str] | None = None) -> None:
     from aoass_env.validators import argparse_number
 
@@ -47,7 +86,32 @@ def main(argv: list[str] | None = None) -> None:
                         help="seeds 0 .. N-1")
     parser.add_argument("--rounds", type=argparse_number(int, 1), default=2,
                         help="runs of each tree and seed, in turn")
+    parser.add_argument("--gate", action="store_true",
+                        help="in one process: the compiled gate against NumPy's association")
     args = parser.parse_args(argv)
+    if args.gate:
+        from env_throughput import warm_up_env
+
+        for env_id in ("AOASS-Safe-v0", "AOASS-v0"):
+            warm_up_env(gym.make(env_id))
+        print(f"AOASS-v0, AOASS-Safe-v0 and AOASS-Safe-v0 with NumPy's association stepped in "
+              f"turn, CPU us per step ({args.steps} steps each per seed and round):")
+        pooled = [0.0, 0.0, 0.0]
+        for i in range(args.rounds):
+            for seed in range(args.seeds):
+                us = gate_us(args.steps, seed)
+                pooled = [p + u for p, u in zip(pooled, us, strict=True)]
+                bare, compiled, numpy_gate = us
+                print(f"  round {i + 1}, seed {seed}: the stack {compiled - bare:6.1f} us with "
+                      f"the compiled gate, {numpy_gate - bare:6.1f} us without; ratio "
+                      f"{bare / compiled:.3f} against {bare / numpy_gate:.3f}", flush=True)
+        bare, compiled, numpy_gate = pooled
+        runs = args.rounds * args.seeds
+        print(f"pooled: ratio {bare / compiled:.3f} with the compiled gate, "
+              f"{bare / numpy_gate:.3f} without (target 0.7); the stack "
+              f"{(compiled - bare) / runs:.1f} against {(numpy_gate - bare) / runs:.1f} us per "
+              f"step")
+        return
     with tempfile.TemporaryDirectory(prefix="aoass_before_") as folder:
         before = Path(folder)
         unpack(args.against, before)

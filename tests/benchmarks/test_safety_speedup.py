@@ -16,3 +16,21 @@ def test_a_run_times_the_bare_env_and_the_stack(monkeypatch):
     assert warmed == ["AOASS-Safe-v0", "AOASS-v0"]
     assert 0.0 < bare and 0.0 < safe
 
+
+
+def test_the_gate_measure_steps_three_envs_and_forces_numpys_association_in_one(monkeypatch):
+    """--gate's stack without the compiled gate must really associate by NumPy's path."""
+    from aoass_env.safety.kalman import MultiTargetTracker
+
+    bench = load_benchmark("safety_speedup")
+    calls = {"compiled": 0}
+    nearest = MultiTargetTracker._nearest
+
+    def counted(self, *args):
+        calls["compiled"] += 1
+        return nearest(self, *args)
+
+    monkeypatch.setattr(MultiTargetTracker, "_nearest", counted)
+    bare, compiled, numpy_gate = bench.gate_us(200, 0, chunk=100)
+    assert min(bare, compiled, numpy_gate) > 0.0
+    assert calls["compiled"] > 0          # the first stack's tracker took the compiled gate
