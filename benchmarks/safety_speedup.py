@@ -26,7 +26,9 @@ from __future__ import annotations
 
 import argparse
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 from step_speedup import ROOT, run_in_tree, unpack
@@ -43,10 +45,12 @@ def paired_us(steps: int, seed: int) -> tuple[float, float]:
     return interleaved(steps, seed)
 
 
-def gate_us(steps: int, seed: int, chunk: int = 200) -> tuple[float, float, float]:
+def gate_us(steps: int, seed: int, chunk: int = 200) -> tuple[float, ...]:
     """(AOASS-v0, AOASS-Safe-v0, AOASS-Safe-v0 with NumPy's association) CPU microseconds per
     random step from ``seed``, stepped in turn (see the module docstring), after 1 500 steps
-    of each."""
+    of each; then the two stacks' association alone (their trackers' ``_associate``, wall
+    microseconds per step of the timed steps): the part the gate changes, timed where it runs,
+    which the whole steps' scatter on a shared machine can hide."""
     import time
 
     def run(env: gym.Env, n: int) -> float:
@@ -57,22 +61,36 @@ def gate_us(steps: int, seed: int, chunk: int = 200) -> tuple[float, float, floa
                 env.reset()
         return time.process_time() - cpu
 
+    def timed(associate: Callable[..., Any], k: int) -> Callable[..., Any]:
+        def call(*args: Any) -> Any:
+            start = time.perf_counter()
+            try:
+                return associate(*args)
+            finally:
+                associating[k] += time.perf_counter() - start
+        return call
+
     envs = [gym.make(env_id) for env_id in ("AOASS-v0", "AOASS-Safe-v0", "AOASS-Safe-v0")]
-    tracker = envs[2]
-    while not hasattr(tracker, "tracker"):
-        tracker = tracker.env
-    tracker.tracker._nearest = lambda *args: None        # NumPy's association decides
+    associating = [0.0, 0.0]
+    for k, env in enumerate(envs[1:]):
+        wrapper = env
+        while not hasattr(wrapper, "tracker"):
+            wrapper = wrapper.env
+        tracker = wrapper.tracker
+        if k:
+            tracker._nearest = lambda *args: None        # NumPy's association decides
+        tracker._associate = timed(tracker._associate, k)
     for env in envs:
         env.reset(seed=seed)
         env.action_space.seed(seed)
         run(env, 1_500)
-    spent = [0.0, 0.0, 0.0]
+    spent, associating[:] = [0.0, 0.0, 0.0], [0.0, 0.0]
     rounds = max(steps // chunk, 1)
     for r in range(rounds):
         for i in ((0, 1, 2) if r % 2 == 0 else (2, 1, 0)):
             spent[i] += run(envs[i], chunk)
-    bare, compiled, numpy_gate = (1e6 * s / (rounds * chunk) for s in spent)
-    return bare, compiled, numpy_gate
+    n = rounds * chunk
+    return (*(1e6 * s / n for s in spent), *(1e6 * a / n for a in associating))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -96,21 +114,22 @@ def main(argv: list[str] | None = None) -> None:
             warm_up_env(gym.make(env_id))
         print(f"AOASS-v0, AOASS-Safe-v0 and AOASS-Safe-v0 with NumPy's association stepped in "
               f"turn, CPU us per step ({args.steps} steps each per seed and round):")
-        pooled = [0.0, 0.0, 0.0]
+        pooled = [0.0] * 5
         for i in range(args.rounds):
             for seed in range(args.seeds):
                 us = gate_us(args.steps, seed)
                 pooled = [p + u for p, u in zip(pooled, us, strict=True)]
-                bare, compiled, numpy_gate = us
+                bare, compiled, numpy_gate, assoc, assoc_numpy = us
                 print(f"  round {i + 1}, seed {seed}: the stack {compiled - bare:6.1f} us with "
-                      f"the compiled gate, {numpy_gate - bare:6.1f} us without; ratio "
-                      f"{bare / compiled:.3f} against {bare / numpy_gate:.3f}", flush=True)
-        bare, compiled, numpy_gate = pooled
+                      f"the compiled gate, {numpy_gate - bare:6.1f} us without (its association "
+                      f"{assoc:5.1f} against {assoc_numpy:5.1f} us); ratio {bare / compiled:.3f} "
+                      f"against {bare / numpy_gate:.3f}", flush=True)
         runs = args.rounds * args.seeds
+        bare, compiled, numpy_gate, assoc, assoc_numpy = (p / runs for p in pooled)
         print(f"pooled: ratio {bare / compiled:.3f} with the compiled gate, "
-              f"{bare / numpy_gate:.3f} without (target 0.7); the stack "
-              f"{(compiled - bare) / runs:.1f} against {(numpy_gate - bare) / runs:.1f} us per "
-              f"step")
+              f"{bare / numpy_gate:.3f} without (target 0.7); the stack {compiled - bare:.1f} "
+              f"against {numpy_gate - bare:.1f} us per step, of which the association "
+              f"{assoc:.1f} against {assoc_numpy:.1f}")
         return
     with tempfile.TemporaryDirectory(prefix="aoass_before_") as folder:
         before = Path(folder)

@@ -31,6 +31,7 @@ def test_the_gate_measure_steps_three_envs_and_forces_numpys_association_in_one(
         return nearest(self, *args)
 
     monkeypatch.setattr(MultiTargetTracker, "_nearest", counted)
-    bare, compiled, numpy_gate = bench.gate_us(200, 0, chunk=100)
+    bare, compiled, numpy_gate, assoc, assoc_numpy = bench.gate_us(1200, 0, chunk=200)
     assert min(bare, compiled, numpy_gate) > 0.0
     assert calls["compiled"] > 0          # the first stack's tracker took the compiled gate
+    assert assoc > 0.0 and assoc_numpy > 0.0  # both stacks' associations timed
