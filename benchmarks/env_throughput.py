@@ -102,6 +102,16 @@ def throughput(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int, flo
     return steps / wall, episodes, reset_time, steps / max(cpu, 1e-9)
 
 
+def cpu_seconds(env: gym.Env, n: int) -> float:
+    """The process's CPU seconds for ``n`` random steps of ``env`` (resets included)."""
+    cpu = time.process_time()
+    for _ in range(n):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+    return time.process_time() - cpu
+
+
 def interleaved(steps: int, seed: int, chunk: int = 200, warm_up: int = 1_500,
                 **kwargs: Any) -> tuple[float, float]:
     """(AOASS-v0, AOASS-Safe-v0) CPU microseconds per random step, resets included: the two
@@ -110,15 +120,7 @@ def interleaved(steps: int, seed: int, chunk: int = 200, warm_up: int = 1_500,
     a shared machine, and the long run averages over their episodes, so the ratio is steadier
     than that of two short runs one after the other."""
     envs = [gym.make(env_id, **kwargs) for env_id in ("AOASS-v0", "AOASS-Safe-v0")]
-
-    def run(env: gym.Env, n: int) -> float:
-        cpu = time.process_time()
-        for _ in range(n):
-            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-            if terminated or truncated:
-                env.reset()
-        return time.process_time() - cpu
-
+    run = cpu_seconds
     for env in envs:
         env.reset(seed=seed)
         env.action_space.seed(seed)

@@ -53,13 +53,7 @@ def gate_us(steps: int, seed: int, chunk: int = 200) -> tuple[float, ...]:
     which the whole steps' scatter on a shared machine can hide."""
     import time
 
-    def run(env: gym.Env, n: int) -> float:
-        cpu = time.process_time()
-        for _ in range(n):
-            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-            if terminated or truncated:
-                env.reset()
-        return time.process_time() - cpu
+    from env_throughput import cpu_seconds as run  # after the tree's aoass_env
 
     def timed(associate: Callable[..., Any], k: int) -> Callable[..., Any]:
         def call(*args: Any) -> Any:
