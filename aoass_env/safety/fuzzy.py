@@ -415,14 +415,15 @@ class FuzzyController:
         The memberships, the rules and the aggregation run compiled (:func:`_aggregate`); the
         centroid's areas and moments are NumPy's products of the aggregated sets, whose
         division and clipping round as NumPy's float64 scalars do (NumPy divides a zero area).
-        The products are ``np.dot``'s: the same BLAS product as ``@`` (one vector times one
-        matrix; tested equal), with less of the ufunc machinery around it.
+        The products are ``ndarray.dot``'s: the same BLAS product as ``@`` and ``np.dot`` (one
+        vector times one matrix; tested equal), with less of the ufunc machinery around it
+        (the method skips ``np.dot``'s ``__array_function__`` dispatch, about 0.6 us a call).
         """
         tab = self._tables
         sets = _aggregate(d, h, *tab["compiled"])
         moments = tab["moments"]
-        ta, tm = np.dot(sets[0], moments[0]).tolist()
-        sa, sm = np.dot(sets[1], moments[1]).tolist()
+        ta, tm = sets[0].dot(moments[0]).tolist()
+        sa, sm = sets[1].dot(moments[1]).tolist()
         if not (ta and sa):     # an area underflowed to 0: NumPy's inf or nan (and warning)
             ta, sa = np.float64(ta), np.float64(sa)
         return min(max(tm / ta, -1.0), 1.0), min(max(sm / sa, 0.0), 1.0)
