@@ -38,8 +38,8 @@ from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
-__all__ = ["ConfigError", "ValidatedConfig", "check_reals", "finite_array", "first_difference",
-           "float_array", "integer", "one_line", "param", "positive", "real",
+__all__ = ["ConfigError", "ValidatedConfig", "finite_array", "first_difference", "float_array",
+           "integer", "number_array", "one_line", "param", "positive", "real",
            "torch_load_problem", "unknown_key_message", "vec2"]
 
 
@@ -142,7 +142,7 @@ def real(name: str, value: Any, unit: str = "", *, low: float | None = None,
          doc: str = "", error: type[Exception] = ValueError) -> float:
     """``value`` as a Python float when it is a finite real number in the range (see the
     module docstring); else ``error`` naming ``name``, the range, ``unit`` and ``doc``."""
-    if _is_number(value):
+    if type(value) is float or _is_number(value):     # a Python float skips the ABC test
         v = float(value)
         if math.isfinite(v) and not (
                 (low is not None and (v <= low if low_open else v < low))
@@ -169,21 +169,10 @@ def positive(name: str, value: Any, unit: str = "", *, high: float | None = None
     return real(name, value, unit, low=0.0, low_open=True, high=high, error=error)
 
 
-def check_reals(checks: Iterable[tuple[str, Any, str, float | None]]) -> None:
-    """Each ``(name, value, unit, low)`` a finite real number, at least ``low`` (any when
-    ``low`` is None); else :func:`real`'s ValueError naming the first that is not. For the
-    per-call checks of library functions: their callers first test the sum of the values and
-    their bounds in a few float operations, and call this only when that test fails (a NaN, an
-    infinity, a value out of its bound, or a finite sum that overflowed)."""
-    for name, value, unit, low in checks:
-        real(name, value, unit, low=low)
-
-
-def finite_array(name: str, value: Any, unit: str = "", shape: tuple[int | None, ...] | None
-                 = None) -> np.ndarray:
-    """``value`` as a float64 array of numbers (integers or floats: not booleans, strings or
-    objects), every entry finite and, when ``shape`` is given, of that shape (None: any length
-    on that axis); else a ValueError naming ``name``."""
+def number_array(name: str, value: Any, unit: str = "") -> np.ndarray:
+    """``value`` as a float64 array when its entries are numbers (integers or floats: not
+    booleans, strings or objects); else a ValueError naming ``name``. NaN and infinities
+    pass (see :func:`finite_array`)."""
     try:
         raw = np.asarray(value)
     except (TypeError, ValueError) as exc:
@@ -191,13 +180,20 @@ def finite_array(name: str, value: Any, unit: str = "", shape: tuple[int | None,
     if raw.dtype.kind not in "iuf":
         raise ValueError(f"{name} must be an array of numbers{_unit(unit)}, got dtype "
                          f"{raw.dtype}")
-    if shape is not None and (raw.ndim != len(shape) or any(
-            want is not None and got != want for got, want in zip(raw.shape, shape,
+    return raw.astype(np.float64, copy=False)
+
+
+def finite_array(name: str, value: Any, unit: str = "", shape: tuple[int | None, ...] | None
+                 = None) -> np.ndarray:
+    """:func:`number_array` with every entry finite and, when ``shape`` is given, of that
+    shape (None: any length on that axis); else a ValueError naming ``name``."""
+    array = number_array(name, value, unit)
+    if shape is not None and (array.ndim != len(shape) or any(
+            want is not None and got != want for got, want in zip(array.shape, shape,
                                                                   strict=True))):
         axes = ", ".join("n" if n is None else str(n) for n in shape)
         raise ValueError(f"{name} must be an array of shape ({axes}){_unit(unit)}, got "
-                         f"shape {raw.shape}")
-    array = raw.astype(np.float64, copy=False)
+                         f"shape {array.shape}")
     if not np.isfinite(array).all():
         raise ValueError(f"{name} must be finite{_unit(unit)} (no NaN or infinity)")
     return array

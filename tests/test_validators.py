@@ -269,10 +269,13 @@ def test_finite_array_names_the_array_and_what_is_wrong() -> None:
             finite_array("a", value, "m", (None, 2))
 
 
-def test_check_reals_names_the_first_bad_value() -> None:
-    from aoass_env.validators import check_reals
-    check_reals((("x", 1.0, "m", None), ("y", 0.0, "m/s", 0.0)))
-    with pytest.raises(ValueError, match="y="):
-        check_reals((("x", 1.0, "m", None), ("y", -1.0, "m/s", 0.0), ("z", math.nan, "", None)))
-    with pytest.raises(ValueError, match="x="):
-        check_reals((("x", True, "m", None),))
+
+def test_real_takes_a_python_float_by_its_fast_path_with_the_same_rule() -> None:
+    """The fast path for a plain float (no ABC test) keeps every bound and the non-finite
+    refusals; other numbers still go the general way."""
+    assert real("x", 1.5, "m", low=0.0) == 1.5 and real("x", np.float32(0.5)) == 0.5
+    for value, kwargs in ((math.nan, {}), (math.inf, {}), (-1.0, {"low": 0.0}),
+                          (0.0, {"low": 0.0, "low_open": True}), (2.0, {"high": 1.0}),
+                          (True, {})):
+        with pytest.raises(ValueError, match="x="):
+            real("x", value, "m", **kwargs)

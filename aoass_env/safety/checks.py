@@ -2,9 +2,9 @@
 functions (:func:`~aoass_env.safety.unicycle.unicycle_command`,
 :class:`~aoass_env.safety.unicycle.BrakingEnvelope`,
 :func:`~aoass_env.safety.lookahead.escape_velocity`, :func:`~aoass_env.safety.lookahead.rollout`):
-a NaN or an infinity in their arrays would otherwise come out as a silently wrong command. One
-call checks two arrays of any shape in a fraction of a microsecond; ``np.isfinite(a).all()`` on
-small arrays costs a few."""
+a NaN or an infinity in their arrays would otherwise come out as a silently wrong command; and
+the velocity filter's check of its moving discs. One call checks one or two arrays of any shape
+in a fraction of a microsecond; ``np.isfinite(a).all()`` on small arrays costs a few."""
 
 from __future__ import annotations
 
@@ -13,11 +13,12 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["all_finite"]
+__all__ = ["all_finite", "finite"]
 
 
 @numba.njit(cache=True)
-def _finite(a: np.ndarray) -> bool:
+def finite(a: np.ndarray) -> bool:
+    """Whether every entry of the float array ``a`` is finite (no NaN, no infinity)."""
     for x in a.flat:
         if not math.isfinite(x):
             return False
@@ -28,4 +29,4 @@ def _finite(a: np.ndarray) -> bool:
 def all_finite(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether every entry of the float arrays ``a`` and ``b`` is finite (no NaN, no
     infinity)."""
-    return _finite(a) and _finite(b)
+    return finite(a) and finite(b)

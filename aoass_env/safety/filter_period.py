@@ -24,6 +24,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from aoass_env.safety.checks import finite
 from aoass_env.safety.orca import (
     OrcaAgent,
     OrcaLines,
@@ -75,10 +76,9 @@ class PeriodSettings:
 @numba.njit(cache=True)
 def _discs_ok(moving: np.ndarray) -> bool:
     """Are the (k, 5) discs ``moving`` [x, y, vx, vy, radius] finite, with radii >= 0?"""
+    if not finite(moving):
+        return False
     for i in range(moving.shape[0]):
-        for j in range(5):
-            if not np.isfinite(moving[i, j]):
-                return False
         if moving[i, 4] < 0.0:
             return False
     return True

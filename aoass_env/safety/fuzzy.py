@@ -38,7 +38,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from aoass_env.validators import one_line
+from aoass_env.validators import number_array
 
 __all__ = ["FuzzyController", "FuzzyVariable", "membership"]
 
@@ -443,19 +443,6 @@ class FuzzyController:
         speed = clipped[nt:].max(axis=0) @ tab["moments"][1]
         return np.concatenate([turn, speed], axis=1)
 
-    @staticmethod
-    def _numbers(name: str, value: ArrayLike, what: str) -> np.ndarray:
-        """``value`` as a float array when its entries are numbers (integers or floats), else a
-        ValueError naming ``name``: a boolean, a string ("1") or an object is no gap or
-        angle."""
-        try:
-            array = np.asarray(value)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{name} must be numbers ({what}): {one_line(exc)}") from None
-        if array.dtype.kind not in "iuf":
-            raise ValueError(f"{name} must be numbers ({what}), got {array.dtype} values")
-        return array.astype(float, copy=False)
-
     def __call__(self, d: ArrayLike, dtheta: ArrayLike) -> tuple[Any, Any]:
         """Evaluate f_FLC(d, dtheta) = [omega, v] (Eq. 7).
 
@@ -481,8 +468,9 @@ class FuzzyController:
             if not math.isfinite(dtheta):
                 raise ValueError("dtheta must be finite (heading error, rad)")
             return self._infer_scalar(d, dtheta - _TWO_PI * round(dtheta / _TWO_PI))
-        d_arr = self._numbers("d", d, "gap to the nearest obstacle, m")
-        h_arr = self._numbers("dtheta", dtheta, "heading error, rad")
+        # a boolean, a string ("1") or an object is no gap or angle
+        d_arr = number_array("d", d, "gap to the nearest obstacle, m")
+        h_arr = number_array("dtheta", dtheta, "heading error, rad")
         try:
             d_arr, h_arr = np.broadcast_arrays(d_arr, h_arr)
         except ValueError:

@@ -72,8 +72,8 @@ __all__ = ["MultiTargetTracker", "Track"]
 #: relative band (of the gate's d2) within which the compiled distances of
 #: :func:`_gate_distances` leave a decision to NumPy's: a d2 this close to the gate, or two
 #: gated d2 this close to each other. Both computations are backward stable (relative errors
-#: of a few cond(S) x 1e-16, cond(S) below 1e4 with the env's noises), so outside the band
-#: they decide alike
+#: of a few cond(S) x 1e-16; S >= R, so cond(S) stays far below the 1e10 that would make the
+#: two differ by the band), so outside the band they decide alike
 _DECISION_BAND = 1e-6
 
 

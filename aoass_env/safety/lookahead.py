@@ -49,7 +49,7 @@ import numpy as np
 from aoass_env.pairwise import pairwise_sum
 from aoass_env.safety.checks import all_finite
 from aoass_env.trig import SCALAR_TRIG, compiled_trig
-from aoass_env.validators import check_reals, integer, positive, real, vec2
+from aoass_env.validators import integer, positive, real, vec2
 
 __all__ = ["Escape", "EscapeBudget", "candidate_commands", "escape_velocity", "look_ahead_horizon",
            "obstacle_radii", "position_std", "predict_obstacles", "rollout",
@@ -393,19 +393,13 @@ def _check_motion(heading: float, speed: float, max_turn_rate: float, max_accel:
     """The anchor's state and limits and the static edges of :func:`rollout` and
     :func:`escape_velocity` (``limits``: their other positive limits, by name): finite, the
     speed and the radius >= 0, the limits > 0; else a ValueError naming the first that is
-    not. A few float operations when they are."""
-    values = (max_turn_rate, max_accel, step, *limits.values())
-    try:
-        ok = (math.isfinite(heading + speed + radius + sum(values)) and speed >= 0.0
-              and radius >= 0.0 and min(values) > 0.0)
-    except TypeError:
-        ok = False
-    if not ok:
-        check_reals((("heading", heading, "rad", None), ("speed", speed, "m/s", 0.0),
-                     ("radius", radius, "m", 0.0)))
-        for name, value in (("max_turn_rate", max_turn_rate), ("max_accel", max_accel),
-                            ("step", step), *limits.items()):
-            positive(name, value)
+    not."""
+    real("heading", heading, "rad")
+    real("speed", speed, "m/s", low=0.0)
+    real("radius", radius, "m", low=0.0)
+    for name, value in (("max_turn_rate", max_turn_rate), ("max_accel", max_accel),
+                        ("step", step), *limits.items()):
+        positive(name, value)
     if not all_finite(np.asarray(starts, dtype=np.float64), np.asarray(ends, dtype=np.float64)):
         raise ValueError("starts and ends (the static edges, m) must be finite")
 
@@ -730,19 +724,13 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         raise ValueError("obstacles and covariances (the tracks) must be finite")
     _check_motion(heading, speed, max_turn_rate, max_accel, step, starts, ends, radius,
                   max_speed=max_speed, horizon=horizon)
-    optional = (obstacle_radius or 0.0, react or 0.0, tolerance or 0.0)
-    try:
-        ok = (math.isfinite(sigma + maneuver + clearance + progress_weight + sum(optional))
-              and min(sigma, maneuver, clearance, progress_weight, *optional) >= 0.0)
-    except TypeError:
-        ok = False
-    if not ok:
-        check_reals((("sigma", sigma, "", 0.0), ("maneuver", maneuver, "per s", 0.0),
-                     ("clearance", clearance, "m", 0.0),
-                     ("progress_weight", progress_weight, "", 0.0),
-                     *((name, value, unit, 0.0) for name, value, unit in (
-                         ("obstacle_radius", obstacle_radius, "m"), ("react", react, "s"),
-                         ("tolerance", tolerance, "")) if value is not None)))
+    for name, value, unit in (("sigma", sigma, ""), ("maneuver", maneuver, "per s"),
+                              ("clearance", clearance, "m"), ("progress_weight", progress_weight,
+                                                              ""),
+                              ("obstacle_radius", obstacle_radius, "m"), ("react", react, "s"),
+                              ("tolerance", tolerance, "")):
+        if value is not None:            # the last three: None is a setting
+            real(name, value, unit, low=0.0)
     if type(n_headings) is not int or n_headings < 1:
         integer("n_headings", n_headings, "headings", low=1)
     position = np.asarray(position, dtype=np.float64)

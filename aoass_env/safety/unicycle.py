@@ -30,9 +30,9 @@ from typing import Any
 import numba
 import numpy as np
 
-from aoass_env.safety.checks import all_finite
+from aoass_env.safety.checks import all_finite, finite
 from aoass_env.trig import SCALAR_TRIG, compiled_polar, compiled_trig, hypot
-from aoass_env.validators import check_reals, finite_array, positive, vec2
+from aoass_env.validators import finite_array, positive, real, vec2
 
 __all__ = ["BrakingEnvelope", "braking_speed", "clearance", "free_travel", "speed_bounds",
            "turn_headings", "unicycle_command"]
@@ -211,26 +211,19 @@ class BrakingEnvelope:
     def __post_init__(self) -> None:
         # an infinite or NaN edge, position or limit would cap no speed (or every one) silently
         starts, ends, position = self.starts, self.ends, self.position
-        arrays = (starts, ends, position)
-        if not (all(type(a) is np.ndarray and a.dtype == np.float64 for a in arrays)
+        if not (all(type(a) is np.ndarray and a.dtype == np.float64 for a in (starts, ends,
+                                                                               position))
                 and starts.ndim == ends.ndim == 2 and starts.shape[1] == ends.shape[1] == 2
-                and position.shape == (2,) and all_finite(starts, ends)
-                and all_finite(position, position)):
+                and position.shape == (2,) and all_finite(starts, ends) and finite(position)):
             for name, array, shape in (("starts", starts, (None, 2)), ("ends", ends, (None, 2)),
                                        ("position", position, (2,))):
                 finite_array(name, array, "m", shape)
                 if not (type(array) is np.ndarray and array.dtype == np.float64):
                     raise ValueError(f"{name} must be a float64 array (m), got "
                                      f"{type(array).__name__}")
-        try:
-            ok = (math.isfinite(self.radius + self.max_accel + self.dt) and self.radius >= 0.0
-                  and self.max_accel > 0.0 and self.dt > 0.0)
-        except TypeError:
-            ok = False
-        if not ok:
-            check_reals((("radius", self.radius, "m", 0.0),))
-            positive("max_accel", self.max_accel, "m/s^2")
-            positive("dt", self.dt, "s")
+        real("radius", self.radius, "m", low=0.0)
+        positive("max_accel", self.max_accel, "m/s^2")
+        positive("dt", self.dt, "s")
 
     def __call__(self, headings: np.ndarray) -> np.ndarray:
         """(k,) the speed cap on each heading (rad)."""
@@ -272,16 +265,13 @@ def unicycle_command(v_star: np.ndarray, heading: float, speed: float, max_turn:
     if envelope is not None and envelope.starts.shape != envelope.ends.shape:
         raise ValueError(f"the envelope's starts and ends must be (m, 2) arrays of the same "
                          f"edges, got shapes {envelope.starts.shape} and {envelope.ends.shape}")
+    # a NaN, an infinity or a negative limit would command nonsense silently
     vx, vy = vec2("v_star", v_star, "m/s")
-    try:        # a NaN, an infinity or a negative limit would command nonsense silently
-        ok = (math.isfinite(heading + speed + max_turn + max_dv + fallback_heading)
-              and speed >= 0.0 and max_turn >= 0.0 and max_dv >= 0.0)
-    except TypeError:
-        ok = False
-    if not ok:
-        check_reals((("heading", heading, "rad", None), ("speed", speed, "m/s", 0.0),
-                     ("max_turn", max_turn, "rad", 0.0), ("max_dv", max_dv, "m/s", 0.0),
-                     ("fallback_heading", fallback_heading, "rad", None)))
+    heading, fallback_heading = real("heading", heading, "rad"), real(
+        "fallback_heading", fallback_heading, "rad")
+    speed = real("speed", speed, "m/s", low=0.0)
+    max_turn = real("max_turn", max_turn, "rad", low=0.0)
+    max_dv = real("max_dv", max_dv, "m/s", low=0.0)
     if not all_finite(points, directions):
         raise ValueError("points and directions (the ORCA lines) must be finite")
     if SCALAR_TRIG and compiled_trig() and compiled_polar():

@@ -222,11 +222,13 @@ def test_bad_controllers_rejected(kwargs, match):
     (np.array([1.0, math.nan]), 0.0, "d must not be NaN"),
     (np.ones(2), np.array([0.0, -math.inf]), "dtheta"),
     (np.ones(3), np.zeros(2), "broadcast"),
-    (True, 0.0, "d must be numbers"), (1.0, False, "dtheta must be numbers"),
-    ("1", 0.0, "d must be numbers"), (["1"], [0.1], "d must be numbers"),
-    (np.array([True]), np.array([0.1]), "d must be numbers"),
-    (np.bool_(True), 0.1, "d must be numbers"), ([1.0, None], 0.1, "d must be numbers"),
-    (1.0, [[0.1], [0.2, 0.3]], "dtheta must be numbers"),
+    (True, 0.0, "d must be an array of numbers"),
+    (1.0, False, "dtheta must be an array of numbers"),
+    ("1", 0.0, "d must be an array of numbers"), (["1"], [0.1], "d must be an array of numbers"),
+    (np.array([True]), np.array([0.1]), "d must be an array of numbers"),
+    (np.bool_(True), 0.1, "d must be an array of numbers"),
+    ([1.0, None], 0.1, "d must be an array of numbers"),
+    (1.0, [[0.1], [0.2, 0.3]], "dtheta must be an array of numbers"),
 ])
 def test_bad_inputs_rejected(d, h, match):
     with pytest.raises(ValueError, match=match):

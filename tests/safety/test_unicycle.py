@@ -558,7 +558,7 @@ _COMMAND = dict(v_star=np.array([1.0, 0.0]), heading=0.0, speed=0.5, max_turn=0.
 @pytest.mark.parametrize("name, value, match", [
     ("v_star", np.array([math.nan, 0.0]), "v_star must be a pair of finite numbers"),
     ("v_star", np.array([1.0, 0.0, 0.0]), "v_star must be a pair"),
-    ("heading", math.nan, "heading="), ("heading", "0", "heading="),
+    ("heading", math.nan, "heading="), ("heading", "0", "heading="), ("speed", True, "speed="),
     ("speed", -1.0, "speed="), ("speed", math.inf, "speed="),
     ("max_turn", -0.3, "max_turn="), ("max_dv", math.nan, "max_dv="),
     ("fallback_heading", -math.inf, "fallback_heading="),
