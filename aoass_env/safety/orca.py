@@ -91,6 +91,12 @@ _PARALLEL = 1e-10
 #: Round-off slack (m/s) of the 2-D LP's infeasibility tests: a point that violates earlier
 #: lines by at most this much is accepted rather than declaring the program infeasible.
 _SLACK = 1e-9
+#: Relative excess over the speed limit beyond which a solution is pulled back onto the speed
+#: circle, toward the origin (which keeps it inside every half-plane the zero velocity meets).
+#: A point on the circle computed in float64 exceeds it by a few ulps (~1e-16); a chord end of
+#: a line far from the origin (linearProgram3's projected lines of near-antiparallel pairs) can
+#: lose ~1e-6 to cancellation in ``dot^2 + r^2 - |p|^2``, as in RVO2.
+_OVERSHOOT = 1e-12
 
 #: A line: (point x, point y, direction x, direction y), velocity space (m/s).
 _Line = tuple[float, float, float, float]
@@ -664,10 +670,15 @@ def _lp3(lines: np.ndarray, n_static: int, begin: int, speed: float, rx: float,
 @numba.njit(cache=True)
 def _solve(lines: np.ndarray, n_static: int, px: float, py: float,
            max_speed: float) -> tuple[float, float]:
-    """Eq. 10 on the (n, 4) rows ``lines``: linearProgram2, then 3 when it fails."""
+    """Eq. 10 on the (n, 4) rows ``lines``: linearProgram2, then 3 when it fails; a result
+    beyond the speed disc by more than round-off is pulled back onto it (:data:`_OVERSHOOT`)."""
     fail, x, y = _lp2(lines, lines.shape[0], max_speed, px, py, False)
     if fail < lines.shape[0]:
         x, y = _lp3(lines, n_static, fail, max_speed, x, y)
+    norm = hypot(x, y)
+    if norm > max_speed * (1.0 + _OVERSHOOT):
+        scale = max_speed / norm
+        x, y = x * scale, y * scale
     return x, y
 
 

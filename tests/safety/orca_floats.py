@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from aoass_env.safety.orca import _EPS, _PARALLEL, _SLACK, StaticObstacles
+from aoass_env.safety.orca import _EPS, _OVERSHOOT, _PARALLEL, _SLACK, StaticObstacles
 
 _Line = tuple[float, float, float, float]
 
@@ -462,8 +462,12 @@ def _lp3(lines: list[_Line], n_static: int, begin: int, speed: float, rx: float,
 
 def reference_solve(lines: list[_Line], n_static: int, px: float, py: float,
                     max_speed: float) -> tuple[float, float]:
-    """Eq. 10 in Python floats: linearProgram2, then 3 when it fails."""
+    """Eq. 10 in Python floats: linearProgram2, then 3 when it fails; a result beyond the speed
+    disc by more than round-off (``_OVERSHOOT``, relative) is scaled back onto its circle."""
     fail, x, y = _lp2(lines, max_speed, px, py, False)
     if fail < len(lines):
         x, y = _lp3(lines, n_static, fail, max_speed, x, y)
+    norm = math.hypot(x, y)
+    if norm > max_speed * (1.0 + _OVERSHOOT):
+        x, y = x * (max_speed / norm), y * (max_speed / norm)
     return x, y

@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 import shapely
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from aoass_env.safety.orca import (
@@ -497,8 +497,20 @@ def test_an_orca_agent_refuses_bad_settings_naming_them(kwargs, message):
         OrcaAgent(**{"radius": 0.5, "max_speed": 2.0, **kwargs})
 
 
+# linearProgram3 on two near-antiparallel lines (0 and 3): the projected line lies far from the
+# origin and its chord end overshot the speed circle by 2.4e-6 m/s before the pull-back
+_FAR_CHORD = ([], False,
+              np.array([[-4.0859375, 0.4140625, 0.5, 0.0, 0.5], [0.0, 2.5625, -1.0, 0.0, 0.9921875],
+                        [0.0, 0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 0.0, 1.0]]),
+              {"position": (-3.814453125, 0.1015625), "velocity": (0.0, 2.1953125),
+               "radius": 0.390625, "max_speed": 2.0, "time_horizon": 2.0,
+               "time_horizon_obst": 1.0, "time_step": 0.05, "responsibility": 0.5},
+              (0.0, 0.0))
+
+
 @settings(max_examples=300, deadline=None)
 @given(scenes())
+@example(_FAR_CHORD)
 def test_random_scenes_keep_speed_and_static_lines(scene):
     loops, border, discs, state, pref = scene
     lines = orca_lines(static_obstacles=loops, moving_obstacles=discs, **state)
