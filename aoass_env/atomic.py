@@ -25,10 +25,27 @@ def remove_stale_temporaries(folder: str | os.PathLike[str]) -> list[Path]:
     return stale
 
 
+def _sync_folder(folder: Path) -> None:
+    """fsync ``folder``, so that a rename in it survives a power loss (POSIX; where a folder
+    cannot be opened or synced, e.g. on Windows or some network file systems, the rename is
+    still atomic, only its durability is the file system's)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
 @contextlib.contextmanager
 def atomic_open(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO]:
     """Open a temporary file next to ``path`` for writing (``mode`` "w" text or "wb" binary);
-    on a clean exit it is flushed, synced and renamed over ``path``, otherwise removed."""
+    on a clean exit it is flushed, synced and renamed over ``path`` (and the folder synced, so
+    the rename is durable), otherwise removed."""
     if mode not in ("w", "wb"):
         raise ValueError(f"mode={mode!r} must be 'w' or 'wb'")
     path = Path(path)
@@ -40,6 +57,7 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO]:
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
+        _sync_folder(path.parent)
     finally:
         tmp.unlink(missing_ok=True)
 

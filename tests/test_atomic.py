@@ -1,5 +1,9 @@
+import os
+import stat
+
 import pytest
 
+from aoass_env import atomic
 from aoass_env.atomic import atomic_open, save_figure_atomic, write_text_atomic
 
 
@@ -19,6 +23,25 @@ def test_crash_mid_write_keeps_old_file_and_leaves_no_temp(tmp_path):
         raise RuntimeError("crash")
     assert target.read_bytes() == b"old"
     assert [p.name for p in tmp_path.iterdir()] == ["log.bin"]
+
+
+def test_the_file_then_its_folder_are_synced_after_the_rename(tmp_path, monkeypatch):
+    events = []
+    fsync, replace = os.fsync, os.replace
+
+    def spy_fsync(fd):
+        events.append("fsync folder" if stat.S_ISDIR(os.fstat(fd).st_mode) else "fsync file")
+        fsync(fd)
+
+    def spy_replace(src, dst):
+        events.append("replace")
+        replace(src, dst)
+
+    monkeypatch.setattr(atomic.os, "fsync", spy_fsync)
+    monkeypatch.setattr(atomic.os, "replace", spy_replace)
+    write_text_atomic(tmp_path / "a.txt", "x")
+    assert events == ["fsync file", "replace", "fsync folder"]
+    assert (tmp_path / "a.txt").read_text() == "x"
 
 
 def test_bad_mode():
