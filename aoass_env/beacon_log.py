@@ -151,6 +151,14 @@ def _fail_at(bad: np.ndarray, key: str, message: str) -> None:
         raise BeaconLogError(message.format(row=int(np.flatnonzero(bad)[0])), key)
 
 
+def _repeated_rows(rows: np.ndarray) -> np.ndarray:
+    """(n,) bool: the rows of the (n, 2) ``rows`` equal to an earlier row."""
+    order = np.lexsort((rows[:, 1], rows[:, 0]))  # stable: equal rows keep their order
+    repeated = np.zeros(len(rows), dtype=bool)
+    repeated[order[1:]] = np.all(rows[order[1:]] == rows[order[:-1]], axis=1)
+    return repeated
+
+
 @dataclass(frozen=True, eq=False)
 class BeaconLog:
     """One episode's record, validated and immutable (arrays are read-only).
@@ -211,6 +219,7 @@ class BeaconLog:
         _fail_at((links < 0).any(axis=1) | (links >= n).any(axis=1), "node_links",
                  f"node index out of [0, N={n}) in row {{row}}")
         _fail_at(links[:, 0] >= links[:, 1], "node_links", "row {row} is not a pair i < j")
+        _fail_at(_repeated_rows(links), "node_links", "row {row} repeats an earlier pair")
         _fail_at(values["node_energy"] < 0, "node_energy", "negative energy at node {row}")
         for key in ("anchor_energy", "collisions"):
             if values[key] < 0:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aoass_env.validators import float_array, integer, real
+from aoass_env.validators import integer, number_array, real
 
 
 def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, float]:
@@ -13,11 +13,13 @@ def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, f
     Nodes whose estimate is NaN (both coordinates: a localizer's "not localized") are left out
     of the RMSE; the fraction of nodes that were localized is returned beside it so that the
     two are always reported together. Any other non-finite estimate (an infinity, one NaN
-    coordinate) is a localizer's fault, not a missing estimate: ValueError.
+    coordinate) is a localizer's fault, not a missing estimate: ValueError. The RMSE of no
+    nodes (N = 0) is undefined: ValueError, as for :func:`coverage_ratio`.
     """
-    t, e = float_array("true_xy", true_xy), float_array("est_xy", est_xy)
-    if t.shape != e.shape or t.ndim != 2 or t.shape[1] != 2:
-        raise ValueError(f"true_xy {t.shape} and est_xy {e.shape} must have the same shape (N, 2)")
+    t, e = number_array("true_xy", true_xy, "m"), number_array("est_xy", est_xy, "m")
+    if t.shape != e.shape or t.ndim != 2 or t.shape[1] != 2 or len(t) == 0:
+        raise ValueError(f"true_xy {t.shape} and est_xy {e.shape} must have the same shape (N, 2)"
+                         f", N >= 1")
     if not np.isfinite(t).all():
         raise ValueError("true_xy must be finite (the nodes' true positions, m)")
     ok = np.all(np.isfinite(e), axis=1)
@@ -33,15 +35,17 @@ def localization_rmse(true_xy: np.ndarray, est_xy: np.ndarray) -> tuple[float, f
 
 
 def energy_per_beacon(energy_total: float, n_beacons: int) -> float:
-    """Eq. 16: E_norm = E_total / N_beacons (J per beacon); inf without beacons."""
+    """Eq. 16: E_norm = E_total / N_beacons (J per beacon); inf for energy without beacons,
+    NaN for neither (0 / 0: undefined, as its inverse :func:`energy_efficiency_ratio`)."""
     energy, beacons = _energy_and_beacons(energy_total, n_beacons)
-    return energy / beacons if beacons > 0 else float("inf")
+    return energy / beacons if beacons > 0 else float("inf") if energy > 0 else float("nan")
 
 
 def energy_efficiency_ratio(energy_total: float, n_beacons: int) -> float:
-    """Eq. 17: EER = 1 / E_norm (beacons per J); inf when nothing was spent."""
+    """Eq. 17: EER = 1 / E_norm (beacons per J); inf for beacons sent without energy, NaN for
+    neither (0 / 0: undefined)."""
     energy, beacons = _energy_and_beacons(energy_total, n_beacons)
-    return beacons / energy if energy > 0 else float("inf")
+    return beacons / energy if energy > 0 else float("inf") if beacons > 0 else float("nan")
 
 
 def _energy_and_beacons(energy_total: float, n_beacons: int) -> tuple[float, int]:

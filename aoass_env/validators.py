@@ -39,7 +39,7 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 
 __all__ = ["ConfigError", "ValidatedConfig", "finite_array", "first_difference", "float_array",
-           "integer", "number_array", "one_line", "param", "positive", "real",
+           "index_array", "integer", "number_array", "one_line", "param", "positive", "real",
            "torch_load_problem", "unknown_key_message", "vec2"]
 
 
@@ -181,6 +181,27 @@ def number_array(name: str, value: Any, unit: str = "") -> np.ndarray:
         raise ValueError(f"{name} must be an array of numbers{_unit(unit)}, got dtype "
                          f"{raw.dtype}")
     return raw.astype(np.float64, copy=False)
+
+
+def index_array(name: str, value: Any, size: int) -> np.ndarray:
+    """``value`` as an (n,) int64 array of distinct indices in [0, ``size``); else a ValueError
+    naming ``name`` (floats, even whole ones, booleans and negative indices are refused: an
+    index must not be rounded or wrap around)."""
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be an array of indices ({one_line(exc)})") from None
+    if raw.dtype.kind not in "iu" and raw.size:
+        raise ValueError(f"{name} must be integer indices in [0, {size}), got dtype {raw.dtype}")
+    if raw.ndim > 1:
+        raise ValueError(f"{name} must be a 1-D array of indices, got shape {raw.shape}")
+    index = raw.reshape(-1).astype(np.int64)
+    outside = (index < 0) | (index >= size)
+    if outside.any():
+        raise ValueError(f"{name} must be indices in [0, {size}), got {index[outside][0]}")
+    if len(np.unique(index)) < len(index):
+        raise ValueError(f"{name} must not repeat an index")
+    return index
 
 
 def finite_array(name: str, value: Any, unit: str = "", shape: tuple[int | None, ...] | None

@@ -175,6 +175,8 @@ CORRUPTIONS = [
     ("receptions", np.array([[0.0, 0.0]]), "dtype"),
     ("node_links", np.array([[0, 1], [3, 2]]), "row 1 is not a pair i < j"),
     ("node_links", np.array([[2, 2]]), "not a pair i < j"),
+    ("node_links", np.array([[1, 4], [0, 1], [1, 4]]), "row 2 repeats an earlier pair"),
+    ("node_links", np.array([[0, 1], [0, 2], [0, 1], [0, 1]]), "row 2 repeats an earlier"),
     ("node_links", np.array([[0, 5]]), "node index out of [0, N=5)"),
     ("node_links", np.array([[-1, 2]]), "node index"),
     ("node_links", np.array([0, 1]), "expected (E, 2)"),

@@ -27,8 +27,15 @@ def test_rmse_eq15_and_localized_fraction():
         localization_rmse(true.reshape(2, 4), est.reshape(2, 4))
     with pytest.raises(ValueError, match="true_xy must be finite"):
         localization_rmse(est, true)
-    with pytest.raises(ValueError, match=r"est_xy must be an array of numbers \(could not "):
+    with pytest.raises(ValueError, match=r"est_xy must be an array of numbers \(m\), got dtype"):
         localization_rmse(true, [["a", 1]] * 4)
+    # complex positions used to lose their imaginary part with only a NumPy warning
+    with pytest.raises(ValueError, match=r"est_xy must be an array of numbers \(m\), got dtype "
+                                         r"complex128"):
+        localization_rmse(true, est + 1j)
+    # the RMSE of no nodes used to be (nan, 0.0): "0 % localized" of an empty network
+    with pytest.raises(ValueError, match=r"must have the same shape \(N, 2\), N >= 1"):
+        localization_rmse(np.zeros((0, 2)), np.zeros((0, 2)))
 
 
 @pytest.mark.parametrize("row", [[np.inf, 1.0], [1.0, -np.inf], [np.nan, 1.0], [2.0, np.nan]])
@@ -45,8 +52,11 @@ def test_energy_metrics_eq16_eq17():
     assert energy_per_beacon(10.0, 4) == pytest.approx(2.5)
     assert energy_efficiency_ratio(10.0, 4) == pytest.approx(0.4)
     assert energy_efficiency_ratio(10.0, 4) == pytest.approx(1 / energy_per_beacon(10.0, 4))
-    assert energy_per_beacon(1.0, 0) == math.inf
-    assert energy_efficiency_ratio(0.0, 3) == math.inf
+    assert energy_per_beacon(1.0, 0) == math.inf and energy_efficiency_ratio(1.0, 0) == 0.0
+    assert energy_efficiency_ratio(0.0, 3) == math.inf and energy_per_beacon(0.0, 3) == 0.0
+    # nothing spent, nothing sent: 0 / 0 in both (E_norm and EER used to be inf, each other's
+    # inverse only in name)
+    assert math.isnan(energy_per_beacon(0.0, 0)) and math.isnan(energy_efficiency_ratio(0.0, 0))
 
 
 @pytest.mark.parametrize(("energy", "beacons", "message"), [

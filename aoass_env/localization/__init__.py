@@ -66,13 +66,16 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
         (N, 2) estimates [m]; NaN rows for nodes not covered under Eq. 18.
 
     Raises:
-        ValueError: unknown method, or a bad ``flood_limit``.
+        ValueError: unknown method, a ``checkpoint`` for a method that reads none, or a bad
+            ``flood_limit``.
         TypeError: ``checkpoint`` is neither a path nor an :class:`OLSTM`.
         BeaconLogError: the log holds no beacons or is otherwise invalid.
         CheckpointError: the checkpoint is missing or does not match this code.
     """
     if method not in METHODS:
         raise ValueError(f"method={method!r} must be one of {METHODS}")
+    if checkpoint is not None and method != "olstm-dvhop":
+        raise ValueError(f"checkpoint is read by method='olstm-dvhop' only, not {method!r}")
     if isinstance(log, Episode):
         if flood_limit is not None:
             check_flood_limit(flood_limit)

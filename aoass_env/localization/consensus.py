@@ -49,6 +49,7 @@ from scipy.spatial import cKDTree
 
 from aoass_env.localization.episode import Episode
 from aoass_env.localization.ragged import pad_rows
+from aoass_env.validators import index_array, positive
 
 __all__ = ["ANGLE_BINS", "DEFAULT_CELL", "NEIGHBOUR_ROUNDS", "RELIABLE_SPREAD", "Consensus",
            "VisibilityRaster", "consensus", "node_consensus", "visibility_raster"]
@@ -78,6 +79,8 @@ class VisibilityRaster:
     Attributes:
         cell: cell size [m]; cell (i, j) has its centre at ((i + 0.5) cell, (j + 0.5) cell).
         shape: (nx, ny) cells of the field.
+        field: (width, height) [m]; the last cells of a field that is not a whole number of
+            cells reach beyond it, and an estimate takes the centre of their part on the field.
         size: S, stencil side [cells].
         key: (M + 1,) int64 table offset of each transmitter, and of padding (last).
         weight: flat uint8 table: 2 in sight within R (1 - DOI) (hearing is certain), 1 in sight
@@ -89,6 +92,7 @@ class VisibilityRaster:
 
     cell: float
     shape: tuple[int, int]
+    field: tuple[float, float]
     size: int
     key: np.ndarray
     weight: np.ndarray
@@ -151,7 +155,7 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
     Raises:
         ValueError: ``cell`` is not a positive number or ``bins`` not a power of two >= 8.
     """
-    _check_cell(cell)
+    positive("cell", cell, "m")
     if not (isinstance(bins, int) and bins >= 8 and bins & (bins - 1) == 0):
         raise ValueError(f"bins={bins!r} must be a power of two >= 8")
     geo = _stencil_geometry(episode, cell, bins, points)
@@ -185,14 +189,9 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
             certain[ox:ox + size, oy:oy + size] += block
     certain = certain[pad:-pad, pad:-pad]
     key = np.r_[np.arange(n) * stencil - origin[:, 0] * size - origin[:, 1], n * stencil]
-    return VisibilityRaster(cell=float(cell), shape=shape, size=size, key=key,
+    return VisibilityRaster(cell=float(cell), shape=shape, field=tuple(map(float, episode.field)),
+                            size=size, key=key,
                             weight=weight, certain=certain, inside=geo.inside)
-
-
-def _check_cell(cell: float) -> None:
-    """Raise ValueError unless ``cell`` is a positive number of metres."""
-    if not (isinstance(cell, (int, float)) and np.isfinite(cell) and cell > 0):
-        raise ValueError(f"cell={cell!r} must be a positive number of metres")
 
 
 @dataclass(frozen=True)
@@ -410,7 +409,10 @@ def _chunk(parts: list[tuple[VisibilityRaster, np.ndarray, np.ndarray | None]], 
     best = np.minimum.reduceat(viol, np.cumsum(n_cells) - n_cells)
     win = viol == best[owner]
     owner = owner[win]
-    px, py = (ix[win] + 0.5) * grid.cell, (iy[win] + 0.5) * grid.cell
+    # cell centres; a last cell that reaches beyond the field: the centre of its part on it
+    (w, h), c = grid.field, grid.cell
+    px = np.minimum((ix[win] + 0.5) * c, 0.5 * (ix[win] * c + w))
+    py = np.minimum((iy[win] + 0.5) * c, 0.5 * (iy[win] * c + h))
     n_win = np.bincount(owner, minlength=s)
     est = np.stack([np.bincount(owner, weights=v, minlength=s) for v in (px, py)], axis=1)
     est /= n_win[:, None]
@@ -482,17 +484,18 @@ def node_consensus(episode: Episode, nodes: np.ndarray | None = None, *,
 
     Args:
         episode: the prepared log.
-        nodes: (S,) node indices; each must have heard a beacon.
+        nodes: (S,) distinct node indices in [0, N); each must have heard a beacon.
         cell: grid cell size [m].
         band: per-degree range factors (certain, possible) of the beacons in place of the DOI
             bound (see :func:`visibility_raster`); node-to-node links keep the bound.
 
     Raises:
-        ValueError: a node heard no beacon, or ``cell`` is not a positive number.
+        ValueError: ``nodes`` are not distinct indices in [0, N), a node heard no beacon, or
+            ``cell`` is not a positive number.
     """
     nodes = np.flatnonzero(episode.covered) if nodes is None \
-        else np.asarray(nodes, dtype=np.int64).reshape(-1)
-    _check_cell(cell)
+        else index_array("nodes", nodes, episode.log.n_nodes)
+    positive("cell", cell, "m")
     if len(nodes) == 0:
         empty = np.zeros(0)
         return Consensus(nodes=nodes, estimate=np.zeros((0, 2)), spread=empty,

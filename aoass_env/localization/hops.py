@@ -69,9 +69,11 @@ def radio_graph(log: BeaconLog) -> sp.csr_matrix:
 
 
 def check_flood_limit(flood_limit: object) -> int:
-    """``flood_limit`` as an int; ValueError naming it unless it is a whole number >= 1 (hops;
-    ``32.0`` is 32, as for every integer parameter)."""
-    return integer("flood_limit", flood_limit, "hops", low=1)
+    """``flood_limit`` as an int; ValueError naming it unless it is a whole number >= 2 (hops;
+    ``32.0`` is 32, as for every integer parameter). Two beacons are at least two hops apart
+    (beacon, node, beacon), so with one hop no HopSize (Eq. 11) exists and DV-Hop would
+    silently return the heard beacons' centroid."""
+    return integer("flood_limit", flood_limit, "hops", low=2)
 
 
 def hop_counts(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> HopCounts:
@@ -79,7 +81,7 @@ def hop_counts(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> HopCou
 
     Raises:
         BeaconLogError: the log holds no beacons.
-        ValueError: ``flood_limit`` is not an integer >= 1.
+        ValueError: ``flood_limit`` is not an integer >= 2.
     """
     require_beacons(log)
     check_flood_limit(flood_limit)

@@ -101,6 +101,42 @@ def test_bad_cell_and_silent_node() -> None:
         node_consensus(silent, np.array([1]))
 
 
+def test_an_estimate_in_a_last_partial_cell_stays_on_the_field() -> None:
+    # a 40.1 m field: the last column of 0.5 m cells is [40.0, 40.5], its centre 40.25 lies off
+    # the field; the node by the edge is estimated at the centre of the cell's part on it
+    heard = np.array([[20.0, 20.0], [38.0, 5.0], [38.0, 35.0]])
+    unheard = np.array([[15.1, 20.0], [15.1, 12.0], [15.1, 28.0]])
+    log = make_log(np.array([[40.08, 20.0]]), np.concatenate([heard, unheard]),
+                   [[0, 0], [1, 0], [2, 0]], [], field=40.1)
+    result = node_consensus(prepare(log))
+    np.testing.assert_allclose(result.estimate[0], [40.05, 20.0], rtol=0, atol=1e-12)
+    assert result.violations[0] == 0
+
+
+@pytest.mark.parametrize("nodes, message", [
+    ([1.7], "nodes must be integer indices in \\[0, 2\\), got dtype float64"),
+    ([-1], "nodes must be indices in \\[0, 2\\), got -1"),
+    ([2], "nodes must be indices in \\[0, 2\\), got 2"),
+    ([1, 1], "nodes must not repeat an index"),
+    ([True], "nodes must be integer indices"),
+    ([[0, 1]], "nodes must be a 1-D array"),
+])
+def test_bad_node_indices_are_named(nodes, message) -> None:
+    episode = prepare(make_log(np.array([CENTRE, CENTRE]), ring(20.0),
+                               [[b, n] for b in range(12) for n in (0, 1)], []))
+    with pytest.raises(ValueError, match=message):
+        node_consensus(episode, nodes)
+
+
+def test_the_cell_follows_the_rule_for_numbers() -> None:
+    episode = record(ring(20.0), np.zeros((0, 2)))
+    for bad in (True, "0.5", float("nan"), 0.0):
+        with pytest.raises(ValueError, match="cell="):
+            node_consensus(episode, cell=bad)
+    assert node_consensus(episode, cell=np.float32(0.5)).estimate.tolist() == \
+        node_consensus(episode, cell=0.5).estimate.tolist()
+
+
 def test_no_nodes_give_an_empty_result() -> None:
     result = node_consensus(record(ring(20.0), np.zeros((0, 2))), np.array([], dtype=int))
     assert result.nodes.shape == (0,) and result.estimate.shape == (0, 2)

@@ -72,8 +72,17 @@ def test_flood_limit_of_a_prepared_episode(small_log) -> None:
                           localize(episode, "dvhop"), equal_nan=True)
     for bad in (2.5, True):
         with pytest.raises(ValueError, match=rf"flood_limit={bad!r} must be an integer in "
-                                             r"\[1, inf\) hops"):
+                                             r"\[2, inf\) hops"):
             localize(small_log, "dvhop", flood_limit=bad)
+
+
+@pytest.mark.parametrize("method", ["dvhop", "consensus"])
+def test_a_checkpoint_for_a_method_that_reads_none_is_refused(small_log, method) -> None:
+    # it used to be ignored, even a wrong type or a missing file
+    for checkpoint in (3, "/no/such/checkpoint.pt"):
+        with pytest.raises(ValueError, match=rf"checkpoint is read by method='olstm-dvhop' "
+                                             rf"only, not '{method}'"):
+            localize(small_log, method, checkpoint=checkpoint)
 
 
 @pytest.mark.parametrize("checkpoint", [3, b"m.pt", ["m.pt"]])
