@@ -113,7 +113,7 @@ def _run_localizer(argv: list[str]) -> None:
 
 
 def _agent_parser() -> argparse.ArgumentParser:
-    from agents.training import DEFAULT_CONFIG
+    from agents.training import DEFAULT_CONFIG, MAX_SEED
     p = argparse.ArgumentParser(
         prog="train.py", description=__doc__.split("\n\n")[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -125,7 +125,8 @@ def _agent_parser() -> argparse.ArgumentParser:
     p.add_argument("--timesteps", type=argparse_number(int, 1), default=None,
                    help="environment steps (default: the config's n_timesteps)")
     seeds = p.add_mutually_exclusive_group()
-    seeds.add_argument("--seed", type=argparse_number(int, 0), default=0, help="(default: 0)")
+    seeds.add_argument("--seed", type=argparse_number(int, 0, high=MAX_SEED), default=0,
+                       help="(default: 0)")
     seeds.add_argument("--seeds", metavar="LIST",
                        help="one run per seed: a range 0-4 and/or a list 0,2,5; run S writes "
                             "into <out>/seed<S>/")

@@ -28,12 +28,13 @@ from typing import Any, TypeVar
 
 import numpy as np
 import torch as th
+from gymnasium import spaces as gym_spaces
 from stable_baselines3 import TD3 as _SB3TD3
 
 from agents.envs import make_training_env
 from agents.sections import HyperparameterError, check_section, model_kwargs, policy_name, read_yaml
 from aoass_env.atomic import atomic_open
-from aoass_env.validators import integer, one_line, torch_load_problem
+from aoass_env.validators import integer, keyword_names, one_line, torch_load_problem
 
 __all__ = ["RECORD_NAME", "STATE_FIELDS", "PolicyFileError", "SafeLoading", "TD3",
            "load_model", "read_record", "record_path", "saved_step", "validate_record"]
@@ -170,7 +171,8 @@ def _load_optimizer(path: Path, name: str, optimizer: th.optim.Optimizer,
                     raise PolicyFileError(f"{where}: {key} holds NaN or infinite values")
 
 
-def _read_state(path: Path, archive: zipfile.ZipFile) -> dict[str, int]:
+def _read_data(path: Path, archive: zipfile.ZipFile) -> dict[str, Any]:
+    """The model's ``data`` member as JSON (its pickled entries stay unread strings)."""
     try:
         data = json.loads(archive.read("data"))
     except (KeyError, UnicodeDecodeError, json.JSONDecodeError, zlib.error) as exc:
@@ -178,11 +180,46 @@ def _read_state(path: Path, archive: zipfile.ZipFile) -> dict[str, int]:
                               ) from None
     if not isinstance(data, dict):
         raise PolicyFileError(f"{path}: data: must be a JSON object")
-    state = {}
-    for key in STATE_FIELDS:
-        state[key] = integer(f"{path}: data: {key}", data.get(key, 0), low=0,
-                             error=PolicyFileError)
-    return state
+    return data
+
+
+def _read_state(path: Path, data: Mapping[str, Any]) -> dict[str, int]:
+    return {key: integer(f"{path}: data: {key}", data.get(key, 0), low=0, error=PolicyFileError)
+            for key in STATE_FIELDS}
+
+
+def _printed_array(text: Any, size: int) -> np.ndarray | None:
+    """The flat array numpy printed as ``text`` ("[-2. 2.]", nested brackets for more
+    dimensions), None when it does not read as ``size`` numbers (e.g. summarised by "...")."""
+    try:
+        values = np.array([float(t) for t in str(text).replace("[", " ").replace("]", " ")
+                           .split()])
+    except ValueError:
+        return None
+    return values if values.size == size else None
+
+
+def _check_saved_spaces(path: Path, data: Mapping[str, Any], env: Any) -> None:
+    """PolicyFileError unless ``env``'s Box spaces have the shapes and bounds the model was
+    saved with (SB3 writes them as plain JSON beside the pickled space: ``_shape``, and
+    ``low``/``high`` printed by numpy, to 8 significant digits); other spaces, and bounds that
+    were printed summarised, are left to the weights' fit check."""
+    for key in ("observation_space", "action_space"):
+        saved, space = data.get(key), getattr(env, key)
+        if not (isinstance(saved, dict) and "Box" in str(saved.get(":type:"))
+                and isinstance(space, gym_spaces.Box)):
+            continue
+        shape = saved.get("_shape")
+        if isinstance(shape, list) and tuple(shape) != space.shape:
+            raise PolicyFileError(f"{path}: {key}: saved with shape {tuple(shape)}, the given "
+                                  f"env's is {space}")
+        for side in ("low", "high"):
+            bound = _printed_array(saved.get(side), int(np.prod(space.shape)))
+            own = np.asarray(getattr(space, side), dtype=np.float64).reshape(-1)
+            if bound is not None and not np.allclose(bound, own, rtol=1e-6, atol=0.0):
+                raise PolicyFileError(f"{path}: {key}: saved with {side} {saved[side]}, the "
+                                      f"given env's is {space}: the model acts in the spaces "
+                                      f"it was trained in")
 
 
 def saved_step(path: str | os.PathLike[str]) -> int:
@@ -191,7 +228,7 @@ def saved_step(path: str | os.PathLike[str]) -> int:
     path = Path(path)
     try:
         with zipfile.ZipFile(path) as archive:
-            return _read_state(path, archive)["num_timesteps"]
+            return _read_state(path, _read_data(path, archive))["num_timesteps"]
     except _UNREADABLE_ZIP as exc:
         raise PolicyFileError(f"{path}: not a readable model .zip ({one_line(exc)})"
                               ) from None
@@ -219,14 +256,18 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
         record: a run record (path or validated mapping) giving the hyperparameters; default
             the run.yml beside ``path``.
         device: torch device.
-        kwargs: attributes set on the model (SB3's ``load`` keywords, e.g.
-            ``tensorboard_log``).
+        kwargs: changes to the model, as SB3's ``load`` takes them: constructor keywords (e.g.
+            ``tensorboard_log``, ``learning_rate``) go to the constructor, before the model is
+            set up; other names are set as attributes.
 
     Raises:
-        PolicyFileError: no record, a file that is not a model, weights that do not fit the
+        PolicyFileError: no such file, no record, a file that is not a model, an env whose
+            spaces differ from those the model was saved with, weights that do not fit the
             record's architecture or are not finite; each names the file.
     """
     path = Path(path)
+    if not path.is_file():
+        raise PolicyFileError(f"{path}: no such model file")
     if record is None:
         record = record_path(path)
         if not record.is_file():
@@ -243,7 +284,8 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
         raise PolicyFileError(f"{path}: not a model .zip (no such file, or no zip structure)")
     try:
         with zipfile.ZipFile(path) as archive:
-            state = _read_state(path, archive)
+            data = _read_data(path, archive)
+            state = _read_state(path, data)
             names = set(archive.namelist())
             if "policy.pth" not in names:
                 raise PolicyFileError(f"{path}: policy.pth: missing (not a saved model)")
@@ -255,9 +297,14 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
         raise PolicyFileError(f"{path}: not a readable model .zip ({one_line(exc)})"
                               ) from None
     _check_finite(path, "policy", weights["policy"])
+    if env is not None:
+        _check_saved_spaces(path, data, env)
     overrides = {} if env is not None else {"buffer_size": 1}
+    constructor = set(keyword_names(cls.__init__)) - {"policy", "env", "device",
+                                                       "_init_setup_model"}
+    changes = {k: v for k, v in kwargs.items() if k in constructor}
     model = cls(policy_name(hp, cls), None if env is None else env, device=device,
-                _init_setup_model=False, **{**model_kwargs(hp), **overrides})
+                _init_setup_model=False, **{**model_kwargs(hp), **overrides, **changes})
     if env is None:
         model.observation_space, model.action_space = _spaces(None, hp)
         model.n_envs = 1
@@ -273,7 +320,7 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
     for name, optimizer_state in weights.items():
         _load_optimizer(path, name, getattr(model, name.split(".")[0]).optimizer,
                         optimizer_state)
-    for key, value in {**state, **kwargs}.items():
+    for key, value in {**state, **{k: v for k, v in kwargs.items() if k not in changes}}.items():
         setattr(model, key, value)
     return model
 
@@ -304,6 +351,8 @@ def load_replay_buffer(model: Any, path: str | os.PathLike[str]) -> None:
             one saved at another step than the model (they were not saved together).
     """
     path = Path(path)
+    if not path.is_file() and path.suffix != ".npz":
+        path = path.with_name(f"{path.name}.npz")   # as save_replay_buffer named it
     buffer = model.replay_buffer
     own = {k: v for k, v in vars(buffer).items() if isinstance(v, np.ndarray)}
     if not zipfile.is_zipfile(path):    # else numpy takes it for a pickle and advises loading it

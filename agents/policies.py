@@ -63,7 +63,22 @@ def _sequence_features(model: BaseModel, obs: th.Tensor) -> th.Tensor:
     return model.extract_features(flat, model.features_extractor).reshape(batch, length, -1)
 
 
-class RecurrentActor(BasePolicy):
+class _NoPickledFile:
+    """Refuses SB3's ``BaseModel.load``, which unpickles the file it is given
+    (``torch.load(weights_only=False)``: a crafted file runs code)."""
+
+    @classmethod
+    def load(cls, path: Any, device: Any = "auto") -> Any:  # noqa: ARG003 (SB3's signature)
+        from agents.checkpoints import PolicyFileError  # agents.checkpoints imports this module
+
+        raise PolicyFileError(
+            f"{path}: {cls.__name__}.load would unpickle the file (SB3's policy files are "
+            f"pickles, which can run code); load the model with RecurrentTD3.load, or weights "
+            f"saved with torch.save(policy.state_dict(), path) by "
+            f"policy.load_state_dict(torch.load(path, weights_only=True))")
+
+
+class RecurrentActor(_NoPickledFile, BasePolicy):
     """Deterministic recurrent actor: LSTM over ``[features, previous action]``, MLP, tanh."""
 
     def __init__(
@@ -135,7 +150,7 @@ class RecurrentActor(BasePolicy):
         return self(observation.unsqueeze(1), prev)[0][:, 0]
 
 
-class RecurrentCritic(BaseModel):
+class RecurrentCritic(_NoPickledFile, BaseModel):
     """``n_critics`` recurrent Q-networks, each with its own LSTM over the same input sequence.
 
     One features extractor is shared by the Q-networks of this critic (as SB3's
@@ -200,7 +215,7 @@ class RecurrentCritic(BaseModel):
         return self.q_value(0, self.memory(obs, prev_actions, n=1)[0], actions)
 
 
-class RecurrentTD3Policy(BasePolicy):
+class RecurrentTD3Policy(_NoPickledFile, BasePolicy):
     """Recurrent actor, twin recurrent critics and their target copies for ``RecurrentTD3``.
 
     :param observation_space: observation space (any space SB3's extractors flatten; not Dict)
@@ -362,14 +377,26 @@ class RecurrentTD3Policy(BasePolicy):
         obs_tensor, vectorized_env = self.obs_to_tensor(observation)
         assert isinstance(obs_tensor, th.Tensor)
         n_envs = obs_tensor.shape[0]
+        if state is not None and (not isinstance(state, (tuple, list)) or len(state) != 3):
+            got = f" of length {len(state)}" if isinstance(state, (tuple, list)) else ""
+            raise ValueError(f"state must be the (h, c, prev_action) that predict returned, got "
+                             f"a {type(state).__name__}{got}")
         h, c, prev = self.initial_state(n_envs) if state is None else state
         h, c = np.array(h, dtype=np.float32), np.array(c, dtype=np.float32)
-        prev = np.array(prev, dtype=np.float32).reshape(n_envs, -1)
+        prev = np.array(prev, dtype=np.float32)
         expected = (self.n_lstm_layers, n_envs, self.lstm_hidden_size)
         if h.shape != expected or c.shape != expected:
             raise ValueError(f"state h and c must have shape {expected}, got {h.shape}, {c.shape}")
+        action_dim = get_action_dim(self.action_space)
+        if prev.shape != (n_envs, action_dim):
+            raise ValueError(f"state prev_action must have shape {(n_envs, action_dim)}, got "
+                             f"{prev.shape}")
         if episode_start is not None:
-            start = np.asarray(episode_start, dtype=bool).reshape(n_envs)
+            start = np.asarray(episode_start)
+            if start.shape != (n_envs,) and not (n_envs == 1 and start.shape == ()):
+                raise ValueError(f"episode_start must be {n_envs} flag(s), shape ({n_envs},), got "
+                                 f"shape {start.shape}")
+            start = start.astype(bool).reshape(n_envs)
             h[:, start], c[:, start], prev[start] = 0.0, 0.0, 0.0
         with th.no_grad():
             lstm_state = (th.as_tensor(h, device=self.device), th.as_tensor(c, device=self.device))

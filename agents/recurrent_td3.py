@@ -112,6 +112,12 @@ class RecurrentTD3(SafeLoading, TD3):
         if optimize_memory_usage:
             raise ValueError("optimize_memory_usage=True is not supported by RecurrentTD3")
         batch_size = integer("batch_size", batch_size, "windows", low=1)
+        learning_starts = integer("learning_starts", learning_starts, "steps", low=0)
+        tau = real("tau", tau, low=0.0, low_open=True, high=1.0)
+        gamma = real("gamma", gamma, low=0.0, low_open=True, high=1.0)
+        # a negative clip made the target smoothing noise a constant (clamp with min > max)
+        target_policy_noise = real("target_policy_noise", target_policy_noise, low=0.0)
+        target_noise_clip = real("target_noise_clip", target_noise_clip, low=0.0)
         policy_delay = integer("policy_delay", policy_delay, "updates", low=1)
         n_steps = integer("n_steps", n_steps, "steps", low=1)
         critic_warmup = integer("critic_warmup", critic_warmup, "updates", low=0)

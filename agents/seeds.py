@@ -16,7 +16,7 @@ import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from agents.training import TrainRun, train_agent
+from agents.training import MAX_SEED, TrainRun, train_agent
 from aoass_env.backends import Backend
 
 __all__ = ["MAX_SEEDS", "parse_seeds", "portable", "report_line", "seed_runs", "train_seeds"]
@@ -34,8 +34,8 @@ def parse_seeds(text: str, limit: int = MAX_SEEDS) -> list[int]:
     before any list is built (linear time in the text and the seeds).
 
     Raises:
-        ValueError: another form, a negative or descending range, a seed given twice, or more
-            than ``limit`` seeds.
+        ValueError: another form, a negative or descending range, a seed above
+            :data:`~agents.training.MAX_SEED`, a seed given twice, or more than ``limit`` seeds.
     """
     spans = []
     for part in text.split(","):
@@ -44,6 +44,8 @@ def parse_seeds(text: str, limit: int = MAX_SEEDS) -> list[int]:
             raise ValueError(f"--seeds {text!r}: expected non-negative integers as a range A-B "
                              f"(A <= B), a list A,B,C or both, e.g. 0-4 or 0,2,5")
         spans.append((int(match[1]), int(match[2] or match[1])))
+    if max(high for _, high in spans) > MAX_SEED:
+        raise ValueError(f"--seeds {text!r}: a seed above {MAX_SEED} (seeds are 32-bit)")
     total = sum(high - low + 1 for low, high in spans)
     if total > limit:
         raise ValueError(f"--seeds {text!r}: {total} seeds; at most {limit} (one run each)")

@@ -61,10 +61,12 @@ from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
 from aoass_env.data import shipped_dir
 from aoass_env.validators import first_difference, integer
 
-__all__ = ["RUN_FILES", "TRAINING_SPLITS", "TrainRun", "make_training_env", "occupied_message",
-           "other_run_files", "resume_seed", "run_hyperparams", "train_agent"]
+__all__ = ["MAX_SEED", "RUN_FILES", "TRAINING_SPLITS", "TrainRun", "make_training_env",
+           "occupied_message", "other_run_files", "resume_seed", "run_hyperparams", "train_agent"]
 
 DEFAULT_CONFIG = shipped_dir("configs") / "aoass.yml"
+#: The largest run seed: SB3's ``set_random_seed`` seeds NumPy's legacy generator (32 bits).
+MAX_SEED = 2**32 - 1
 #: The files a run writes into its folder (the table above).
 RUN_FILES = ("best.zip", "last.zip", *(p.name for p in replay_buffer_paths("last.zip")),
              "final.zip", "evaluations.npz", "run.yml")
@@ -77,7 +79,7 @@ class TrainRun:
     Args:
         algo: "td3-lstm" (RecurrentTD3) or "td3" (feedforward ablation).
         timesteps: env steps (None: the file's ``n_timesteps``).
-        seed: seed of the model, the environments and the map draws.
+        seed: seed of the model, the environments and the map draws, in [0, MAX_SEED].
         n_envs: parallel training environments (subprocesses when > 1).
         config: hyperparameter YAML file.
         resume: a saved model (.zip) to continue from (its replay buffer too, if saved beside).
@@ -113,6 +115,7 @@ class TrainRun:
     overwrite: bool = False
 
     def __post_init__(self) -> None:
+        self.seed = integer("seed", self.seed, low=0, high=MAX_SEED)
         if self.algo not in ALGORITHMS:
             raise ValueError(f"algo={self.algo!r} must be one of {sorted(ALGORITHMS)}")
         if not isinstance(self.overwrite, bool):

@@ -107,19 +107,24 @@ def torch_load_problem(error: BaseException) -> str:
 
 
 # --- numbers -----------------------------------------------------------------------------------
-def argparse_number(kind: type, low: float, low_open: bool = False) -> Callable[[str], Any]:
+def argparse_number(kind: type, low: float, low_open: bool = False,
+                    high: float | None = None) -> Callable[[str], Any]:
     """An argparse ``type``: a finite ``kind`` (int or float) >= ``low`` (> ``low`` if
-    ``low_open``). argparse's one-line error names the flag; the message says what is valid."""
+    ``low_open``) and <= ``high`` where given. argparse's one-line error names the flag; the
+    message says what is valid."""
     def parse(text: str) -> Any:
         try:
             value = kind(text)
         except ValueError:
             value = None
         if value is None or not math.isfinite(value) or value < low or (low_open and
-                                                                         value == low):
+                                                                         value == low) or (
+                high is not None and value > high):
             what = "an integer" if kind is int else "a finite number"
-            raise argparse.ArgumentTypeError(f"must be {what} {'>' if low_open else '>='} "
-                                             f"{low:g}, got {text!r}")
+            valid = (f"{'>' if low_open else '>='} {low:g}" if high is None else
+                     f"in {'(' if low_open else '['}{low:g}, {high:d}]" if kind is int else
+                     f"in {'(' if low_open else '['}{low:g}, {high:g}]")
+            raise argparse.ArgumentTypeError(f"must be {what} {valid}, got {text!r}")
         return value
     parse.__name__ = kind.__name__
     return parse

@@ -244,11 +244,22 @@ def test_parse_seeds(text: str, seeds: list[int]):
     assert parse_seeds(text) == seeds
 
 
+@pytest.mark.parametrize("seed", [-1, 2**32, 1.5, True])
+def test_a_run_refuses_a_seed_outside_32_bits(seed):
+    from agents.training import TrainRun
+    with pytest.raises(ValueError, match=r"seed=.* must be an integer in \[0, 4294967295\]"):
+        TrainRun(seed=seed)
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--seeds", "4-1"], "--seeds '4-1': expected non-negative integers as a range A-B"),
     (["--seeds", "0,x"], "--seeds '0,x': expected"),
     (["--seeds", "-1"], "--seeds '-1': expected"),
     (["--seeds", "0-2,1"], "--seeds '0-2,1': seed(s) 1 given twice"),
+    # seeds past 32 bits used to fail deep in NumPy after the envs were built
+    (["--seed", "4294967296"], "argument --seed: must be an integer in [0, 4294967295], got "
+                               "'4294967296'"),
+    (["--seeds", "0,4294967296"], "--seeds '0,4294967296': a seed above 4294967295"),
     (["--seeds", "0-1", "--seed", "3"], "--seed: not allowed with argument --seeds"),
     (["--seeds", "0-1", "--resume", "x.zip"], "--resume continues one run"),
     (["--address", "auto"], "--address names a Ray cluster; it needs --backend ray"),

@@ -16,6 +16,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 
 from agents import RecurrentTD3, RecurrentTD3Policy, SequenceReplayBuffer
+from agents.checkpoints import PolicyFileError
 
 EP_LEN = 20
 TINY = dict(batch_size=8, burn_in=2, train_length=4, buffer_size=2_000, device="cpu",
@@ -327,6 +328,80 @@ def test_save_load_round_trip(tmp_path) -> None:
     loaded.learn(20, reset_num_timesteps=False)  # training continues after loading
 
 
+def test_load_refuses_an_env_of_other_bounds_and_applies_keywords_before_setup(tmp_path
+                                                                              ) -> None:
+    model = _model(1, learning_starts=20)
+    model.learn(30)
+    model.save(tmp_path / "model.zip")
+    record = _record(learning_starts=20)
+
+    def rescaled():
+        return gym.wrappers.RescaleAction(gym.make("Pendulum-v1", max_episode_steps=EP_LEN),
+                                          -0.1, 0.1)
+
+    # the same shapes, other bounds: it used to load and act at 1/20 of its trained actions
+    with pytest.raises(PolicyFileError, match=r"model.zip: action_space: saved with low \[-2\.\]"
+                                              r", the given env's is Box\(-0\.1, 0\.1"):
+        RecurrentTD3.load(tmp_path / "model.zip", env=make_vec_env(rescaled, n_envs=1),
+                          record=record)
+    # constructor keywords reach the set-up (they used to be set after it: the optimizers
+    # kept the old rate, the buffer the old burn-in)
+    loaded = RecurrentTD3.load(tmp_path / "model.zip", env=_env(1), record=record,
+                               learning_rate=1e-5, burn_in=0)
+    loaded.learn(20, reset_num_timesteps=False)
+    assert loaded.actor.optimizer.param_groups[0]["lr"] == pytest.approx(1e-5)
+    assert loaded.critic.optimizer.param_groups[0]["lr"] == pytest.approx(1e-5)
+    assert loaded.burn_in == loaded.replay_buffer.burn_in == 0
+    with pytest.raises(PolicyFileError, match=r"no_such/last.zip: no such model file"):
+        RecurrentTD3.load(tmp_path / "no_such" / "last.zip", env=_env(1), record=record)
+
+
+def test_a_replay_buffer_round_trips_under_the_path_it_was_saved_with(tmp_path) -> None:
+    model = _model(1, learning_starts=20)
+    model.learn(30)
+    model.save_replay_buffer(tmp_path / "buffer")          # written as buffer.npz
+    observations = model.replay_buffer.observations.copy()
+    model.replay_buffer.observations[:] = 0.0
+    model.load_replay_buffer(tmp_path / "buffer")          # used to look for "buffer" alone
+    np.testing.assert_array_equal(model.replay_buffer.observations, observations)
+
+
+class _MakesAFile:
+    def __init__(self, path) -> None:
+        self.path = str(path)
+
+    def __reduce__(self):
+        return (open, (self.path, "w"))
+
+
+@pytest.mark.parametrize("cls", ["RecurrentTD3Policy", "RecurrentActor", "RecurrentCritic"])
+def test_policy_files_are_not_unpickled(tmp_path, cls) -> None:
+    from agents import policies
+    marker = tmp_path / "code_ran"
+    th.save({"data": _MakesAFile(marker), "state_dict": {}}, tmp_path / "policy.pth")
+    with pytest.raises(PolicyFileError, match=rf"policy.pth: {cls}.load would unpickle the "
+                                              rf"file"):
+        getattr(policies, cls).load(tmp_path / "policy.pth")
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("state, start, message", [
+    ("hc", None, r"state must be the \(h, c, prev_action\) that predict returned, got a tuple "
+                 r"of length 2"),
+    ("prev12", None, r"state prev_action must have shape \(2, 1\), got \(1, 2\)"),
+    (None, [True, False, True], r"episode_start must be 2 flag\(s\), shape \(2,\), got "
+                                r"shape \(3,\)"),
+])
+def test_predict_names_a_state_or_episode_start_of_the_wrong_shape(state, start,
+                                                                   message) -> None:
+    model = _model(1)
+    obs = np.zeros((2, 3), np.float32)
+    h, c, _ = model.policy.initial_state(2)
+    state = {"hc": (h, c), "prev12": (h, c, np.zeros((1, 2), np.float32)), None: None}[state]
+    with pytest.raises(ValueError, match=message):
+        model.predict(obs, state=state, episode_start=start)
+
+
 def test_eval_callback_works(tmp_path) -> None:
     model = _model(1, learning_starts=20)
     callback = EvalCallback(_env(1, seed=3), n_eval_episodes=1, eval_freq=30,
@@ -348,6 +423,13 @@ def test_eval_callback_works(tmp_path) -> None:
     (dict(actor_bound_penalty=-0.1), "actor_bound_penalty"),
     (dict(actor_bound_penalty="big"), "actor_bound_penalty"),
     (dict(optimize_memory_usage=True), "optimize_memory_usage"),
+    # these five used to be taken as given: a negative clip made the smoothing noise constant
+    (dict(tau=2.0), r"tau=2.0 must be a number in \(0.0, 1.0\]"),
+    (dict(tau=0.0), "tau"),
+    (dict(gamma=1.5), r"gamma=1.5 must be a number in \(0.0, 1.0\]"),
+    (dict(target_noise_clip=-0.5), r"target_noise_clip=-0.5 must be a number in \[0.0, inf\)"),
+    (dict(target_policy_noise=-0.2), "target_policy_noise"),
+    (dict(learning_starts=-5), r"learning_starts=-5 must be an integer in \[0, inf\) steps"),
     (dict(replay_buffer_kwargs=dict(burn_in=3)), "burn_in"),
     (dict(policy_kwargs=dict(lstm_hidden_size=0)), "lstm_hidden_size"),
     (dict(policy_kwargs=dict(actor_final_init=-1.0)), "actor_final_init"),
