@@ -24,7 +24,7 @@ import numba
 import numpy as np
 
 from aoass_env.config import AOASSConfig
-from aoass_env.validators import integer, real
+from aoass_env.validators import finite_array, integer, real
 
 __all__ = ["Network", "lambda_min", "residual_after"]
 
@@ -80,7 +80,8 @@ def residual_after(heard: int, mean: np.ndarray, scatter: np.ndarray,
     """Root-sum-square distance [m] (K,) of one node's heard beacons to their best line once a
     beacon at each of ``points`` (K, 2) [m] is added alone: its ``heard`` count, ``mean`` (2,)
     [m] and ``scatter`` (3,) Sxx, Sxy, Syy [m^2] grown by Welford's term n/(n+1) d d^T."""
-    d = np.asarray(points, dtype=np.float64).reshape(-1, 2) - mean
+    heard = integer("heard", heard, "beacons", low=0)
+    d = finite_array("points", points, "m", shape=(None, 2)) - mean
     w = heard / (heard + 1.0)
     grown = np.asarray(scatter, dtype=np.float64) + w * np.stack(
         [d[:, 0] * d[:, 0], d[:, 0] * d[:, 1], d[:, 1] * d[:, 1]], axis=1)

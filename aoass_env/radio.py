@@ -12,7 +12,8 @@ through an obstacle from vertex to vertex (a square's diagonal) or lying inside 
 the edges of the buckets it passes (a superset of those it meets), an orientation test with
 Shewchuk's floating-point error bound settles every pair whose signs are certain, and the rare
 segments with an uncertain or degenerate contact (a vertex on the segment, collinear overlap) are
-handed to shapely's exact ``relate`` (:mod:`aoass_env.segments`). The grid walk, the
+settled in exact rational arithmetic (:func:`aoass_env.segments.meets_interior`; GEOS's
+``relate``, used before, rounds and missed segments grazing a vertex by 1e-17 m). The grid walk, the
 orientation tests and the range test run compiled (numba, :func:`_hear`); the answer does not
 depend on which candidate edges are tested beyond those the segment meets, so it is exact.
 
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Sequence
+from fractions import Fraction
 from functools import cached_property
 
 import numba
@@ -35,7 +37,7 @@ from scipy.spatial import cKDTree
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.segments import CLEAR, CONTACT, CROSSES, EdgeGrid, segment_status
+from aoass_env.segments import CLEAR, CONTACT, CROSSES, EdgeGrid, meets_interior, segment_status
 from aoass_env.validators import integer, positive, real
 
 __all__ = ["LineOfSight", "Radio", "doi_pattern", "points_within", "range_factor",
@@ -71,7 +73,10 @@ def points_within(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, x: float, y
                   reach2: float) -> np.ndarray:
     """Sorted int64 indices of the points (``xs``, ``ys``) (m) that ``among`` marks whose
     squared distance to (``x``, ``y``) is at most ``reach2`` (m^2), by
-    ``dx * dx + dy * dy <= reach2`` with ``dx = xs - x`` (compiled)."""
+    ``dx * dx + dy * dy <= reach2`` with ``dx = xs - x`` (compiled). ValueError unless the
+    three arrays have one entry per point (a shorter one used to be read past its end)."""
+    if len(ys) != len(xs) or len(among) != len(xs):
+        raise ValueError("points_within: xs, ys and among must have one entry per point")
     out = np.empty(len(xs), dtype=np.int64)
     n = 0
     for i in range(len(xs)):
@@ -92,8 +97,8 @@ def _hear(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, inside: np.ndarray,
     """(candidates, status) of a beacon at (``x``, ``y``): :func:`points_within`'s points, and
     for each the line of sight from the point to the beacon (:func:`~aoass_env.segments.
     segment_status`), settled by the point's side (``inside``) where it meets no edge:
-    :data:`_HEARD`, :data:`_BLOCKED`, or :data:`~aoass_env.segments.CONTACT` for shapely's
-    exact test."""
+    :data:`_HEARD`, :data:`_BLOCKED`, or :data:`~aoass_env.segments.CONTACT` for the exact
+    rational test."""
     cand = points_within(xs, ys, among, x, y, reach2)
     status = np.empty(len(cand), dtype=np.int8)
     seen = np.full(len(px), -1, dtype=np.int64)
@@ -122,6 +127,7 @@ class LineOfSight:
         self._grid = EdgeGrid(obstacle_map.edges)
         self._polygons = obstacle_map.shapes
         self._polygon_tree = shapely.STRtree(self._polygons)
+        self._exact_rings: dict[int, list[list[tuple[Fraction, Fraction]]]] = {}
 
     @classmethod
     def for_map(cls, obstacle_map: ObstacleMap) -> LineOfSight:
@@ -183,18 +189,31 @@ class LineOfSight:
         return blocked
 
     def _blocked_exact(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """shapely's exact answer for the few segments ``a[k] -> b[k]`` ((K, 2), or ``b`` one
-        point (2,) they share) with a degenerate contact."""
+        """The exact answer (:func:`~aoass_env.segments.meets_interior`) for the few segments
+        ``a[k] -> b[k]`` ((K, 2), or ``b`` one point (2,) they share) with a degenerate contact,
+        against the polygons whose bounding boxes they meet."""
         segs = np.empty((len(a), 2, 2))
         segs[:, 0] = a
         segs[:, 1] = b
         point = np.all(segs[:, 0] == segs[:, 1], axis=1)
         geoms = np.where(point, shapely.points(segs[:, 0]), shapely.linestrings(segs))
         seg, poly = self._polygon_tree.query(geoms)
-        hit = shapely.relate_pattern(geoms[seg], self._polygons[poly], "T********")
         blocked = np.zeros(len(segs), dtype=bool)
-        blocked[seg[hit]] = True
+        for k, j in zip(seg.tolist(), poly.tolist(), strict=True):
+            if not blocked[k] and meets_interior(segs[k, 0].tolist(), segs[k, 1].tolist(),
+                                                 self._rings(j)):
+                blocked[k] = True
         return blocked
+
+    def _rings(self, j: int) -> list[list[tuple[Fraction, Fraction]]]:
+        """Polygon ``j``'s rings as exact vertices, converted once."""
+        rings = self._exact_rings.get(j)
+        if rings is None:
+            polygon = self._polygons[j]
+            rings = [[(Fraction(x), Fraction(y)) for x, y in shapely.get_coordinates(r).tolist()]
+                     for r in (polygon.exterior, *polygon.interiors)]
+            self._exact_rings[j] = rings
+        return rings
 
 
 def doi_pattern(doi: float, rng: np.random.Generator | None, n: int = 1) -> np.ndarray:
@@ -309,8 +328,8 @@ class Radio:
 
     def _receivers(self, p: np.ndarray, among: np.ndarray | None) -> np.ndarray:
         """:meth:`receivers` of the checked point ``p`` (2,) [m]: without irregularity, range
-        and sight in one compiled pass (:func:`_hear`; the few contacts only shapely settles
-        go to :meth:`LineOfSight._blocked_exact`)."""
+        and sight in one compiled pass (:func:`_hear`; the few contacts only exact arithmetic
+        settles go to :meth:`LineOfSight._blocked_exact`)."""
         if self.doi > 0.0 or self._los is None:
             return self._in_sight(p, self._in_range(p, among))
         cand, status = _hear(self._xs, self._ys, self._among(among), self._node_inside,

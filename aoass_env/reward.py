@@ -83,13 +83,16 @@ def _masked_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.nda
     """``localization_rmse(true_xy[localized], estimate_xy[localized])[0]``, 0 without a
     localized node: the squared errors (dx^2 + dy^2) of the rows with a finite estimate, their
     sum in NumPy's order (:func:`~aoass_env.pairwise.pairwise_sum`) over their count, its
-    square root; rows NaN in both coordinates left out, any other non-finite row refused."""
+    square root; rows NaN in both coordinates left out, any other non-finite row (or true
+    position) refused."""
     err2 = np.empty(len(localized))
     count = 0
     any_localized = False
     for i in range(len(localized)):
         if localized[i]:
             any_localized = True
+            if not (math.isfinite(true_xy[i, 0]) and math.isfinite(true_xy[i, 1])):
+                raise ValueError("true_xy must be finite (the nodes' true positions, m)")
             ex, ey = estimate_xy[i, 0], estimate_xy[i, 1]
             if math.isfinite(ex) and math.isfinite(ey):
                 dx, dy = true_xy[i, 0] - ex, true_xy[i, 1] - ey

@@ -5,7 +5,9 @@ of a set of edges when it is certainly disjoint from every one of them. Each (se
 pair is settled by four orientation determinants with Shewchuk's static error bound: a sign the
 bound certifies is exact, so a crossing or a disjoint pair found so is exact too. What the bound
 cannot certify (a vertex on the segment, collinear overlap, an end point on an edge, a sign too
-close to zero) is a *contact*, left to an exact test (shapely's) by the caller.
+close to zero) is a *contact*, left by the caller to :func:`meets_interior`, exact in rational
+arithmetic (GEOS is not: it rounds the points where a segment crosses an edge, and calls a
+segment that passes 1e-17 m inside a vertex a touch).
 
 :class:`EdgeGrid` buckets the edges once on a grid of :data:`GRID_CELL` cells: each edge in
 every bucket its bounding box, :data:`GRID_SLACK` wider, overlaps. A segment's candidate edges
@@ -19,13 +21,19 @@ planner's straight-line test (:mod:`aoass_env.planning.detour`).
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections.abc import Sequence
+from fractions import Fraction
 
 import numba
 import numpy as np
 
-__all__ = ["CLEAR", "CONTACT", "CROSSES", "GRID_CELL", "GRID_SLACK", "EdgeGrid",
-           "segment_status", "statuses"]
+__all__ = ["CLEAR", "CONTACT", "CROSSES", "GRID_CELL", "GRID_SLACK", "MAX_BUCKETS", "EdgeGrid",
+           "meets_interior", "segment_status", "statuses"]
+
+#: A polygon's rings (exterior, then holes) as closed lists of exact vertices [m].
+Rings = Sequence[Sequence[tuple[Fraction, Fraction]]]
 
 _UNIT_ROUNDOFF = np.finfo(np.float64).eps / 2
 #: Shewchuk's static error bound for the 2D orientation determinant (ccwerrboundA): when
@@ -34,6 +42,8 @@ _ORIENT_ERRBOUND = (3.0 + 16.0 * _UNIT_ROUNDOFF) * _UNIT_ROUNDOFF
 
 #: Side (m) of the grid's buckets.
 GRID_CELL = 4.0
+#: The most buckets a grid may have (its counts take 8 bytes each): a 16 km square field.
+MAX_BUCKETS = 1 << 24
 #: Slack (m) of the grid: an edge is bucketed, and a segment looks, this far past its extent,
 #: so that rounding at a bucket's border never hides an edge that meets a segment.
 GRID_SLACK = 1e-6
@@ -57,6 +67,13 @@ def _orientation(dax: float, day: float, dbx: float, dby: float) -> tuple[bool, 
 
 
 @numba.njit(cache=True)
+def _clamped(v: float, n: int) -> int:
+    """floor(v) clamped to [0, n - 1], clamped as a float first: a coordinate beyond 2**63
+    buckets (|v| > 3.7e19 m) would wrap around in the integer conversion."""
+    return int(min(max(np.floor(v), 0.0), n - 1.0))
+
+
+@numba.njit(cache=True)
 def segment_status(sx: float, sy: float, ex: float, ey: float, px: np.ndarray,
                    py: np.ndarray, qx: np.ndarray, qy: np.ndarray, x0: float, y0: float,
                    cell: float, nx: int, ny: int, first: np.ndarray, members: np.ndarray,
@@ -70,8 +87,8 @@ def segment_status(sx: float, sy: float, ex: float, ey: float, px: np.ndarray,
     once tested, ``seen`` one mark per edge); with ``tag < 0`` (``seen`` unread) an edge in
     several of the buckets is tested again, to the same answer."""
     ylo, yhi = min(sy, ey), max(sy, ey)
-    j0 = min(max(int(math.floor((ylo - GRID_SLACK - y0) / cell)), 0), ny - 1)
-    j1 = min(max(int(math.floor((yhi + GRID_SLACK - y0) / cell)), 0), ny - 1)
+    j0 = _clamped((ylo - GRID_SLACK - y0) / cell, ny)
+    j1 = _clamped((yhi + GRID_SLACK - y0) / cell, ny)
     status = CLEAR
     for j in range(j0, j1 + 1):
         lo = max(ylo, y0 + j * cell - GRID_SLACK)
@@ -83,8 +100,8 @@ def segment_status(sx: float, sy: float, ex: float, ey: float, px: np.ndarray,
         else:
             xa = sx + (lo - sy) / (ey - sy) * (ex - sx)
             xb = sx + (hi - sy) / (ey - sy) * (ex - sx)
-        i0 = min(max(int(math.floor((min(xa, xb) - GRID_SLACK - x0) / cell)), 0), nx - 1)
-        i1 = min(max(int(math.floor((max(xa, xb) + GRID_SLACK - x0) / cell)), 0), nx - 1)
+        i0 = _clamped((min(xa, xb) - GRID_SLACK - x0) / cell, nx)
+        i1 = _clamped((max(xa, xb) + GRID_SLACK - x0) / cell, nx)
         for i in range(i0, i1 + 1):
             bucket = j * nx + i
             for slot in range(first[bucket], first[bucket + 1]):
@@ -150,6 +167,10 @@ def _grid(edges: np.ndarray) -> tuple[float, float, float, int, int, np.ndarray,
     lo = edges.min(axis=1) - GRID_SLACK               # (E, 2) each edge's box
     hi = edges.max(axis=1) + GRID_SLACK
     x0, y0 = float(lo[:, 0].min()), float(lo[:, 1].min())
+    span = (hi.max(axis=0) - (x0, y0)) / cell
+    if span[0] * span[1] > MAX_BUCKETS:
+        raise ValueError(f"the edges span {span[0] * cell:.3g} x {span[1] * cell:.3g} m: more "
+                         f"than MAX_BUCKETS={MAX_BUCKETS} buckets of {cell:g} m")
     nx = int(math.floor((hi[:, 0].max() - x0) / cell)) + 1
     ny = int(math.floor((hi[:, 1].max() - y0) / cell)) + 1
     i0 = np.floor((lo[:, 0] - x0) / cell).astype(np.int64)
@@ -188,3 +209,45 @@ class EdgeGrid:
     def status(self, ax: float, ay: float, bx: float, by: float) -> int:
         """:func:`segment_status` of the one segment (ax, ay) -> (bx, by) (m)."""
         return segment_status(ax, ay, bx, by, *self.args, _NO_MARKS, -1)
+
+
+def _rational_side(rings: Rings, x: Fraction, y: Fraction) -> int:
+    """1 when (x, y) lies strictly inside the polygon of ``rings``, 0 on its boundary, -1
+    outside: the even-odd rule on exact rationals (a crossing to the right of the point is
+    told by the sign of a cross product, without a division)."""
+    inside = False
+    for ring in rings:
+        for (x1, y1), (x2, y2) in itertools.pairwise(ring):
+            cross = (x2 - x1) * (y - y1) - (y2 - y1) * (x - x1)
+            if cross == 0 and min(x1, x2) <= x <= max(x1, x2) and min(y1, y2) <= y <= max(y1, y2):
+                return 0
+            if (y1 > y) != (y2 > y) and (cross > 0) == (y2 > y1):
+                inside = not inside
+    return 1 if inside else -1
+
+
+def meets_interior(start: Sequence[float], end: Sequence[float], rings: Rings) -> bool:
+    """Whether the open segment ``start -> end`` [m] (a point when they are equal) meets the
+    interior of the polygon of ``rings`` (closed vertex lists of Fractions: exterior, then
+    holes), exactly: the segment is cut where it meets the boundary (crossings, and the ends of
+    collinear overlaps); each piece between two cuts lies wholly inside or outside, so its
+    midpoint decides. Slow (Python rationals): for the rare contacts of :func:`statuses`."""
+    sx, sy = Fraction(start[0]), Fraction(start[1])
+    dx, dy = Fraction(end[0]) - sx, Fraction(end[1]) - sy
+    if dx == 0 and dy == 0:
+        return _rational_side(rings, sx, sy) == 1
+    norm = dx * dx + dy * dy
+    cuts = {Fraction(0), Fraction(1)}
+    for ring in rings:
+        for (px, py), (qx, qy) in itertools.pairwise(ring):
+            ex, ey, wx, wy = qx - px, qy - py, px - sx, py - sy
+            den = dx * ey - dy * ex
+            if den != 0:
+                if 0 <= (wx * dy - wy * dx) / den <= 1:   # where along the edge
+                    cuts.add((wx * ey - wy * ex) / den)   # where along the segment
+            elif wx * dy == wy * dx:                      # collinear: the edge's ends
+                cuts.add((wx * dx + wy * dy) / norm)
+                cuts.add(((qx - sx) * dx + (qy - sy) * dy) / norm)
+    ts = sorted(t for t in cuts if 0 <= t <= 1)
+    return any(_rational_side(rings, sx + (t0 + t1) / 2 * dx, sy + (t0 + t1) / 2 * dy) == 1
+               for t0, t1 in itertools.pairwise(ts))

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from aoass_env.validators import positive
+from aoass_env.validators import finite_array, positive, real
 
 #: Paths of at most this many samples get the pure-Python odometer and beacons of
 #: :func:`beacons_along` (one control period has ``physics_substeps + 1``); numpy is faster
@@ -43,7 +43,8 @@ def beacons_along(path: np.ndarray, start_distance: float,
         in ``(start_distance, end_distance]``, and the odometer reading at ``path[-1]``.
     """
     interval = positive("interval", interval, "m")
-    p = np.asarray(path, dtype=np.float64).reshape(-1, 3)
+    start_distance = real("start_distance", start_distance, "m")
+    p = finite_array("path", path, "(t [s], x [m], y [m])", shape=(None, 3))
     if len(p) <= _SHORT_PATH:   # fast path: most control periods pass no beacon mark
         rows = p.tolist()
         end = start_distance + _xy_length(rows)

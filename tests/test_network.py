@@ -255,3 +255,14 @@ def test_the_compiled_update_is_the_array_form_bit_for_bit(seed, n_nodes, scale,
         assert net.scatter.tobytes() == state["scatter"].tobytes()
         assert net.covered.tobytes() == state["covered"].tobytes()
         assert net.n_covered == int(state["covered"].sum())
+
+
+def test_residual_after_names_bad_points_and_counts():
+    mean, scatter = np.zeros(2), np.array([1.0, 0.0, 1.0])
+    # (2, 3) points used to be read as three (2,) points
+    with pytest.raises(ValueError, match=r"points must be an array of shape \(n, 2\)"):
+        residual_after(2, mean, scatter, np.ones((2, 3)))
+    with pytest.raises(ValueError, match="points must be finite"):
+        residual_after(2, mean, scatter, [[np.nan, 0.0]])
+    with pytest.raises(ValueError, match=r"heard=-1 must be an integer in \[0, inf\)"):
+        residual_after(-1, mean, scatter, [[1.0, 0.0]])     # used to divide by zero

@@ -267,6 +267,11 @@ def test_line_of_sight_matches_shapely_on_grid(polys, segs):
        segs=st.lists(st.tuples(REAL, REAL, REAL, REAL), min_size=1, max_size=25))
 @example(polys=[np.array([[0.0, 1.0], [0.0, 0.0], [8.58306885e-06, 12.0]])],
          segs=[(0.0, 12.0, 1.0, 11.999999999898593)])
+# a contact GEOS settled wrongly (before the exact rational test): the segment passes 5e-17 m
+# inside the convex vertex (3, 2) and GEOS called it a touch (found by a hypothesis audit)
+@example(polys=[np.array([[0.5, 3.9650771449775553], [3.0, 2.0], [7.0, 6.0],
+                          [0.505, 8.904408719561198]])],
+         segs=[(5.6930328243256465, 1.0878927526019286, 0.3069671756743535, 2.9121072473980716)])
 def test_line_of_sight_matches_exact_arithmetic_on_reals(polys, segs):
     s = np.array(segs)
     _check_against_oracle(polys, s[:, :2], s[:, 2:], oracle=exact_blocked)
@@ -518,3 +523,14 @@ def test_receivers_of_many_points_are_each_points_receivers(seed, doi, counts, l
     for point, heard in zip(points, got, strict=True):
         assert heard.dtype == np.int64
         np.testing.assert_array_equal(heard, radio.receivers(point))
+
+
+def test_points_within_refuses_arrays_of_other_lengths():
+    from aoass_env.radio import points_within
+    # a short `among` used to be read past its end (indices 2-5 from stray memory)
+    with pytest.raises(ValueError, match="one entry per point"):
+        points_within(np.zeros(6), np.zeros(6), np.ones(2, bool), 0.0, 0.0, 1.0)
+    with pytest.raises(ValueError, match="one entry per point"):
+        points_within(np.zeros(6), np.zeros(3), np.ones(6, bool), 0.0, 0.0, 1.0)
+    assert points_within(np.zeros(3), np.zeros(3), np.array([True, False, True]), 0.0, 0.0,
+                         1.0).tolist() == [0, 2]

@@ -109,3 +109,11 @@ def test_the_compiled_online_rmse_is_the_metrics_float():
             with pytest.raises(ValueError, match="finite position"):
                 online_rmse(true, est, np.array([True, True]))
         assert online_rmse(np.zeros((2, 2)), est, np.array([True, False])) == 0.0
+    # a non-finite true position of a localized node: refused by both paths (the compiled one
+    # used to return nan or inf)
+    for row in ([np.nan, 0.0], [np.inf, 0.0]):
+        true = np.array([[0.0, 0.0], row])
+        for path in (true, true.tolist()):
+            with pytest.raises(ValueError, match="true_xy must be finite"):
+                online_rmse(path, np.zeros((2, 2)), np.array([True, True]))
+        assert online_rmse(true, np.zeros((2, 2)), np.array([True, False])) == 0.0

@@ -3,12 +3,22 @@
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aoass_env.segments import CLEAR, CONTACT, CROSSES, GRID_SLACK, EdgeGrid
+from aoass_env.segments import (
+    CLEAR,
+    CONTACT,
+    CROSSES,
+    GRID_SLACK,
+    MAX_BUCKETS,
+    EdgeGrid,
+    meets_interior,
+)
 
 
 @settings(max_examples=30, deadline=None)
@@ -55,3 +65,45 @@ def test_a_segment_crosses_clears_or_contacts_the_edges_it_meets():
     empty = EdgeGrid(np.zeros((0, 2, 2)))
     assert empty.status(0.0, 0.0, 1.0, 1.0) == CLEAR
     assert len(empty.statuses(np.zeros((0, 2)), np.zeros((0, 2)))) == 0
+
+
+def test_meets_interior_exactly_on_degenerate_contacts():
+    def rings(*loops):
+        return [[(Fraction(x), Fraction(y)) for x, y in (*loop, loop[0])] for loop in loops]
+
+    square = rings([(0, 0), (2, 0), (2, 2), (0, 2)])
+    assert meets_interior((0, 0), (2, 2), square)            # the diagonal, vertex to vertex
+    assert not meets_interior((0, 0), (2, 0), square)        # along an edge
+    assert not meets_interior((-1, 0), (3, 0), square)       # overlapping an edge, past both ends
+    assert not meets_interior((1, 3), (3, 1), square)        # touching the corner (2, 2)
+    assert meets_interior((1, 1), (1, 1), square)            # a point inside
+    assert not meets_interior((2, 1), (2, 1), square)        # a point on the boundary
+    assert not meets_interior((2, 1), (5, 1), square)        # leaving from the boundary outward
+    assert meets_interior((2, 1), (1.5, 1), square)          # entering from the boundary
+    holed = rings([(0, 0), (4, 0), (4, 4), (0, 4)], [(1, 1), (1, 3), (3, 3), (3, 1)])
+    assert not meets_interior((1.5, 1.5), (2.5, 2.5), holed)  # wholly in the hole
+    assert meets_interior((2, 2), (2, 3.5), holed)           # from the hole into the solid
+    # past the apex (2, 2) of a triangle by 2**-50 m: below it crosses the interior, at it or
+    # above it does not (what GEOS, which rounds, could call a touch)
+    triangle = rings([(0, 0), (4, 0), (2, 2)])
+    assert meets_interior((0, 2 - 2.0**-50), (4, 2 - 2.0**-50), triangle)
+    assert not meets_interior((0, 2), (4, 2), triangle)
+    assert not meets_interior((0, 2 + 2.0**-50), (4, 2 + 2.0**-50), triangle)
+
+
+def test_far_segments_still_find_their_buckets():
+    # a wall 50..52 m high; segments reaching past 3.7e19 m used to wrap around to bucket 0 in
+    # the integer conversion and miss it (CLEAR)
+    wall = [(0.0, 50.0), (60.0, 50.0), (60.0, 52.0), (0.0, 52.0)]
+    grid = EdgeGrid(np.array([[wall[k], wall[(k + 1) % 4]] for k in range(4)]))
+    for end in (3e19, 1e20, 1e300):
+        assert grid.status(3.0, 30.0, 3.0, end) == CROSSES
+        assert grid.status(3.0, -end, 3.0, end) == CROSSES
+        assert grid.status(-end, 51.0, end, 51.0) == CROSSES
+
+
+def test_a_grid_of_too_many_buckets_is_refused_by_name():
+    far_apart = np.array([[(0.0, 0.0), (1.0, 0.0)], [(2e5, 2e5), (2e5 + 1, 2e5)]])
+    with pytest.raises(ValueError, match=rf"the edges span 2e\+05 x 2e\+05 m: more than "
+                                         rf"MAX_BUCKETS={MAX_BUCKETS}"):
+        EdgeGrid(far_apart)

@@ -104,3 +104,15 @@ def test_beacons_of_rows_refuse_a_bad_interval_in_one_line(interval):
     with pytest.raises(ValueError, match="^interval=") as refused:
         trajectory.beacons_of_rows(rows, 0.0, interval)
     assert "\n" not in str(refused.value)
+
+
+@pytest.mark.parametrize("path, start, message", [
+    # a (3, 2) x-y path used to be reshaped to (2, 3) rows: 4 beacons off the path
+    ([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], 0.0, r"path must be an array of shape \(n, 3\)"),
+    ([[0.0, 0.0, 0.0], [1.0, np.nan, 0.0]], 0.0, "path must be finite"),
+    ([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0]], float("nan"), "start_distance=nan must be a number"),
+    ([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0]], float("inf"), "start_distance=inf must be a number"),
+])
+def test_beacons_along_names_a_bad_path_or_odometer(path, start, message):
+    with pytest.raises(ValueError, match=message):
+        beacons_along(np.array(path), start, 0.5)
