@@ -36,13 +36,15 @@ from agents.sections import HyperparameterError, check_section, model_kwargs, po
 from aoass_env.atomic import atomic_open
 from aoass_env.validators import integer, keyword_names, one_line, torch_load_problem
 
-__all__ = ["RECORD_NAME", "STATE_FIELDS", "PolicyFileError", "SafeLoading", "TD3",
-           "load_model", "read_record", "record_path", "saved_step", "validate_record"]
+__all__ = ["MAX_MEMBER_BYTES", "RECORD_NAME", "STATE_FIELDS", "PolicyFileError", "SafeLoading",
+           "TD3", "load_model", "read_record", "record_path", "saved_step", "validate_record"]
 
 #: The run record that ``train.py`` writes beside its models.
 RECORD_NAME = "run.yml"
 #: The only entries of a model's ``data`` that are read: training counters (integers >= 0).
 STATE_FIELDS = ("num_timesteps", "_n_updates", "_episode_num")
+#: The largest member of a model .zip read (inflated size, bytes): far above any model here.
+MAX_MEMBER_BYTES = 1 << 30
 #: Weight files of a model .zip: the policy (required) and the optimizers (read to resume).
 _OPTIMIZERS = ("actor.optimizer", "critic.optimizer")
 #: The scalar tags of a saved replay buffer besides the buffer's own arrays: key -> (dtype
@@ -96,10 +98,20 @@ def read_record(path: str | os.PathLike[str], cls: type) -> dict[str, Any]:
         raise PolicyFileError(str(exc)) from None
 
 
+def _member(path: Path, archive: zipfile.ZipFile, name: str) -> bytes:
+    """The bytes of member ``name``, refused above :data:`MAX_MEMBER_BYTES` before a byte is
+    inflated (a small crafted .zip can inflate to any size)."""
+    size = archive.getinfo(name).file_size
+    if size > MAX_MEMBER_BYTES:
+        raise PolicyFileError(f"{path}: {name}: {size} bytes once inflated, more than "
+                              f"MAX_MEMBER_BYTES={MAX_MEMBER_BYTES}")
+    return archive.read(name)
+
+
 def _read_weights(path: Path, archive: zipfile.ZipFile, name: str, device: str) -> Any:
+    member = _member(path, archive, f"{name}.pth")
     try:
-        payload = th.load(io.BytesIO(archive.read(f"{name}.pth")), map_location=device,
-                          weights_only=True)
+        payload = th.load(io.BytesIO(member), map_location=device, weights_only=True)
     except Exception as exc:  # torch raises many types for a damaged or foreign file
         raise PolicyFileError(f"{path}: {name}.pth: not readable weights "
                               f"({torch_load_problem(exc)})") from None
@@ -174,7 +186,7 @@ def _load_optimizer(path: Path, name: str, optimizer: th.optim.Optimizer,
 def _read_data(path: Path, archive: zipfile.ZipFile) -> dict[str, Any]:
     """The model's ``data`` member as JSON (its pickled entries stay unread strings)."""
     try:
-        data = json.loads(archive.read("data"))
+        data = json.loads(_member(path, archive, "data"))
     except (KeyError, UnicodeDecodeError, json.JSONDecodeError, zlib.error) as exc:
         raise PolicyFileError(f"{path}: data: missing or not JSON ({one_line(exc)})"
                               ) from None

@@ -22,6 +22,7 @@ from aoass_env.validators import (
     argparse_number,
     first_difference,
     float_array,
+    index_array,
     integer,
     one_line,
     positive,
@@ -279,3 +280,23 @@ def test_real_takes_a_python_float_by_its_fast_path_with_the_same_rule() -> None
                           (True, {})):
         with pytest.raises(ValueError, match="x="):
             real("x", value, "m", **kwargs)
+
+
+def test_index_array_takes_distinct_in_range_integers_only():
+    assert index_array("nodes", [3, 0, 2], 4).tolist() == [3, 0, 2]
+    assert index_array("nodes", np.array([1], np.uint8), 4).dtype == np.int64
+    assert index_array("nodes", [], 4).shape == (0,)
+    for bad, message in (([1.0], "integer indices in \\[0, 4\\), got dtype float64"),
+                         ([True], "integer indices"), (["1"], "integer indices"),
+                         ([-1], "indices in \\[0, 4\\), got -1"), ([4], "got 4"),
+                         ([2, 2], "not repeat an index"), ([[1]], "a 1-D array")):
+        with pytest.raises(ValueError, match=f"nodes must (.* )?{message}"):
+            index_array("nodes", bad, 4)
+
+
+def test_argparse_number_with_an_upper_bound():
+    parse = argparse_number(int, 0, high=10)
+    assert parse("10") == 10
+    with pytest.raises(argparse.ArgumentTypeError,
+                       match=r"must be an integer in \[0, 10\], got '11'"):
+        parse("11")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -187,3 +188,17 @@ def test_a_replay_buffer_with_bad_tags_or_values_is_named(saved: Path, tmp_path:
         assert len(str(err.value).splitlines()) == 1
     model.load_replay_buffer(good)
     assert model.replay_buffer.pos == int(arrays["pos"])
+
+
+def test_a_member_that_inflates_past_the_limit_is_refused_unread(saved: Path, tmp_path: Path,
+                                                                monkeypatch: pytest.MonkeyPatch
+                                                                ) -> None:
+    from agents import checkpoints
+    monkeypatch.setattr(checkpoints, "MAX_MEMBER_BYTES", 64)       # data alone is ~10 kB
+    assert re.search(r": data: \d+ bytes once inflated, more than MAX_MEMBER_BYTES=64$",
+                     _refusal(saved))
+    with zipfile.ZipFile(saved) as archive:
+        data_size = archive.getinfo("data").file_size
+    monkeypatch.setattr(checkpoints, "MAX_MEMBER_BYTES", data_size)  # now the policy's turn
+    assert "policy.pth: " in _refusal(saved)
+    assert f"bytes once inflated, more than MAX_MEMBER_BYTES={data_size}" in _refusal(saved)
