@@ -44,7 +44,7 @@ import numpy as np
 from aoass_env.atomic import atomic_open
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import MapError, ObstacleMap
-from aoass_env.validators import one_line
+from aoass_env.validators import one_line, parse_json
 
 __all__ = ["KEYS", "SCHEMA_VERSION", "SUPPORTED_VERSIONS", "BeaconLog", "BeaconLogError",
            "BeaconLogRecorder", "episode_config_json"]
@@ -137,8 +137,8 @@ def _parse_config(text: Any) -> dict[str, Any]:
     if not isinstance(text, str):
         raise BeaconLogError(f"must be a JSON string, got {type(text).__name__}", "config_json")
     try:
-        config = json.loads(text)
-    except json.JSONDecodeError as exc:
+        config = parse_json(text)
+    except ValueError as exc:
         raise BeaconLogError(f"not valid JSON ({exc})", "config_json") from None
     if not isinstance(config, dict):
         raise BeaconLogError("must be a JSON object", "config_json")
@@ -215,6 +215,7 @@ class BeaconLog:
                  f"beacon index out of [0, B={b}) in row {{row}}")
         _fail_at((rec[:, 1] < 0) | (rec[:, 1] >= n), "receptions",
                  f"node index out of [0, N={n}) in row {{row}}")
+        _fail_at(_repeated_rows(rec), "receptions", "row {row} repeats an earlier (beacon, node)")
         links = values["node_links"]
         _fail_at((links < 0).any(axis=1) | (links >= n).any(axis=1), "node_links",
                  f"node index out of [0, N={n}) in row {{row}}")

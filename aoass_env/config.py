@@ -179,6 +179,9 @@ class AOASSConfig(ValidatedConfig):
         lo, hi = self.moving_obstacle_speed
         if lo > hi:
             raise ConfigError(f"moving_obstacle_speed=({lo}, {hi}): min must be <= max")
+        if 2 * self.map_clearance >= self.field_size:
+            raise ConfigError(f"map_clearance={self.map_clearance} m must be less than half of "
+                              f"field_size={self.field_size} m (no free space would remain)")
         if 2 * self.edge_margin >= self.field_size:
             raise ConfigError(f"edge_margin={self.edge_margin} must be less than half of "
                               f"field_size={self.field_size}")
@@ -242,6 +245,10 @@ def config_for_map(config: AOASSConfig, obstacle_map: Any, *,
     :class:`ConfigError` naming ``map`` and ``field_size``."""
     name = config.map
     side = map_side(obstacle_map, name)
+    meta = AOASSConfig.__dataclass_fields__["field_size"].metadata
+    if not meta["low"] <= side <= meta["high"]:
+        raise ConfigError(f"map={name!r} is a {side:g} m field; a map's side must be in "
+                          f"[{meta['low']:g}, {meta['high']:g}] m (field_size's range)")
     if math.isclose(side, config.field_size, rel_tol=1e-9):
         return config
     if not explicit and config.field_size == _DEFAULT_FIELD_SIZE:

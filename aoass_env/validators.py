@@ -39,8 +39,8 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 
 __all__ = ["ConfigError", "ValidatedConfig", "finite_array", "first_difference", "float_array",
-           "index_array", "integer", "number_array", "one_line", "param", "positive", "real",
-           "torch_load_problem", "unknown_key_message", "vec2"]
+           "index_array", "integer", "number_array", "one_line", "param", "parse_json", "positive",
+           "real", "torch_load_problem", "unknown_key_message", "vec2"]
 
 
 class ConfigError(ValueError):
@@ -85,6 +85,22 @@ def first_difference(recorded: Mapping[str, Any], current: Mapping[str, Any]
     def shown(mapping: Mapping[str, Any]) -> str:
         return repr(mapping[keys[0]]) if keys[0] in mapping else "unset"
     return keys[0], shown(recorded), shown(current), keys[1:]
+
+
+def parse_json(text: str) -> Any:
+    """``text`` parsed as strict JSON (``NaN`` and ``Infinity``, Python's extensions, refused);
+    a ValueError with a one-line reason for anything unreadable, also for nesting too deep for
+    the parser or an integer longer than Python converts (which escape ``json.loads`` as
+    RecursionError and a bare ValueError)."""
+    def refuse(name: str) -> Any:
+        raise ValueError(f"{name} is not a JSON value")
+
+    try:
+        return json.loads(text, parse_constant=refuse)
+    except RecursionError:
+        raise ValueError("nested too deeply to read") from None
+    except ValueError as exc:
+        raise ValueError(one_line(exc)) from None
 
 
 def torch_load_problem(error: BaseException) -> str:

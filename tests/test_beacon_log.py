@@ -152,6 +152,11 @@ CORRUPTIONS = [
     ("version", np.array("1"), "dtype"),
     ("config_json", np.array("{not json"), "not valid JSON"),
     ("config_json", np.array("[1, 2]"), "JSON object"),
+    # these escaped as RecursionError, a bare ValueError, or were read as floats
+    ("config_json", np.array("[" * 100_000), "not valid JSON (nested too deeply to read)"),
+    ("config_json", np.array('{"a": ' + "9" * 5000 + "}"), "integer string conversion"),
+    ("config_json", np.array('{"a": NaN}'), "not valid JSON (NaN is not a JSON value)"),
+    ("config_json", np.array('{"a": -Infinity}'), "-Infinity is not a JSON value"),
     ("config_json", np.int64(5), "dtype"),
     ("field", np.array([20.0]), "expected (2,)"),
     ("field", np.array([20.0, -1.0]), "positive"),

@@ -112,3 +112,20 @@ def test_fuzzed_keywords_give_a_config_or_a_config_error(kwargs):
         assert any(k in str(err) for k in kwargs) or "must" in str(err)
         return
     assert AOASSConfig.from_kwargs(**c.to_dict()) == c
+
+
+def test_a_clearance_of_half_the_field_is_refused_when_the_config_is_built():
+    # it used to validate and fail at every reset, naming generate_map's `clearance`
+    with pytest.raises(ConfigError, match=r"map_clearance=6.0 m must be less than half of "
+                                          r"field_size=10.0 m"):
+        AOASSConfig(field_size=10.0, map_clearance=6.0)
+
+
+def test_a_map_file_outside_the_field_size_range_is_named(tmp_path):
+    import gymnasium as gym
+    path = tmp_path / "small.txt"
+    path.write_text("[SCALE]\n1\n[BORDER]\n0 0\n5 0\n5 5\n0 5\n")
+    # the error used to blame field_size, which the user never gave
+    with pytest.raises(ConfigError, match=r"small.txt.* is a 5 m field; a map's side must be "
+                                          r"in \[10, 5000\] m"):
+        gym.make("AOASS-v0", map=str(path))

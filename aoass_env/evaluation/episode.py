@@ -39,7 +39,7 @@ from aoass_env.localization import localize
 from aoass_env.maps import ObstacleMap, generate_map, load_map
 from aoass_env.metrics import localization_rmse
 from aoass_env.simulator import episode_summary
-from aoass_env.validators import one_line
+from aoass_env.validators import one_line, parse_json
 
 __all__ = ["GENERATED_PREFIX", "ROBUSTNESS_MAP_SEED", "episode_map", "episode_metrics",
            "localization_row", "localize_log", "log_key", "log_name", "robustness_map",
@@ -156,8 +156,8 @@ def _saved_episode(text: Any, path: Path) -> dict[str, Any]:
     """The evaluation extra of a saved log, checked: a JSON object holding every key field
     with a value of the field's type; :class:`BeaconLogError` naming the file and the extra."""
     try:
-        saved = json.loads(str(text))
-    except json.JSONDecodeError as exc:
+        saved = parse_json(str(text))
+    except ValueError as exc:
         raise BeaconLogError(f"not valid JSON ({exc})", EPISODE_EXTRA, path) from None
     if not isinstance(saved, dict):
         raise BeaconLogError("must be a JSON object", EPISODE_EXTRA, path)

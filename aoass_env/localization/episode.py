@@ -100,17 +100,10 @@ def log_config(log: BeaconLog) -> AOASSConfig:
 
 
 def covered_nodes(log: BeaconLog, config: AOASSConfig) -> np.ndarray:
-    """(N,) bool: Eq. 18 coverage, replaying the log's receptions through a :class:`Network`.
-
-    Raises:
-        BeaconLogError: a beacon lists the same receiving node twice.
-    """
+    """(N,) bool: Eq. 18 coverage, replaying the log's receptions through a :class:`Network`
+    (a log holds each (beacon, node) once: :class:`~aoass_env.beacon_log.BeaconLog`)."""
     network = Network(log.n_nodes, config)
     rec = log.receptions[np.lexsort((log.receptions[:, 1], log.receptions[:, 0]))]
-    dup = np.all(rec[1:] == rec[:-1], axis=1)
-    if dup.any():
-        beacon, node = rec[1:][dup][0]
-        raise BeaconLogError(f"beacon {beacon} lists node {node} more than once", "receptions")
     bounds = np.searchsorted(rec[:, 0], np.arange(log.n_beacons + 1))
     xy = log.beacons[:, 1:]
     for b in np.flatnonzero(np.diff(bounds)):

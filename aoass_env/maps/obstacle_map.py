@@ -26,10 +26,18 @@ class MapError(ValueError):
 
 
 def _as_ccw(vertices: np.ndarray) -> np.ndarray:
-    """(k, 2) float64 vertices in counter-clockwise order, closing duplicate removed."""
+    """(k, 2) float64 vertices in counter-clockwise order, repeated vertices removed: a vertex
+    equal to the one before it, and closing copies of the first (a repeated vertex is the same
+    polygon, but pymunk's convex decomposition crashed the process on one)."""
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
-    if len(v) > 1 and np.array_equal(v[0], v[-1]):
-        v = v[:-1]
+    if len(v) > 1:
+        new = np.ones(len(v), dtype=bool)
+        new[1:] = np.any(v[1:] != v[:-1], axis=1)
+        v = v[new]
+        end = len(v)
+        while end > 1 and np.array_equal(v[0], v[end - 1]):
+            end -= 1
+        v = v[:end]
     x, y = v[:, 0], v[:, 1]
     # np.roll(., -1) by slicing (the same arrays, without np.roll's generic axis handling)
     signed_area = 0.5 * float(np.dot(x, np.concatenate((y[1:], y[:1])))
@@ -53,7 +61,8 @@ class ObstacleMap:
     Args:
         width, height: field size (m).
         polygons: obstacle polygons, each an array-like of (x, y) vertices (m); stored as
-            counter-clockwise (k, 2) float64 arrays without a closing vertex.
+            counter-clockwise (k, 2) float64 read-only arrays without a closing or repeated
+            vertex (maps are shared from caches: an edit would change every later draw).
         name: a label (the file stem for maps read from disk).
     """
 
@@ -78,6 +87,7 @@ class ObstacleMap:
             if not poly.is_valid or poly.area <= 0:
                 reason = shapely.is_valid_reason(poly)
                 raise MapError(f"obstacle {i} is not a simple polygon with area ({reason})")
+            v.flags.writeable = False
             polys.append(v)
         object.__setattr__(self, "width", width)
         object.__setattr__(self, "height", height)

@@ -123,7 +123,11 @@ def read_map(path: str | os.PathLike, field_size: float | tuple[float, float] | 
                  for kind, line, rows in sections if kind == "[OBSTACLE]"]
 
     low = border.min(axis=0)
-    span = border.max(axis=0) - low
+    with np.errstate(over="ignore"):
+        span = border.max(axis=0) - low
+    if not np.isfinite(span).all():
+        raise MapFormatError(path, found["[BORDER]"][0],
+                             "the border's extent overflows a float (coordinates too large)")
     if field_size is None:
         size = span
         border, obstacles = border - low, [v - low for v in obstacles]

@@ -114,3 +114,17 @@ def test_a_polygon_must_be_k_by_2_vertices(vertices):
     with pytest.raises(MapError, match=r"obstacle 0: a polygon must be a \(k, 2\) array of "
                                        r"\(x, y\) vertices \(m\), got shape"):
         ObstacleMap(100.0, 100.0, [vertices])
+
+
+def test_repeated_vertices_are_dropped_and_the_stored_vertices_are_read_only():
+    ell = [(0, 0), (4, 0), (4, 1), (1, 1), (1, 4), (0, 4)]
+    # a repeated vertex used to be kept, and pymunk's convex decomposition of the obstacle
+    # (at the env's reset) crashed the process
+    for noisy in (ell[:3] + [ell[2]] + ell[3:], ell + [ell[0], ell[0]], [ell[0]] + ell):
+        m = ObstacleMap(10, 10, [noisy])
+        assert m.polygons[0].tolist() == ObstacleMap(10, 10, [ell]).polygons[0].tolist()
+        parts = m.convex_parts                       # where pymunk crashed
+        assert sum(shapely.Polygon(p).area for p in parts) == pytest.approx(7.0)
+    # maps are shared from caches: an in-place edit would change every later draw
+    with pytest.raises(ValueError, match="read-only"):
+        m.polygons[0][:] += 1.0

@@ -182,3 +182,11 @@ def test_reader_fuzz_gives_a_map_or_a_map_format_error(tmp_path_factory, lines):
         return
     assert m.width > 0 and m.height > 0
     assert 0.0 <= m.density <= 1.0
+
+
+def test_a_border_whose_extent_overflows_is_named_with_its_line(tmp_path):
+    # the width overflowed to inf and the error named neither the file nor the line
+    path = tmp_path / "huge.txt"
+    path.write_text("[SCALE]\n1\n[BORDER]\n-1e308 0\n1e308 0\n1e308 1\n-1e308 1\n")
+    with pytest.raises(MapFormatError, match=r"huge.txt:3: the border's extent overflows"):
+        read_map(path)
