@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 
 import torch
@@ -254,21 +255,26 @@ def main(argv: list[str] | None = None) -> int:
     options = RunOptions(policy=str(policy.resolve()),
                          policy_run=None if record is None else str(record.resolve()))
     log_dir = (out / "logs").resolve() if args.save_logs else None
+    run = {"preset": None if args.logs else preset.name,
+           "seeds": None if args.logs else args.seeds or preset.seeds,
+           "backend": backend.description}
     with store:
+        start, before = time.perf_counter(), {key for key, _ in store.done}
         try:
             with deliver_interrupts():  # also when an episode runs in this process (1 worker)
                 report = run_jobs(jobs, store, backend=backend, options=options,
                                   log_dir=log_dir, progress=not args.no_progress,
                                   desc=args.logs.name if args.logs else preset.name)
         except KeyboardInterrupt:
+            # the episodes it finished and its time count in the page's wall time too
+            finished = len({key for key, _ in store.done} - before)
+            record_run(store, {**run, "finished": finished, "interrupted": True,
+                               "wall_seconds": time.perf_counter() - start})
             print(f"\ninterrupted: the finished episodes are in {store.path}; run the same "
                   f"command again to continue", file=sys.stderr)
             return 130
-        record_run(store, {"preset": None if args.logs else preset.name,
-                           "seeds": None if args.logs else args.seeds or preset.seeds,
-                           "finished": report.finished, "skipped": report.skipped,
-                           "failed": len(report.failed), "wall_seconds": report.wall_seconds,
-                           "backend": backend.description})
+        record_run(store, {**run, "finished": report.finished, "skipped": report.skipped,
+                           "failed": len(report.failed), "wall_seconds": report.wall_seconds})
     rows = store.rows
     timing = seconds_per_episode(rows)
     notes = ("" if args.logs else f"{preset.description}. ") + (

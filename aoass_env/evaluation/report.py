@@ -205,9 +205,11 @@ def _table(episodes: list[dict[str, Any]], localizers: list[str]) -> str:
     columns: list[tuple[str, Callable[[list[dict[str, Any]]], str]]] = []
     for name in localizers:
         def rmse(eps: list[dict[str, Any]], name: str = name) -> str:
-            loc = np.mean([e[f"localized:{name}"] for e in eps if f"localized:{name}" in e])
+            shares = [e[f"localized:{name}"] for e in eps if f"localized:{name}" in e]
+            if not shares:      # no episode of the method was localized by ``name``
+                return "–"
             return (f"{_cell([e.get(f'rmse:{name}', math.nan) for e in eps], '{:.2f}'.format)}"
-                    f" ({loc:.0%})")
+                    f" ({np.mean(shares):.0%})")
         columns.append((f"RMSE {name} [m] (localized)", rmse))
     for title, key, fmt in (
             ("coverage", "coverage", "{:.1%}"), ("EER [1/J]", "eer", "{:.3f}"),

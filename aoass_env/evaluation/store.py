@@ -17,10 +17,15 @@ import json
 import math
 import os
 import warnings
+
+try:
+    import fcntl
+except ImportError:       # Windows: no advisory locks
+    fcntl = None  # type: ignore[assignment]
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from aoass_env.atomic import write_text_atomic
 
@@ -138,7 +143,8 @@ def _split_complete(path: Path, text: str) -> tuple[list[dict[str, Any]], str]:
         warnings.warn(f"{path}: dropped a half-written last line (an interrupted write): "
                       f"{lines[-1][:80]!r}", stacklevel=3)
         lines = lines[:-1]
-    rows = []
+    rows: list[dict[str, Any]] = []
+    line_of: dict[tuple[EpisodeKey, str], int] = {}
     for number, record in enumerate(csv.reader(lines[1:]), start=2):
         try:
             if len(record) != len(COLUMNS):
@@ -147,6 +153,10 @@ def _split_complete(path: Path, text: str) -> tuple[list[dict[str, Any]], str]:
         except ValueError as exc:
             raise EvaluationError(f"{path}, line {number}: broken row ({exc}); fix or remove "
                                   f"the line, or choose another --out folder") from None
+        first = line_of.setdefault(row_key(rows[-1]), number)
+        if first != number:     # e.g. two runs appending to one folder: counted twice
+            raise EvaluationError(f"{path}, line {number}: repeats the episode and localizer "
+                                  f"of line {first}; remove one of them")
     return rows, "".join(lines)
 
 
@@ -154,7 +164,16 @@ def read_episodes(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
     """The typed rows of an ``episodes.csv`` (a half-written last line dropped, with a
     warning)."""
     path = Path(path)
-    return _split_complete(path, path.read_text(encoding="utf-8"))[0]
+    return _split_complete(path, _read_text(path))[0]
+
+
+def _read_text(path: Path) -> str:
+    """The UTF-8 text of ``path``; EvaluationError naming it when it is not UTF-8."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise EvaluationError(f"{path} is not an episodes.csv of this evaluation (not UTF-8 "
+                              f"text: {exc.reason} at byte {exc.start})") from None
 
 
 def comparable_lines(path: str | os.PathLike[str]) -> set[str]:
@@ -303,6 +322,22 @@ def read_runs(folder: str | os.PathLike[str]) -> list[dict[str, Any]]:
     return records
 
 
+def _lock(path: Path) -> IO[bytes]:
+    """An exclusive lock on ``path``'s folder for appending to it (a ``.<name>.lock`` file
+    beside it, held while the returned file is open): a second store on the same file, e.g. a
+    second ``evaluate.py`` on one ``--out``, would append the same episodes twice. Advisory
+    (``fcntl``); where that is missing (Windows), no lock is taken."""
+    handle = open(path.with_name(f".{path.name}.lock"), "ab")  # noqa: SIM115
+    if fcntl is not None:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.close()
+            raise EvaluationError(f"{path} is being written by another evaluate.py run; wait "
+                                  f"for it, or choose another --out folder") from None
+    return handle
+
+
 class EpisodeStore:
     """``episodes.csv`` of an output folder, open for appending finished episodes.
 
@@ -310,22 +345,32 @@ class EpisodeStore:
         path: the CSV file; created with its header if missing.
 
     Raises:
-        EvaluationError: the folder cannot be created or written, or the file holds another
-            schema or a broken row.
+        EvaluationError: the folder cannot be created or written, another store holds it
+            (:func:`_lock`), or the file holds another schema, a broken or repeated row, or is
+            not UTF-8.
     """
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            text = self.path.read_text(encoding="utf-8") if self.path.is_file() else ""
+            self._lock = _lock(self.path)
+        except OSError as exc:
+            raise EvaluationError(f"cannot write the output folder {self.path.parent}: "
+                                  f"{exc.strerror or exc}") from None
+        try:
+            text = _read_text(self.path) if self.path.is_file() else ""
             self.rows, complete = _split_complete(self.path, text)
             if complete != text or not complete:
                 write_text_atomic(self.path, complete or _csv_text([], header=True))
             self._file = open(self.path, "a", encoding="utf-8", newline="")  # noqa: SIM115
         except OSError as exc:
+            self._lock.close()
             raise EvaluationError(f"cannot write the output folder {self.path.parent}: "
                                   f"{exc.strerror or exc}") from None
+        except BaseException:
+            self._lock.close()
+            raise
         #: (episode key, localizer) pairs already in the file
         self.done = {row_key(r) for r in self.rows}
 
@@ -352,6 +397,7 @@ class EpisodeStore:
 
     def close(self) -> None:
         self._file.close()
+        self._lock.close()      # releases the lock
 
     def __enter__(self) -> EpisodeStore:
         return self

@@ -175,6 +175,27 @@ def test_resuming_with_another_policy_fails_before_any_work(smoke_run, capsys, t
     assert (tmp_path / "episodes.csv").read_text() == before
 
 
+def test_an_interrupted_run_records_its_finished_episodes_and_time(smoke_run, tmp_path,
+                                                                      monkeypatch, capsys):
+    out, _ = smoke_run
+    for name in ("episodes.csv", "inputs.json"):
+        shutil.copy(out / name, tmp_path / name)
+    [first, *_] = read_episodes(out / "episodes.csv")
+
+    def one_then_interrupted(jobs, store, **kwargs):
+        store.append([{**first, "seed": 12345}])       # one episode finishes, then Ctrl-C
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "run_jobs", one_then_interrupted)
+    assert cli.main(["--preset", "smoke", "--methods", "spiral", "--localizers",
+                     first["localizer"], "--out", str(tmp_path), "--no-progress"]) == 130
+    capsys.readouterr()
+    # it used to write no line: the page's wall time left the run out
+    run = read_runs(tmp_path)[-1]
+    assert run["interrupted"] is True and run["finished"] == 1 and run["wall_seconds"] >= 0
+    assert run["preset"] == "smoke"
+
+
 def test_resuming_with_other_config_defaults_is_refused_for_the_methods_built_on_them(
         smoke_run, monkeypatch, capsys, tmp_path):
     """A default tuned since the rows were made: resuming would mix two settings for the

@@ -120,6 +120,20 @@ def test_method_table_is_the_all_episodes_table():
     assert table in summary_markdown(rows, "t").split("## All episodes")[1]
 
 
+def test_a_localizer_a_method_was_not_run_with_is_a_dash():
+    rows = (rows_for(["spiral"], localizers=("dvhop",))
+            + rows_for(["scan"], localizers=("olstm-dvhop",)))
+    table = method_table(rows)
+    assert "nan" not in table           # it used to read "– (nan%)"
+    header, _, *body = table.splitlines()
+    columns = [c.strip() for c in header.strip("|").split("|")]
+    cells = {r.strip("|").split("|")[0].strip(): [c.strip() for c in r.strip("|").split("|")]
+             for r in body}
+    olstm, dvhop = (columns.index(f"RMSE {n} [m] (localized)") for n in ("olstm-dvhop", "dvhop"))
+    assert cells["Square spiral" if "Square spiral" in cells else "spiral"][olstm] == "–"
+    assert cells["SCAN" if "SCAN" in cells else "scan"][dvhop] == "–"
+
+
 def test_robustness_gap_is_paired_with_the_spiral_of_the_same_episode():
     """Two seeds per density; the spiral covers 0.9 and 0.5 (seed 0, 1), scan 0.8 and 0.6: the
     per-method means differ by 0 points, the paired gaps are -10 and +10."""

@@ -270,3 +270,38 @@ def test_run_records_append_and_a_torn_line_is_left_out(tmp_path):
     with EpisodeStore(tmp_path / "episodes.csv") as store:
         record_run(store, {"finished": 2, "wall_seconds": 0.5})
     assert read_runs(tmp_path)[2:] == [{"finished": 2, "wall_seconds": 0.5}]
+
+
+def test_a_repeated_episode_row_is_refused_with_both_lines(tmp_path):
+    path = tmp_path / "episodes.csv"
+    with EpisodeStore(path) as store:
+        store.append([row(seed=0), row(seed=1)])
+    text = path.read_text()
+    path.write_text(text + text.splitlines(keepends=True)[1])   # line 2 again, as line 4
+    # two runs appending to one folder used to count it twice in summary.csv
+    with pytest.raises(EvaluationError, match=r"episodes.csv, line 4: repeats the episode and "
+                                              r"localizer of line 2"):
+        read_episodes(path)
+    with pytest.raises(EvaluationError, match="line 4: repeats"):
+        EpisodeStore(path)
+    path.write_text(text)
+    EpisodeStore(path).close()          # the failed store released its lock on the folder
+
+
+def test_a_second_store_on_one_file_is_refused_while_the_first_is_open(tmp_path):
+    path = tmp_path / "episodes.csv"
+    with EpisodeStore(path):
+        with pytest.raises(EvaluationError, match="being written by another evaluate.py run"):
+            EpisodeStore(path)
+    with EpisodeStore(path) as store:               # closed: free again
+        store.append([row(seed=0)])
+    assert len(read_episodes(path)) == 1
+
+
+def test_a_file_that_is_not_utf8_is_named(tmp_path):
+    path = tmp_path / "episodes.csv"
+    path.write_bytes(b"\xff\xfe not text")
+    for open_it in (read_episodes, EpisodeStore):
+        with pytest.raises(EvaluationError, match=r"episodes.csv is not an episodes.csv of this "
+                                                  r"evaluation \(not UTF-8 text"):
+            open_it(path)
