@@ -32,6 +32,7 @@ from gymnasium import spaces as gym_spaces
 from stable_baselines3 import TD3 as _SB3TD3
 
 from agents.envs import make_training_env
+from agents.errors import PolicyFileError
 from agents.sections import HyperparameterError, check_section, model_kwargs, policy_name, read_yaml
 from aoass_env.atomic import atomic_open
 from aoass_env.validators import integer, keyword_names, one_line, torch_load_problem
@@ -56,10 +57,6 @@ _BUFFER_META = {"pos": ("iu", "an integer"), "full": ("b", "a bool"),
 _UNREADABLE_ZIP = (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError, zlib.error)
 
 SelfSafe = TypeVar("SelfSafe", bound="SafeLoading")
-
-
-class PolicyFileError(ValueError):
-    """A model, run record or replay buffer file that cannot be used; the message names it."""
 
 
 def record_path(model_path: str | os.PathLike[str]) -> Path:

@@ -29,6 +29,7 @@ from stable_baselines3.common.torch_layers import (
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
+from agents.errors import PolicyFileError
 from aoass_env.validators import integer, real
 
 LSTMState = tuple[th.Tensor, th.Tensor]
@@ -69,8 +70,6 @@ class _NoPickledFile:
 
     @classmethod
     def load(cls, path: Any, device: Any = "auto") -> Any:  # noqa: ARG003 (SB3's signature)
-        from agents.checkpoints import PolicyFileError  # agents.checkpoints imports this module
-
         raise PolicyFileError(
             f"{path}: {cls.__name__}.load would unpickle the file (SB3's policy files are "
             f"pickles, which can run code); load the model with RecurrentTD3.load, or weights "

@@ -41,7 +41,7 @@ from aoass_env.evaluation.report import (
     paired_stats,
     robustness_markdown,
 )
-from aoass_env.evaluation.store import read_episodes, read_runs
+from aoass_env.evaluation.store import EvaluationError, read_episodes, read_runs
 from aoass_env.evaluation.sweep import PRESETS, ROBUSTNESS_EPISODE_SEED_BASE, episode_jobs
 from aoass_env.validators import argparse_number
 
@@ -455,8 +455,7 @@ def main(argv: list[str] | None = None) -> int:
                 return _rebuild_section(args.out)
             sys.exit(f"{folder / 'episodes.csv'} is missing: run this script without "
                      f"--skip-runs")
-        wanted = {job.key.seed for job in episode_jobs(PRESETS[name], ["spiral"], (), n)}
-        rows[name] = [r for r in read_episodes(folder / "episodes.csv") if r["seed"] in wanted]
+        rows[name] = preset_rows(folder, name, n)
         if name not in FIGURE:
             continue
         with tempfile.TemporaryDirectory() as tmp:
@@ -465,10 +464,6 @@ def main(argv: list[str] | None = None) -> int:
             with atomic_open(target, "wb") as f:       # a kill leaves the old figure
                 f.write(drawn[FIGURE[name]].read_bytes())
         figures[name] = target.relative_to(PAGE.parent).as_posix()
-    missing = [p for p in ("fig2", "fig3", "fig4") if
-               {r["field_size"] for r in rows[p]} != set(PRESETS[p].field_sizes)]
-    if missing:
-        sys.exit(f"preset(s) {', '.join(missing)} lack a field size of their grid in {args.out}")
     values = page_values(rows, runs, SEEDS, figures)
     page = string.Template(TEMPLATE.read_text(encoding="utf-8")).substitute(values)
     page = page.rstrip("\n") + "\n"         # an empty last table leaves no blank tail
@@ -477,13 +472,36 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def preset_rows(folder: Path, name: str, n: int) -> Rows:
+    """The rows of ``folder``'s episodes.csv that are episodes of preset ``name`` at ``n`` seeds
+    (map, field, N, density and seed of one of its jobs; another preset's rows in the same
+    folder are left out); exits naming the file when it cannot be read or when a grid point
+    of the preset has no row (an incomplete grid would be reported as the whole)."""
+    path = folder / "episodes.csv"
+    try:
+        every = read_episodes(path)
+    except EvaluationError as exc:
+        sys.exit(str(exc))
+
+    def point(key: Any) -> tuple[Any, ...]:
+        return (key["map"], key["field_size"], key["n_nodes"], key["obstacle_density"],
+                key["seed"])
+
+    grid = {point(vars(job.key)) for job in episode_jobs(PRESETS[name], ["spiral"], (), n)}
+    rows = [r for r in every if point(r) in grid]
+    missing = sorted(grid - {point(r) for r in rows})
+    if missing:
+        sys.exit(f"{path}: {len(missing)} of the {len(grid)} grid points of preset {name} "
+                 f"({n} seeds) have no episode, e.g. map {missing[0][0]}, N = {missing[0][2]}, "
+                 f"seed {missing[0][4]}: run this script without --skip-runs")
+    return rows
+
+
 def _rebuild_section(out: Path) -> int:
     """Rebuild only the robustness section of docs/results.md from ``out/robustness``."""
     name, n = "robustness", SEEDS["robustness"]
     folder = out / name
-    wanted = {job.key.seed for job in episode_jobs(PRESETS[name], ["spiral"], (), n)}
-    rows = ([r for r in read_episodes(folder / "episodes.csv") if r["seed"] in wanted]
-            if (folder / "episodes.csv").is_file() else None)
+    rows = preset_rows(folder, name, n) if (folder / "episodes.csv").is_file() else None
     runs = [r for r in read_runs(folder) if r.get("preset") == name]
     try:
         page = replace_section(PAGE.read_text(encoding="utf-8"),

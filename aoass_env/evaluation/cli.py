@@ -23,7 +23,7 @@ from aoass_env.backends import (
     deliver_interrupts,
     make_backend,
 )
-from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED, log_name
+from aoass_env.evaluation.episode import GENERATED_PREFIX, ROBUSTNESS_MAP_SEED, log_name
 from aoass_env.evaluation.methods import (
     DEFAULT_POLICY,
     METHODS,
@@ -191,6 +191,7 @@ def _check_saved_logs(jobs: list[Job], store: EpisodeStore, logs: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    store = None
     try:
         if args.seeds is not None and not 1 <= args.seeds <= MAX_SEEDS:
             raise EvaluationError(f"--seeds must be in [1, {MAX_SEEDS}], got {args.seeds}")
@@ -248,6 +249,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.save_logs:
             _check_saved_logs(jobs, store, out / "logs")
     except (EvaluationError, BackendError) as exc:
+        if store is not None:
+            store.close()       # its lock on the folder (main may run again in one process)
         parser.error(str(exc))
 
     torch.set_num_threads(1)
@@ -284,8 +287,11 @@ def main(argv: list[str] | None = None) -> int:
         f"Mean wall seconds per episode (simulation + localizers): "
         + ", ".join(f"{label(m)} {s:.1f}" for m, s in timing.items()) + ".")
     generated = args.logs is None and preset.maps == "generated"
+    # only the generated maps' episodes: a folder shared with another preset holds shipped-map
+    # episodes too, which would pool into the "freshly generated maps" tables
+    fresh = [r for r in rows if r["map"].startswith(GENERATED_PREFIX)]
     markdown = summary_markdown(rows, title, notes,
-                                lead=robustness_markdown(rows) if generated else "")
+                                lead=robustness_markdown(fresh) if generated else "")
     write_text_atomic(out / "summary.md", markdown)
     write_summary_csv(rows, out / "summary.csv")
     figures = draw_figures(rows, out)
