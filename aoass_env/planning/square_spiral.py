@@ -152,10 +152,18 @@ def square_spiral(width: float, height: float, spacing: float, step: float, *,
     points, legs = [start], [0]
     # which clipped border lines (right, top, left, bottom) a leg has run along
     borders_done = np.zeros(4, dtype=bool)
-    pos = start
+    # the unclipped spiral's corner: each leg ends at Eq. 2's length from it, clipped; from the
+    # clipped position instead, a leg clipped at a near border (an off-centre origin) shifted
+    # every later pass toward it and left gaps wider than the spacing by the far border. A
+    # clip of round-off size (the last ring of a fitted spacing) moves the corner to the clip.
+    pos = virtual = start
+    roundoff = 1e-9 * max(width, height)
     for j in range(max_legs):
         d = DIRECTIONS[j % 4]
-        end = np.clip(pos + (j // 2 + 1) * spacing * d, lo, hi)
+        virtual = virtual + (j // 2 + 1) * spacing * d
+        end = np.clip(virtual, lo, hi)
+        if np.abs(end - virtual).max() <= roundoff:
+            virtual = end
         seg = float(np.abs(end - pos).sum())
         if seg > 1e-9:
             n = math.ceil(seg / step - 1e-9)

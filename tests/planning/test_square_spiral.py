@@ -47,6 +47,22 @@ def test_passes_are_spacing_apart():
     np.testing.assert_allclose(np.diff(ys), s, rtol=1e-9)
 
 
+@pytest.mark.parametrize("origin", [(20.0, 50.0), (50.0, 20.0), (10.0, 10.0), (90.0, 75.0)])
+def test_an_off_centre_spiral_keeps_its_passes_spacing_apart(origin):
+    # legs clipped at the near border used to shift every later pass toward it: gaps of 36-39 m
+    # at a spacing of 20-22 m by the far border, and parts of an empty field unheard
+    s = default_spacing(100, 100, 25.0, 2.0, 1.5, origin)
+    corners = square_spiral(100, 100, s, 2.0, margin=1.5, origin=origin).corners()
+    for axis in (0, 1):
+        passes = np.unique(np.round(corners[:, axis], 9))
+        assert passes[0] == pytest.approx(1.5) and passes[-1] == pytest.approx(98.5)
+        assert np.diff(passes).max() <= s * (1 + 1e-9)
+        # every pass off the borders lies on the origin's lattice, x0 + k s
+        inner = passes[(passes > 1.5 + 1e-9) & (passes < 98.5 - 1e-9)]
+        k = (inner - origin[axis]) / s
+        np.testing.assert_allclose(k, np.round(k), atol=1e-9)
+
+
 def test_default_spacing_derivation():
     s_max = max_spacing(25.0, 2.0, 1.5)
     assert s_max == pytest.approx(math.sqrt(25**2 - 2**2) - 1.5)
