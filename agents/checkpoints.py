@@ -290,7 +290,7 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
                               f"{cls.algo_name!r}")
     hp = record["hyperparameters"]
     if not zipfile.is_zipfile(path):
-        raise PolicyFileError(f"{path}: not a model .zip (no such file, or no zip structure)")
+        raise PolicyFileError(f"{path}: not a model .zip (no zip structure)")
     try:
         with zipfile.ZipFile(path) as archive:
             data = _read_data(path, archive)

@@ -137,9 +137,11 @@ def argparse_number(kind: type, low: float, low_open: bool = False,
                                                                          value == low) or (
                 high is not None and value > high):
             what = "an integer" if kind is int else "a finite number"
-            valid = (f"{'>' if low_open else '>='} {low:g}" if high is None else
-                     f"in {'(' if low_open else '['}{low:g}, {high:d}]" if kind is int else
-                     f"in {'(' if low_open else '['}{low:g}, {high:g}]")
+            if high is None:
+                valid = f"{'>' if low_open else '>='} {low:g}"
+            else:   # an integer bound in full (2**32 - 1, not 4.29497e+09)
+                top = high if kind is int else f"{high:g}"
+                valid = f"in {'(' if low_open else '['}{low:g}, {top}]"
             raise argparse.ArgumentTypeError(f"must be {what} {valid}, got {text!r}")
         return value
     parse.__name__ = kind.__name__

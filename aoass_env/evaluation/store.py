@@ -17,17 +17,17 @@ import json
 import math
 import os
 import warnings
-
-try:
-    import fcntl
-except ImportError:       # Windows: no advisory locks
-    fcntl = None  # type: ignore[assignment]
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import IO, Any
 
 from aoass_env.atomic import write_text_atomic
+
+try:
+    import fcntl
+except ImportError:       # Windows: no advisory locks
+    fcntl = None  # type: ignore[assignment]
 
 __all__ = ["COLUMNS", "CONFIG_DEFAULTS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS",
            "LOCALIZATION_FIELDS", "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey", "EpisodeStore",
@@ -355,22 +355,18 @@ class EpisodeStore:
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._lock = _lock(self.path)
+            try:
+                text = _read_text(self.path) if self.path.is_file() else ""
+                self.rows, complete = _split_complete(self.path, text)
+                if complete != text or not complete:
+                    write_text_atomic(self.path, complete or _csv_text([], header=True))
+                self._file = open(self.path, "a", encoding="utf-8", newline="")  # noqa: SIM115
+            except BaseException:
+                self._lock.close()          # a failed store holds no lock
+                raise
         except OSError as exc:
             raise EvaluationError(f"cannot write the output folder {self.path.parent}: "
                                   f"{exc.strerror or exc}") from None
-        try:
-            text = _read_text(self.path) if self.path.is_file() else ""
-            self.rows, complete = _split_complete(self.path, text)
-            if complete != text or not complete:
-                write_text_atomic(self.path, complete or _csv_text([], header=True))
-            self._file = open(self.path, "a", encoding="utf-8", newline="")  # noqa: SIM115
-        except OSError as exc:
-            self._lock.close()
-            raise EvaluationError(f"cannot write the output folder {self.path.parent}: "
-                                  f"{exc.strerror or exc}") from None
-        except BaseException:
-            self._lock.close()
-            raise
         #: (episode key, localizer) pairs already in the file
         self.done = {row_key(r) for r in self.rows}
 

@@ -190,8 +190,8 @@ def visibility_raster(episode: Episode, cell: float = DEFAULT_CELL, bins: int = 
     certain = certain[pad:-pad, pad:-pad]
     key = np.r_[np.arange(n) * stencil - origin[:, 0] * size - origin[:, 1], n * stencil]
     return VisibilityRaster(cell=float(cell), shape=shape, field=tuple(map(float, episode.field)),
-                            size=size, key=key,
-                            weight=weight, certain=certain, inside=geo.inside)
+                            size=size, key=key, weight=weight, certain=certain,
+                            inside=geo.inside)
 
 
 @dataclass(frozen=True)

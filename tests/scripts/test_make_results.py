@@ -240,3 +240,31 @@ def test_paired_table_and_fresh_energy(values):
     assert rule == ["| AOASS, adaptive rule | 0.800 | 0.800 | 0.800 | 0.800 | 0.800 | 2.000 | "
                     "0.800 |"]
     assert not any(line.startswith("| Square spiral") for line in energy)
+
+
+def test_a_preset_takes_its_grid_alone_and_stops_on_a_missing_point(tmp_path):
+    from aoass_env.evaluation.store import EpisodeStore
+
+    def rows_of(preset: str, seeds: int) -> list[dict]:
+        out = []
+        for job in episode_jobs(PRESETS[preset], ["spiral"], ("dvhop",), seeds):
+            row = dict.fromkeys(COLUMNS, 1.0)
+            row.update(vars(job.key), localizer="dvhop", path_complete=1, beacons=5,
+                       collisions=0, collisions_static=0, collisions_moving=0,
+                       safety_intervention=math.nan)
+            out.append(row)
+        return out
+
+    fig4, quick = rows_of("fig4", 2), rows_of("quick", 1)
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        store.append(fig4 + quick)          # quick's rows in fig4's folder (docs allow it)
+    # they used to be kept by seed alone and pooled into the fig4 verdicts
+    kept = make_results.preset_rows(tmp_path, "fig4", 2)
+    assert sorted(r["obstacle_density"] for r in kept) == sorted(
+        r["obstacle_density"] for r in fig4)
+    # a grid point without an episode used to build the page as if the grid were whole
+    with EpisodeStore(tmp_path / "short" / "episodes.csv") as store:
+        store.append(fig4[1:])
+    with pytest.raises(SystemExit, match=rf"1 of the {len(fig4)} grid points of preset fig4 "
+                                         rf"\(2 seeds\) have no episode"):
+        make_results.preset_rows(tmp_path / "short", "fig4", 2)
