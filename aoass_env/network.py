@@ -20,16 +20,16 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from aoass_env.config import AOASSConfig
+from aoass_env.jit import njit
 from aoass_env.validators import finite_array, integer, real
 
 __all__ = ["Network", "lambda_min", "residual_after"]
 
 
-@numba.njit(cache=True)
+@njit
 def _welford(idx: np.ndarray, x: float, y: float, heard: np.ndarray, mean: np.ndarray,
              scatter: np.ndarray, covered: np.ndarray, min_scatter: float) -> int:
     """Add a beacon at (``x``, ``y``) [m] to the nodes ``idx``: Welford's update of their

@@ -38,11 +38,11 @@ from __future__ import annotations
 import math
 from typing import Protocol
 
-import numba
 import numpy as np
 from gymnasium import spaces
 
 from aoass_env.config import AOASSConfig
+from aoass_env.jit import njit
 from aoass_env.planning import CoverageMap
 from aoass_env.world import World
 
@@ -85,7 +85,7 @@ def observation_space(config: AOASSConfig) -> spaces.Box:
     return spaces.Box(low, np.ones_like(low), dtype=np.float32)
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def clip_like_numpy(x: float, low: float, high: float) -> float:
     """``np.minimum(np.maximum(x, low), high)`` of one element, as NumPy's array functions give
     it: a NaN is kept, and a tie of +0.0 and -0.0 gives the bound (the second operand)."""
@@ -96,7 +96,7 @@ def clip_like_numpy(x: float, low: float, high: float) -> float:
     return x
 
 
-@numba.njit(cache=True)
+@njit
 def _vector(x: float, y: float, field: float, speed: float, max_speed: float, gap: float,
             reach: float, heading_error: float, cos_h: float, sin_h: float,
             upcoming: np.ndarray, wp_scale: float, rays: np.ndarray, slots: np.ndarray,

@@ -6,13 +6,14 @@ NumPy for every length up to thousands).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from aoass_env.jit import njit
 
 __all__ = ["pairwise_sum"]
 
 
-@numba.njit(cache=True)
+@njit
 def _block_sum(a: np.ndarray, start: int, n: int) -> float:
     """NumPy's sum of a run of at most 128 (:func:`pairwise_sum`): fewer than 8 in turn from
     0, else 8 interleaved accumulators added pairwise, then the rest in turn."""
@@ -34,7 +35,7 @@ def _block_sum(a: np.ndarray, start: int, n: int) -> float:
     return total
 
 
-@numba.njit(cache=True)
+@njit
 def pairwise_sum(a: np.ndarray, start: int, n: int) -> float:
     """The sum of ``a[start:start + n]`` in NumPy's order for a contiguous float64 array
     (``np.add.reduce``'s pairwise summation): a run longer than 128 is cut in two at a multiple

@@ -30,12 +30,12 @@ from collections.abc import Sequence
 from fractions import Fraction
 from functools import cached_property
 
-import numba
 import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
 from aoass_env.config import AOASSConfig
+from aoass_env.jit import njit
 from aoass_env.maps import ObstacleMap
 from aoass_env.segments import CLEAR, CONTACT, CROSSES, EdgeGrid, meets_interior, segment_status
 from aoass_env.validators import integer, positive, real
@@ -68,7 +68,7 @@ def _points(value: object, name: str, *, single: bool = False) -> np.ndarray:
 _HEARD, _BLOCKED = 0, 1
 
 
-@numba.njit(cache=True)
+@njit
 def points_within(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, x: float, y: float,
                   reach2: float) -> np.ndarray:
     """Sorted int64 indices of the points (``xs``, ``ys``) (m) that ``among`` marks whose
@@ -89,7 +89,7 @@ def points_within(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, x: float, y
     return out[:n]
 
 
-@numba.njit(cache=True)
+@njit
 def _hear(xs: np.ndarray, ys: np.ndarray, among: np.ndarray, inside: np.ndarray, x: float,
           y: float, reach2: float, px: np.ndarray, py: np.ndarray, qx: np.ndarray,
           qy: np.ndarray, x0: float, y0: float, cell: float, nx: int, ny: int,

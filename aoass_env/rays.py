@@ -34,10 +34,10 @@ import functools
 import math
 from collections.abc import Iterable
 
-import numba
 import numpy as np
 import pymunk
 
+from aoass_env.jit import njit
 from aoass_env.trig import compiled_trig
 
 __all__ = ["StaticShapes", "cast_rays", "chipmunk_rays", "compiled_rays"]
@@ -80,7 +80,7 @@ class StaticShapes:
         return cls([np.array([tuple(v) for v in shape.get_vertices()]) for shape in shapes])
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def _plane_normals(vertices: np.ndarray, first: np.ndarray) -> np.ndarray:
     """Each plane's normal as ``SetVerts`` computes it: ``cpvnormalize(cpvrperp(b - a))`` for
     the edge a -> b ending at the plane's vertex (``cpvnormalize(v) = v (1 / (|v| +
@@ -100,17 +100,17 @@ def _plane_normals(vertices: np.ndarray, first: np.ndarray) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@njit(inline="always", error_model="numpy")
 def _fmin(a: float, b: float) -> float:
     return a if a < b else b               # cpfmin
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@njit(inline="always", error_model="numpy")
 def _fmax(a: float, b: float) -> float:
     return a if a > b else b               # cpfmax
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@njit(inline="always", error_model="numpy")
 def _slab(lo: float, hi: float, a: float, d: float, tmin: float,
           tmax: float) -> tuple[bool, float, float]:
     """One axis of ``cpBBSegmentQuery``: the box's slab [lo, hi] against the segment's start
@@ -122,7 +122,7 @@ def _slab(lo: float, hi: float, a: float, d: float, tmin: float,
     return False, _fmax(tmin, _fmin(t1, t2)), _fmin(tmax, _fmax(t1, t2))
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def _box_t(left: float, bottom: float, right: float, top: float, ax: float, ay: float,
            bx: float, by: float) -> float:
     """``cpBBSegmentQuery``: where (0 to 1) the segment a -> b enters the box, inf if never."""
@@ -137,7 +137,7 @@ def _box_t(left: float, bottom: float, right: float, top: float, ax: float, ay: 
     return math.inf
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def _polygon_holds(px: float, py: float, vertices: np.ndarray, normals: np.ndarray, lo: int,
                    hi: int) -> bool:
     """``cpPolyShapePointQuery``'s distance <= 0 (radius 0): (px, py) inside or on the
@@ -163,7 +163,7 @@ def _polygon_holds(px: float, py: float, vertices: np.ndarray, normals: np.ndarr
     return dist - 0.0 <= 0.0
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def _polygon_alpha(ax: float, ay: float, bx: float, by: float, vertices: np.ndarray,
                    normals: np.ndarray, lo: int, hi: int) -> float:
     """``cpPolyShapeSegmentQuery`` (radius 0): the ``t`` of the last plane the segment a -> b
@@ -194,7 +194,7 @@ def _polygon_alpha(ax: float, ay: float, bx: float, by: float, vertices: np.ndar
     return alpha
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def _disc_alpha(ax: float, ay: float, bx: float, by: float, cx: float, cy: float,
                 r: float) -> float:
     """``cpShapeSegmentQuery`` of a circle (radius 0): 0 when a is on or inside it, else
@@ -216,7 +216,7 @@ def _disc_alpha(ax: float, ay: float, bx: float, by: float, cx: float, cy: float
     return 2.0
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def cast_rays(x: float, y: float, heading: float, offsets: np.ndarray, reach: float,
               vertices: np.ndarray, normals: np.ndarray, first: np.ndarray, boxes: np.ndarray,
               discs: np.ndarray, disc_radius: float) -> np.ndarray:

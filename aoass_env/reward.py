@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from aoass_env.config import AOASSConfig
+from aoass_env.jit import njit
 from aoass_env.metrics import localization_rmse
 from aoass_env.pairwise import pairwise_sum
 
@@ -46,7 +46,7 @@ def energy_imbalance(node_energy: np.ndarray) -> float:
     return max(float(e.max()) / mean - 1.0, 0.0) if mean > 0.0 else 0.0
 
 
-@numba.njit(cache=True)
+@njit
 def _mean_and_max(e: np.ndarray) -> tuple[float, float]:
     """``(e.mean(), e.max())`` of a non-empty contiguous float64 array, bit for bit: the sum
     in NumPy's order (:func:`~aoass_env.pairwise.pairwise_sum`) over the count, and a maximum
@@ -78,7 +78,7 @@ def online_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndar
     return localization_rmse(np.asarray(true_xy)[mask], np.asarray(estimate_xy)[mask])[0]
 
 
-@numba.njit(cache=True)
+@njit
 def _masked_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndarray) -> float:
     """``localization_rmse(true_xy[localized], estimate_xy[localized])[0]``, 0 without a
     localized node: the squared errors (dx^2 + dy^2) of the rows with a finite estimate, their

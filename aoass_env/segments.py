@@ -26,8 +26,9 @@ import math
 from collections.abc import Sequence
 from fractions import Fraction
 
-import numba
 import numpy as np
+
+from aoass_env.jit import njit
 
 __all__ = ["CLEAR", "CONTACT", "CROSSES", "GRID_CELL", "GRID_SLACK", "MAX_BUCKETS", "EdgeGrid",
            "meets_interior", "segment_status", "statuses"]
@@ -53,7 +54,7 @@ GRID_SLACK = 1e-6
 CLEAR, CROSSES, CONTACT = 0, 1, 2
 
 
-@numba.njit(cache=True)
+@njit
 def _orientation(dax: float, day: float, dbx: float, dby: float) -> tuple[bool, bool]:
     """Sign-certain orientation of (a, b, c) from the differences a - c and b - c.
 
@@ -66,14 +67,14 @@ def _orientation(dax: float, day: float, dbx: float, dby: float) -> tuple[bool, 
     return det > 0, abs(det) > _ORIENT_ERRBOUND * (abs(left) + abs(right))
 
 
-@numba.njit(cache=True)
+@njit
 def _clamped(v: float, n: int) -> int:
     """floor(v) clamped to [0, n - 1], clamped as a float first: a coordinate beyond 2**63
     buckets (|v| > 3.7e19 m) would wrap around in the integer conversion."""
     return int(min(max(np.floor(v), 0.0), n - 1.0))
 
 
-@numba.njit(cache=True)
+@njit
 def segment_status(sx: float, sy: float, ex: float, ey: float, px: np.ndarray,
                    py: np.ndarray, qx: np.ndarray, qy: np.ndarray, x0: float, y0: float,
                    cell: float, nx: int, ny: int, first: np.ndarray, members: np.ndarray,
@@ -123,7 +124,7 @@ def segment_status(sx: float, sy: float, ex: float, ey: float, px: np.ndarray,
     return status
 
 
-@numba.njit(cache=True)
+@njit
 def statuses(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray, px: np.ndarray,
            py: np.ndarray, qx: np.ndarray, qy: np.ndarray, x0: float, y0: float, cell: float,
            nx: int, ny: int, first: np.ndarray, members: np.ndarray) -> np.ndarray:
@@ -136,7 +137,7 @@ def statuses(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray, px:
     return out
 
 
-@numba.njit(cache=True)
+@njit
 def _bucket(i0: np.ndarray, i1: np.ndarray, j0: np.ndarray, j1: np.ndarray,
             nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
     """(first, members): edge e in every bucket (i, j) with i0[e] <= i <= i1[e] and

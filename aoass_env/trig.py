@@ -21,8 +21,9 @@ from __future__ import annotations
 import functools
 import math
 
-import numba
 import numpy as np
+
+from aoass_env.jit import njit
 
 __all__ = ["SCALAR_TRIG", "compiled_polar", "compiled_trig", "hypot"]
 
@@ -49,7 +50,7 @@ def _scalar_trig_is_numpys() -> bool:
 SCALAR_TRIG = _scalar_trig_is_numpys()
 
 
-@numba.njit(cache=True)
+@njit
 def _compiled_cos_sin(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Compiled ``math.cos`` and ``math.sin`` of each angle (rad), one call at a time."""
     cos, sin = np.empty_like(angles), np.empty_like(angles)
@@ -73,7 +74,7 @@ def compiled_trig() -> bool:
 _SPLITTER = 134217729.0
 
 
-@numba.njit(cache=True)
+@njit
 def _exact_square(a: float) -> tuple[float, float]:
     """(p, e) with p = fl(a * a) and p + e = a * a exactly (Dekker's product, no FMA), for
     |a| < 1 and not tiny enough to underflow."""
@@ -84,7 +85,7 @@ def _exact_square(a: float) -> tuple[float, float]:
     return p, ((hi * hi - p) + 2.0 * hi * lo) + lo * lo
 
 
-@numba.njit(cache=True)
+@njit
 def hypot(x: float, y: float) -> float:
     """sqrt(x^2 + y^2), correctly rounded but in cases within about 2^-100 of a tie: compiled,
     ``math.hypot``'s float since Python 3.11.
@@ -114,7 +115,7 @@ def hypot(x: float, y: float) -> float:
     return math.ldexp(h, e)
 
 
-@numba.njit(cache=True)
+@njit
 def _compiled_polar(y: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Compiled ``math.atan2(y, x)`` and :func:`hypot` ``(x, y)`` of each pair."""
     angle, norm = np.empty_like(y), np.empty_like(y)

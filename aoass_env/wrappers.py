@@ -27,7 +27,6 @@ from copy import deepcopy
 from typing import Any
 
 import gymnasium as gym
-import numba
 import numpy as np
 from gymnasium import spaces
 from gymnasium.envs.registration import EnvSpec
@@ -36,6 +35,7 @@ from gymnasium.utils import seeding
 from aoass_env.action import ResidualAction, action_type_named
 from aoass_env.config import AOASSConfig, ConfigError, check_keywords, config_with
 from aoass_env.env import COST_KEYS, AnchorState, AOASSEnv, make_env
+from aoass_env.jit import njit
 from aoass_env.maps import ObstacleMap, list_maps, load_map, validation_split
 from aoass_env.observation import MOVING_FIELDS, clip_like_numpy, velocity_scale
 from aoass_env.planning import AdaptiveConfig
@@ -259,7 +259,7 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
                                                                          copy=False)
 
 
-@numba.njit(cache=True)
+@njit
 def _deviations(sx: float, sy: float, dx: float, dy: float, px: float, py: float
                 ) -> tuple[float, float]:
     """|v* - v_des| and |v* - v_pref| (m/s) of the velocities (``sx``, ``sy``), (``dx``,
@@ -268,7 +268,7 @@ def _deviations(sx: float, sy: float, dx: float, dy: float, px: float, py: float
     return math.hypot(sx - dx, sy - dy), math.hypot(sx - px, sy - py)
 
 
-@numba.njit(cache=True)
+@njit
 def _empty_slots(observation: np.ndarray, start: int, stop: int, low: np.ndarray,
                  high: np.ndarray) -> np.ndarray:
     """The tracker's observation without a confirmed track, from a float32 ``observation``:
@@ -284,7 +284,7 @@ def _empty_slots(observation: np.ndarray, start: int, stop: int, low: np.ndarray
     return out
 
 
-@numba.njit(cache=True)
+@njit
 def _track_slots(observation: np.ndarray, states: np.ndarray, ax: float, ay: float,
                  horizon: float, reach: float, v_scale: float, slots: int, start: int,
                  low: np.ndarray, high: np.ndarray) -> np.ndarray:

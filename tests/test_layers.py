@@ -20,7 +20,7 @@ PACKAGES = ("aoass_env", "agents")
 #: Layer of each module by its longest matching name prefix (0 = bottom).
 LAYERS = {
     "aoass_env.atomic": 0, "aoass_env.metrics": 0, "aoass_env.trajectory": 0,
-    "aoass_env.pairwise": 0,
+    "aoass_env.pairwise": 0, "aoass_env.jit": 0,
     "aoass_env.backends": 0, "aoass_env.data": 0, "aoass_env.safety": 0, "aoass_env.validators": 0,
     "aoass_env.trig": 0, "aoass_env.segments": 0,
     "aoass_env.localization.multilateration": 0, "aoass_env.localization.ragged": 0,

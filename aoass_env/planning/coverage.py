@@ -30,11 +30,11 @@ from __future__ import annotations
 import math
 import weakref
 
-import numba
 import numpy as np
 import shapely
 
 from aoass_env.config import AOASSConfig, ConfigError
+from aoass_env.jit import njit
 from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network, lambda_min, residual_after
 from aoass_env.radio import Radio, points_within
@@ -58,7 +58,7 @@ def cell_range(config: AOASSConfig) -> float:
     return reach
 
 
-@numba.njit(cache=True)
+@njit
 def _sector_means(turned: np.ndarray, values: np.ndarray, cells: np.ndarray,
                   n_sectors: int) -> np.ndarray:
     """(n_sectors,) mean of ``values[cells]`` by sector ``floor(turned / 2 pi n_sectors)`` (at

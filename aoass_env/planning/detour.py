@@ -27,13 +27,13 @@ import math
 import weakref
 from collections.abc import Callable
 
-import numba
 import numpy as np
 import shapely
 from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from aoass_env.jit import njit
 from aoass_env.maps import MapError, ObstacleMap
 from aoass_env.planning.goal_search import FORCED, UNREACHABLE, forced_path
 from aoass_env.segments import CLEAR, CROSSES, EdgeGrid
@@ -433,7 +433,7 @@ class DetourPlanner:
         return np.array(out)
 
 
-@numba.njit(cache=True)
+@njit
 def _grid_graph(free: np.ndarray, cost: np.ndarray, straight: float,
                 diagonal: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(indptr, indices, data) of the CSR graph of the (nx, ny) grid's ``free`` cells (flat

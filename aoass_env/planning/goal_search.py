@@ -25,8 +25,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+
+from aoass_env.jit import njit
 
 __all__ = ["FORCED", "TIE", "UNREACHABLE", "forced_path"]
 
@@ -34,7 +35,7 @@ __all__ = ["FORCED", "TIE", "UNREACHABLE", "forced_path"]
 FORCED, TIE, UNREACHABLE = 0, 1, 2
 
 
-@numba.njit(cache=True)
+@njit
 def _weight(data: np.ndarray, k: int, scaled: bool, near: np.ndarray, factor: float, row: int,
             col: int) -> float:
     """Weight of entry ``k`` (row ``row``, column ``col``) of the CSR graph, times ``factor``
@@ -46,7 +47,7 @@ def _weight(data: np.ndarray, k: int, scaled: bool, near: np.ndarray, factor: fl
     return w
 
 
-@numba.njit(cache=True)
+@njit
 def _search(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, xy: np.ndarray,
             slope: float, near: np.ndarray, factor: float, s: int,
             g: int) -> tuple[int, np.ndarray, float]:

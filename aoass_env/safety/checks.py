@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+
+from aoass_env.jit import njit
 
 __all__ = ["all_finite", "finite"]
 
 
-@numba.njit(cache=True)
+@njit
 def finite(a: np.ndarray) -> bool:
     """Whether every entry of the float array ``a`` is finite (no NaN, no infinity)."""
     for x in a.flat:
@@ -25,7 +26,7 @@ def finite(a: np.ndarray) -> bool:
     return True
 
 
-@numba.njit(cache=True)
+@njit
 def all_finite(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether every entry of the float arrays ``a`` and ``b`` is finite (no NaN, no
     infinity)."""

@@ -21,9 +21,9 @@ trigonometry, ``atan2`` and ``hypot`` are ``math``'s (:func:`fused`).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from aoass_env.jit import njit
 from aoass_env.safety.checks import finite
 from aoass_env.safety.orca import (
     OrcaAgent,
@@ -73,7 +73,7 @@ class PeriodSettings:
         self.values.flags.writeable = False
 
 
-@numba.njit(cache=True)
+@njit
 def _discs_ok(moving: np.ndarray) -> bool:
     """Are the (k, 5) discs ``moving`` [x, y, vx, vy, radius] finite, with radii >= 0?"""
     if not finite(moving):
@@ -84,7 +84,7 @@ def _discs_ok(moving: np.ndarray) -> bool:
     return True
 
 
-@numba.njit(cache=True)
+@njit
 def _period(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, grid: np.ndarray,
             cells: np.ndarray, point: np.ndarray, nxt: np.ndarray, moving: np.ndarray,
             settings: np.ndarray, px: float, py: float, vx: float, vy: float, ox: float,

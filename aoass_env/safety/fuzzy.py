@@ -34,10 +34,10 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
+from aoass_env.jit import njit
 from aoass_env.validators import number_array
 
 __all__ = ["FuzzyController", "FuzzyVariable", "membership"]
@@ -64,7 +64,7 @@ def membership(x: ArrayLike, params: tuple[float, ...]) -> np.ndarray:
     return np.clip(np.minimum(rise, fall), 0.0, 1.0)
 
 
-@numba.njit(cache=True)
+@njit
 def _memberships(x: float, inner: np.ndarray, rows: np.ndarray, lo: float,
                  hi: float) -> np.ndarray:
     """Memberships of one crisp value by exact piecewise-linear interpolation (the vectorised
@@ -82,7 +82,7 @@ def _memberships(x: float, inner: np.ndarray, rows: np.ndarray, lo: float,
     return mu
 
 
-@numba.njit(cache=True)
+@njit
 def _aggregate(d: float, h: float, d_inner: np.ndarray, d_rows: np.ndarray, d_lo: float,
                d_hi: float, h_inner: np.ndarray, h_rows: np.ndarray, h_lo: float, h_hi: float,
                table: np.ndarray, grid: np.ndarray, nt: int,

@@ -56,7 +56,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import scipy.linalg
 from filterpy.common import Q_discrete_white_noise
@@ -65,6 +64,7 @@ from numpy.typing import ArrayLike
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
 
+from aoass_env.jit import njit
 from aoass_env.validators import integer, positive, real
 
 __all__ = ["MultiTargetTracker", "Track"]
@@ -77,7 +77,7 @@ __all__ = ["MultiTargetTracker", "Track"]
 _DECISION_BAND = 1e-6
 
 
-@numba.njit(cache=True)
+@njit
 def _gate_distances(x: np.ndarray, p: np.ndarray, r: np.ndarray, extra: np.ndarray,
                     z: np.ndarray, cols: np.ndarray, out: np.ndarray) -> bool:
     """Squared Mahalanobis distances ``y' S^-1 y`` of one track (state ``x`` (4, 1),
@@ -113,7 +113,7 @@ def _gate_distances(x: np.ndarray, p: np.ndarray, r: np.ndarray, extra: np.ndarr
     return True
 
 
-@numba.njit(cache=True)
+@njit
 def _nearest_pairs(d2: np.ndarray, gate: float, band: float) -> np.ndarray:
     """The gated global-nearest-neighbour pairs of a cost matrix ``d2`` (m, n) with m == 1 or
     n == 1, where the pairing is the gated entry of least d2 (what

@@ -43,9 +43,9 @@ import functools
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from aoass_env.jit import njit
 from aoass_env.pairwise import pairwise_sum
 from aoass_env.safety.checks import all_finite
 from aoass_env.trig import SCALAR_TRIG, compiled_trig
@@ -86,7 +86,7 @@ def position_std(covariances: np.ndarray, times: np.ndarray) -> np.ndarray:
     return _position_std(p, np.asarray(times, dtype=np.float64).reshape(-1))
 
 
-@numba.njit(cache=True)
+@njit
 def _position_std(p: np.ndarray, times: np.ndarray) -> np.ndarray:
     """:func:`position_std`, compiled element by element with the array form's operations
     (with P_pv + P_vp' = pv): a = P_xx + t pv_xx + t^2 P_vxvx, c likewise in y, b = P_xy +
@@ -169,7 +169,7 @@ class _Segments:
         return math.sqrt(d2), gx, gy
 
 
-@numba.njit(cache=True)
+@njit
 def _segment_tables(starts: np.ndarray, ends: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(sx, sy, ex, ey, ee) of the segments: the starts' coordinates, e = end - start and
@@ -186,7 +186,7 @@ def _segment_tables(starts: np.ndarray, ends: np.ndarray
     return sx, sy, ex, ey, ee
 
 
-@numba.njit(cache=True)
+@njit
 def _nearest_compiled(sx: np.ndarray, sy: np.ndarray, ex: np.ndarray, ey: np.ndarray,
                       ee: np.ndarray, x: float, y: float) -> tuple[float, float, float]:
     """(squared distance, dx, dy) of (x, y) from the nearest of the segments (the first of
@@ -203,7 +203,7 @@ def _nearest_compiled(sx: np.ndarray, sy: np.ndarray, ex: np.ndarray, ey: np.nda
     return best, bx, by
 
 
-@numba.njit(cache=True)
+@njit
 def _distances_compiled(sx: np.ndarray, sy: np.ndarray, ex: np.ndarray, ey: np.ndarray,
                         ee: np.ndarray, points: np.ndarray) -> np.ndarray:
     """:meth:`_Segments.distances` of each point."""
@@ -273,7 +273,7 @@ def predict_obstacles(states: np.ndarray, step: float, n_steps: int, starts: np.
     return out
 
 
-@numba.njit(cache=True)
+@njit
 def _predict_all(states: np.ndarray, radii: np.ndarray, step: float, n_steps: int,
                  sx: np.ndarray, sy: np.ndarray, ex: np.ndarray, ey: np.ndarray,
                  ee: np.ndarray) -> np.ndarray:
@@ -299,7 +299,7 @@ def _predict_all(states: np.ndarray, radii: np.ndarray, step: float, n_steps: in
     return out
 
 
-@numba.njit(cache=True)
+@njit
 def _predict_one(x: float, y: float, vx: float, vy: float, radius: float, gap: float,
                  step: float, n_steps: int, sx: np.ndarray, sy: np.ndarray, ex: np.ndarray,
                  ey: np.ndarray, ee: np.ndarray, out: np.ndarray) -> None:
@@ -329,7 +329,7 @@ def _predict_one(x: float, y: float, vx: float, vy: float, radius: float, gap: f
         out[i, 1] = y
 
 
-@numba.njit(cache=True)
+@njit
 def _rollout_one(x: float, y: float, heading: float, speed: float, target_heading: float,
                  target_speed: float, max_dh: float, max_dv: float, step: float,
                  n_steps: int, walls: bool, sx: np.ndarray, sy: np.ndarray, ex: np.ndarray,
@@ -374,7 +374,7 @@ def _rollout_one(x: float, y: float, heading: float, speed: float, target_headin
         out[i, 1] = y
 
 
-@numba.njit(cache=True)
+@njit
 def _rollout_many(x: float, y: float, heading: float, speed: float, headings: np.ndarray,
                   speeds: np.ndarray, max_dh: float, max_dv: float, step: float, n_steps: int,
                   walls: bool, sx: np.ndarray, sy: np.ndarray, ex: np.ndarray, ey: np.ndarray,
@@ -493,7 +493,7 @@ def violation(paths: np.ndarray, centres: np.ndarray, radii: np.ndarray,
     return _shortfalls(paths, centres, radii, float(clearance), steps)
 
 
-@numba.njit(cache=True)
+@njit
 def _shortfalls(paths: np.ndarray, centres: np.ndarray, radii: np.ndarray, clearance: float,
                 steps: int) -> np.ndarray:
     """(k,) :func:`violation` over the first ``steps`` steps, compiled with the array code's
@@ -591,7 +591,7 @@ def _base_arrays(own: float, wanted: float, position: np.ndarray, heading: float
     return True, centres, radii, bare, paths, base, imminent
 
 
-@numba.njit(cache=True)
+@njit
 def _base_compiled(own: float, wanted: float, px: float, py: float, heading: float,
                    speed: float, obstacles: np.ndarray, covariances: np.ndarray,
                    max_speed: float, max_accel: float, max_turn_rate: float, horizon: float,

@@ -73,10 +73,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
+from aoass_env.jit import njit
 from aoass_env.trig import hypot
 from aoass_env.validators import positive, real, vec2
 
@@ -148,14 +148,14 @@ def _moving(value: Any) -> np.ndarray:
 # static obstacles
 # --------------------------------------------------------------------------------------------
 
-@numba.njit(cache=True)
+@njit
 def _cell(value: float, origin: float, inv: float, count: float) -> int:
     """The grid column (or row) of the coordinate ``value`` (m), clamped to the grid."""
     c = math.floor((value - origin) * inv)
     return int(min(max(c, 0.0), count - 1.0))
 
 
-@numba.njit(cache=True)
+@njit
 def _edge_cells(edges: np.ndarray, grid: np.ndarray) -> np.ndarray:
     """:class:`_EdgeCache`'s ``cells``: each edge listed in every cell its bounding box meets
     (the cells of its corners by :func:`_cell`, which the query uses too)."""
@@ -558,7 +558,7 @@ def orca_lines(position: ArrayLike, velocity: ArrayLike, radius: float, max_spee
 # (tests/safety/orca_floats.py, ``reference_solve``), whose floats these give bit for bit (the
 # norms from the correctly rounded ``hypot``, as Python's ``math.hypot`` since 3.11).
 
-@numba.njit(cache=True)
+@njit
 def _lp1(lines: np.ndarray, k: int, speed: float, ox: float, oy: float,
          along_direction: bool) -> tuple[bool, float, float]:
     """(found, x, y): the best point on line k inside the speed disc and lines 0..k-1 (found
@@ -603,7 +603,7 @@ def _lp1(lines: np.ndarray, k: int, speed: float, ox: float, oy: float,
     return True, px + t * dx, py + t * dy
 
 
-@numba.njit(cache=True)
+@njit
 def _lp2(lines: np.ndarray, count: int, speed: float, ox: float, oy: float,
          along_direction: bool) -> tuple[int, float, float]:
     """RVO2's linearProgram2 on the first ``count`` lines: (index of the first line that
@@ -626,7 +626,7 @@ def _lp2(lines: np.ndarray, count: int, speed: float, ox: float, oy: float,
     return count, rx, ry
 
 
-@numba.njit(cache=True)
+@njit
 def _lp3(lines: np.ndarray, n_static: int, begin: int, speed: float, rx: float,
          ry: float) -> tuple[float, float]:
     """RVO2's linearProgram3: keep lines[:n_static] hard and minimise the largest violation of
@@ -667,7 +667,7 @@ def _lp3(lines: np.ndarray, n_static: int, begin: int, speed: float, rx: float,
     return rx, ry
 
 
-@numba.njit(cache=True)
+@njit
 def _solve(lines: np.ndarray, n_static: int, px: float, py: float,
            max_speed: float) -> tuple[float, float]:
     """Eq. 10 on the (n, 4) rows ``lines``: linearProgram2, then 3 when it fails; a result
@@ -682,7 +682,7 @@ def _solve(lines: np.ndarray, n_static: int, px: float, py: float,
     return x, y
 
 
-@numba.njit(cache=True)
+@njit
 def _active(lines: np.ndarray, n_static: int, vx: float, vy: float,
             slack: float) -> tuple[int, int]:
     """(lines, static lines) that ``(vx, vy)`` lies on (within ``slack``, m/s) or violates:
@@ -776,7 +776,7 @@ def orca_velocity(position: ArrayLike, velocity: ArrayLike, preferred_velocity: 
 # `aoass_env.trig.hypot`, correctly rounded as well (the C library's hypot, which numba would
 # call, is not): the lines are the same on every Python version.
 
-@numba.njit(cache=True)
+@njit
 def _stable_order(keys: np.ndarray) -> np.ndarray:
     """The indices that sort ``keys`` (no NaN), equal keys in index order: ``np.argsort(keys,
     kind="stable")``, by insertion (a few dozen keys; numba compiles it far faster than its
@@ -791,7 +791,7 @@ def _stable_order(keys: np.ndarray) -> np.ndarray:
     return order
 
 
-@numba.njit(cache=True)
+@njit
 def _near_compiled(edges: np.ndarray, bbox: np.ndarray, grid: np.ndarray, cells: np.ndarray,
                    px: float, py: float, reach: float) -> np.ndarray:
     """Indices of the edges closer than ``reach`` (m) to (px, py), nearest first, from the
@@ -851,7 +851,7 @@ def _near_compiled(edges: np.ndarray, bbox: np.ndarray, grid: np.ndarray, cells:
     return hits
 
 
-@numba.njit(cache=True)
+@njit
 def _leg(x: float, y: float, dist2: float, radius: float, rad2: float,
          left: bool) -> tuple[float, float]:
     """Unit direction of the left leg (``left``) or the right one: from the anchor, tangent on
@@ -863,13 +863,13 @@ def _leg(x: float, y: float, dist2: float, radius: float, rad2: float,
     return (x * leg + y * radius) / dist2, (y * leg - x * radius) / dist2
 
 
-@numba.njit(cache=True)
+@njit
 def _push(lines: np.ndarray, n: int, px: float, py: float, dx: float, dy: float) -> int:
     lines[n, 0], lines[n, 1], lines[n, 2], lines[n, 3] = px, py, dx, dy
     return n + 1
 
 
-@numba.njit(cache=True)
+@njit
 def _on_circle_compiled(lines: np.ndarray, n: int, wx: float, wy: float, cx: float,
                         cy: float, rad: float) -> int:
     """Append the line tangent to the cut-off circle (centre (cx, cy), radius ``rad``, m/s) at
@@ -879,7 +879,7 @@ def _on_circle_compiled(lines: np.ndarray, n: int, wx: float, wy: float, cx: flo
     return _push(lines, n, cx + rad * ux, cy + rad * uy, uy, -ux)
 
 
-@numba.njit(cache=True)
+@njit
 def _unit_or_away(wx: float, wy: float, cx: float, cy: float) -> tuple[float, float, float]:
     """(ux, uy, |w|): the unit vector along (wx, wy); for w = 0, the one along -(cx, cy), the
     way away from a centre at (cx, cy) (RVO2 divides by zero there), or (-1, 0) when that is 0
@@ -893,7 +893,7 @@ def _unit_or_away(wx: float, wy: float, cx: float, cy: float) -> tuple[float, fl
     return -1.0, 0.0, norm
 
 
-@numba.njit(cache=True)
+@njit
 def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, grid: np.ndarray,
                     cells: np.ndarray, px: float,
                     py: float, vx: float, vy: float, radius: float, max_speed: float,
@@ -1035,7 +1035,7 @@ def _compiled_lines(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray, grid
     return lines[:n], n_static
 
 
-@numba.njit(cache=True)
+@njit
 def _moving_compiled(lines: np.ndarray, n: int, moving: np.ndarray, px: float, py: float,
                      vx: float, vy: float, radius: float, tau: float, step: float,
                      share: float) -> int:
@@ -1087,7 +1087,7 @@ def _moving_compiled(lines: np.ndarray, n: int, moving: np.ndarray, px: float, p
     return n
 
 
-@numba.njit(cache=True)
+@njit
 def _lines_and_velocity(edges: np.ndarray, links: np.ndarray, bbox: np.ndarray,
                         grid: np.ndarray, cells: np.ndarray, px: float, py: float, vx: float,
                         vy: float, radius: float, max_speed: float, tau_obst: float,

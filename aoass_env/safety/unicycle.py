@@ -27,9 +27,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-import numba
 import numpy as np
 
+from aoass_env.jit import njit
 from aoass_env.safety.checks import all_finite, finite
 from aoass_env.trig import SCALAR_TRIG, compiled_polar, compiled_trig, hypot
 from aoass_env.validators import finite_array, positive, real, vec2
@@ -117,7 +117,7 @@ def _products(starts: np.ndarray, ends: np.ndarray, position: np.ndarray,
     return (w_start, u @ w_start.T, w_end, u @ w_end.T, e, length, n, u @ n.T, u @ e.T)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def _travel_compiled(w_start: np.ndarray, wu_start: np.ndarray, w_end: np.ndarray,
                      wu_end: np.ndarray, e: np.ndarray, length: np.ndarray, n: np.ndarray,
                      rate: np.ndarray, ue: np.ndarray, r2: float, radius: float) -> np.ndarray:
@@ -151,7 +151,7 @@ def _travel_compiled(w_start: np.ndarray, wu_start: np.ndarray, w_end: np.ndarra
     return best
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def _braking_compiled(travel: np.ndarray, max_accel: float, dt: float) -> np.ndarray:
     """:func:`braking_speed` of a (k,) array, element by element (its operations)."""
     out = np.empty(travel.shape[0])
@@ -346,7 +346,7 @@ _TINY = 1e-300
 _FRACTIONS = tuple(np.linspace(0.0, 1.0, 9).tolist())
 
 
-@numba.njit(cache=True)
+@njit
 def _clearance_compiled(starts: np.ndarray, ends: np.ndarray, px: float, py: float) -> float:
     """:func:`clearance` of the point (px, py) (m), edge by edge; inf without edges."""
     best = math.inf
@@ -363,7 +363,7 @@ def _clearance_compiled(starts: np.ndarray, ends: np.ndarray, px: float, py: flo
     return math.sqrt(best)     # the square root is monotone: sqrt of the min = min of sqrts
 
 
-@numba.njit(cache=True)
+@njit
 def _held_radius(radius: float, gap: float) -> float:
     """The disc's radius (m) the caps use, the anchor's clearance being ``gap`` (m):
     ``max(min(radius, gap - _HELD), 0.0)`` as Python's min and max pick."""
@@ -373,7 +373,7 @@ def _held_radius(radius: float, gap: float) -> float:
     return 0.0 if 0.0 > radius else radius
 
 
-@numba.njit(cache=True)
+@njit
 def _envelope_floor(radius: float, max_accel: float, dt: float, gap: float) -> float:
     """A speed (m/s) no cap of a braking envelope (disc ``radius``, m, braking at ``max_accel``,
     m/s^2, after ``dt``, s) falls below on any heading (notes above), the anchor's clearance
@@ -424,7 +424,7 @@ def _argmax(values: list[float]) -> int:
     return best
 
 
-@numba.njit(cache=True)
+@njit
 def _heading_bound(ch: float, sh: float, points: np.ndarray, directions: np.ndarray) -> float:
     """:func:`_bound` on the heading (cos, sin) = (ch, sh), compiled (its ``math.cos``/``sin``
     must be compiled_trig's)."""
@@ -441,7 +441,7 @@ def _heading_bound(ch: float, sh: float, points: np.ndarray, directions: np.ndar
     return bound
 
 
-@numba.njit(cache=True)
+@njit
 def _arc_bounds(heading: float, turn: float, points: np.ndarray,
                 directions: np.ndarray) -> np.ndarray:
     """(9,) :func:`_bound` on each heading of the arc ``heading + turn * i / 8`` (i = 0..8),
@@ -459,7 +459,7 @@ def _arc_bounds(heading: float, turn: float, points: np.ndarray,
 _DOT_SLACK = 1e-15
 
 
-@numba.njit(cache=True)
+@njit
 def _travel_floor(ux: float, uy: float, starts: np.ndarray, ends: np.ndarray, px: float,
                   py: float, radius: float) -> float:
     """A lower bound (m) of :func:`free_travel` on the heading u = (cos, sin) = (ux, uy) as
@@ -532,7 +532,7 @@ def _travel_floor(ux: float, uy: float, starts: np.ndarray, ends: np.ndarray, px
     return best
 
 
-@numba.njit(cache=True)
+@njit
 def _reach_on_lines(heading: float, turn: float, floor: float, points: np.ndarray,
                     directions: np.ndarray, need: float, starts: np.ndarray, ends: np.ndarray,
                     px: float, py: float, radius: float, max_accel: float,
@@ -578,7 +578,7 @@ _NO_EDGES = np.zeros((0, 2))
 _NO_EDGES.flags.writeable = False
 
 
-@numba.njit(cache=True)
+@njit
 def _remainder(x: float) -> float:
     """``math.remainder(x, 2 pi)`` of a finite x (rad), compiled: x less the nearest multiple
     of 2 pi (the even one at a tie), exact; a zero takes the sign of x. ``%`` of two positive
@@ -596,7 +596,7 @@ def _remainder(x: float) -> float:
     return math.copysign(1.0, x) * r
 
 
-@numba.njit(cache=True)
+@njit
 def _compiled_command(vx: float, vy: float, heading: float, speed: float, max_turn: float,
                       max_dv: float, points: np.ndarray, directions: np.ndarray,
                       fallback_heading: float, starts: np.ndarray, ends: np.ndarray,
