@@ -170,8 +170,9 @@ class _ClosureStampLocator(_CacheLocator):
         return None
 
 
+# by name, so that a reload of this module does not wrap its previous class
 _NUMBA_LOCATORS = tuple(k for k in _CacheImpl._locator_classes
-                        if not issubclass(k, _ClosureStampLocator))
+                        if k.__name__ != _ClosureStampLocator.__name__)
 _CacheImpl._locator_classes = [_ClosureStampLocator, *_NUMBA_LOCATORS]
 
 

@@ -134,3 +134,14 @@ def test_a_kernel_recompiles_when_a_module_it_imports_changes(tmp_path):
     assert _run(tmp_path) == (9.0, 0)            # the constant's module changed
     (pkg / "other.py").write_text("UNRELATED = 2\n", encoding="utf-8")
     assert _run(tmp_path) == (9.0, 1)            # not imported by outer: the cache stays
+
+
+def test_a_reload_keeps_one_closure_locator_in_front():
+    import importlib
+
+    from numba.core import caching
+    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
+    importlib.reload(jit)
+    names = [k.__name__ for k in impl._locator_classes]
+    assert names[0] == "_ClosureStampLocator" and names.count("_ClosureStampLocator") == 1
+    assert jit.import_closure("aoass_env.pairwise")
