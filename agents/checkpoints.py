@@ -33,7 +33,14 @@ from stable_baselines3 import TD3 as _SB3TD3
 
 from agents.envs import make_training_env
 from agents.errors import PolicyFileError
-from agents.sections import HyperparameterError, check_section, model_kwargs, policy_name, read_yaml
+from agents.sections import (
+    HyperparameterError,
+    action_noise,
+    check_section,
+    model_kwargs,
+    policy_name,
+    read_yaml,
+)
 from aoass_env.atomic import atomic_open
 from aoass_env.validators import integer, keyword_names, one_line, torch_load_problem
 
@@ -267,7 +274,8 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
         device: torch device.
         kwargs: changes to the model, as SB3's ``load`` takes them: constructor keywords (e.g.
             ``tensorboard_log``, ``learning_rate``) go to the constructor, before the model is
-            set up; other names are set as attributes.
+            set up; other names are set as attributes. With ``env``, the record's
+            ``action_noise`` is rebuilt unless one is given, as SB3's ``load`` keeps it.
 
     Raises:
         PolicyFileError: no such file, no record, a file that is not a model, an env whose
@@ -312,6 +320,8 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
     constructor = set(keyword_names(cls.__init__)) - {"policy", "env", "device",
                                                        "_init_setup_model"}
     changes = {k: v for k, v in kwargs.items() if k in constructor}
+    if env is not None and "action_noise" not in kwargs:    # as SB3's load keeps it
+        changes["action_noise"] = action_noise(hp.get("action_noise"), env.action_space.shape[0])
     model = cls(policy_name(hp, cls), None if env is None else env, device=device,
                 _init_setup_model=False, **{**model_kwargs(hp), **overrides, **changes})
     if env is None:

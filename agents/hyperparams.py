@@ -24,16 +24,15 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-from stable_baselines3.common.noise import (
-    ActionNoise,
-    NormalActionNoise,
-    OrnsteinUhlenbeckActionNoise,
-)
-
 from agents.checkpoints import TD3, PolicyFileError, validate_record
 from agents.recurrent_td3 import RecurrentTD3
-from agents.sections import EXTRA_KEYS, HyperparameterError, check_section, read_yaml
+from agents.sections import (
+    EXTRA_KEYS,
+    HyperparameterError,
+    action_noise,
+    check_section,
+    read_yaml,
+)
 
 __all__ = ["ALGORITHMS", "EXTRA_KEYS", "HyperparameterError", "action_noise", "check_section",
            "load_hyperparams", "read_run_record", "read_yaml"]
@@ -75,11 +74,3 @@ def read_run_record(path: str | Path) -> dict[str, Any]:
     return validate_record(record, ALGORITHMS[algo], path)
 
 
-def action_noise(spec: Mapping[str, Any] | None, n_actions: int) -> ActionNoise | None:
-    """The SB3 action noise of a validated ``action_noise`` mapping (None: no noise)."""
-    if spec is None:
-        return None
-    mean, sigma = np.zeros(n_actions), float(spec.get("sigma", 0.1)) * np.ones(n_actions)
-    if spec["kind"] == "normal":
-        return NormalActionNoise(mean, sigma)
-    return OrnsteinUhlenbeckActionNoise(mean, sigma)

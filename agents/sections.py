@@ -17,7 +17,13 @@ from collections.abc import Hashable, Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
+from stable_baselines3.common.noise import (
+    ActionNoise,
+    NormalActionNoise,
+    OrnsteinUhlenbeckActionNoise,
+)
 
 from agents.envs import make_training_env
 from agents.policies import check_net_arch
@@ -27,9 +33,9 @@ from aoass_env.safety.config import SafetyConfig, TrackerConfig
 from aoass_env.validators import integer, one_line, real
 from aoass_env.wrappers import make_safe_env
 
-__all__ = ["EXTRA_KEYS", "HyperparameterError", "check_section", "env_keys", "key_value",
-           "model_kwargs", "override_section", "policy_name", "read_yaml", "section_keys",
-           "yaml_problem"]
+__all__ = ["EXTRA_KEYS", "HyperparameterError", "action_noise", "check_section", "env_keys",
+           "key_value", "model_kwargs", "override_section", "policy_name", "read_yaml",
+           "section_keys", "yaml_problem"]
 
 #: Keys of a section that are not constructor keywords.
 EXTRA_KEYS = ("n_timesteps", "policy", "action_noise", "env", "eval", "checkpoint_freq")
@@ -310,3 +316,13 @@ def _check_noise(where: str, spec: Any) -> None:
             f"number}}, got {spec!r}")
     real(f"{where}.action_noise.sigma", spec.get("sigma", 0.1), low=0.0, high=10.0,
          high_open=True, error=HyperparameterError)
+
+
+def action_noise(spec: Mapping[str, Any] | None, n_actions: int) -> ActionNoise | None:
+    """The SB3 action noise of a validated ``action_noise`` mapping (None: no noise)."""
+    if spec is None:
+        return None
+    mean, sigma = np.zeros(n_actions), float(spec.get("sigma", 0.1)) * np.ones(n_actions)
+    if spec["kind"] == "normal":
+        return NormalActionNoise(mean, sigma)
+    return OrnsteinUhlenbeckActionNoise(mean, sigma)

@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from stable_baselines3.common.callbacks import EvalCallback
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
+from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
 
 from agents import RecurrentTD3, RecurrentTD3Policy, SequenceReplayBuffer
 from agents.checkpoints import PolicyFileError
@@ -354,6 +355,20 @@ def test_load_refuses_an_env_of_other_bounds_and_applies_keywords_before_setup(t
     assert loaded.burn_in == loaded.replay_buffer.burn_in == 0
     with pytest.raises(PolicyFileError, match=r"no_such/last.zip: no such model file"):
         RecurrentTD3.load(tmp_path / "no_such" / "last.zip", env=_env(1), record=record)
+
+
+def test_load_with_an_env_keeps_the_records_exploration_noise(tmp_path) -> None:
+    model = _model(1, learning_starts=20)
+    model.learn(30)
+    model.save(tmp_path / "model.zip")
+    record = _record(learning_starts=20, action_noise={"kind": "normal", "sigma": 0.3})
+    # it used to come back None: a load -> learn went on without exploration, silently
+    loaded = RecurrentTD3.load(tmp_path / "model.zip", env=_env(1), record=record)
+    assert isinstance(loaded.action_noise, NormalActionNoise)
+    np.testing.assert_array_equal(loaded.action_noise._sigma, [0.3])
+    mine = OrnsteinUhlenbeckActionNoise(np.zeros(1), np.ones(1))
+    assert RecurrentTD3.load(tmp_path / "model.zip", env=_env(1), record=record,
+                             action_noise=mine).action_noise is mine
 
 
 def test_a_replay_buffer_round_trips_under_the_path_it_was_saved_with(tmp_path) -> None:
