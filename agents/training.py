@@ -129,9 +129,38 @@ class TrainRun:
             raise ValueError(f"resume={str(self.resume)!r}: no such model file")
 
 
+def env_seeds(seed: int, n_envs: int) -> list[int]:
+    """Seeds of a run's ``n_envs`` training envs: ``seed`` for env 0 (a one-env run is seeded
+    as SB3 seeds it) and draws of ``SeedSequence([seed, i])`` for env i > 0. SB3's ``seed + i``
+    gave run S's env 1 the seed of run S + 1's env 0: runs of consecutive seeds (``--seeds``)
+    played the same episodes there."""
+    return [seed] + [int(np.random.SeedSequence([seed, i]).generate_state(1)[0])
+                     for i in range(1, n_envs)]
+
+
+class _RunSeeds:
+    """A VecEnv whose ``seed(s)`` seeds its envs with :func:`env_seeds` (s, n)."""
+
+    num_envs: int
+
+    def seed(self, seed: int | None = None) -> list[int | None]:
+        if seed is None:                      # SB3's own: a random base for every env
+            return super().seed(None)  # type: ignore[misc]
+        self._seeds = env_seeds(int(seed), self.num_envs)
+        return list(self._seeds)
+
+
+class _RunDummyVecEnv(_RunSeeds, DummyVecEnv):
+    pass
+
+
+class _RunSubprocVecEnv(_RunSeeds, SubprocVecEnv):
+    pass
+
+
 def _vec_env(n_envs: int, seed: int, env_kwargs: dict[str, Any]) -> Any:
     return make_vec_env(make_training_env, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs,
-                        vec_env_cls=DummyVecEnv if n_envs == 1 else SubprocVecEnv)
+                        vec_env_cls=_RunDummyVecEnv if n_envs == 1 else _RunSubprocVecEnv)
 
 
 def _continues(run: TrainRun) -> bool:

@@ -244,6 +244,24 @@ def test_parse_seeds(text: str, seeds: list[int]):
     assert parse_seeds(text) == seeds
 
 
+def test_runs_of_consecutive_seeds_share_no_training_env():
+    from agents.training import _vec_env, env_seeds
+    assert env_seeds(7, 1) == [7]                  # a one-env run is seeded as before
+    assert len(set(env_seeds(7, 4) + env_seeds(8, 4))) == 8
+    kwargs = dict(n_nodes=20)
+    run_a, run_b = _vec_env(2, 510150, kwargs), _vec_env(2, 510151, kwargs)
+    try:
+        assert run_a.seed(510150) == env_seeds(510150, 2)
+        run_b.seed(510151)
+        first_a, first_b = run_a.reset(), run_b.reset()
+        # SB3's seed + i gave run S's env 1 the episodes of run S + 1's env 0
+        assert not np.array_equal(first_a[1], first_b[0])
+        assert np.array_equal(first_a[0], make_training_env(**kwargs).reset(seed=510150)[0])
+    finally:
+        run_a.close()
+        run_b.close()
+
+
 @pytest.mark.parametrize("seed", [-1, 2**32, 1.5, True])
 def test_a_run_refuses_a_seed_outside_32_bits(seed):
     from agents.training import TrainRun
