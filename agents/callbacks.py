@@ -106,20 +106,36 @@ class AOASSMetricsCallback(BaseCallback):
 
 class AtomicCheckpointCallback(BaseCallback):
     """Every ``save_freq`` calls (env steps / n_envs), save the model to ``path`` atomically
-    (and its replay buffer with ``replay_buffer``)."""
+    (and its replay buffer with ``replay_buffer``).
+
+    The save is due at the step but written when that step is complete: at the start of the
+    next rollout (or the end of training), after SB3 has stored the step's transition and run
+    the round's gradient steps. Written from ``on_step`` itself, a checkpoint tagged N held
+    N - 1 transitions and the updates of N - 1 steps, and each resume lost one of each."""
 
     def __init__(self, save_freq: int, path: str | Path, *, replay_buffer: bool = True,
                  verbose: int = 0) -> None:
         super().__init__(verbose)
         save_freq = integer("save_freq", save_freq, "steps", low=1)
         self.save_freq, self.path, self.replay_buffer = save_freq, Path(path), replay_buffer
+        self._due = False
 
     def _on_step(self) -> bool:
-        if self.n_calls % self.save_freq == 0:
+        self._due = self._due or self.n_calls % self.save_freq == 0
+        return True
+
+    def _save_if_due(self) -> None:
+        if self._due:
+            self._due = False
             save_atomic(self.model, self.path, replay_buffer=self.replay_buffer)
             if self.verbose:
                 print(f"checkpoint: {self.path} at {self.num_timesteps} steps")
-        return True
+
+    def _on_rollout_start(self) -> None:
+        self._save_if_due()
+
+    def _on_training_end(self) -> None:
+        self._save_if_due()
 
 
 class SaveBestAtomically(BaseCallback):

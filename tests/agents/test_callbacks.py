@@ -97,3 +97,28 @@ def test_a_resume_beats_the_saved_best_model_s_evaluation(tmp_path: Path):
         evaluation = RunEvalCallback(_pendulum(), tmp_path / "e.npz", previous,
                                      best_step=best_step, verbose=0)
         assert evaluation.best_mean_reward == threshold, best_step
+
+
+@pytest.mark.parametrize("steps, every", [(60, 60), (50, 20)])
+def test_a_checkpoint_holds_its_steps_transitions_and_updates(tmp_path: Path, steps, every):
+    import json
+    import zipfile
+
+    import gymnasium as gym
+
+    from agents import RecurrentTD3
+    from agents.callbacks import AtomicCheckpointCallback, replay_buffer_path
+
+    model = RecurrentTD3("MlpLstmPolicy", gym.make("Pendulum-v1"), seed=510170,
+                         learning_starts=10, batch_size=8, burn_in=2, train_length=4,
+                         buffer_size=500, policy_kwargs=dict(lstm_hidden_size=8, net_arch=[8]))
+    path = tmp_path / "last.zip"
+    model.learn(steps, callback=AtomicCheckpointCallback(every, path))
+    data = json.loads(zipfile.ZipFile(path).read("data"))
+    buffer = np.load(replay_buffer_path(path))
+    step = steps - steps % every
+    # written from on_step it held step - 1 transitions tagged `step` and one update fewer
+    assert data["num_timesteps"] == int(buffer["num_timesteps"]) == int(buffer["pos"]) == step
+    assert data["_n_updates"] == step - 10
+    if step == steps:                       # the last save is the model as training left it
+        assert data["_n_updates"] == model._n_updates
