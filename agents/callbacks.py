@@ -200,12 +200,17 @@ class RunEvalCallback(EvalCallback):
     the step the run's best model so far was saved at (a resume), whose evaluation in
     ``previous`` is the one to beat (the best of the record when it is not there). Other
     arguments as ``EvalCallback``'s (``log_path`` and ``best_model_save_path`` are not taken:
-    use ``path`` and ``callback_on_new_best``)."""
+    use ``path`` and ``callback_on_new_best``). ``eval_seed``: the seed ``eval_env`` is
+    reseeded with before every evaluation, so that every evaluation plays the same episodes
+    (None: SB3's way, each evaluation going on from the last one's episodes, so that models
+    were compared on different maps and nodes)."""
 
     def __init__(self, eval_env: Any, path: str | Path, previous: Evaluations | None = None,
-                 *, best_step: int | None = None, **kwargs: Any) -> None:
+                 *, best_step: int | None = None, eval_seed: int | None = None,
+                 **kwargs: Any) -> None:
         super().__init__(eval_env, log_path=None, best_model_save_path=None, **kwargs)
         self.path = Path(path)
+        self.eval_seed = None if eval_seed is None else integer("eval_seed", eval_seed, low=0)
         if previous is not None and len(previous.timesteps):
             self.evaluations_timesteps = previous.timesteps.tolist()
             self.evaluations_results = previous.results.tolist()
@@ -219,6 +224,9 @@ class RunEvalCallback(EvalCallback):
         # SB3 keeps its record only with a log path, and writes it there with np.savez: the
         # path is a buffer for the length of the step, whose bytes then replace the file whole;
         # it would save a new best model before that: the callback runs here, after the record
+        if self.eval_seed is not None and self.eval_freq > 0 \
+                and self.n_calls % self.eval_freq == 0:
+            self.eval_env.seed(self.eval_seed)    # taken by evaluate_policy's reset
         on_new_best, self.callback_on_new_best = self.callback_on_new_best, None
         best = self.best_mean_reward
         self.log_path = io.BytesIO()  # type: ignore[assignment]

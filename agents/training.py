@@ -67,6 +67,8 @@ __all__ = ["MAX_SEED", "RUN_FILES", "TRAINING_SPLITS", "TrainRun", "make_trainin
 DEFAULT_CONFIG = shipped_dir("configs") / "aoass.yml"
 #: The largest run seed: SB3's ``set_random_seed`` seeds NumPy's legacy generator (32 bits).
 MAX_SEED = 2**32 - 1
+#: The validation env's seed is the run's plus this (reseeded before every evaluation).
+EVAL_SEED_OFFSET = 1_000_000
 #: The files a run writes into its folder (the table above).
 RUN_FILES = ("best.zip", "last.zip", *(p.name for p in replay_buffer_paths("last.zip")),
              "final.zip", "evaluations.npz", "run.yml")
@@ -241,7 +243,8 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     eval_episodes = int(evaluation.get("episodes", 4))
     previous = _previous_evaluations(run, eval_episodes)
     env = _vec_env(run.n_envs, run.seed, env_kwargs)
-    eval_env = _vec_env(1, run.seed + 1_000_000,
+    eval_seed = run.seed + EVAL_SEED_OFFSET
+    eval_env = _vec_env(1, eval_seed,
                         {**env_kwargs, "split": "validation", "cycle": True})
     noise = action_noise(hp.get("action_noise"), env.action_space.shape[0])
     tb = str(run.log_dir) if run.log_dir is not None else None
@@ -279,7 +282,7 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
                  RunEvalCallback(eval_env, out / "evaluations.npz", previous,
                                  best_step=(saved_step(out / "best.zip") if previous is not None
                                             and (out / "best.zip").is_file() else None),
-                                 n_eval_episodes=eval_episodes,
+                                 eval_seed=eval_seed, n_eval_episodes=eval_episodes,
                                  eval_freq=max(int(evaluation.get("freq", 10_000)) // n, 1),
                                  deterministic=True, verbose=0,
                                  callback_on_new_best=SaveBestAtomically(out / "best.zip"))]

@@ -95,7 +95,8 @@ def _aoass(env: gym.Env, wrapper: str) -> AOASSEnv:
 
 class MapSampler(_EntryPointWrapper):
     """A map drawn for every episode from a list (a seeded reset fixes the sequence of draws),
-    or taken in turn (``cycle=True``, for evaluation).
+    or taken in turn (``cycle=True``, for evaluation; a seeded reset starts again from the
+    first map, so that the same seed gives the same episodes).
 
     Args:
         env: an AOASS-v0 environment (possibly wrapped).
@@ -131,6 +132,8 @@ class MapSampler(_EntryPointWrapper):
         if seed is not None or self._rng is None:
             # a seed fixes the draws from here on; no seed ever: OS entropy, as in gymnasium
             self._rng = np.random.default_rng(None if seed is None else [seed, 0x4D4150])
+        if seed is not None:
+            self._next = 0
         if "map" not in options:
             if self.cycle:
                 options["map"] = self.maps[self._next % len(self.maps)]

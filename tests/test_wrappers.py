@@ -280,10 +280,17 @@ def test_map_sampler_draws_reproducibly_and_cycles_in_order():
     assert drawn == {m.split("/")[1] for m in maps}
     cyc = MapSampler(AOASSEnv(n_nodes=20), maps, cycle=True)
     names = []
-    for _ in range(4):
-        cyc.reset(seed=0)
+    for seed in (0, None, None, None):
+        cyc.reset(seed=seed)
         names.append(cyc.unwrapped.sim.map.name)
     assert names == [m.split("/")[1] for m in maps] + [maps[0].split("/")[1]]
+    # a seeded reset starts the cycle again: the same seed, the same episode (it used to give
+    # the next map, so evaluations reseeded alike played other maps)
+    obs, _ = cyc.reset(seed=0)
+    assert cyc.unwrapped.sim.map.name == names[0]
+    cyc.reset()
+    again, _ = cyc.reset(seed=0)
+    np.testing.assert_array_equal(obs, again)
 
 
 # --- bad input ------------------------------------------------------------------------------

@@ -122,3 +122,25 @@ def test_a_checkpoint_holds_its_steps_transitions_and_updates(tmp_path: Path, st
     assert data["_n_updates"] == step - 10
     if step == steps:                       # the last save is the model as training left it
         assert data["_n_updates"] == model._n_updates
+
+
+@pytest.mark.parametrize("eval_seed", [None, 510180])
+def test_a_reseeded_evaluation_plays_the_same_episodes_every_time(tmp_path: Path, eval_seed):
+    import gymnasium as gym
+    from stable_baselines3.common.env_util import make_vec_env
+
+    from agents import RecurrentTD3
+
+    model = RecurrentTD3("MlpLstmPolicy", gym.make("Pendulum-v1", max_episode_steps=20),
+                         seed=510181, learning_starts=1000, batch_size=8, burn_in=2,
+                         train_length=4, buffer_size=500,
+                         policy_kwargs=dict(lstm_hidden_size=8, net_arch=[8]))
+    eval_env = make_vec_env("Pendulum-v1", n_envs=1, seed=510182,
+                            env_kwargs=dict(max_episode_steps=20))
+    callback = RunEvalCallback(eval_env, tmp_path / "evaluations.npz", eval_seed=eval_seed,
+                               n_eval_episodes=2, eval_freq=20, deterministic=True)
+    model.learn(60, callback=callback)      # no update before learning_starts: one policy
+    results = read_evaluations(tmp_path / "evaluations.npz").results
+    assert results.shape == (3, 2)
+    # reseeded, three evaluations of one policy agree; SB3's way, each went on from the last
+    assert (np.ptp(results, axis=0) == 0).all() == (eval_seed is not None)
