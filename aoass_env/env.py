@@ -442,7 +442,13 @@ class EndOnTruncation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     ``TimeLimit`` that ``gymnasium.make(..., max_episode_steps=N)`` adds, and when that limit
     ends an episode the environment has not ended itself, it ends it
     (:meth:`AOASSEnv.end_episode <aoass_env.env.AOASSEnv.end_episode>`) and adds
-    ``info["episode_metrics"]``."""
+    ``info["episode_metrics"]``.
+
+    At every reset it also drops the wrappers' cached specs, so that ``env.spec`` reports the
+    episode's own limit (a map given as a reset option brings its own), and an outer
+    ``TimeLimit`` of exactly the limit the spec reported when the env was made -- what
+    ``gymnasium.make(env.spec)`` adds, repeating that limit -- follows each episode's limit
+    too (it used to cut a bigger map's episode at the first episode's limit)."""
 
     def __init__(self, env: gym.Env) -> None:
         gym.utils.RecordConstructorArgs.__init__(self)
@@ -450,6 +456,19 @@ class EndOnTruncation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if not isinstance(env.unwrapped, AOASSEnv):
             raise TypeError(f"EndOnTruncation wraps an AOASS-v0 environment, got "
                             f"{type(env.unwrapped).__name__}")
+        inner = env.env if type(env) is TimeLimit else None
+        self._repeated = env if inner is not None and inner.spec is not None \
+            and env._max_episode_steps == inner.spec.max_episode_steps else None
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        out = self.env.reset(**kwargs)
+        layer: gym.Env = self
+        while isinstance(layer, gym.Wrapper):
+            layer._cached_spec = None
+            layer = layer.env
+        if self._repeated is not None:
+            self._repeated._max_episode_steps = self._repeated.env.spec.max_episode_steps
+        return out
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)

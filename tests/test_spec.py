@@ -82,6 +82,34 @@ def test_every_id_serialises_and_remakes_from_its_spec(env_id):
     assert again.unwrapped.config == env.unwrapped.config
 
 
+@pytest.mark.parametrize("env_id, repeat", [(ENV_IDS[0], 1), (SAFE_ENV_ID, 4)])
+def test_an_env_remade_from_its_spec_keeps_each_episodes_limit(env_id, repeat):
+    from aoass_env.maps import ObstacleMap
+    small = dict(field_size=20.0, n_nodes=10, time_limit_factor=1.0,
+                 **({"action_repeat": repeat} if repeat > 1 else {}))
+    bigger = ObstacleMap(30.0, 30.0, name="empty30")
+    stop = np.array([-1.0, 0.0], np.float32)     # speed 0: only the time limit ends it
+    env = gym.make(env_id, **small)
+    remade = gym.make(env.spec)                  # adds a TimeLimit of the limit it reports
+    for e in (env, remade):
+        e.reset(seed=510070)
+        first = e.spec.max_episode_steps
+        e.reset(seed=510070, options={"map": bigger})
+        own = math.ceil(e.unwrapped.max_episode_steps / repeat)
+        # the spec used to keep the first episode's limit
+        assert e.spec.max_episode_steps == own > first
+        steps, truncated = 0, False
+        while not truncated:
+            *_, terminated, truncated, info = e.step(stop)
+            steps += 1
+            assert not terminated
+        # the remade env used to cut the bigger map's episode at the first limit
+        assert steps == own and "episode_metrics" in info
+    user = gym.make(env_id, max_episode_steps=5, **small)
+    user.reset(seed=510070, options={"map": bigger})
+    assert user.spec.max_episode_steps == 5      # a limit of the user's own stays
+
+
 def pickled(env: gym.Env) -> gym.Env:
     """``env`` through stdlib pickle."""
     return pickle.loads(pickle.dumps(env))
