@@ -62,6 +62,9 @@ _MIN_BODY_RADIUS_PX = 3
 _MIN_ANCHOR_RADIUS_PX = 5
 #: Opacity (0-255) of a coverage-map cell with deficit 1 (it heard nothing).
 _COVERAGE_ALPHA = 110
+#: Open human-mode renderers: pygame has one display per process, which they share; it is
+#: quit when the last of them closes (quitting it at the first close broke the others).
+_HUMAN_OPEN = 0
 
 
 class Renderer:
@@ -92,16 +95,18 @@ class Renderer:
         self._header = self._font.get_linesize() + 4   # status-line strip above the field (px)
         self._canvas: pygame.Surface | None
         if render_mode == "human":
+            global _HUMAN_OPEN
             pygame.display.init()
             pygame.display.set_caption("AOASS-v0")
             self._canvas = pygame.display.set_mode((size, size))
+            _HUMAN_OPEN += 1
             self._clock = pygame.time.Clock()
         else:
             self._canvas = pygame.Surface((size, size))
         self._sim: Simulator | None = None
         self._history = pygame.Surface((size, size))
         self._scale = 1.0               # px per metre
-        self._origin = (0.0, 0.0)       # screen position (px) of world (0, field height)
+        self._origin = (0.0, 0.0)       # screen position (px) of world (0, 0), bottom left
         self._n_path = 0                # path points already on the history layer
         self._n_beacons = 0             # beacons already on the history layer
 
@@ -242,12 +247,24 @@ class Renderer:
         cell = sim.coverage_map.cell * self._scale
         size = (round(nx * cell), round(ny * cell))
         top = self._origin[1] - ny * cell
+        # the last cells of a field that is not a whole number of cells reach past it: clip
+        # to the field, or the shading spills over the margin and the status line
+        field = pygame.Rect(round(self._origin[0]), round(self._origin[1] - sim.map.height
+                                                          * self._scale),
+                            round(sim.map.width * self._scale),
+                            round(sim.map.height * self._scale))
+        clip = self._canvas.get_clip()
+        self._canvas.set_clip(field.clip(clip))
         self._canvas.blit(pygame.transform.scale(layer, size), (round(self._origin[0]),
                                                                 round(top)))
+        self._canvas.set_clip(clip)
 
     def close(self) -> None:
         """Close the window (human mode) and drop the surfaces; idempotent."""
         if self.render_mode == "human" and self._canvas is not None:
-            pygame.display.quit()
+            global _HUMAN_OPEN
+            _HUMAN_OPEN -= 1
+            if _HUMAN_OPEN == 0:
+                pygame.display.quit()
         self._canvas = None
         self._sim = None

@@ -154,6 +154,38 @@ def test_human_mode_runs_headless(monkeypatch):
     env.close()
 
 
+def test_two_human_windows_in_one_process_close_in_any_order(monkeypatch):
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    first = gym.make("AOASS-v0", render_mode="human", **SMALL)
+    second = gym.make("AOASS-v0", render_mode="human", **SMALL)
+    first.reset(seed=520001)
+    second.reset(seed=520002)
+    first.close()
+    # pygame has one display: the first close used to quit it under the second
+    second.step(np.zeros(2, np.float32))
+    second.close()
+    import pygame
+    assert not pygame.display.get_init()
+
+
+def test_the_coverage_shade_stays_inside_a_field_of_partial_cells():
+    # 51 m is not a whole number of coverage cells: the last cells reach past the field
+    sim = _sim(520008, field_size=51.0, n_nodes=10, n_moving_obstacles=0)
+    assert sim.map.width % sim.coverage_map.cell != 0
+    shaded, bare = Renderer("rgb_array", 20), Renderer("rgb_array", 20, show_coverage=False)
+    frame, plain = shaded.draw(sim, sim.follower()), bare.draw(sim, sim.follower())
+    left, bottom = shaded._origin
+    right = left + sim.map.width * shaded._scale
+    top = bottom - sim.map.height * shaded._scale
+    inside = np.zeros(frame.shape[:2], dtype=bool)
+    inside[int(np.floor(top)):int(np.ceil(bottom)) + 1,
+           int(np.floor(left)):int(np.ceil(right)) + 1] = True
+    # outside the field (the margin, the status line) the frame is the one without the shade:
+    # the shade used to spill over both
+    assert (frame != plain).any(axis=-1)[inside].any()
+    np.testing.assert_array_equal(frame[~inside], plain[~inside])
+
+
 def test_closed_renderer_refuses_to_draw():
     renderer = Renderer("rgb_array", 20)
     renderer.close()
