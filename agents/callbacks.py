@@ -178,6 +178,7 @@ def read_evaluations(path: str | Path) -> Evaluations:
     found = Evaluations(**arrays)
     k = len(found.timesteps) if found.timesteps.ndim == 1 else -1
     if (k < 0 or found.results.ndim != 2 or found.results.shape[0] != k
+            or (k > 0 and found.results.shape[1] == 0)
             or found.ep_lengths.shape != found.results.shape
             or not np.issubdtype(found.timesteps.dtype, np.integer)
             or not np.issubdtype(found.results.dtype, np.floating)
@@ -185,8 +186,13 @@ def read_evaluations(path: str | Path) -> Evaluations:
         raise ValueError(f"{path}: not an evaluation record (timesteps {found.timesteps.dtype}"
                          f"{list(found.timesteps.shape)}, results {found.results.dtype}"
                          f"{list(found.results.shape)}, ep_lengths "
-                         f"{list(found.ep_lengths.shape)}; want k steps and k rows of finite "
-                         f"returns)")
+                         f"{list(found.ep_lengths.shape)}; want k steps and k rows of at least "
+                         f"one finite return)")
+    if (np.diff(found.timesteps) <= 0).any():
+        at = int(np.flatnonzero(np.diff(found.timesteps) <= 0)[0])
+        raise ValueError(f"{path}: not an evaluation record (timesteps must increase: "
+                         f"{int(found.timesteps[at])} then {int(found.timesteps[at + 1])} at "
+                         f"rows {at} and {at + 1})")
     return found
 
 

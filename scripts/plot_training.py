@@ -56,6 +56,10 @@ def main() -> None:
     if not len(ev.timesteps):
         parser.error(f"{npz}: holds no evaluation yet")
     scalars = tensorboard_scalars(args.tensorboard) if args.tensorboard else {}
+    if args.tensorboard is not None and not any(tag in scalars for tag, _ in SCALARS):
+        parser.error(f"--tensorboard {args.tensorboard}: holds none of the run's scalars "
+                     f"({', '.join(tag for tag, _ in SCALARS)}) in its own event files; give "
+                     f"the run's folder, e.g. out/tensorboard/td3-lstm_seed0_1")
     panels = 1 + sum(tag in scalars for tag, _ in SCALARS)
     fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 3.4), squeeze=False)
     ax = axes[0, 0]

@@ -26,7 +26,7 @@ def test_reads_what_sb3_writes(tmp_path: Path):
     ({"timesteps": [100], "results": [[1.0]]}, "not an evaluation record (no 'ep_lengths')"),
     ({"timesteps": [100, 200], "results": [[1.0]], "ep_lengths": [[3]]},
      "timesteps int64[2], results float64[1, 1]"),
-    ({"timesteps": [100], "results": [[np.nan]], "ep_lengths": [[3]]}, "finite returns"),
+    ({"timesteps": [100], "results": [[np.nan]], "ep_lengths": [[3]]}, "one finite return"),
     ({"timesteps": [-1], "results": [[1.0]], "ep_lengths": [[3]]}, "not an evaluation record"),
     ({"timesteps": [1.5], "results": [[1.0]], "ep_lengths": [[3]]}, "timesteps float64[1]"),
     ({"timesteps": [100], "results": [[1.0]], "ep_lengths": [[3, 4]]}, "ep_lengths [1, 2]"),

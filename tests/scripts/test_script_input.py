@@ -49,6 +49,20 @@ def test_plot_training_names_a_run_folder_without_its_log(capsys, monkeypatch, t
         f"{tmp_path / 'evaluations.npz'}: holds no evaluation yet")
     assert refused(capsys, monkeypatch, "plot_training", "--tensorboard",
                    str(tmp_path / "none")) == f"--tensorboard {tmp_path / 'none'}: not a folder"
+    # rows of no episode, and steps out of order, used to plot a traceback or a zig-zag
+    for steps, results, message in (
+            (np.arange(3), np.zeros((3, 0)), "want k steps and k rows of at least one"),
+            (np.array([10, 30, 20]), np.zeros((3, 2)), "timesteps must increase: 30 then 20")):
+        np.savez(tmp_path / "evaluations.npz", timesteps=steps, results=results,
+                 ep_lengths=np.zeros_like(results))
+        assert message in refused(capsys, monkeypatch, "plot_training", str(tmp_path))
+    # a folder above the run's event files (out/tensorboard) used to drop the panels silently
+    np.savez(tmp_path / "evaluations.npz", timesteps=np.array([10, 20]),
+             results=np.zeros((2, 2)), ep_lengths=np.zeros((2, 2)))
+    (tmp_path / "tb" / "td3-lstm_seed0_1").mkdir(parents=True)
+    assert refused(capsys, monkeypatch, "plot_training", str(tmp_path), "--tensorboard",
+                   str(tmp_path / "tb")).startswith(
+        f"--tensorboard {tmp_path / 'tb'}: holds none of the run's scalars (")
 
 
 def test_plot_maps_names_an_unknown_map_and_an_unwritable_out(capsys, monkeypatch, tmp_path):
