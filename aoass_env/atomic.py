@@ -79,3 +79,22 @@ def save_figure_atomic(figure: Any, path: str | os.PathLike[str], **savefig: Any
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_open(path, "wb") as f:
         figure.savefig(f, format=path.suffix[1:], **savefig)
+
+
+def folder_problem(folder: str | os.PathLike[str]) -> str | None:
+    """Why files cannot be written into ``folder`` (created if missing), or None when they
+    can: checked by creating and removing a temporary file there, so that a command can refuse
+    an unusable output folder before its work rather than lose the work at the end."""
+    import tempfile
+    folder = Path(folder)
+    for part in (folder, *folder.parents):       # the nearest existing part must be a folder
+        if part.exists():
+            if not part.is_dir():
+                return f"{part} is a file, not a folder"
+            break
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    return None

@@ -47,7 +47,7 @@ import torch
 
 from agents.checkpoints import PolicyFileError
 from aoass_env.action import AdaptiveAction, ResidualAction
-from aoass_env.atomic import write_text_atomic
+from aoass_env.atomic import folder_problem, write_text_atomic
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation.episode import episode_metrics, localization_row
 from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, RunOptions, load_policy
@@ -171,6 +171,9 @@ def main() -> None:
                              "the Eq. 15 RMSE")
     parser.add_argument("--out", type=Path, default=Path("out/bench_agent"))
     args = parser.parse_args()
+    problem = folder_problem(args.out)    # refused now, not after the work
+    if problem is not None:
+        parser.error(f"--out {args.out}: {problem}")
     if not args.model.is_file():
         parser.error(f"--model {args.model}: no such file")
     try:              # here, in one line, rather than in every worker of the pool

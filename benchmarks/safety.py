@@ -49,7 +49,7 @@ import gymnasium as gym
 import numpy as np
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
-from aoass_env.atomic import write_text_atomic
+from aoass_env.atomic import folder_problem, write_text_atomic
 from aoass_env.maps import list_maps
 from aoass_env.safety.config import SafetyConfig
 from aoass_env.validators import argparse_number
@@ -352,6 +352,9 @@ def main() -> None:
                         choices=["contacts", "zero", "cost", "kalman", "speed"])
     parser.add_argument("--out", type=Path, default=Path("out/bench_safety"))
     args = parser.parse_args()
+    problem = folder_problem(args.out)    # refused now, not after the work
+    if problem is not None:
+        parser.error(f"--out {args.out}: {problem}")
     results = {}
     if "speed" in args.parts:
         results["speed"] = run_speed(args.speed_steps)

@@ -33,6 +33,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from safety import DENSITIES, STACKS  # noqa: E402  (benchmarks/safety.py)
 
+from aoass_env.atomic import folder_problem, write_text_atomic  # noqa: E402
 from aoass_env.config import AOASSConfig  # noqa: E402
 from aoass_env.safety.lookahead import position_std  # noqa: E402
 from aoass_env.wrappers import make_safe_env  # noqa: E402
@@ -163,8 +164,13 @@ def main(argv: list[str] | None = None) -> None:
             parser.error(f"--{flag} must be at least 1, got {getattr(args, flag)}")
     if args.summary:
         for path in args.summary:
-            rows = [json.loads(line) for line in path.read_text().splitlines() if line]
-            print(path, json.dumps(summary(rows)))
+            try:
+                rows = [json.loads(line) for line in path.read_text(encoding="utf-8")
+                        .splitlines() if line]
+                print(path, json.dumps(summary(rows)))
+            except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as exc:
+                parser.error(f"--summary {path}: not a safety_contacts.py --out file "
+                             f"({type(exc).__name__}: {exc})")
         return
     try:
         stack = STACKS[args.stack].replace(**_fields(args.set, "--set"))
@@ -177,13 +183,16 @@ def main(argv: list[str] | None = None) -> None:
     ENV_FIELDS.update(env_fields)
     tasks = [(args.policy, args.stack, DENSITIES[i % len(DENSITIES)], args.first_seed + i)
              for i in range(args.episodes)]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
+    problem = folder_problem(args.out.parent)     # refused now, not after the work
+    if problem is not None:
+        parser.error(f"--out {args.out}: {problem}")
     rows = []
-    with args.out.open("w") as f, Pool(args.jobs) as pool:
+    with Pool(args.jobs) as pool:
         for row in pool.imap(episode, tasks):
             rows.append(row)
-            f.write(json.dumps(row) + "\n")
-            f.flush()
+            # the rows so far replace the file whole: a kill leaves the last episode's rows,
+            # never a half line or an emptied earlier result
+            write_text_atomic(args.out, "".join(json.dumps(r) + "\n" for r in rows))
             print(row["seed"], row["density"], row["moving_contacts"], row["static_contacts"],
                   row["complete"], f"{row['coverage']:.3f}", flush=True)
     print(json.dumps(summary(rows)))

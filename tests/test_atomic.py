@@ -73,3 +73,13 @@ def test_a_figure_is_saved_whole_in_its_suffix_format_or_not_at_all(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"      # the old figure, whole
     assert sorted(p.name for p in png.parent.iterdir()) == ["a.pdf", "a.png"]
     plt.close(fig)
+
+
+def test_folder_problem_names_what_keeps_files_out(tmp_path):
+    from aoass_env.atomic import folder_problem
+    assert folder_problem(tmp_path / "new" / "deeper") is None
+    assert (tmp_path / "new" / "deeper").is_dir() and not list((tmp_path / "new").rglob("*.*"))
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert folder_problem(blocker / "sub") == f"{blocker} is a file, not a folder"
+    assert folder_problem(blocker) == f"{blocker} is a file, not a folder"

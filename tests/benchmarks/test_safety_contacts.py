@@ -68,3 +68,21 @@ def test_bad_fields_and_counts_are_refused_before_any_episode(capsys, tmp_path, 
     assert message in capsys.readouterr().err
     assert not out.exists()
     assert bench.STACKS["stack"] == bench.STACKS["stack"].__class__()   # left as it was
+
+
+def test_a_bad_summary_file_or_out_folder_is_one_line(tmp_path, capsys):
+    bench = load_benchmark("safety_contacts")
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text("not json\n")
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    for argv, message in (
+            (["--summary", str(bad)], f"--summary {bad}: not a safety_contacts.py --out file"),
+            (["--summary", str(tmp_path / "none")], "--summary"),
+            # an unusable --out used to be found after the episodes, losing them
+            (["--episodes", "1", "--out", str(blocker / "x.jsonl")],
+             f"--out {blocker / 'x.jsonl'}: {blocker} is a file, not a folder")):
+        with pytest.raises(SystemExit):
+            bench.main(argv)
+        err = capsys.readouterr().err.strip().splitlines()[-1]
+        assert err.split(": error: ", 1)[1].startswith(message)
