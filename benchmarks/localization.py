@@ -46,7 +46,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from aoass_env.atomic import write_text_atomic  # noqa: E402
-from aoass_env.beacon_log import BeaconLog  # noqa: E402
+from aoass_env.beacon_log import BeaconLog, BeaconLogError  # noqa: E402
 from aoass_env.config import AOASSConfig, ConfigError  # noqa: E402
 from aoass_env.localization import localize, prepare  # noqa: E402
 from aoass_env.localization.consensus import RELIABLE_SPREAD, node_consensus  # noqa: E402
@@ -366,15 +366,21 @@ def main() -> None:
             parser.error(f"--checkpoint: {err}")
 
     torch.set_num_threads(1)
-    if args.neighbour_rounds is not None:
-        report = neighbour_rounds(args.neighbour_rounds, checkpoint())
+    for flag, table, name in (("--neighbour-rounds", neighbour_rounds, "neighbour_rounds.md"),
+                              ("--ablation", ablation, "ablation.md")):
+        folder = getattr(args, flag[2:].replace("-", "_"))
+        if folder is None:
+            continue
+        # a missing or empty folder used to print an empty table and exit 0
+        if not folder.is_dir() or not any(folder.glob("*.npz")):
+            parser.error(f"{flag} {folder}: holds no beacon log (*.npz); give the logs of "
+                         f"`train.py localizer`, e.g. out/localizer_logs/val")
+        try:
+            report = table(folder, checkpoint())
+        except BeaconLogError as err:
+            parser.error(f"{flag}: {err}")
         print(report)
-        write_text_atomic(args.out / "neighbour_rounds.md", report)
-        return
-    if args.ablation is not None:
-        report = ablation(args.ablation, checkpoint())
-        print(report)
-        write_text_atomic(args.out / "ablation.md", report)
+        write_text_atomic(args.out / name, report)
         return
     dois = tuple(args.dois)
     specs = accuracy_specs(args.seeds, dois, tuple(args.densities))

@@ -74,6 +74,10 @@ def test_ceiling_table_is_the_consensus_with_the_true_pattern_beside_localize(tm
     (["--densities", "0.9"], "--densities: 0.9 is not the density of a shipped 100 m test map; "
                              "valid: 0.1 0.2 0.3 0.4 0.5 0.6"),
     (["--dois", "2"], "--dois: doi=2.0 must be a number in [0.0, 0.5]"),
+    # a missing or empty log folder used to give an empty table and exit 0
+    (["--ablation", "no_such_dir"], "--ablation no_such_dir: holds no beacon log (*.npz)"),
+    (["--neighbour-rounds", "no_such_dir"],
+     "--neighbour-rounds no_such_dir: holds no beacon log (*.npz)"),
 ])
 def test_bad_flags_are_one_line_before_any_log(monkeypatch, capsys, tmp_path, argv, message):
     """These used to fail later: an IndexError, a ZeroDivisionError, a ConfigError traceback."""
