@@ -24,6 +24,10 @@ from aoass_env.validators import ConfigError, ValidatedConfig, param, unknown_ke
 __all__ = ["AOASSConfig", "ConfigError", "check_keywords", "config_for_map", "config_with",
            "map_side", "unknown_key_message"]
 
+#: The largest spiral :class:`AOASSConfig` accepts, roughly estimated from its fields: legs
+#: and waypoints (more exhausted memory or ran for minutes before failing).
+MAX_SPIRAL_LEGS = 50_000
+MAX_SPIRAL_WAYPOINTS = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -185,6 +189,39 @@ class AOASSConfig(ValidatedConfig):
         if 2 * self.edge_margin >= self.field_size:
             raise ConfigError(f"edge_margin={self.edge_margin} must be less than half of "
                               f"field_size={self.field_size}")
+        if self.anchor_radius > self.edge_margin:
+            # the outermost pass runs edge_margin from the border: a start there overlapped
+            # the wall (a ValueError at some resets)
+            raise ConfigError(f"edge_margin={self.edge_margin} m must be at least anchor_radius="
+                              f"{self.anchor_radius} m (the outermost pass runs edge_margin "
+                              f"from the border)")
+        if self.beacon_interval >= self.radio_range:
+            raise ConfigError(f"beacon_interval={self.beacon_interval} m must be below "
+                              f"radio_range={self.radio_range} m (Eq. 5's spacing)")
+        widest = math.sqrt(self.radio_range**2 - self.beacon_interval**2) - self.edge_margin
+        if self.spiral_spacing is None and widest <= 0:
+            raise ConfigError(
+                f"edge_margin={self.edge_margin} m leaves no spiral spacing: Eq. 5's "
+                f"sqrt(radio_range^2 - beacon_interval^2) - edge_margin = {widest:.4g} m for "
+                f"radio_range={self.radio_range} m and beacon_interval={self.beacon_interval} m")
+        # the spiral's size: the fitted spacing is at least half the widest (module docs of
+        # planning.square_spiral) or the field's half; a spiral of millions of waypoints or
+        # legs exhausted memory or ran for minutes before failing
+        spacing = self.spiral_spacing or min(widest / 2, self.field_size / 2 - self.edge_margin)
+        legs = 2 * self.field_size / spacing
+        waypoints = (self.field_size**2 / spacing + 4 * self.field_size) / self.path_step
+        if not (legs <= MAX_SPIRAL_LEGS and waypoints <= MAX_SPIRAL_WAYPOINTS):
+            raise ConfigError(
+                f"the spiral would have about {legs:.3g} legs and {waypoints:.3g} waypoints "
+                f"(at most {MAX_SPIRAL_LEGS} and {MAX_SPIRAL_WAYPOINTS}): field_size="
+                f"{self.field_size} m, spiral_spacing={self.spiral_spacing}, waypoint step "
+                f"{self.path_step} m (waypoint_step, else beacon_interval); use a larger "
+                f"spacing or step")
+        if self.cell_range <= self.coverage_cell:     # (it used to fail at every reset)
+            raise ConfigError(
+                f"coverage_cell={self.coverage_cell:g} m is too large for radio_range="
+                f"{self.radio_range:g} m and doi={self.doi:g}: the guaranteed range R (1 - doi) "
+                f"- cell / sqrt(2) must exceed one cell")
         if self.spiral_origin is not None:    # the spiral runs inside the edge margin
             x, y = self.spiral_origin
             lo, hi = self.edge_margin, self.field_size - self.edge_margin
@@ -197,6 +234,13 @@ class AOASSConfig(ValidatedConfig):
     def substep_dt(self) -> float:
         """Physics step (s)."""
         return self.dt / self.physics_substeps
+
+    @property
+    def cell_range(self) -> float:
+        """r_cell (m): the range within which a coverage cell surely hears a beacon, the
+        guaranteed range R (1 - doi) less half a cell's diagonal
+        (:mod:`aoass_env.planning.coverage`)."""
+        return self.radio_range * (1.0 - self.doi) - self.coverage_cell / math.sqrt(2.0)
 
     @property
     def path_step(self) -> float:

@@ -131,7 +131,11 @@ class Simulator:
         """
         free = np.flatnonzero(~self.path.blocked)
         if len(free) == 0:
-            raise MapError("every waypoint of the path lies inside an obstacle; nowhere to start")
+            raise MapError(
+                f"every waypoint of the path lies inside an obstacle (map "
+                f"{self.map.name or 'given'}, {self.map.width:g} m, density "
+                f"{self.map.density:.2f}); nowhere to start: a "
+                f"lower obstacle_density, a larger field_size or a smaller spiral_spacing")
         radius, points = self.config.anchor_radius, self.path.waypoints
         first = None
         for i in free:

@@ -332,6 +332,31 @@ def _braking_reach(c: AOASSConfig, radius: float) -> float:
     return top * c.dt + top * top / (2.0 * c.anchor_max_accel) + radius
 
 
+#: Most half-period samples of the look-ahead's rollout (the defaults: 4.5 s / 0.25 s = 18).
+MAX_LOOK_AHEAD_SAMPLES = 2000
+
+
+def _horizon(c: AOASSConfig, cfg: SafetyConfig) -> float:
+    """The look-ahead's horizon (s): ``look_ahead_horizon``, else the anchor's reaction time
+    (:func:`~aoass_env.safety.lookahead.look_ahead_horizon`)."""
+    return cfg.look_ahead_horizon or look_ahead_horizon(
+        c.anchor_max_speed, c.anchor_max_accel, c.anchor_max_turn_rate, c.dt)
+
+
+def _check_look_ahead(c: AOASSConfig, cfg: SafetyConfig) -> None:
+    """ConfigError when the look-ahead's :func:`_horizon` takes more than
+    :data:`MAX_LOOK_AHEAD_SAMPLES` half-period samples: a slow turn rate or acceleration made
+    every step slow, then ran out of memory (1e-9 rad/s asked for 94 GiB)."""
+    horizon = _horizon(c, cfg)
+    if not horizon / (0.5 * c.dt) <= MAX_LOOK_AHEAD_SAMPLES:
+        raise ConfigError(
+            f"the safety stack's look-ahead horizon {horizon:.4g} s (dt + anchor_max_speed / "
+            f"anchor_max_accel + pi / anchor_max_turn_rate, or safety look_ahead_horizon) takes "
+            f"more than {MAX_LOOK_AHEAD_SAMPLES} samples of dt / 2 = {0.5 * c.dt:g} s; raise "
+            f"anchor_max_turn_rate={c.anchor_max_turn_rate:g} rad/s or anchor_max_accel="
+            f"{c.anchor_max_accel:g} m/s^2, or set the safety config's look_ahead_horizon")
+
+
 class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
     """Fuzzy-logic + ORCA velocity filter between the agent and AOASS-v0 (Eq. 7-10).
 
@@ -390,6 +415,8 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                 "aoass_env.make_safe_env")
         self._tracker = tracker
         self.config = config = SafetyConfig.coerce(config, "safety")
+        if config.look_ahead:
+            _check_look_ahead(base.config, config)
         #: what the agent's action means: the environment's action type (residual or
         #: adaptive) with its config's scales
         self.agent_action = type(inner).from_config(base.config)
@@ -477,8 +504,7 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         escape_velocity`) for the ``anchor`` as it is this period: the tracks' prediction and
         covariance against the anchor's unicycle rolled out among the static edges."""
         c, cfg = self._base.config, self.config
-        horizon = cfg.look_ahead_horizon or look_ahead_horizon(
-            c.anchor_max_speed, c.anchor_max_accel, c.anchor_max_turn_rate, c.dt)
+        horizon = _horizon(c, cfg)
         tracks = self._tracker.tracked_obstacles
         tracks[:, 4] += c.anchor_radius
         radius = c.anchor_radius + cfg.margin

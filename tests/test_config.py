@@ -66,6 +66,28 @@ def test_cross_field_checks():
     assert AOASSConfig(spiral_origin=(1.5, 98.5)).spiral_origin == (1.5, 98.5)
 
 
+@pytest.mark.parametrize("kwargs, message", [
+    # each used to validate, then fail at reset or in make with a message naming no field,
+    # an OverflowError, a MemoryError or minutes of work
+    (dict(anchor_radius=2.0, map_clearance=4.0),
+     r"edge_margin=1.5 m must be at least anchor_radius=2.0 m"),
+    (dict(beacon_interval=30.0), r"beacon_interval=30.0 m must be below radio_range=25.0 m"),
+    (dict(edge_margin=25.0), r"edge_margin=25.0 m leaves no spiral spacing"),
+    (dict(spiral_spacing=1e-3), r"the spiral would have about 2e\+05 legs"),
+    (dict(waypoint_step=1e-5), r"1.25e\+08 waypoints \(at most 50000 and 2000000\)"),
+    (dict(waypoint_step=1e-320), r"inf waypoints"),
+    (dict(radio_range=4.0), r"coverage_cell=2.5 m is too large for radio_range=4 m"),
+])
+def test_configs_that_cannot_run_are_refused_by_name(kwargs, message):
+    with pytest.raises(ConfigError, match=message):
+        AOASSConfig(**kwargs)
+
+
+def test_the_largest_documented_field_is_still_accepted():
+    assert AOASSConfig(field_size=5000.0).field_size == 5000.0
+    assert AOASSConfig(field_size=10.0, edge_margin=1.5).field_size == 10.0
+
+
 def test_integer_valued_float_accepted_and_normalised():
     c = AOASSConfig.from_kwargs(n_nodes=300.0, field_size=200)
     assert c.n_nodes == 300 and isinstance(c.n_nodes, int)

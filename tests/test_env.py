@@ -268,7 +268,10 @@ def test_step_before_reset_is_an_error():
     ({"w1": "high"}, "w1"),
     ({"obs_waypoints": 0}, "obs_waypoints"),
     ({"config": ["n_nodes", 3]}, "config must be a AOASSConfig"),
-    ({"config": {"n_node": 3}}, "did you mean 'n_nodes'")])
+    ({"config": {"n_node": 3}}, "did you mean 'n_nodes'"),
+    # math.ceil(inf) used to escape as an OverflowError
+    ({"anchor_nominal_speed": 1e-306}, r"the episode would last inf control periods"),
+    ({"dt": 1e-306}, r"over dt=1e-306 s")])
 def test_bad_keywords_name_the_parameter(kwargs, match):
     with pytest.raises(ConfigError, match=match):
         gym.make("AOASS-v0", **kwargs)

@@ -294,6 +294,18 @@ def test_map_sampler_draws_reproducibly_and_cycles_in_order():
 
 
 # --- bad input ------------------------------------------------------------------------------
+@pytest.mark.parametrize("kwargs, safety, match", [
+    ({"anchor_max_turn_rate": 1e-4}, None, r"anchor_max_turn_rate=0.0001 rad/s"),
+    ({"anchor_max_accel": 1e-4}, None, r"more than 2000 samples"),
+    ({"dt": 0.05}, {"look_ahead_horizon": 60.0}, r"look-ahead horizon 60 s"),
+])
+def test_a_look_ahead_too_long_to_roll_out_is_refused(kwargs, safety, match):
+    # a slow turn rate made every step slow, then asked for tens of GiB at a step
+    with pytest.raises(ConfigError, match=match):
+        make_safe_env(config=AOASSConfig(**SMALL, **kwargs), safety=safety)
+    make_safe_env(config=AOASSConfig(**SMALL, **kwargs), safety={"look_ahead": False})
+
+
 def test_safety_filter_needs_full_range_actions_and_its_tracker():
     tracked = KalmanObstacleTracker(AOASSEnv(**SMALL))
     with pytest.raises(ValueError, match="reaches every speed and heading"):

@@ -33,29 +33,17 @@ import weakref
 import numpy as np
 import shapely
 
-from aoass_env.config import AOASSConfig, ConfigError
+from aoass_env.config import AOASSConfig
 from aoass_env.jit import njit
 from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network, lambda_min, residual_after
 from aoass_env.radio import Radio, points_within
 
-__all__ = ["PARTIAL_CELL_SHARE", "CoverageMap", "cell_range"]
+__all__ = ["PARTIAL_CELL_SHARE", "CoverageMap"]
 
 #: A cell whose centre lies inside an obstacle is kept when at least this share of its area is
 #: free (its virtual node then lies in the free part).
 PARTIAL_CELL_SHARE = 0.3
-
-
-def cell_range(config: AOASSConfig) -> float:
-    """The range r_cell (m) within which a cell surely hears a beacon (module docstring);
-    :class:`ConfigError` naming ``coverage_cell`` when the cell is too large for the range."""
-    reach = config.radio_range * (1.0 - config.doi) - config.coverage_cell / math.sqrt(2.0)
-    if reach <= config.coverage_cell:
-        raise ConfigError(
-            f"coverage_cell={config.coverage_cell:g} m is too large for radio_range="
-            f"{config.radio_range:g} m and doi={config.doi:g}: the guaranteed range R (1 - doi) "
-            f"- cell / sqrt(2) must exceed one cell")
-    return reach
 
 
 @njit
@@ -146,7 +134,7 @@ class CoverageMap:
 
     def __init__(self, obstacle_map: ObstacleMap, config: AOASSConfig) -> None:
         self.cell = config.coverage_cell
-        self.reach = cell_range(config)
+        self.reach = config.cell_range
         self.shape, self.index, self.centres, self._radio = _cells(
             obstacle_map, self.cell, self.reach, config.line_of_sight)
         self._network = Network(max(len(self.centres), 1), config)

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.maps import ObstacleMap, generate_map
 from aoass_env.network import Network
-from aoass_env.planning.coverage import PARTIAL_CELL_SHARE, CoverageMap, _free_points, cell_range
+from aoass_env.planning.coverage import PARTIAL_CELL_SHARE, CoverageMap, _free_points
 from aoass_env.radio import Radio
 
 EMPTY = ObstacleMap(40.0, 40.0)
@@ -35,10 +35,11 @@ def _brute_force(centres: np.ndarray, beacons: np.ndarray, reach: float,
 
 
 def test_cell_range_is_the_guaranteed_range_less_half_a_diagonal():
-    assert cell_range(CONFIG) == pytest.approx(10.0 - 2.0 / math.sqrt(2.0))
-    assert cell_range(CONFIG.replace(doi=0.2)) == pytest.approx(8.0 - 2.0 / math.sqrt(2.0))
+    assert CONFIG.cell_range == pytest.approx(10.0 - 2.0 / math.sqrt(2.0))
+    assert CONFIG.replace(doi=0.2).cell_range == pytest.approx(8.0 - 2.0 / math.sqrt(2.0))
+    # refused when the config is made (it used to validate, then fail at every reset)
     with pytest.raises(ConfigError, match="coverage_cell=8 m is too large"):
-        cell_range(CONFIG.replace(coverage_cell=8.0))
+        CONFIG.replace(coverage_cell=8.0)
 
 
 @settings(max_examples=25, deadline=None)
