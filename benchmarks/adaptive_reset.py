@@ -22,21 +22,38 @@ import gymnasium as gym
 import numpy as np
 
 import aoass_env  # noqa: F401  (registers the ids)
-from aoass_env.maps import MAX_DENSITY, generate_map
+from aoass_env.maps import MAX_DENSITY, ObstacleMap, generate_map
+from aoass_env.validators import one_line
 
 #: map k is generate_map(100, d, default_rng([SEED, k])): seeds used nowhere else
 SEED = 31313
 
 
-def resets(maps: int, densities: list[float], field: float = 100.0) -> list[float]:
+def fresh_maps(maps: int, densities: list[float], field: float = 100.0) -> list[ObstacleMap]:
+    """The ``maps`` fresh maps of side ``field`` (m), densities taken in turn."""
+    return [generate_map(field, densities[k % len(densities)], np.random.default_rng([SEED, k]))
+            for k in range(maps)]
+
+
+def check_episodes(maps: list[ObstacleMap], field: float = 100.0) -> None:
+    """The episodes :func:`resets` starts, started by AOASS-v0 (the same simulator, seeds and
+    maps, without the sweep's plan) on copies of the maps (a map keeps what it derives, so the
+    timed resets must not find it done): the ValueError of a map the simulator cannot use (no
+    room for the moving obstacles) comes at once, not after the resets timed before it."""
+    env = gym.make("AOASS-v0", field_size=field)
+    env.reset(seed=1)
+    for fresh in maps:
+        copy = ObstacleMap(fresh.width, fresh.height, fresh.polygons, fresh.name)
+        env.reset(seed=2, options={"map": copy})
+
+
+def resets(maps: list[ObstacleMap], field: float = 100.0) -> list[float]:
     """CPU seconds of one reset on each fresh map of side ``field`` (m), after a first reset
     that loads the kernels."""
     env = gym.make("AOASS-Adaptive-v0", field_size=field)
     env.reset(seed=1)
     out = []
-    for k in range(maps):
-        density = densities[k % len(densities)]
-        fresh = generate_map(field, density, np.random.default_rng([SEED, k]))
+    for fresh in maps:
         start = time.process_time()
         env.reset(seed=2, options={"map": fresh})
         out.append(time.process_time() - start)
@@ -56,7 +73,13 @@ def main(argv: list[str] | None = None) -> None:
             parser.error(f"--densities must lie in [0, {MAX_DENSITY}], got {d}")
     if not 20.0 <= args.field <= 400.0:
         parser.error(f"--field must lie in [20, 400] m, got {args.field:g}")
-    times = resets(args.maps, args.densities, args.field)
+    try:
+        maps = fresh_maps(args.maps, args.densities, args.field)
+        check_episodes(maps, args.field)
+    except ValueError as err:      # MapError (density out of reach), or no room to start
+        parser.error(f"--field {args.field:g} with --densities "
+                     f"{' '.join(f'{d:g}' for d in args.densities)}: {one_line(err)}")
+    times = resets(maps, args.field)
     print(f"AOASS-Adaptive-v0 reset on a fresh {args.field:g} m map, CPU s: "
           + " ".join(f"{t:.2f}" for t in times) + f"  (sum {sum(times):.2f})")
 

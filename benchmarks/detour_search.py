@@ -114,7 +114,9 @@ def main(argv: list[str] | None = None) -> None:
     try:
         seeds = [int(s) for s in args.seeds.split(",")]
     except ValueError:
-        parser.error(f"--seeds must be comma-separated integers, got {args.seeds!r}")
+        seeds = [-1]
+    if min(seeds) < 0:          # a negative seed failed in numpy's seeding, after the checkout
+        parser.error(f"--seeds must be comma-separated integers >= 0, got {args.seeds!r}")
     if args.steps < 1:
         parser.error(f"--steps must be an integer >= 1, got {args.steps}")
     with tempfile.TemporaryDirectory() as folder:
@@ -127,6 +129,10 @@ def main(argv: list[str] | None = None) -> None:
     except ValueError as err:                  # the config's own one-line message
         parser.error(str(err).splitlines()[0])
     recorded = record(seeds, args.steps, **config)
+    if not recorded:                # printed 0.000 ms per call and exited 0
+        parser.error(f"--steps {args.steps}: the episodes (seeds {args.seeds}) made no detour "
+                     f"planner call to replay; give more steps (default 20000)"
+                     + (" or a --density above 0" if args.density == 0 else ""))
     classes = {args.against: old.DetourPlanner, "now": detour.DetourPlanner}
     if recorded:                          # first-use costs (compilation, caches)
         for cls in classes.values():

@@ -31,7 +31,9 @@ from numba.core import event as numba_event
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env import simulator, wrappers
+from aoass_env.config import AOASSConfig
 from aoass_env.env import AOASSEnv
+from aoass_env.maps import generator
 from aoass_env.network import Network
 from aoass_env.observation import Observer
 from aoass_env.planning.coverage import CoverageMap
@@ -40,6 +42,7 @@ from aoass_env.planning.follower import WaypointFollower
 from aoass_env.safety.fuzzy import FuzzyController
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.simulator import Simulator
+from aoass_env.validators import argparse_number, one_line
 from aoass_env.world import World
 
 #: (label, class, method) of the parts a step is split into, outermost first.
@@ -237,9 +240,15 @@ def profile(steps: int, env_id: str = "AOASS-v0", **kwargs: Any) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--steps", type=int, default=20_000, help="random steps per env")
-    parser.add_argument("--nodes", type=int, nargs="+", default=[100, 1000],
-                        help="AOASS-v0 node counts to measure")
-    parser.add_argument("--field", type=float, default=100.0, help="field side (m)")
+    # the config's ranges, checked here: a bad --nodes failed after the 27 s warm-up
+    meta = {name: AOASSConfig.__dataclass_fields__[name].metadata
+            for name in ("n_nodes", "field_size")}
+    parser.add_argument("--nodes", type=argparse_number(int, meta["n_nodes"]["low"],
+                                                        high=meta["n_nodes"]["high"]),
+                        nargs="+", default=[100, 1000], help="AOASS-v0 node counts to measure")
+    parser.add_argument("--field", type=argparse_number(float, meta["field_size"]["low"],
+                                                        high=meta["field_size"]["high"]),
+                        default=100.0, help="field side (m)")
     parser.add_argument("--resets", type=int, default=15, help="resets timed at density 0.4")
     parser.add_argument("--interleaved", type=int, default=20_000,
                         help="steps per env of the interleaved AOASS-Safe-v0 / AOASS-v0 "
@@ -248,6 +257,21 @@ def main() -> None:
     if args.steps < 1 or args.resets < 1 or args.interleaved < 0:
         parser.error("--steps and --resets must be positive, --interleaved at least 0")
     field = {"field_size": args.field} if args.field != 100.0 else {}
+    # a field too small for the moving obstacles failed at the warm-up's first reset, or in the
+    # reset timing after the whole run: those seeded resets are tried first, and the maps they
+    # draw forgotten after (the generator keeps its last few), so every timed reset still
+    # builds its own
+    envs = {d: gym.make("AOASS-v0", obstacle_density=d, **field)
+            for d in (AOASSConfig.obstacle_density, 0.4)}
+    try:
+        for density, seed in [(AOASSConfig.obstacle_density, WARM_UP_SEED)] + [
+                (0.4, seed) for seed in (10_000, *range(args.resets))]:
+            envs[density].reset(seed=seed)
+    except ValueError as err:       # MapError, or no room for the moving obstacles
+        parser.error(f"--field {args.field:g} (density {density:g}, seed {seed}): "
+                     f"{one_line(err)}")
+    finally:
+        generator._GENERATED.clear()
     throughput(gym.make("Pendulum-v1"), 2_000)       # warm-up (imports, CPU clock)
     # first-use costs of AOASS (lazy imports, compiled kernels loaded from numba's cache, or
     # compiled on a machine's first run), the look-ahead's included

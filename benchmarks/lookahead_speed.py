@@ -49,9 +49,28 @@ EPISODES: tuple[tuple[dict[str, Any], int], ...] = (
 )
 
 
+def git_problem(ref: str, path: str) -> str | None:
+    """Why ``git show REF:path`` cannot read ``path`` (relative to the repository root) as of
+    commit ``ref``, on one line, or None when it can."""
+    try:
+        if subprocess.run(["git", "rev-parse", "--verify", "--quiet", "--end-of-options",
+                           f"{ref}^{{commit}}"], cwd=ROOT, capture_output=True).returncode:
+            return "no such commit in this repository"
+        if subprocess.run(["git", "cat-file", "-e", f"{ref}:{path}"], cwd=ROOT,
+                          capture_output=True).returncode:
+            return f"has no {path} (it predates it)"
+    except OSError as err:
+        return f"cannot run git ({err.strerror or err})"
+    return None
+
+
 def reference_module(ref: str, path: str, name: str) -> ModuleType:
     """The module at ``path`` as of commit ``ref``, imported under ``name`` from a file in a
-    temporary folder (removed at exit), where numba can cache its compiled functions."""
+    temporary folder (removed at exit), where numba can cache its compiled functions; SystemExit
+    with one line when git cannot read it there."""
+    problem = git_problem(ref, path)
+    if problem:
+        raise SystemExit(f"--ref {ref}: {problem}")
     source = subprocess.run(["git", "show", f"{ref}:{path}"], cwd=ROOT, check=True,
                             capture_output=True, text=True).stdout
     folder = Path(tempfile.mkdtemp(prefix="aoass_ref_"))
@@ -141,9 +160,11 @@ def same_escape(a: Any, b: Any) -> bool:
             and a.shortfall == b.shortfall and a.chosen_shortfall == b.chosen_shortfall)
 
 
-def replay_arguments(doc: str, ref: str, steps: int, rounds: int) -> argparse.Namespace:
+def replay_arguments(doc: str, ref: str, steps: int, rounds: int,
+                     paths: tuple[str, ...] = ()) -> argparse.Namespace:
     """The validated ``--ref``, ``--steps`` and ``--rounds`` of a replay benchmark (described
-    by the first line of ``doc``), with these defaults."""
+    by the first line of ``doc``), with these defaults; ``--ref`` must hold the files ``paths``
+    (a commit that does not exist was a CalledProcessError traceback)."""
     parser = argparse.ArgumentParser(description=doc.split("\n")[0])
     parser.add_argument("--ref", default=ref, help="reference commit")
     parser.add_argument("--steps", type=int, default=steps, help="random steps per episode")
@@ -151,11 +172,16 @@ def replay_arguments(doc: str, ref: str, steps: int, rounds: int) -> argparse.Na
     args = parser.parse_args()
     if args.steps < 1 or args.rounds < 1:
         parser.error("--steps and --rounds must be positive")
+    for path in paths:
+        problem = git_problem(args.ref, path)
+        if problem:
+            parser.error(f"--ref {args.ref}: {problem}")
     return args
 
 
 def main() -> None:
-    args = replay_arguments(__doc__, REFERENCE, 4000, 5)
+    args = replay_arguments(__doc__, REFERENCE, 4000, 5,
+                            ("aoass_env/safety/lookahead.py", "aoass_env/safety/orca.py"))
     old_lookahead = reference_module(args.ref, "aoass_env/safety/lookahead.py", "lookahead_ref")
     old_orca = reference_module(args.ref, "aoass_env/safety/orca.py", "orca_ref")
     calls, queries, steps = record(args.steps)

@@ -186,7 +186,17 @@ def main() -> None:
                         help="alternating passes per scene with --reference")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
-    reference = None if args.reference is None else load_reference(args.reference)
+    reference = None
+    if args.reference is not None:      # a missing file was a FileNotFoundError traceback
+        if not args.reference.is_file():
+            parser.error(f"--reference {args.reference}: no such file; save one with "
+                         f"`git show REV:aoass_env/safety/orca.py > /tmp/orca_ref.py`")
+        reference = load_reference(args.reference)
+        missing = [name for name in ("orca_velocity", "StaticObstacles")
+                   if not hasattr(reference, name)]
+        if missing:
+            parser.error(f"--reference {args.reference}: not a version of "
+                         f"aoass_env/safety/orca.py (no {', '.join(missing)})")
     if reference is None:
         print(f"{'scene':<12}{'orca_velocity':>16}{'lines+solve':>14}{'lines':>8}")
     else:

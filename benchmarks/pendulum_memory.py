@@ -42,7 +42,13 @@ from stable_baselines3.common.noise import NormalActionNoise  # noqa: E402
 
 from agents import RecurrentTD3  # noqa: E402
 from aoass_env.atomic import write_text_atomic  # noqa: E402
-from aoass_env.validators import argparse_number  # noqa: E402
+from aoass_env.validators import (  # noqa: E402
+    argparse_number,
+    keyword_names,
+    one_line,
+    parse_json,
+    unknown_key_message,
+)
 
 torch.set_num_threads(1)
 ALGOS = {"RecurrentTD3": (RecurrentTD3, "MlpLstmPolicy"), "TD3": (TD3, "MlpPolicy")}
@@ -92,6 +98,37 @@ def run(algo: str, seed: int, steps: int, eval_freq: int, extra: dict[str, Any])
             "steps_per_second": round(steps / train_s, 1), "curve": curve}
 
 
+def json_object(text: str) -> dict[str, Any]:
+    """An argparse ``type``: a JSON object (dict)."""
+    try:
+        value = parse_json(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f"not JSON ({err}), got {text!r}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"must be a JSON object of keyword arguments, got "
+                                         f"{text!r}")
+    return value
+
+
+def rtd3_problem(extra: dict[str, Any]) -> str | None:
+    """Why RecurrentTD3 cannot be built with ``extra`` on top of the protocol's arguments (an
+    unknown keyword, one the protocol sets, a value it refuses), or None: a TypeError or
+    ValueError once the runs before it had trained."""
+    fixed = {"policy", "env", "action_noise", "seed", "device", *COMMON}
+    valid = [k for k in keyword_names(RecurrentTD3.__init__)
+             if k not in fixed and not k.startswith("_")]
+    for key in extra:
+        if key in fixed:
+            return f"{key!r} is set by the protocol, the same for both algorithms"
+        if key not in valid:
+            return unknown_key_message(key, valid, "RecurrentTD3 keyword")
+    try:
+        RecurrentTD3("MlpLstmPolicy", make_env(0), device="cpu", **COMMON, **extra)
+    except (TypeError, ValueError) as err:
+        return one_line(err)
+    return None
+
+
 def write_results(out: Path, results: list[dict], args: argparse.Namespace) -> None:
     """``pendulum_memory.csv`` (one row per run) and ``pendulum_memory.json`` (with curves)."""
     buf = io.StringIO()
@@ -134,12 +171,15 @@ def main() -> None:
                         default=50_000, help="env steps per run")
     parser.add_argument("--seeds", type=argparse_number(int, 0), nargs="+", default=[0, 1, 2])
     parser.add_argument("--algos", nargs="+", choices=list(ALGOS), default=list(ALGOS))
-    parser.add_argument("--eval-freq", type=argparse_number(int, 1), default=10_000,
+    parser.add_argument("--eval-freq", type=argparse_number(int, 0), default=10_000,
                         help="steps between learning-curve evaluations (0: final only)")
-    parser.add_argument("--rtd3-kwargs", type=json.loads, default={},
+    parser.add_argument("--rtd3-kwargs", type=json_object, default={},
                         help="JSON dict of extra RecurrentTD3 keyword arguments (tuning)")
     parser.add_argument("--out", type=Path, default=None, help="folder for the CSV and JSON")
     args = parser.parse_args()
+    problem = rtd3_problem(args.rtd3_kwargs) if args.rtd3_kwargs else None
+    if problem:
+        parser.error(f"--rtd3-kwargs: {problem}")
     results: list[dict] = []
     for seed in args.seeds:
         for algo in args.algos:

@@ -15,6 +15,8 @@ of the per-map ratios.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import inspect
 import statistics
 import tempfile
 import time
@@ -24,10 +26,11 @@ import numpy as np
 from reset import module_at
 
 from aoass_env.config import AOASSConfig
-from aoass_env.maps import generate_map
+from aoass_env.maps import MAX_DENSITY, generate_map
 from aoass_env.planning import pruning
 from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
 from aoass_env.simulator import Simulator
+from aoass_env.validators import argparse_number, one_line
 
 #: the commit before the batched measure of the ways
 BEFORE = "3c3f17c"
@@ -45,30 +48,59 @@ def plan_once(module, sim: Simulator, config: AOASSConfig) -> tuple[float, objec
     return time.process_time() - start, plan
 
 
+#: what :func:`same_plan` compares of two plans
+PLAN_FIELDS = ("kept", "order", "reference", "length", "full_length")
+
+
 def same_plan(a: object, b: object) -> bool:
     return all(np.array_equal(getattr(a, f), getattr(b, f)) for f in ("kept", "order",
                                                                        "reference")) and (
         a.length, a.full_length) == (b.length, b.full_length)
 
 
+def api_gap(module) -> str | None:
+    """What a pruning module lacks of the API :func:`plan_once` and :func:`same_plan` use
+    (``prune_spiral`` taking its nine arguments, ``PrunedPlan`` with :data:`PLAN_FIELDS`), or
+    None when it has it all."""
+    function, plan = getattr(module, "prune_spiral", None), getattr(module, "PrunedPlan", None)
+    if function is None or plan is None or not dataclasses.is_dataclass(plan):
+        return "no prune_spiral and PrunedPlan dataclass"
+    try:
+        inspect.signature(function).bind(*range(9))
+    except TypeError as err:
+        return f"prune_spiral {err}"
+    missing = [f for f in PLAN_FIELDS if f not in {g.name for g in dataclasses.fields(plan)}]
+    return f"its PrunedPlan has no {', '.join(missing)}" if missing else None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--against", default=BEFORE, help="the reference commit")
     parser.add_argument("--maps", type=int, default=4)
-    parser.add_argument("--density", type=float, default=0.3)
-    parser.add_argument("--field", type=float, default=100.0)
+    parser.add_argument("--density", type=argparse_number(float, 0.0, high=MAX_DENSITY),
+                        default=0.3)
+    field = AOASSConfig.__dataclass_fields__["field_size"].metadata
+    parser.add_argument("--field", type=argparse_number(float, field["low"], high=field["high"]),
+                        default=100.0)
     parser.add_argument("--rounds", type=int, default=2)
     args = parser.parse_args()
     if min(args.maps, args.rounds) < 1:
         parser.error("--maps and --rounds must be at least 1")
     with tempfile.TemporaryDirectory() as tmp:
         old = module_at(args.against, "aoass_env/planning/pruning.py", Path(tmp))
+    gap = api_gap(old)      # an AttributeError once the first map's timing had run
+    if gap:
+        parser.error(f"--against {args.against}: predates the API this script compares ({gap}); "
+                     f"choose a later commit, e.g. the default {BEFORE}")
     config = AOASSConfig(field_size=args.field, obstacle_density=args.density)
+    try:        # every map and simulator before the timing: a combination they cannot meet
+        sims = [Simulator(config, np.random.default_rng(k), obstacle_map=generate_map(
+            args.field, args.density, np.random.default_rng([SEED, k]))) for k in range(args.maps)]
+    except ValueError as err:       # MapError, or no room for the moving obstacles
+        parser.error(f"--field {args.field:g} with --density {args.density:g}: {one_line(err)}")
     times: dict[str, list[float]] = {"now": [], args.against: []}
     ratios, same = [], True
-    for k in range(args.maps):
-        obstacle_map = generate_map(args.field, args.density, np.random.default_rng([SEED, k]))
-        sim = Simulator(config, np.random.default_rng(k), obstacle_map=obstacle_map)
+    for k, sim in enumerate(sims):
         spent = {"now": [], args.against: []}
         for _ in range(args.rounds):
             for name, module in (("now", pruning), (args.against, old)):

@@ -20,6 +20,7 @@ import time
 import numpy as np
 
 from aoass_env.maps import generate_map
+from aoass_env.maps.generator import MAX_DENSITY
 from aoass_env.radio import Radio
 from aoass_env.validators import argparse_number
 
@@ -51,7 +52,8 @@ def reference_receivers(nodes: list[tuple[float, float]],
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--nodes", type=argparse_number(int, 1), default=1000)
-    parser.add_argument("--density", type=float, default=0.4)
+    parser.add_argument("--density", type=argparse_number(float, 0.0, high=MAX_DENSITY),
+                        default=0.4)
     parser.add_argument("--range", type=argparse_number(float, 0, True),
                         default=25.0, dest="radio_range")
     parser.add_argument("--beacons", type=argparse_number(int, 1), default=1000)

@@ -22,9 +22,10 @@ from pathlib import Path
 import torch
 
 from aoass_env.backends import LocalBackend, RayBackend, require_ray
-from aoass_env.evaluation.methods import RunOptions
-from aoass_env.evaluation.store import EpisodeStore, comparable_lines
+from aoass_env.evaluation.methods import RunOptions, select_methods
+from aoass_env.evaluation.store import EpisodeStore, EvaluationError, comparable_lines
 from aoass_env.evaluation.sweep import PRESETS, Job, episode_jobs, run_jobs
+from aoass_env.validators import argparse_number
 
 LOCALIZERS = ("dvhop", "olstm-dvhop")
 
@@ -43,13 +44,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--preset", choices=list(PRESETS), default="quick")
     parser.add_argument("--methods", nargs="+", default=["spiral", "scan", "ohm", "fdpp"])
-    parser.add_argument("--seeds", type=int, default=2)
-    parser.add_argument("--workers", type=int, default=2,
+    parser.add_argument("--seeds", type=argparse_number(int, 1), default=2)
+    parser.add_argument("--workers", type=argparse_number(int, 1), default=2,
                         help="local processes, and CPUs of the Ray instance (default: 2)")
     args = parser.parse_args()
+    # checked before Ray starts: an unknown method failed in every episode, on both backends
+    try:
+        methods = select_methods(args.methods)
+    except EvaluationError as err:
+        parser.error(f"--methods: {err}")
+    try:
+        jobs = episode_jobs(PRESETS[args.preset], methods, LOCALIZERS, args.seeds)
+    except EvaluationError as err:
+        parser.error(f"--preset {args.preset} with --seeds {args.seeds}: {err}")
     ray = require_ray()
     torch.set_num_threads(1)
-    jobs = episode_jobs(PRESETS[args.preset], args.methods, LOCALIZERS, args.seeds)
     print(f"{len(jobs)} episodes: preset {args.preset}, {' '.join(args.methods)}, "
           f"{args.seeds} seed(s), {' + '.join(LOCALIZERS)}; {args.workers} workers; "
           f"Python {platform.python_version()}, Ray {ray.__version__}", flush=True)

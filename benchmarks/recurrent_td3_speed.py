@@ -22,13 +22,14 @@ import argparse  # noqa: E402
 import statistics  # noqa: E402
 import time  # noqa: E402
 
+import gymnasium as gym  # noqa: E402
 import torch  # noqa: E402
 from stable_baselines3 import TD3  # noqa: E402
 from stable_baselines3.common.callbacks import BaseCallback  # noqa: E402
 from stable_baselines3.common.env_util import make_vec_env  # noqa: E402
 
 from agents import RecurrentTD3  # noqa: E402
-from aoass_env.validators import argparse_number  # noqa: E402
+from aoass_env.validators import argparse_number, one_line  # noqa: E402
 
 torch.set_num_threads(1)
 POLICIES = {"TD3": (TD3, "MlpPolicy"), "RecurrentTD3": (RecurrentTD3, "MlpLstmPolicy")}
@@ -59,14 +60,35 @@ def steps_per_second(name: str, env_id: str, steps: int, seed: int) -> float:
     return (model.num_timesteps - n0) / (time.perf_counter() - t0)
 
 
+def env_problem(env_id: str) -> str | None:
+    """Why both algorithms cannot train on ``env_id`` (unknown, or not Box actions and
+    observations), or None."""
+    try:
+        env = gym.make(env_id)
+    except gym.error.Error as err:          # NameNotFound, a malformed id, a missing package
+        return one_line(err)
+    spaces = env.action_space, env.observation_space
+    env.close()
+    if not isinstance(spaces[0], gym.spaces.Box):
+        return f"its actions are {spaces[0]}; TD3 and RecurrentTD3 need Box (continuous) actions"
+    if not isinstance(spaces[1], gym.spaces.Box):
+        return f"its observations are {type(spaces[1]).__name__}; both policies here need a Box"
+    return None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--env", default="Pendulum-v1", help="Gymnasium env id (Box actions)")
-    parser.add_argument("--steps", type=argparse_number(int, 1),
-                        default=2000, help="measured steps per run")
+    # the clock starts at the first step past learning_starts: one step measured nothing
+    # (a ZeroDivisionError)
+    parser.add_argument("--steps", type=argparse_number(int, 2),
+                        default=2000, help="steps per run after learning_starts (at least 2)")
     parser.add_argument("--repeats", type=argparse_number(int, 1),
                         default=3, help="runs per algorithm")
     args = parser.parse_args()
+    problem = env_problem(args.env)       # a traceback from inside SB3 before
+    if problem:
+        parser.error(f"--env {args.env}: {problem}")
     rates: dict[str, list[float]] = {name: [] for name in POLICIES}
     for r in range(args.repeats):
         for name in POLICIES:

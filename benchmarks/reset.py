@@ -27,8 +27,10 @@ from git_history import module_at
 
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env import simulator
+from aoass_env.config import AOASSConfig
 from aoass_env.maps import generator
 from aoass_env.planning import coverage
+from aoass_env.validators import argparse_number, one_line
 
 TARGET_MS = 50.0
 #: the commit before issue 20's reset work
@@ -71,19 +73,38 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--against", default=BEFORE, help=f"earlier commit (default {BEFORE})")
     parser.add_argument("--resets", type=int, default=20, help="fresh seeds (default 20)")
-    parser.add_argument("--density", type=float, default=0.4)
-    parser.add_argument("--field", type=float, default=100.0, help="field side (m)")
+    parser.add_argument("--density", type=argparse_number(float, 0.0, high=generator.MAX_DENSITY),
+                        default=0.4)
+    field = AOASSConfig.__dataclass_fields__["field_size"].metadata
+    parser.add_argument("--field", type=argparse_number(float, field["low"], high=field["high"]),
+                        default=100.0, help="field side (m)")
     args = parser.parse_args()
     if args.resets < 1:
         parser.error("--resets must be positive")
     with tempfile.TemporaryDirectory() as folder:
-        old_generator = module_at(args.against, "aoass_env/maps/generator.py", Path(folder))
-        old_coverage = module_at(args.against, "aoass_env/planning/coverage.py", Path(folder))
+        try:
+            old_generator = module_at(args.against, "aoass_env/maps/generator.py", Path(folder))
+            old_coverage = module_at(args.against, "aoass_env/planning/coverage.py", Path(folder))
+        except ImportError as err:          # it imports what today's tree no longer has
+            parser.error(f"--against {args.against}: predates the API this script swaps in "
+                         f"({one_line(err)}); choose a later commit, e.g. the default {BEFORE}")
+    # a commit before the coverage raster's _free_points used to end in an AttributeError
+    for module, path, name in ((old_generator, "aoass_env/maps/generator.py", "generate_map"),
+                               (old_coverage, "aoass_env/planning/coverage.py", "_free_points")):
+        if not callable(getattr(module, name, None)):
+            parser.error(f"--against {args.against}: predates the API this script swaps in (its "
+                         f"{path} has no {name}); choose a later commit, e.g. the default "
+                         f"{BEFORE}")
     codes = {"before": (old_generator.generate_map, old_coverage._free_points),
              "now": (generator.generate_map, coverage._free_points)}
     env = gym.make("AOASS-v0", obstacle_density=args.density, field_size=args.field)
-    for code in codes.values():
-        timed_reset(env, 10_000, code)              # first-use costs (imports, caches)
+    try:
+        for code in codes.values():
+            timed_reset(env, 10_000, code)          # first-use costs (imports, caches)
+    except ValueError as err:       # MapError, or no room for the moving obstacles
+        simulator.generate_map, coverage._free_points = codes["now"]
+        coverage._cells = _CELLS
+        parser.error(f"--field {args.field:g} with --density {args.density:g}: {one_line(err)}")
     runs: dict[str, list[list[float]]] = {name: [] for name in codes}
     same = True
     for i in range(args.resets):

@@ -97,7 +97,8 @@ def bits(values: Any) -> list[bytes]:
 
 
 def main() -> None:
-    args = replay_arguments(__doc__, REFERENCE, 3000, 3)
+    args = replay_arguments(__doc__, REFERENCE, 3000, 3,
+                            ("aoass_env/safety/lookahead.py", "aoass_env/action.py"))
     old_lookahead = reference_module(args.ref, "aoass_env/safety/lookahead.py", "lookahead_old")
     old_action = reference_module(args.ref, "aoass_env/action.py", "action_old")
     escapes, checks, encodes = record(args.steps)

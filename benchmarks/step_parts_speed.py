@@ -51,8 +51,17 @@ def main() -> None:
     env = gym.make("AOASS-Safe-v0", n_nodes=100)
     env.reset(seed=0)
     env.action_space.seed(0)
-    for _ in range(args.steps):
-        env.step(env.action_space.sample())
+    # the state must be one of a running episode: a step past its end was a RuntimeError
+    # traceback after the steps
+    limit = getattr(env.spec, "max_episode_steps", None)
+    if limit is not None and args.steps >= limit:
+        parser.error(f"--steps {args.steps}: the seed-0 episode ends at its time limit of "
+                     f"{limit} steps; give at most {limit - 1}")
+    for step in range(1, args.steps + 1):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            parser.error(f"--steps {args.steps}: the seed-0 episode ends after {step} steps; "
+                         f"give at most {step - 1}")
     safe = env
     while not isinstance(safe, FuzzyORCASafety):
         safe = safe.env

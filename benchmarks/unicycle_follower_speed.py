@@ -161,7 +161,8 @@ class _Answers:
 
 
 def main() -> None:
-    args = replay_arguments(__doc__, "3fdd7e9", 3000, 3)
+    args = replay_arguments(__doc__, "3fdd7e9", 3000, 3,
+                            ("aoass_env/safety/unicycle.py", "aoass_env/planning/follower.py"))
     old_unicycle = reference_module(args.ref, "aoass_env/safety/unicycle.py", "unicycle_ref")
     old_follower = reference_module(args.ref, "aoass_env/planning/follower.py", "follower_ref")
 

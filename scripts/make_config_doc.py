@@ -14,10 +14,20 @@ from aoass_env.config import AOASSConfig
 DOC = Path(__file__).resolve().parents[1] / "docs" / "config.md"
 
 
+#: the first line of the table the script rewrites
+HEADER = "| parameter | default"
+
+
 def main(argv: list[str] | None = None) -> None:
-    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args(argv)  # no options
-    lines = DOC.read_text().split("\n")
-    start = next(i for i, line in enumerate(lines) if line.startswith("| parameter | default"))
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.parse_args(argv)  # no options
+    try:        # a missing file was a FileNotFoundError traceback, a missing table StopIteration
+        lines = DOC.read_text().split("\n")
+    except (OSError, UnicodeDecodeError) as err:
+        parser.error(f"{DOC}: cannot read it ({getattr(err, 'strerror', None) or err})")
+    start = next((i for i, line in enumerate(lines) if line.startswith(HEADER)), None)
+    if start is None:
+        parser.error(f"{DOC}: holds no parameter table (a line starting {HEADER!r}) to rewrite")
     end = start
     while end < len(lines) and lines[end].startswith("|"):
         end += 1

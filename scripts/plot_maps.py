@@ -14,7 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Polygon  # noqa: E402
 
-from aoass_env.atomic import save_figure_atomic  # noqa: E402
+from aoass_env.atomic import folder_problem, save_figure_atomic  # noqa: E402
 from aoass_env.maps import MapError, load_map  # noqa: E402
 
 DEFAULT = ["test/d0.10_f100_s500", "test/d0.30_f100_s506", "test/d0.60_f100_s515",
@@ -26,13 +26,20 @@ def main() -> None:
     parser.add_argument("names", nargs="*", default=DEFAULT, help="shipped map names or paths")
     parser.add_argument("--out", type=Path, default=Path("docs/figures/maps.png"))
     args = parser.parse_args()
+    # checked before drawing: a file where a folder should be said "File exists" at the end
+    if args.out.is_dir():
+        parser.error(f"--out {args.out}: is a folder; give the figure's file name")
+    problem = folder_problem(args.out.parent)
+    if problem:
+        parser.error(f"--out {args.out}: {problem}")
     fig, axes = plt.subplots(1, len(args.names), figsize=(4 * len(args.names), 4.2),
                              squeeze=False)
     for ax, name in zip(axes[0], args.names, strict=True):
         try:
             m = load_map(name)
-        except MapError as exc:
-            parser.error(str(exc))
+        except MapError as exc:     # of a folder it said "no such file"
+            parser.error(f"{name}: a folder, not a map file; give map files or shipped map "
+                         f"names (e.g. {DEFAULT[0]})" if Path(name).is_dir() else str(exc))
         for poly in m.polygons:
             ax.add_patch(Polygon(poly, closed=True, color="0.45"))
         ax.set(xlim=(0, m.width), ylim=(0, m.height), aspect="equal",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.benchmarks.conftest import load_benchmark
+from tests.benchmarks.conftest import load_benchmark, refused
 
 
 def test_one_reset_per_fresh_map_is_timed(capsys):
@@ -23,3 +23,11 @@ def test_bad_flags_are_refused_in_one_line(capsys, argv, message):
     with pytest.raises(SystemExit):
         load_benchmark("adaptive_reset").main(argv)
     assert message in capsys.readouterr().err
+
+
+def test_a_field_and_density_its_episodes_cannot_start_on_is_one_line(monkeypatch, capsys):
+    """No room for the moving obstacles on the fresh map: a ValueError traceback from the
+    reset (after the resets timed before it)."""
+    assert refused(monkeypatch, capsys, "adaptive_reset", "--maps", "2", "--densities", "0.2",
+                   "0.4", "--field", "25").startswith(
+        "--field 25 with --densities 0.2 0.4: could not place moving obstacle")

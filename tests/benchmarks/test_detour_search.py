@@ -7,7 +7,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from tests.benchmarks.conftest import ROOT, load_benchmark
+from tests.benchmarks.conftest import ROOT, load_benchmark, refused
 
 
 def test_the_calls_replay_to_the_same_answers_on_the_tree_before(capsys):
@@ -48,3 +48,20 @@ def test_bad_arguments_are_refused_in_one_line(capsys, tmp_path):
     with pytest.raises(SystemExit) as refused:
         bench.module_at("no-such-commit", "aoass_env/planning/detour.py", tmp_path)
     assert str(refused.value).startswith("--against no-such-commit: cannot read")
+
+
+def test_negative_seeds_are_one_line(monkeypatch, capsys):
+    """They used to fail in numpy's seeding: a ValueError traceback after the checkout."""
+    assert refused(monkeypatch, capsys, "detour_search", "--seeds", "0,-1") == (
+        "--seeds must be comma-separated integers >= 0, got '0,-1'")
+
+
+def test_steps_that_make_no_planner_call_are_refused(monkeypatch, capsys):
+    """One step recorded no call: it printed 0.000 ms per call and exited 0."""
+    if subprocess.run(["git", "rev-parse", "--verify", "HEAD"], cwd=ROOT,
+                      capture_output=True).returncode:
+        pytest.skip("needs a git checkout")
+    assert refused(monkeypatch, capsys, "detour_search", "--against", "HEAD", "--steps", "1",
+                   "--seeds", "0") == (
+        "--steps 1: the episodes (seeds 0) made no detour planner call to replay; give more "
+        "steps (default 20000)")

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import gymnasium as gym
+import pytest
 
-from tests.benchmarks.conftest import load_benchmark
+from tests.benchmarks.conftest import load_benchmark, refused
 
 
 def test_every_part_of_both_profiles_is_on_the_step_path_and_restored_after():
@@ -24,3 +25,23 @@ def test_every_part_of_both_profiles_is_on_the_step_path_and_restored_after():
             for label, _, _ in table if totals.get(label, [0.0, 0])[1] == 0]
     assert idle == []
     assert all(vars(owner)[name] is method for (owner, name), method in originals.items())
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--nodes", "100", "0"], "argument --nodes: must be an integer in [1, 100000], got '0'"),
+    (["--field", "5"], "argument --field: must be a finite number in [10, 5000], got '5'"),
+])
+def test_bad_nodes_and_field_are_one_line_before_the_warm_up(monkeypatch, capsys, argv,
+                                                             message):
+    """They used to reach the config: a ConfigError traceback, --nodes only after the 27 s
+    warm-up."""
+    assert refused(monkeypatch, capsys, "env_throughput", *argv) == message
+
+
+def test_a_field_too_small_for_its_episodes_is_one_line_before_the_warm_up(monkeypatch, capsys):
+    """No room for the moving obstacles: a ValueError traceback from the warm-up's reset."""
+    bench = load_benchmark("env_throughput")
+    monkeypatch.setattr(bench, "warm_up_env", lambda *a, **k: pytest.fail("the warm-up ran"))
+    assert refused(monkeypatch, capsys, "env_throughput", "--field", "10",
+                   module=bench).startswith(
+        f"--field 10 (density 0.2, seed {bench.WARM_UP_SEED}): could not place moving obstacle")

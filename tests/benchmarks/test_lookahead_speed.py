@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.benchmarks.conftest import load_benchmark
+from tests.benchmarks.conftest import load_benchmark, refused
 
 
 def before_tolerance(velocity, preferred, *, horizon, progress_weight=0.0):
@@ -36,3 +36,17 @@ def test_the_warm_up_replays_every_call_of_each_function_once():
     bench.warm_up((lambda *a, **k: seen.append(("old", a, k)), CALLS),
                   (lambda *a, **k: seen.append(("new", a, k)), CALLS[:1]))
     assert seen == [("old", *CALLS[0]), ("old", *CALLS[1]), ("new", *CALLS[0])]
+
+
+def test_a_reference_that_is_not_a_commit_is_one_line(monkeypatch, capsys):
+    """It used to be a CalledProcessError traceback from ``git show``."""
+    assert refused(monkeypatch, capsys, "lookahead_speed", "--ref", "no-such-commit") == (
+        "--ref no-such-commit: no such commit in this repository")
+
+
+def test_git_problem_names_a_file_the_commit_lacks():
+    bench = load_benchmark("lookahead_speed")
+    if bench.git_problem("HEAD", "benchmarks/lookahead_speed.py") is not None:
+        pytest.skip("needs a git checkout")
+    assert bench.git_problem("HEAD", "no/such/file.py") == "has no no/such/file.py (it predates it)"
+    assert bench.git_problem("-x", "no/such/file.py") == "no such commit in this repository"

@@ -138,7 +138,8 @@ def test_bad_input_names_the_parameter():
         otpp.basic_square_side(0.0, 1.0)
     with pytest.raises(ValueError, match="margin"):
         otpp.plan(ObstacleMap(40.0, 40.0), AOASSConfig(field_size=40, radio_range=2.0,
-                                                       edge_margin=1.5))
+                                                       edge_margin=1.5, beacon_interval=0.5,
+                                                       coverage_cell=0.3))
     with pytest.raises(ValueError, match="side"):
         otpp.half_lines(40.0, -1.0, 1.5)
     with pytest.raises(ValueError, match="extent"):

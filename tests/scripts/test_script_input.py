@@ -72,8 +72,23 @@ def test_plot_maps_names_an_unknown_map_and_an_unwritable_out(capsys, monkeypatc
     blocker.write_text("")
     out = blocker / "maps.png"                  # a folder that is a file: cannot be written
     assert refused(capsys, monkeypatch, "plot_maps", "train/d0.10_f100_s000", "--out",
-                   str(out)).startswith(f"--out {out}: ")
+                   str(out)) == f"--out {out}: {blocker} is a file, not a folder"
     assert blocker.read_text() == ""
+
+
+def test_plot_maps_says_what_is_wrong_with_a_folder(capsys, monkeypatch, tmp_path):
+    """A folder given as a map was "no such file"; a file above --out, "File exists" after the
+    drawing; --out naming a folder is refused before it too."""
+    assert refused(capsys, monkeypatch, "plot_maps", str(tmp_path), "--out",
+                   str(tmp_path / "maps.png")).startswith(
+        f"{tmp_path}: a folder, not a map file; give map files or shipped map names")
+    assert refused(capsys, monkeypatch, "plot_maps", "train/d0.10_f100_s000", "--out",
+                   str(tmp_path)) == f"--out {tmp_path}: is a folder; give the figure's file name"
+    (tmp_path / "file").write_text("")
+    out = tmp_path / "file" / "figures" / "maps.png"
+    assert refused(capsys, monkeypatch, "plot_maps", "train/d0.10_f100_s000", "--out",
+                   str(out)) == f"--out {out}: {tmp_path / 'file'} is a file, not a folder"
+    assert not list(tmp_path.glob("*.png"))
 
 
 def test_make_results_refuses_zero_workers_instead_of_running_on_all_cores(capsys, monkeypatch):
@@ -88,3 +103,22 @@ def test_make_config_doc_takes_no_options(capsys):
     with pytest.raises(SystemExit):
         load("make_config_doc").main(["--out", "x"])
     assert "unrecognized arguments: --out x" in capsys.readouterr().err
+
+
+def test_make_config_doc_names_a_missing_doc_and_a_doc_without_its_table(capsys, tmp_path):
+    """A missing docs/config.md was a FileNotFoundError traceback, one without the table a bare
+    StopIteration."""
+    script = load("make_config_doc")
+    script.DOC = tmp_path / "config.md"
+    for text, message in ((None, f"{script.DOC}: cannot read it (No such file or directory)"),
+                          ("# Config\n\nno table\n",
+                           f"{script.DOC}: holds no parameter table (a line starting "
+                           f"'| parameter | default') to rewrite")):
+        if text is not None:
+            script.DOC.write_text(text)
+        with pytest.raises(SystemExit) as exit_:
+            script.main([])
+        assert exit_.value.code == 2
+        assert capsys.readouterr().err.strip().splitlines()[-1].split(": error: ", 1)[1] == \
+            message
+    assert script.DOC.read_text() == "# Config\n\nno table\n"

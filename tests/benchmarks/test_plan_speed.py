@@ -1,0 +1,38 @@
+"""benchmarks/plan_speed.py: bad flags and a commit before the API it compares, refused in one
+line before any plan is timed."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.benchmarks.conftest import refused
+from tests.benchmarks.test_reset import has_commit
+
+#: a commit whose PrunedPlan has no ``order`` (added in 5e9fb88)
+BEFORE_ORDER = "33bafbd"
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--density", "0.9"], "argument --density: must be a finite number in [0, 0.6], got '0.9'"),
+    (["--field", "5"], "argument --field: must be a finite number in [10, 5000], got '5'"),
+])
+def test_bad_numbers_are_one_line(monkeypatch, capsys, argv, message):
+    """They used to reach the generator or the config: a MapError or ConfigError traceback."""
+    assert refused(monkeypatch, capsys, "plan_speed", *argv) == message
+
+
+def test_a_commit_before_the_api_is_one_line_before_the_timing(monkeypatch, capsys):
+    """It used to time the first map's plan, then end in an AttributeError traceback."""
+    if not has_commit(BEFORE_ORDER):
+        pytest.skip(f"needs the repository's history ({BEFORE_ORDER})")
+    assert refused(monkeypatch, capsys, "plan_speed", "--against", BEFORE_ORDER) == (
+        f"--against {BEFORE_ORDER}: predates the API this script compares (its PrunedPlan has "
+        f"no order); choose a later commit, e.g. the default 3c3f17c")
+
+
+def test_a_field_too_small_for_its_maps_is_one_line(monkeypatch, capsys):
+    if not has_commit("HEAD"):
+        pytest.skip("needs a git checkout")
+    assert refused(monkeypatch, capsys, "plan_speed", "--against", "HEAD", "--field", "20",
+                   "--density", "0.4", "--maps", "1").startswith(
+        "--field 20 with --density 0.4: could not place moving obstacle")
