@@ -1,5 +1,6 @@
 """A module of this repository as it was at an earlier commit, for the benchmarks that time the
-current code against it in one process (``reset.py``, ``detour_search.py``).
+current code against it in one process (``reset.py``, ``detour_search.py``), and why git
+cannot give one (``lookahead_speed.py`` and the replay benchmarks).
 
 The benchmark scripts import it as a sibling (``python3 benchmarks/<name>.py`` puts their folder
 first on ``sys.path``).
@@ -16,10 +17,28 @@ from types import ModuleType
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def git_problem(ref: str, path: str) -> str | None:
+    """Why ``git show REF:path`` cannot read ``path`` (relative to the repository root) as of
+    commit ``ref``, on one line, or None when it can."""
+    try:
+        if subprocess.run(["git", "rev-parse", "--verify", "--quiet", "--end-of-options",
+                           f"{ref}^{{commit}}"], cwd=ROOT, capture_output=True).returncode:
+            return "no such commit in this repository"
+        if subprocess.run(["git", "cat-file", "-e", f"{ref}:{path}"], cwd=ROOT,
+                          capture_output=True).returncode:
+            return f"has no {path} (it predates it)"
+    except OSError as err:
+        return f"cannot run git ({err.strerror or err})"
+    return None
+
+
 def module_at(commit: str, path: str, folder: Path) -> ModuleType:
     """The module ``path`` (relative to the repository root) as it was at ``commit``, written to
     ``folder`` and imported under its own name (its imports are today's tree's); SystemExit
-    with one line when git cannot read it there."""
+    with one line when git cannot read it there (:func:`git_problem`)."""
+    problem = git_problem(commit, path)
+    if problem:
+        raise SystemExit(f"--against {commit}: {problem}")
     try:
         source = subprocess.run(["git", "show", f"{commit}:{path}"], cwd=ROOT, check=True,
                                 capture_output=True, text=True).stdout

@@ -33,6 +33,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from git_history import git_problem
 
 import aoass_env  # noqa: F401  (registers AOASS-Safe-v0)
 from aoass_env import wrappers
@@ -47,21 +48,6 @@ EPISODES: tuple[tuple[dict[str, Any], int], ...] = (
     ({"field_size": 70.0, "obstacle_density": 0.2, "n_moving_obstacles": 8,
       "moving_obstacle_speed": (0.5, 1.5)}, 13),
 )
-
-
-def git_problem(ref: str, path: str) -> str | None:
-    """Why ``git show REF:path`` cannot read ``path`` (relative to the repository root) as of
-    commit ``ref``, on one line, or None when it can."""
-    try:
-        if subprocess.run(["git", "rev-parse", "--verify", "--quiet", "--end-of-options",
-                           f"{ref}^{{commit}}"], cwd=ROOT, capture_output=True).returncode:
-            return "no such commit in this repository"
-        if subprocess.run(["git", "cat-file", "-e", f"{ref}:{path}"], cwd=ROOT,
-                          capture_output=True).returncode:
-            return f"has no {path} (it predates it)"
-    except OSError as err:
-        return f"cannot run git ({err.strerror or err})"
-    return None
 
 
 def reference_module(ref: str, path: str, name: str) -> ModuleType:

@@ -45,7 +45,7 @@ def test_a_reference_that_is_not_a_commit_is_one_line(monkeypatch, capsys):
 
 
 def test_git_problem_names_a_file_the_commit_lacks():
-    bench = load_benchmark("lookahead_speed")
+    bench = load_benchmark("git_history")
     if bench.git_problem("HEAD", "benchmarks/lookahead_speed.py") is not None:
         pytest.skip("needs a git checkout")
     assert bench.git_problem("HEAD", "no/such/file.py") == "has no no/such/file.py (it predates it)"

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from tests.benchmarks.conftest import load_benchmark
+from tests.benchmarks.conftest import load_benchmark, refused
 
 
 def _period(speed, escaping=True, yielding=False, static_active=0, error=0.2, std=0.15):
@@ -70,8 +70,7 @@ def test_bad_fields_and_counts_are_refused_before_any_episode(capsys, tmp_path, 
     assert bench.STACKS["stack"] == bench.STACKS["stack"].__class__()   # left as it was
 
 
-def test_a_bad_summary_file_or_out_folder_is_one_line(tmp_path, capsys):
-    bench = load_benchmark("safety_contacts")
+def test_a_bad_summary_file_or_out_folder_is_one_line(tmp_path, monkeypatch, capsys):
     bad = tmp_path / "bad.jsonl"
     bad.write_text("not json\n")
     blocker = tmp_path / "file"
@@ -82,7 +81,4 @@ def test_a_bad_summary_file_or_out_folder_is_one_line(tmp_path, capsys):
             # an unusable --out used to be found after the episodes, losing them
             (["--episodes", "1", "--out", str(blocker / "x.jsonl")],
              f"--out {blocker / 'x.jsonl'}: {blocker} is a file, not a folder")):
-        with pytest.raises(SystemExit):
-            bench.main(argv)
-        err = capsys.readouterr().err.strip().splitlines()[-1]
-        assert err.split(": error: ", 1)[1].startswith(message)
+        assert refused(monkeypatch, capsys, "safety_contacts", *argv).startswith(message)
