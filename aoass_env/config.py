@@ -35,7 +35,7 @@ class AOASSConfig(ValidatedConfig):
     """All parameters of the simulation core (units in each field's metadata and docs/env.md)."""
 
     # --- field and map -------------------------------------------------------------------
-    field_size: float = param(100.0, "side of the square field", unit="m", low=10.0, high=5000.0)
+    field_size: float = param(100.0, "side of the square field", unit="m", low=10.0, high=2000.0)
     n_nodes: int = param(100, "number of static sensor nodes", low=1, high=100_000, kind="int")
     obstacle_density: float = param(
         0.2, "obstacle area / field area of a generated map", low=0.0, high=0.6)

@@ -271,7 +271,7 @@ def main() -> None:
         parser.error(f"--field {args.field:g} (density {density:g}, seed {seed}): "
                      f"{one_line(err)}")
     finally:
-        generator._GENERATED.clear()
+        generator.clear_cache()
     throughput(gym.make("Pendulum-v1"), 2_000)       # warm-up (imports, CPU clock)
     # first-use costs of AOASS (lazy imports, compiled kernels loaded from numba's cache, or
     # compiled on a machine's first run), the look-ahead's included

@@ -69,11 +69,11 @@ def test_tolerance_comes_from_config():
 
 @pytest.mark.parametrize("angle", [0.0, 0.3, math.pi / 2, 2.0])
 def test_many_collinear_beacons_never_cover(angle):
-    # 2000 beacons on a 4 km line far from the origin: cancellation must not fake a spread.
-    net = Network(3, CONFIG.replace(field_size=5000.0))
+    # 2000 beacons on a 1.6 km line far from the origin: cancellation must not fake a spread.
+    net = Network(3, CONFIG.replace(field_size=2000.0))
     direction = np.array([math.cos(angle), math.sin(angle)])
-    for s in np.linspace(0.0, 4000.0, 2000):
-        net.record_beacon(np.array([4900.0, 4950.0]) - s * direction, np.array([0, 2]))
+    for s in np.linspace(0.0, 1600.0, 2000):
+        net.record_beacon(np.array([1960.0, 1980.0]) - s * direction, np.array([0, 2]))
     assert net.heard.tolist() == [2000, 0, 2000]
     assert not net.covered.any()
     # Float noise of lambda_min is about eps * lambda_max: residual ~ 1e-3 m here, far below 1 m.

@@ -334,6 +334,12 @@ _GENERATED: OrderedDict[tuple, tuple[ObstacleMap, dict]] = OrderedDict()
 _GENERATED_MAX = 4
 
 
+def clear_cache() -> None:
+    """Forget the maps :func:`generate_map` keeps, so the next call with any generator state
+    draws its map anew (a benchmark timing fresh resets, or memory back after large fields)."""
+    _GENERATED.clear()
+
+
 def _state_key(rng: np.random.Generator) -> tuple | None:
     """A hashable copy of the generator's whole state, or None when it has an unknown shape
     (no caching then)."""

@@ -29,7 +29,7 @@ def test_every_part_of_both_profiles_is_on_the_step_path_and_restored_after():
 
 @pytest.mark.parametrize("argv, message", [
     (["--nodes", "100", "0"], "argument --nodes: must be an integer in [1, 100000], got '0'"),
-    (["--field", "5"], "argument --field: must be a finite number in [10, 5000], got '5'"),
+    (["--field", "5"], "argument --field: must be a finite number in [10, 2000], got '5'"),
 ])
 def test_bad_nodes_and_field_are_one_line_before_the_warm_up(monkeypatch, capsys, argv,
                                                              message):

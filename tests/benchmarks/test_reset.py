@@ -22,7 +22,7 @@ def has_commit(commit: str) -> bool:
 
 @pytest.mark.parametrize("argv, message", [
     (["--density", "0.9"], "argument --density: must be a finite number in [0, 0.6], got '0.9'"),
-    (["--field", "5"], "argument --field: must be a finite number in [10, 5000], got '5'"),
+    (["--field", "5"], "argument --field: must be a finite number in [10, 2000], got '5'"),
 ])
 def test_bad_numbers_are_one_line(monkeypatch, capsys, argv, message):
     """They used to reach the env: a MapError or ConfigError traceback."""

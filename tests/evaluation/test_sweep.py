@@ -35,7 +35,7 @@ from aoass_env.evaluation.sweep import (
     run_jobs,
 )
 from aoass_env.maps import DENSITY_TOL, generate_map, list_maps
-from aoass_env.maps.generator import _GENERATED as generated_maps
+from aoass_env.maps.generator import clear_cache as forget_generated_maps
 
 OPTIONS = RunOptions(max_steps=80)
 
@@ -146,7 +146,7 @@ def test_robustness_maps_are_regenerated_from_their_name():
     robustness_map.cache_clear()
     first = robustness_map(name)
     robustness_map.cache_clear()
-    generated_maps.clear()             # generate_map's own cache of recent draws (issue 20)
+    forget_generated_maps()            # generate_map's own cache of recent draws (issue 20)
     again = robustness_map(name)
     assert first is not again and len(first.polygons) == len(again.polygons)
     assert all(np.array_equal(a, b) for a, b in zip(first.polygons, again.polygons, strict=True))

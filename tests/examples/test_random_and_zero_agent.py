@@ -33,7 +33,7 @@ def test_a_short_run_writes_both_gifs(tmp_path, capsys):
     (["--gif-width", "-2"], "argument --gif-width: must be an integer >= 1, got '-2'"),
     (["--seed", "-1"], "argument --seed: must be an integer >= 0, got '-1'"),
     (["--max-steps", "-5"], "argument --max-steps: must be an integer >= 0, got '-5'"),
-    (["--field-size", "0"], "--field-size: field_size=0.0 must be a number in [10.0, 5000.0] m"),
+    (["--field-size", "0"], "--field-size: field_size=0.0 must be a number in [10.0, 2000.0] m"),
 ])
 def test_bad_flags_are_refused_in_one_line(capsys, tmp_path, argv, message):
     with pytest.raises(SystemExit):

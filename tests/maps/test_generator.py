@@ -222,7 +222,9 @@ def test_a_draw_from_the_same_generator_state_is_reused(monkeypatch):
     # another request from the same state is another draw
     b = generate_map(100, 0.3, rng(11), clearance=3.0)
     assert b is not a
-    monkeypatch.setattr(generator_module, "_GENERATED", OrderedDict())
+    generator_module.clear_cache()      # forgotten: the same state draws the map anew
+    assert generate_map(100, 0.3, rng(11)) is not a
+    generator_module.clear_cache()
     fresh = rng(11)
     assert_same_polygons(generate_map(100, 0.3, fresh), a)
     np.testing.assert_array_equal(fresh.integers(0, 2**63, size=4), after)
