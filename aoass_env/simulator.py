@@ -97,7 +97,15 @@ class Simulator:
             config = config_for_map(config, self.map)     # a named map brings its own size
         check_waypoint_step(config, self.map)
         self.config = config
-        self.map.check_traversable(config.map_clearance)
+        try:
+            self.map.check_traversable(config.map_clearance)
+        except MapError as err:
+            certified = AOASSConfig.map_clearance          # scripts/make_maps.py's clearance
+            if config.map is None or config.map_clearance >= certified:
+                raise
+            raise MapError(f"{err}; the shipped maps are made and checked at map_clearance="
+                           f"{certified:g} m: below it, room behind a narrower neck counts as "
+                           f"cut off") from None
         self.nodes = self.map.sample_free_points(config.n_nodes, rng)
         self.spiral = episode_spiral(config, self.map)
         self.path: SquareSpiral | WaypointPath = (

@@ -175,3 +175,19 @@ def test_the_anchor_does_not_start_in_a_nook_whose_exit_only_the_planners_grid_s
         env.step(action)
     assert np.hypot(*(np.array(env.unwrapped.sim.world.position) - start)) > 5.0
     assert env.unwrapped.sim.network.distance_travelled > 100.0
+
+
+def test_a_shipped_map_below_its_certified_clearance_says_why():
+    """At map_clearance 2.0 a shipped map (made and checked at 2.5 m) has room 2.0-2.5 m wide
+    behind narrower necks: cut off at 2.0, absent at 2.5. The refusal says so."""
+    from aoass_env.maps import MapError
+    name = "train/d0.50_f100_s022"
+    Simulator(AOASSConfig(map=name), np.random.default_rng(530011))      # fine at 2.5
+    with pytest.raises(MapError, match=r"d0.50_f100_s022.*passages narrower than clearance=2 m"
+                                       r".*shipped maps are made and checked at "
+                                       r"map_clearance=2.5 m"):
+        Simulator(AOASSConfig(map=name, map_clearance=2.0), np.random.default_rng(530011))
+    # above the certified clearance the map may fail too (its passages are 2.5 m): no note
+    with pytest.raises(MapError) as err:
+        Simulator(AOASSConfig(map=name, map_clearance=3.5), np.random.default_rng(530011))
+    assert "shipped maps" not in str(err.value)
