@@ -6,7 +6,12 @@ only the first episode of a map pays, but every reset on a freshly generated map
 robustness preset, training or evaluating on generated maps). This script resets
 ``gym.make("AOASS-Adaptive-v0")`` once per map on ``--maps`` fresh maps of side ``--field``
 (map k of density d from ``default_rng([SEED, k])``, densities taken in turn from
-``--densities``) and prints the CPU seconds of each reset and their sum. Compare trees by
+``--densities``) and prints the CPU seconds of each reset and their sum. The reference, in
+the same process: ``gym.make("AOASS-v0")``'s reset on the same maps with the same seed (the
+same simulator and episode, without the sweep's plan); each env resets on its own copy of a
+map (a map keeps what it derives: the second would find the first's work done), and the two
+take turns going first, map by map. Prints the reference's seconds too, and the ratio of the
+sums, adaptive / plain: how many plain resets an adaptive one costs. Compare trees by
 running it with ``PYTHONPATH=<tree>``.
 
 Run: ``python3 benchmarks/adaptive_reset.py [--maps 4] [--densities 0.2 0.3 0.4 0.5]
@@ -35,6 +40,11 @@ def fresh_maps(maps: int, densities: list[float], field: float = 100.0) -> list[
             for k in range(maps)]
 
 
+def copy_of(fresh: ObstacleMap) -> ObstacleMap:
+    """A new map with ``fresh``'s field and polygons, none of what ``fresh`` derived."""
+    return ObstacleMap(fresh.width, fresh.height, fresh.polygons, fresh.name)
+
+
 def check_episodes(maps: list[ObstacleMap], field: float = 100.0) -> None:
     """The episodes :func:`resets` starts, started by AOASS-v0 (the same simulator, seeds and
     maps, without the sweep's plan) on copies of the maps (a map keeps what it derives, so the
@@ -43,20 +53,28 @@ def check_episodes(maps: list[ObstacleMap], field: float = 100.0) -> None:
     env = gym.make("AOASS-v0", field_size=field)
     env.reset(seed=1)
     for fresh in maps:
-        copy = ObstacleMap(fresh.width, fresh.height, fresh.polygons, fresh.name)
-        env.reset(seed=2, options={"map": copy})
+        env.reset(seed=2, options={"map": copy_of(fresh)})
 
 
-def resets(maps: list[ObstacleMap], field: float = 100.0) -> list[float]:
-    """CPU seconds of one reset on each fresh map of side ``field`` (m), after a first reset
-    that loads the kernels."""
-    env = gym.make("AOASS-Adaptive-v0", field_size=field)
-    env.reset(seed=1)
-    out = []
-    for fresh in maps:
-        start = time.process_time()
-        env.reset(seed=2, options={"map": fresh})
-        out.append(time.process_time() - start)
+#: the timed env first, the reference second
+ENV_IDS = ("AOASS-Adaptive-v0", "AOASS-v0")
+
+
+def resets(maps: list[ObstacleMap], field: float = 100.0) -> list[list[float]]:
+    """CPU seconds of one reset on each fresh map of side ``field`` (m) of each env of
+    :data:`ENV_IDS` (one list per env), after a first reset of each that loads the kernels;
+    each reset on its own copy of the map, the envs in turn first (the second first on odd
+    maps)."""
+    envs = [gym.make(env_id, field_size=field) for env_id in ENV_IDS]
+    for env in envs:
+        env.reset(seed=1)
+    out: list[list[float]] = [[] for _ in envs]
+    for k, fresh in enumerate(maps):
+        for i in (0, 1) if k % 2 == 0 else (1, 0):
+            own = copy_of(fresh)
+            start = time.process_time()
+            envs[i].reset(seed=2, options={"map": own})
+            out[i].append(time.process_time() - start)
     return out
 
 
@@ -79,9 +97,11 @@ def main(argv: list[str] | None = None) -> None:
     except ValueError as err:      # MapError (density out of reach), or no room to start
         parser.error(f"--field {args.field:g} with --densities "
                      f"{' '.join(f'{d:g}' for d in args.densities)}: {one_line(err)}")
-    times = resets(maps, args.field)
-    print(f"AOASS-Adaptive-v0 reset on a fresh {args.field:g} m map, CPU s: "
-          + " ".join(f"{t:.2f}" for t in times) + f"  (sum {sum(times):.2f})")
+    adaptive, plain = resets(maps, args.field)
+    for env_id, times in zip(ENV_IDS, (adaptive, plain), strict=True):
+        print(f"{env_id} reset on a fresh {args.field:g} m map, CPU s: "
+              + " ".join(f"{t:.3f}" for t in times) + f"  (sum {sum(times):.3f})")
+    print(f"ratio {ENV_IDS[0]} / {ENV_IDS[1]} (sums): {sum(adaptive) / sum(plain):.1f}")
 
 
 if __name__ == "__main__":

@@ -8,7 +8,10 @@ copied to a temporary folder; a fresh interpreter imports them from there and ti
 ``env_throughput.warm_up_env`` (random steps of AOASS-Safe-v0 until, after its first look-ahead
 and an episode's end, 2 000 steps in a row compiled nothing): the first time every kernel it
 reaches compiles, the second time they load from numba's cache.
-Prints the import time and the two warm-ups (wall seconds).
+Prints the import time and the two warm-ups (wall seconds), and their ratio cold / warm: the
+reference is the same warm-up on the same copy, measured by the same script, so the ratio (what
+a machine's first run costs in cached runs) compares across machines and days where the
+seconds do not.
 """
 
 from __future__ import annotations
@@ -32,7 +35,7 @@ import aoass_env
 from env_throughput import warm_up_env
 imported = time.perf_counter()
 warm_up_env(gym.make("AOASS-Safe-v0"))
-print(f"{imported - t:.1f} {time.perf_counter() - imported:.1f}")
+print(f"{imported - t:.4f} {time.perf_counter() - imported:.4f}")
 """
 
 
@@ -54,7 +57,8 @@ def main(argv: list[str] | None = None) -> None:
     (imp1, first), (imp2, cached) = times
     print(f"import aoass_env and gymnasium: {imp1:.1f} s, {imp2:.1f} s")
     print(f"AOASS-Safe-v0 warm-up until no kernel compiles: {first:.1f} s with an empty numba "
-          f"cache (every kernel compiles), {cached:.1f} s with the cache it wrote")
+          f"cache (every kernel compiles), {cached:.1f} s with the cache it wrote; ratio "
+          f"cold / warm {first / cached:.1f}")
 
 
 if __name__ == "__main__":

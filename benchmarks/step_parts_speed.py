@@ -11,6 +11,13 @@ tree this round compares, so the state is too: run the script with each tree fir
     PYTHONPATH=/tmp/base20 python3 benchmarks/step_parts_speed.py
     PYTHONPATH=$PWD python3 benchmarks/step_parts_speed.py
 
+Reference, in the same process and timed the same way: a step of Gymnasium's Pendulum-v1
+(``gym.make``) with a random action (``action_space.sample()``; past its 200-step limit it
+steps on, truncated, without a reset), best of five rounds of ``--calls`` before the parts
+and five after; each part is also printed as a ratio to the least of the two. The ratios,
+not the times, are what two runs (two trees, or one tree on another day or machine) can be
+compared by.
+
 Run from the repository root or anywhere: the script's own folder, not the working directory,
 comes first on ``sys.path``.
 """
@@ -41,13 +48,21 @@ def best_of(function: Callable[[], object], calls: int, rounds: int = 5) -> floa
     return best / calls * 1e6
 
 
-def main() -> None:
+def pendulum_us(calls: int) -> float:
+    """:func:`best_of` a random-action step of Pendulum-v1 (CPU microseconds per call)."""
+    env = gym.make("Pendulum-v1")
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    return best_of(lambda: env.step(env.action_space.sample()), calls)
+
+
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--steps", type=argparse_number(int, 0),
                         default=400, help="steps before the state")
     parser.add_argument("--calls", type=argparse_number(int, 1),
                         default=3000, help="calls per round")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     env = gym.make("AOASS-Safe-v0", n_nodes=100)
     env.reset(seed=0)
     env.action_space.seed(0)
@@ -83,10 +98,16 @@ def main() -> None:
     }
     print(f"aoass_env from {aoass_env.__file__}; state after {args.steps} steps "
           f"({len(tracker.tracked_obstacles)} confirmed tracks)")
-    for name, function in parts.items():
-        print(f"  {name:40s} {best_of(function, args.calls):8.2f} us/call")
-    per_beacon = best_of(lambda: [receivers_at(p, queries) for p in beacons], 1) / len(beacons)
-    print(f"  {'receivers_at (one beacon, both radios)':40s} {per_beacon:8.2f} us/call")
+    before = pendulum_us(args.calls)
+    times = {name: best_of(function, args.calls) for name, function in parts.items()}
+    times["receivers_at (one beacon, both radios)"] = best_of(
+        lambda: [receivers_at(p, queries) for p in beacons], 1) / len(beacons)
+    after = pendulum_us(args.calls)
+    reference = min(before, after)
+    for name, us in times.items():
+        print(f"  {name:40s} {us:8.2f} us/call {us / reference:7.3f} x Pendulum-v1")
+    print(f"  {'Pendulum-v1 step (the reference)':40s} {reference:8.2f} us/call (before the "
+          f"parts {before:.2f}, after {after:.2f})")
 
 
 if __name__ == "__main__":

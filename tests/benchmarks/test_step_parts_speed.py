@@ -1,9 +1,11 @@
 """benchmarks/step_parts_speed.py: --steps past the seed-0 episode's end is refused in one line
-before stepping."""
+before stepping; each part is printed as a ratio to an in-process Pendulum-v1 step."""
 
 from __future__ import annotations
 
-from tests.benchmarks.conftest import refused
+import pytest
+
+from tests.benchmarks.conftest import load_benchmark, refused
 
 
 def test_steps_past_the_episode_are_one_line_before_stepping(monkeypatch, capsys):
@@ -12,3 +14,19 @@ def test_steps_past_the_episode_are_one_line_before_stepping(monkeypatch, capsys
     assert message.startswith("--steps 100000: the seed-0 episode ends at its time limit of ")
     limit = int(message.split("time limit of ")[1].split()[0])
     assert message.endswith(f"give at most {limit - 1}")
+
+
+def test_each_part_is_a_ratio_to_the_pendulum_step_timed_in_the_same_process(capsys):
+    load_benchmark("step_parts_speed").main(["--steps", "3", "--calls", "5"])
+    header, *parts, reference = capsys.readouterr().out.splitlines()
+    assert header.startswith("aoass_env from ") and len(parts) == 8
+    assert reference.split("  ")[1].startswith("Pendulum-v1 step (the reference)")
+    ref = float(reference.split(")")[1].split()[0])
+    before = float(reference.split("before the parts ")[1].split(",")[0])
+    after = float(reference.split("after ")[1].rstrip(")"))
+    assert ref == min(before, after)
+    for line in parts:
+        *_, us, unit, ratio, _, against = line.split()
+        assert (unit, against) == ("us/call", "Pendulum-v1")
+        us, ratio = float(us), float(ratio)
+        assert ratio == pytest.approx(us / ref, rel=0.01, abs=0.002)

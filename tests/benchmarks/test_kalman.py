@@ -1,0 +1,35 @@
+"""benchmarks/kalman.py: the filterpy reference filters what the tracker filters, and the ratio
+is printed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.benchmarks.conftest import load_benchmark
+
+
+@pytest.mark.parametrize("velocity_noise, cols", [(None, 2), (0.2, 4)])
+def test_the_reference_is_the_trackers_filtering_with_the_association_given(velocity_noise,
+                                                                              cols):
+    """Same model, noises and births: on straight runs (no maneuver stage), the reference's
+    states are the tracker's confirmed tracks', bit for bit up to rounding."""
+    bench = load_benchmark("kalman")
+    frames = bench.detections(3, 8, np.random.default_rng(540000))[..., :cols]
+    tracker, reference = bench.tracker(velocity_noise), bench.KnownAssociation(velocity_noise)
+    for z in frames:
+        tracker.step(z)
+        reference.step(z)
+    assert len(tracker.confirmed) == 3
+    np.testing.assert_allclose(tracker.states(),
+                               np.array([kf.x[:, 0] for kf in reference.filters]), rtol=1e-12)
+
+
+def test_each_step_line_prints_the_reference_and_the_ratio(capsys):
+    load_benchmark("kalman").main(["--steps", "20"])
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 3
+    for line in lines[:2]:
+        tracker = float(line.split(": ")[1].split()[0])
+        reference = float(line.split("given: ")[1].split()[0])
+        assert float(line.split("ratio ")[1]) == pytest.approx(tracker / reference, abs=0.01)
