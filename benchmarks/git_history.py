@@ -1,6 +1,7 @@
 """A module of this repository as it was at an earlier commit, for the benchmarks that time the
-current code against it in one process (``reset.py``, ``detour_search.py``), and why git
-cannot give one (``lookahead_speed.py`` and the replay benchmarks).
+current code against it in one process (``reset.py``, ``detour_search.py``), why git
+cannot give one (``lookahead_speed.py`` and the replay benchmarks), and the order in which
+a benchmark's sides run in each of its timing rounds (:func:`in_turn`).
 
 The benchmark scripts import it as a sibling (``python3 benchmarks/<name>.py`` puts their folder
 first on ``sys.path``).
@@ -13,6 +14,9 @@ import subprocess
 import sys
 from pathlib import Path
 from types import ModuleType
+from typing import TypeVar
+
+T = TypeVar("T")
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -52,3 +56,12 @@ def module_at(commit: str, path: str, folder: Path) -> ModuleType:
     sys.modules[spec.name] = module        # dataclasses look their module up while it runs
     spec.loader.exec_module(module)
     return module
+
+
+def in_turn(round_: int, *sides: T) -> list[T]:
+    """``sides`` in the order they run in timing round ``round_`` (0, 1, ...): rotated left by
+    ``round_`` places, so each side runs first once every ``len(sides)`` rounds (with two, the
+    first side leads the even rounds and the second the odd ones): none always pays or gains
+    from going first (caches, the machine's drift)."""
+    k = round_ % len(sides)
+    return [*sides[k:], *sides[:k]]

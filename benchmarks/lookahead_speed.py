@@ -4,9 +4,11 @@ one process, on the calls random-action AOASS-Safe-v0 episodes make.
 The script records every ``escape_velocity`` call (aoass_env/safety/lookahead.py) and every
 static-edge query (``StaticObstacles.edges_near`` and ORCA's own, ``_EdgeCache.near``) of
 random-action AOASS-Safe-v0 episodes, then replays them through the reference commit's
-functions (loaded from ``git show REF:path``) and the current ones, alternating rounds, checks
-that both give the same answers bit for bit, and prints CPU microseconds per call and per
-Safe step and the speed-up (reference / current) of each round.
+functions (loaded from ``git show REF:path``) and the current ones, after one untimed pass of
+each, in alternating rounds (the reference first in the odd-numbered rounds 1, 3, ..., second
+in the even ones: ``git_history.in_turn``), checks that both give the same answers bit for bit,
+and prints CPU microseconds per call and per Safe step and the speed-up (reference / current)
+of each round.
 
 The reference must take today's calls: since ``f61c563`` they pass the contest's
 ``tolerance``, so the default is the tenth round's reference ``f04fd57``; an earlier one (the
@@ -33,7 +35,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from git_history import git_problem
+from git_history import git_problem, in_turn
 
 import aoass_env  # noqa: F401  (registers AOASS-Safe-v0)
 from aoass_env import wrappers
@@ -134,6 +136,15 @@ def timed(function: Any, calls: list[tuple[tuple, dict]]) -> tuple[float, list[A
     return time.process_time() - start, results
 
 
+def timed_in_turn(round_: int, *replays: tuple[Any, list[tuple[tuple, dict]]]
+                  ) -> list[tuple[float, list[Any]]]:
+    """:func:`timed` of each (function, calls) of ``replays``, run in round ``round_``'s order
+    (``git_history.in_turn``: the first given, the reference, leads the rounds 0, 2, ...);
+    returned in the order given."""
+    done = {k: timed(*replays[k]) for k in in_turn(round_, *range(len(replays)))}
+    return [done[k] for k in range(len(replays))]
+
+
 def warm_up(*replays: tuple[Any, list[tuple[tuple, dict]]]) -> None:
     """One untimed pass of each (function, calls): a reference's kernels compile on their first
     calls (one version per kind of argument), the current ones load from numba's cache."""
@@ -154,7 +165,8 @@ def replay_arguments(doc: str, ref: str, steps: int, rounds: int,
     parser = argparse.ArgumentParser(description=doc.split("\n")[0])
     parser.add_argument("--ref", default=ref, help="reference commit")
     parser.add_argument("--steps", type=int, default=steps, help="random steps per episode")
-    parser.add_argument("--rounds", type=int, default=rounds, help="alternated timing rounds")
+    parser.add_argument("--rounds", type=int, default=rounds,
+                        help="timing rounds, the reference first in every other one")
     args = parser.parse_args()
     if args.steps < 1 or args.rounds < 1:
         parser.error("--steps and --rounds must be positive")
@@ -189,10 +201,10 @@ def main() -> None:
     warm_up((old_lookahead.escape_velocity, calls), (lookahead.escape_velocity, calls),
             (old_orca._EdgeCache.near, old_queries), (orca._EdgeCache.near, new_queries))
     for i in range(args.rounds):
-        t_old, r_old = timed(old_lookahead.escape_velocity, calls)
-        t_new, r_new = timed(lookahead.escape_velocity, calls)
-        q_old, a_old = timed(old_orca._EdgeCache.near, old_queries)
-        q_new, a_new = timed(orca._EdgeCache.near, new_queries)
+        (t_old, r_old), (t_new, r_new) = timed_in_turn(
+            i, (old_lookahead.escape_velocity, calls), (lookahead.escape_velocity, calls))
+        (q_old, a_old), (q_new, a_new) = timed_in_turn(
+            i, (old_orca._EdgeCache.near, old_queries), (orca._EdgeCache.near, new_queries))
         if not all(same_escape(a, b) for a, b in zip(r_old, r_new, strict=True)):
             raise SystemExit("escape_velocity differs from the reference")
         if a_old != a_new:

@@ -7,9 +7,10 @@ on a fresh 100 m map that takes seconds, most of an episode of ``aoass-rule`` in
 (plans are cached per map, so only the first episode on a map pays). This script times
 ``prune_spiral`` on ``--maps`` freshly generated maps (map k from ``default_rng([SEED, k])``)
 with the current module and with ``aoass_env/planning/pruning.py`` of ``--against`` (read with
-``git show``), alternating, each run with its own planner search state, and checks that both
-give the same plan bit for bit. Prints the CPU seconds per plan of both (medians) and the median
-of the per-map ratios.
+``git show``), in turn ``--rounds`` times per map (the current module first in the
+odd-numbered rounds 1, 3, ..., second in the even ones: ``git_history.in_turn``), each run
+with its own planner search state, and checks that both give the same plan bit for bit. Prints
+the CPU seconds per plan of both (medians) and the median of the per-map ratios.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from reset import module_at
+from git_history import in_turn, module_at
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import MAX_DENSITY, generate_map
@@ -82,7 +83,8 @@ def main() -> None:
     field = AOASSConfig.__dataclass_fields__["field_size"].metadata
     parser.add_argument("--field", type=argparse_number(float, field["low"], high=field["high"]),
                         default=100.0)
-    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--rounds", type=int, default=2,
+                        help="plans of each module per map, in turn, the order swapped each round")
     args = parser.parse_args()
     if min(args.maps, args.rounds) < 1:
         parser.error("--maps and --rounds must be at least 1")
@@ -102,14 +104,12 @@ def main() -> None:
     ratios, same = [], True
     for k, sim in enumerate(sims):
         spent = {"now": [], args.against: []}
-        for _ in range(args.rounds):
-            for name, module in (("now", pruning), (args.against, old)):
-                seconds, plan = plan_once(module, sim, config)
+        for i in range(args.rounds):
+            plans = {}
+            for name, module in in_turn(i, ("now", pruning), (args.against, old)):
+                seconds, plans[name] = plan_once(module, sim, config)
                 spent[name].append(seconds)
-                if name == "now":
-                    mine = plan
-                else:
-                    same &= same_plan(mine, plan)
+            same &= same_plan(plans["now"], plans[args.against])
         for name in times:
             times[name].append(min(spent[name]))
         ratios.append(min(spent[args.against]) / min(spent["now"]))

@@ -5,7 +5,9 @@ The script records every ``escape_velocity`` call (aoass_env/safety/lookahead.py
 decoding (``checked_action``: the agent's action in the filter and the filter's command in the
 bare env) and every command encoding (``ResidualAction.action``) of the episodes of
 ``lookahead_speed.EPISODES``, replays them through the reference commit's modules (loaded with
-``git show``) and the current ones, alternating rounds, checks that the answers are identical
+``git show``) and the current ones, after one untimed pass of each, in alternating rounds (the
+reference first in the odd-numbered rounds, second in the even ones:
+``lookahead_speed.timed_in_turn``), checks that the answers are identical
 (floats compared by their bits, signs of zeros included) and prints CPU microseconds per call
 and the speed-up (reference / current) of each round.
 
@@ -38,7 +40,7 @@ try:
         replay_arguments,
         replayable,
         same_escape,
-        timed,
+        timed_in_turn,
         warm_up,
     )
 except ImportError:         # run as a script from benchmarks/
@@ -50,7 +52,7 @@ except ImportError:         # run as a script from benchmarks/
         replay_arguments,
         replayable,
         same_escape,
-        timed,
+        timed_in_turn,
         warm_up,
     )
 
@@ -122,8 +124,7 @@ def main() -> None:
         warm_up((old, old_calls), (new, new_calls))
     for i in range(args.rounds):
         for name, old, new, old_calls, new_calls, same in parts:
-            t_old, r_old = timed(old, old_calls)
-            t_new, r_new = timed(new, new_calls)
+            (t_old, r_old), (t_new, r_new) = timed_in_turn(i, (old, old_calls), (new, new_calls))
             if not all(same(a, b) for a, b in zip(r_old, r_new, strict=True)):
                 raise SystemExit(f"{name} differs from the reference")
             print(f"round {i + 1}: {name:22s} {1e6 * t_old / len(old_calls):8.2f} -> "

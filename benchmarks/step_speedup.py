@@ -1,17 +1,20 @@
 """Speed-up of an AOASS-v0 step against an earlier commit (issue 20's "3 x faster per step").
 
 The earlier tree is unpacked with ``git archive`` into a temporary folder; this tree and that one
-then run in turn, each in a fresh interpreter whose ``PYTHONPATH`` puts the tree first: random
-actions in ``gymnasium.make("AOASS-v0")`` (default config), ``--steps`` steps from each of seeds
-0, 1, ... after 3 000 steps of warm-up on seed 9 999 (imports, caches, compiled kernels),
-resets included, timed in the process's CPU time: once with each action drawn by
+then run in turn (the earlier first in the odd-numbered rounds 1, 3, ..., second in the even
+ones: ``git_history.in_turn``), each in a fresh interpreter whose ``PYTHONPATH`` puts the tree
+first: random actions in ``gymnasium.make("AOASS-v0")`` (default config), ``--steps`` steps from
+each of seeds 0, 1, ... after 3 000 steps of warm-up on seed 9 999 (imports, caches, compiled
+kernels), resets included, timed in the process's CPU time: once with each action drawn by
 ``action_space.sample()`` inside the loop (issue 20's measure), once with the same actions
 drawn before the clock starts (the step alone; the difference is the draw, whose cost depends
 on the tree's action space: ``aoass_env.action.ActionBox`` since 2026-11-29). The
 fingerprint test pins the same episodes for the same seeds since before issue 20, and both
 trees' action spaces draw the same actions, so both trees step through the same states.
-Pendulum-v1 is timed the same way in this tree's process, as the reference of issue 20's
-second target (AOASS-v0 at >= 0.22 x its steps/s).
+Pendulum-v1 (3 x ``--steps`` steps per seed) is timed the same way in the same process as each
+tree's AOASS-v0, seed by seed in turn with it (which of the two goes first alternates with the
+seed and the round), as the reference of issue 20's second target (AOASS-v0 at >= 0.22 x its
+steps/s): each tree's ratio divides two figures of one process.
 
 Run: ``python3 benchmarks/step_speedup.py [--against 94e941b] [--steps 20000] [--seeds 3]
 [--rounds 2]`` (pin it to one core with ``taskset -c 1`` on a shared machine). ``94e941b`` is
@@ -34,38 +37,61 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+from git_history import in_turn
 
 ROOT = Path(__file__).resolve().parents[1]
 
 #: the warm-up's seed and length, used by no timed run
 WARM_UP_SEED, WARM_UP_STEPS = 9_999, 3_000
 
+#: the envs each tree's process times in turn: (id, timed steps per seed as a multiple of
+#: ``--steps``); Pendulum-v1's step is about a quarter of AOASS-v0's
+ENVS = (("AOASS-v0", 1), ("Pendulum-v1", 3))
 
-def cpu_us_per_step(env_id: str, steps: int, seeds: int) -> tuple[float, float]:
-    """CPU microseconds per random step of ``env_id`` (resets included) over ``steps`` steps
-    from each of seeds 0 .. ``seeds`` - 1, after the warm-up: (each action drawn with
-    ``action_space.sample()`` in the loop, issue 20's measure; the same actions drawn before
-    the clock starts, the step alone)."""
+
+def seed_cpu_s(env: gym.Env, seed: int, steps: int) -> tuple[float, float]:
+    """CPU seconds of ``steps`` random steps of ``env`` from ``seed`` (resets included): (each
+    action drawn with ``action_space.sample()`` in the loop, issue 20's measure; the same
+    actions drawn before the clock starts, the step alone)."""
+    spent = []
+    for drawn_first in (False, True):
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        drawn = [env.action_space.sample() for _ in range(steps)] if drawn_first else None
+        start = time.process_time()
+        for i in range(steps):
+            action = drawn[i] if drawn else env.action_space.sample()
+            _, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                env.reset()
+        spent.append(time.process_time() - start)
+    return spent[0], spent[1]
+
+
+def cpu_us_per_step(steps: int, seeds: int, round_: int = 0, warm_up: int = WARM_UP_STEPS
+                    ) -> dict[str, tuple[float, float]]:
+    """env id -> CPU microseconds per random step (resets included) of each of :data:`ENVS` in
+    this one process: (action drawn in the loop, drawn before the clock; :func:`seed_cpu_s`)
+    over its share of ``steps`` steps from each of seeds 0 .. ``seeds`` - 1. Each env first
+    takes ``warm_up`` untimed steps from :data:`WARM_UP_SEED`; then, seed by seed, the envs run
+    in turn, in the order ``in_turn(round_ + seed, ...)``."""
     import aoass_env  # noqa: F401  (registers AOASS-v0 of the tree first on the path)
 
-    env = gym.make(env_id)
-    spent = [0.0, 0.0]
-    for seed in (WARM_UP_SEED, *range(seeds)):
-        n = WARM_UP_STEPS if seed == WARM_UP_SEED else steps
-        for k in range(2):
-            env.reset(seed=seed)
-            env.action_space.seed(seed)
-            drawn = [env.action_space.sample() for _ in range(n)] if k else None
-            start = time.process_time()
-            for i in range(n):
-                action = drawn[i] if drawn else env.action_space.sample()
-                _, _, terminated, truncated, _ = env.step(action)
-                if terminated or truncated:
-                    env.reset()
-            if seed != WARM_UP_SEED:
-                spent[k] += time.process_time() - start
-    env.close()
-    return 1e6 * spent[0] / (steps * seeds), 1e6 * spent[1] / (steps * seeds)
+    envs = {env_id: gym.make(env_id) for env_id, _ in ENVS}
+    share = dict(ENVS)
+    for env in envs.values():
+        seed_cpu_s(env, WARM_UP_SEED, warm_up)
+    spent = {env_id: [0.0, 0.0] for env_id in envs}
+    for seed in range(seeds):
+        for env_id in in_turn(round_ + seed, *envs):
+            sampled, alone = seed_cpu_s(envs[env_id], seed, share[env_id] * steps)
+            spent[env_id][0] += sampled
+            spent[env_id][1] += alone
+    for env in envs.values():
+        env.close()
+    return {env_id: (1e6 * a / (share[env_id] * steps * seeds),
+                     1e6 * b / (share[env_id] * steps * seeds))
+            for env_id, (a, b) in spent.items()}
 
 
 def unpack(ref: str, folder: Path) -> None:
@@ -100,11 +126,12 @@ def run_in_tree(tree: Path, module: str, function: str, *args: Any) -> Any:
     return result
 
 
-def in_tree(tree: Path, env_id: str, steps: int, seeds: int) -> tuple[float, float]:
+def in_tree(tree: Path, steps: int, seeds: int, round_: int = 0, warm_up: int = WARM_UP_STEPS
+            ) -> dict[str, tuple[float, float]]:
     """:func:`cpu_us_per_step` in a fresh interpreter that imports ``tree``'s ``aoass_env``
     (:func:`run_in_tree`)."""
-    sampled, alone = run_in_tree(tree, "step_speedup", "cpu_us_per_step", env_id, steps, seeds)
-    return sampled, alone
+    timed = run_in_tree(tree, "step_speedup", "cpu_us_per_step", steps, seeds, round_, warm_up)
+    return {env_id: (sampled, alone) for env_id, (sampled, alone) in timed.items()}
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -119,7 +146,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seeds", type=argparse_number(int, 1), default=3,
                         help="seeds 0 .. N-1")
     parser.add_argument("--rounds", type=argparse_number(int, 1), default=2,
-                        help="runs of each tree, in turn")
+                        help="runs of each tree, in turn, the earlier first in every other one")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="aoass_before_") as folder:
         before = Path(folder)
@@ -128,15 +155,16 @@ def main(argv: list[str] | None = None) -> None:
               f"from each of {args.seeds} seeds); {args.against} against this tree:")
         ratios, alone, pendulum = [], [], []
         for i in range(args.rounds):
-            old, old_alone = in_tree(before, "AOASS-v0", args.steps, args.seeds)
-            new, new_alone = in_tree(ROOT, "AOASS-v0", args.steps, args.seeds)
-            ref, ref_alone = in_tree(ROOT, "Pendulum-v1", 3 * args.steps, args.seeds)
+            timed = {tree: in_tree(tree, args.steps, args.seeds, i)
+                     for tree in in_turn(i, before, ROOT)}
+            (old, old_alone), (ref_old, _) = (timed[before][e] for e, _ in ENVS)
+            (new, new_alone), (ref, ref_alone) = (timed[ROOT][e] for e, _ in ENVS)
             ratios.append(old / new)
             alone.append(old_alone / new_alone)
-            pendulum.append((ref / old, ref / new))
+            pendulum.append((ref_old / old, ref / new))
             print(f"  round {i + 1}: {old:7.1f} -> {new:7.1f} us, {old / new:5.2f} x faster "
-                  f"(target 3); Pendulum-v1 {ref:5.1f} us: {ref / old:.3f} x -> "
-                  f"{ref / new:.3f} x its steps/s (target 0.22)")
+                  f"(target 3); Pendulum-v1 in the same process {ref_old:5.1f}, {ref:5.1f} us: "
+                  f"{ref_old / old:.3f} x -> {ref / new:.3f} x its steps/s (target 0.22)")
             print(f"           the step alone (actions drawn before the clock): {old_alone:7.1f} "
                   f"-> {new_alone:7.1f} us, {old_alone / new_alone:5.2f} x; drawing the action "
                   f"in the loop {old - old_alone:5.1f} -> {new - new_alone:5.1f} us "

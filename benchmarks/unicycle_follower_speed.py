@@ -7,9 +7,11 @@ default config and a 70 m field with 8 fast moving obstacles) and, for the follo
 episode's follower as it is at its first command together with the (position, heading, dt) of
 every call of random-action AOASS-v0 episodes (the default 100 m field and 200 m fields at
 densities 0.2 and 0.4). It replays them through the reference commit's modules (loaded from
-``git show REF:path``) and the current ones, alternating rounds, checks that both give the same
-answers bit for bit (the follower: every command, and its index, clock, budget, recoveries and
-skips at the end), and prints CPU microseconds per call and the speed-up (reference / current).
+``git show REF:path``) and the current ones, after one untimed pass of each, in alternating
+rounds (the reference first in the odd-numbered rounds 1, 3, ..., second in the even ones:
+``git_history.in_turn``), checks that both give the same answers bit for bit (the follower:
+every command, and its index, clock, budget, recoveries and skips at the end), and prints CPU
+microseconds per call and the speed-up (reference / current).
 The follower is timed twice: with its planner's searches (``DetourPlanner.path``, the same code
 in both) and without them (their answers recorded once and handed back), which isolates the
 follower's own per-step path.
@@ -22,10 +24,11 @@ from __future__ import annotations
 
 import copy
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
+from git_history import in_turn
 
 import aoass_env  # noqa: F401  (registers the envs)
 from aoass_env import wrappers
@@ -38,6 +41,7 @@ try:
         random_steps,
         reference_module,
         replay_arguments,
+        timed_in_turn,
         warm_up,
     )
 except ImportError:         # run as a script from benchmarks/
@@ -45,6 +49,7 @@ except ImportError:         # run as a script from benchmarks/
         random_steps,
         reference_module,
         replay_arguments,
+        timed_in_turn,
         warm_up,
     )
 
@@ -136,6 +141,22 @@ def replay(followers: list[Any], episodes: list[tuple[WaypointFollower, list]]
     return seconds, results
 
 
+def replay_in_turn(round_: int, episodes: list[tuple[WaypointFollower, list]], old_class: type,
+                   play: Callable[[], None] | None = None) -> tuple[tuple[float, list], ...]:
+    """(reference, current) :func:`replay` of ``episodes``: the reference's followers (copies as
+    ``old_class``) and the current ones, run in round ``round_``'s order (``in_turn``: the
+    reference leads the rounds 0, 2, ...); ``play``, when given, is called before each (the
+    searches' answers handed back from the first)."""
+    done = {}
+    for side in in_turn(round_, "reference", "current"):
+        followers = [as_class(f, old_class) if side == "reference" else copy.deepcopy(f)
+                     for f, _ in episodes]
+        if play:
+            play()
+        done[side] = replay(followers, episodes)
+    return done["reference"], done["current"]
+
+
 class _Answers:
     """DetourPlanner.path recorded once (``record``), then handed back in order (``play``)."""
 
@@ -175,12 +196,8 @@ def main() -> None:
     print(f"{'round':>5s} {'reference':>10s} {'now':>8s} {'speed-up':>8s}   (CPU us per call)")
     warm_up((old_unicycle.unicycle_command, old_calls), (unicycle.unicycle_command, calls))
     for i in range(args.rounds):
-        start = time.process_time()
-        r_old = [old_unicycle.unicycle_command(*a, **k) for a, k in old_calls]
-        t_old = time.process_time() - start
-        start = time.process_time()
-        r_new = [unicycle.unicycle_command(*a, **k) for a, k in calls]
-        t_new = time.process_time() - start
+        (t_old, r_old), (t_new, r_new) = timed_in_turn(
+            i, (old_unicycle.unicycle_command, old_calls), (unicycle.unicycle_command, calls))
         if r_old != r_new:
             raise SystemExit("unicycle_command differs from the reference")
         print(f"{i + 1:5d} {1e6 * t_old / len(calls):10.1f} {1e6 * t_new / len(calls):8.1f} "
@@ -193,6 +210,8 @@ def main() -> None:
           f"'own': their answers handed back)")
     print(f"{'round':>5s} {'case':>11s} {'searches ref':>12s} {'now':>7s} {'speed-up':>8s}   "
           f"{'own ref':>8s} {'now':>7s} {'speed-up':>8s}")
+    for episodes in cases.values():     # one untimed pass of each, as the unicycle's warm_up
+        replay_in_turn(0, episodes, old_follower.WaypointFollower)
     for i in range(args.rounds):
         for label, episodes in cases.items():
             n = sum(len(c) for _, c in episodes)
@@ -205,13 +224,8 @@ def main() -> None:
                     finally:
                         answers.restore()
                 try:
-                    if own:
-                        answers.play()
-                    t_old, a_old = replay([as_class(f, old_follower.WaypointFollower)
-                                           for f, _ in episodes], episodes)
-                    if own:
-                        answers.play()
-                    t_new, a_new = replay([copy.deepcopy(f) for f, _ in episodes], episodes)
+                    (t_old, a_old), (t_new, a_new) = replay_in_turn(
+                        i, episodes, old_follower.WaypointFollower, answers.play if own else None)
                 finally:
                     answers.restore()
                 if a_old != a_new:

@@ -50,3 +50,28 @@ def test_git_problem_names_a_file_the_commit_lacks():
         pytest.skip("needs a git checkout")
     assert bench.git_problem("HEAD", "no/such/file.py") == "has no no/such/file.py (it predates it)"
     assert bench.git_problem("-x", "no/such/file.py") == "no such commit in this repository"
+
+
+def test_in_turn_swaps_two_sides_every_round_and_rotates_more():
+    in_turn = load_benchmark("git_history").in_turn
+    assert [in_turn(i, "ref", "now") for i in range(3)] == [
+        ["ref", "now"], ["now", "ref"], ["ref", "now"]]
+    assert [in_turn(i, *"abc") for i in range(4)] == [
+        list("abc"), list("bca"), list("cab"), list("abc")]
+
+
+def test_the_reference_runs_first_in_even_rounds_only_and_results_keep_their_order():
+    """Every round used to time the reference first."""
+    bench = load_benchmark("lookahead_speed")
+    seen = []
+
+    def side(name):
+        return lambda x: seen.append(name) or (name, x)
+
+    calls = [((1,), {}), ((2,), {})]
+    for i in range(3):
+        seen.clear()
+        (_, old), (_, new) = bench.timed_in_turn(i, (side("old"), calls), (side("new"), calls))
+        assert seen == (["old", "old", "new", "new"] if i % 2 == 0 else
+                        ["new", "new", "old", "old"])
+        assert old == [("old", 1), ("old", 2)] and new == [("new", 1), ("new", 2)]

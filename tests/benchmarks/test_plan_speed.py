@@ -1,11 +1,14 @@
 """benchmarks/plan_speed.py: bad flags and a commit before the API it compares, refused in one
-line before any plan is timed."""
+line before any plan is timed, and the two modules take turns leading the rounds."""
 
 from __future__ import annotations
 
+import sys
+from types import SimpleNamespace
+
 import pytest
 
-from tests.benchmarks.conftest import refused
+from tests.benchmarks.conftest import load_benchmark, refused
 from tests.benchmarks.test_reset import has_commit
 
 #: a commit whose PrunedPlan has no ``order`` (added in 5e9fb88)
@@ -36,3 +39,25 @@ def test_a_field_too_small_for_its_maps_is_one_line(monkeypatch, capsys):
     assert refused(monkeypatch, capsys, "plan_speed", "--against", "HEAD", "--field", "20",
                    "--density", "0.4", "--maps", "1").startswith(
         "--field 20 with --density 0.4: could not place moving obstacle")
+
+
+def test_the_two_modules_take_turns_leading_the_rounds(monkeypatch, capsys):
+    """Every round used to plan with the current module first; the plans of one round are
+    compared whichever ran first."""
+    bench = load_benchmark("plan_speed")
+    old = SimpleNamespace(prune_spiral=None)
+    monkeypatch.setattr(bench, "module_at", lambda *a: old)
+    monkeypatch.setattr(bench, "api_gap", lambda module: None)
+    log = []
+
+    def plan_once(module, sim, config):
+        log.append("now" if module is bench.pruning else "old")
+        return 1.0, SimpleNamespace(kept=[1], order=[0], reference=[0], length=1.0,
+                                    full_length=2.0)
+
+    monkeypatch.setattr(bench, "plan_once", plan_once)
+    monkeypatch.setattr(sys, "argv", ["plan_speed.py", "--maps", "1", "--rounds", "3",
+                                      "--field", "50", "--density", "0.1"])
+    bench.main()
+    assert log == ["now", "old", "old", "now", "now", "old"]
+    assert "plans identical: True" in capsys.readouterr().out

@@ -1,5 +1,6 @@
-"""benchmarks/step_speedup.py: each tree's run imports that tree, and a bad commit is refused in
-one line (its counts: tests/benchmarks/test_count_flags.py)."""
+"""benchmarks/step_speedup.py: each tree's run imports that tree and times AOASS-v0 and its
+reference Pendulum-v1 in turn in its one process, and a bad commit is refused in one line (its
+counts: tests/benchmarks/test_count_flags.py)."""
 
 from __future__ import annotations
 
@@ -10,10 +11,31 @@ import pytest
 from tests.benchmarks.conftest import ROOT, load_benchmark
 
 
-def test_a_run_in_this_tree_times_it():
+def test_a_run_in_this_tree_times_both_envs_in_its_process():
     bench = load_benchmark("step_speedup")
-    sampled, alone = bench.in_tree(ROOT, "Pendulum-v1", 20, 1)
-    assert sampled > 0.0 and alone > 0.0
+    timed = bench.in_tree(ROOT, 20, 1, warm_up=1)
+    assert sorted(timed) == ["AOASS-v0", "Pendulum-v1"]
+    assert all(sampled > 0.0 and alone > 0.0 for sampled, alone in timed.values())
+
+
+def test_the_two_envs_take_turns_seed_by_seed_after_both_warm_ups(monkeypatch):
+    """Pendulum-v1 used to be timed in an interpreter of its own, after the trees' AOASS-v0."""
+    bench = load_benchmark("step_speedup")
+    log = []
+
+    def seed_cpu_s(env, seed, steps):
+        log.append((env.spec.id, seed, steps))
+        return 1e-6 * steps, 0.5e-6 * steps
+
+    monkeypatch.setattr(bench, "seed_cpu_s", seed_cpu_s)
+    timed = bench.cpu_us_per_step(10, 3, 1)
+    warm = [("AOASS-v0", bench.WARM_UP_SEED, bench.WARM_UP_STEPS),
+            ("Pendulum-v1", bench.WARM_UP_SEED, bench.WARM_UP_STEPS)]
+    assert log == warm + [("Pendulum-v1", 0, 30), ("AOASS-v0", 0, 10),
+                          ("AOASS-v0", 1, 10), ("Pendulum-v1", 1, 30),
+                          ("Pendulum-v1", 2, 30), ("AOASS-v0", 2, 10)]
+    assert timed == {"AOASS-v0": pytest.approx((1.0, 0.5)),
+                     "Pendulum-v1": pytest.approx((1.0, 0.5))}
 
 
 def test_a_tree_whose_aoass_env_is_not_the_one_imported_is_refused(tmp_path):
@@ -21,7 +43,7 @@ def test_a_tree_whose_aoass_env_is_not_the_one_imported_is_refused(tmp_path):
     run must not be reported as the folder's."""
     bench = load_benchmark("step_speedup")
     with pytest.raises(SystemExit) as refused:
-        bench.in_tree(tmp_path, "Pendulum-v1", 1, 1)
+        bench.in_tree(tmp_path, 1, 1, warm_up=1)
     assert str(refused.value).startswith(f"the run meant for {tmp_path} imported aoass_env from")
 
 
@@ -43,5 +65,5 @@ def test_the_tree_before_issue_20_runs(tmp_path):
                       capture_output=True).returncode:
         pytest.skip("needs the repository's history (94e941b)")
     bench.unpack("94e941b", tmp_path)
-    sampled, alone = bench.in_tree(tmp_path, "Pendulum-v1", 5, 1)
-    assert sampled > 0.0 and alone > 0.0
+    timed = bench.in_tree(tmp_path, 5, 1, warm_up=1)
+    assert all(sampled > 0.0 and alone > 0.0 for sampled, alone in timed.values())
