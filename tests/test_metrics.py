@@ -95,3 +95,37 @@ def test_trajectory_efficiency_eq19():
         trajectory_efficiency(10, -5, 10, 5)
     with pytest.raises(ValueError, match="t_ideal=nan must be a number"):
         trajectory_efficiency(10, 5, float("nan"), 5)
+
+
+def test_rmse_with_no_localized_node_reports_a_zero_localized_fraction():
+    """No estimate at all: no RMSE, and 0 % of the nodes localized (not 100 %)."""
+    rmse, frac = localization_rmse(np.zeros((3, 2)), np.full((3, 2), np.nan))
+    assert math.isnan(rmse)
+    assert frac == 0.0
+
+
+@pytest.mark.parametrize(("energy", "beacons"), [(0.5, 1), (1.0, 1), (0.25, 2), (3.0, 1)])
+def test_energy_metrics_for_one_beacon_or_under_a_joule(energy, beacons):
+    """Eq. 16 / 17 are plain ratios for any positive energy and beacon count: one beacon or
+    less than a joule is not a special case (the inf / NaN cases need a zero)."""
+    assert energy_per_beacon(energy, beacons) == pytest.approx(energy / beacons)
+    assert energy_efficiency_ratio(energy, beacons) == pytest.approx(beacons / energy)
+
+
+def test_energy_metrics_zero_cases_with_one_beacon_or_under_a_joule():
+    """The inf cases hold for a single beacon and for energy below a joule: one beacon sent
+    for free is inf beacons per J, half a joule spent on no beacon is inf J per beacon."""
+    assert energy_efficiency_ratio(0.0, 1) == math.inf and energy_per_beacon(0.0, 1) == 0.0
+    assert energy_per_beacon(0.5, 0) == math.inf and energy_efficiency_ratio(0.5, 0) == 0.0
+
+
+def test_trajectory_efficiency_is_zero_when_either_actual_is_zero():
+    """No path or no time, each on its own, gives 0.0 (not a division by zero)."""
+    assert trajectory_efficiency(100, 0, 50, 50) == 0.0
+    assert trajectory_efficiency(100, 100, 50, 0) == 0.0
+
+
+def test_trajectory_efficiency_of_short_paths_and_times():
+    """Eq. 19 below a metre and a second: (0.5 / 0.5) * (0.2 / 0.4) = 0.5, by hand."""
+    assert trajectory_efficiency(0.5, 0.5, 0.2, 0.4) == pytest.approx(0.5)
+    assert trajectory_efficiency(0.3, 0.6, 0.9, 0.9) == pytest.approx(0.5)

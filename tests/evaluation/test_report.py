@@ -170,6 +170,54 @@ def test_robustness_gap_is_paired_with_the_spiral_of_the_same_episode():
     assert "RMSE" not in method_table(rows) and draw_figures(rows, Path("/nonexistent")) == []
 
 
+def _robustness_rows():
+    """Two densities, spiral and scan, two seeds: coverage 0.9 / 0.5 (spiral) and 0.8 / 0.6
+    (scan) at density 0.1, 0.1 lower at 0.6; at 0.6 every sweep has 2 moving contacts."""
+    rows = []
+    for method, coverage in (("spiral", (0.9, 0.5)), ("scan", (0.8, 0.6))):
+        for d in (0.1, 0.6):
+            for s in range(2):
+                row = dict.fromkeys(COLUMNS, 1.0)
+                row.update(method=method, map=f"generated/d{d:.2f}_f100_r{s}", field_size=100.0,
+                           n_nodes=100, obstacle_density=d, seed=700 + s, localizer="none",
+                           rmse=math.nan, localized=math.nan, localize_seconds=0.0,
+                           coverage=coverage[s] if d == 0.1 else coverage[s] - 0.1,
+                           path_complete=1, collisions_static=0,
+                           collisions_moving=1 if d == 0.1 else 2)
+                rows.append(row)
+    return rows
+
+
+def test_robustness_tables_per_density_hold_that_density_only():
+    """Each "Obstacle density" table lists each method once, with that density's values
+    (worst coverage 50 % / 60 % at 0.1, 40 % / 50 % at 0.6; 1 / 2 moving contacts)."""
+    text = robustness_markdown(_robustness_rows())
+    assert text.startswith("## Robustness by obstacle density\n")       # level 2 by default
+    assert robustness_markdown(_robustness_rows(), level=3).startswith("### Robustness")
+    tables = {}
+    for part in text.split("### Obstacle density ")[1:]:
+        density, _, table = part.partition("\n\n")
+        tables[density] = table.strip().splitlines()[2:]
+    assert list(tables) == ["0.1", "0.6"]
+    for density, worst, moving in (("0.1", ("50.0%", "60.0%"), "1.0 ± 0.0"),
+                                   ("0.6", ("40.0%", "50.0%"), "2.0 ± 0.0")):
+        body = tables[density]
+        assert [r.split("|")[1].strip() for r in body] == ["Square spiral", "SCAN"]
+        assert [r.split("|")[5].strip() for r in body] == list(worst)
+        assert [r.split("|")[7].strip() for r in body] == [moving, moving]
+
+
+def test_robustness_markdown_tables_have_as_many_cells_in_every_line():
+    text = robustness_markdown(_robustness_rows())
+    tables = [b for b in text.split("\n\n") if b.startswith("| method")]
+    assert len(tables) == 3                             # overview, density 0.1 and 0.6
+    for table in tables:
+        lines = table.strip().splitlines()
+        assert set(lines[1].strip("|").split("|")) == {"---"}
+        assert len({line.count("|") for line in lines}) == 1
+    assert tables[0].splitlines()[0] == "| method | d = 0.1 | d = 0.6 |"
+
+
 def test_paired_stats_and_ratio_use_the_episodes_both_played():
     """scan's E_total is 2x the spiral's on seeds 0 and 1 (the spiral spends 100 and 300 J);
     seed 2 has no spiral episode, so it is left out of both; the RMSE pairs of OLSTM-DV-Hop
@@ -248,3 +296,95 @@ def test_fig2_bars_stay_in_range_show_e_total_and_keep_the_legend_clear(tmp_path
     legend = axes[0].get_legend().get_window_extent()
     bars = [p.get_window_extent() for p in axes[0].patches if isinstance(p, Rectangle)]
     assert bars and not any(legend.overlaps(b) for b in bars)
+
+
+def test_bootstrap_interval_matches_the_normal_interval_of_a_symmetric_sample():
+    """The percentile bootstrap of the mean of 0, 1, ..., 99: its bootstrap distribution is
+    close to normal with the plug-in standard error sqrt((100^2 - 1) / 12) / 10, so the 95 %
+    interval is 49.5 -+ 1.96 x that (and the 50 % one 49.5 -+ 0.674 x that), to the bootstrap's
+    sampling noise."""
+    values = np.arange(100.0)
+    se = math.sqrt((100**2 - 1) / 12) / 10
+    for level in (0.95, 0.5):
+        z = stats.norm.ppf((1 + level) / 2)
+        mean, low, high = bootstrap_interval(values, level=level, n_boot=20_000, seed=550_001)
+        assert mean == 49.5
+        assert low == pytest.approx(49.5 - z * se, abs=0.3)
+        assert high == pytest.approx(49.5 + z * se, abs=0.3)
+
+
+def test_bootstrap_interval_leaves_out_missing_values():
+    """NaN and None (an episode without an RMSE) are not values: the mean and interval are
+    those of the finite values alone."""
+    m, low, high = bootstrap_interval([0.2, math.nan, 0.4, None, 0.6])
+    assert m == pytest.approx(0.4) and 0.2 <= low < m < high <= 0.6
+    strat = bootstrap_interval([0.2, math.nan, 0.2, 0.9], groups=[0.1, 0.1, 0.1, 0.4])
+    assert strat == (pytest.approx(1.3 / 3), pytest.approx(1.3 / 3), pytest.approx(1.3 / 3))
+
+
+def test_error_bars_are_the_distances_from_the_mean_to_the_interval_ends():
+    from aoass_env.evaluation.report import _error_bars
+
+    means, err = _error_bars([(2.0, 1.5, 3.0), (0.5, 0.5, 0.5), (math.nan,) * 3])
+    assert means[:2] == [2.0, 0.5] and math.isnan(means[2])
+    np.testing.assert_array_equal(err, [[0.5, 0.0, 0.0], [1.0, 0.0, 0.0]])
+
+
+def test_methods_outside_the_registry_keep_their_rows_after_the_known_ones():
+    """A method name the registry does not know (an experiment's own) still gets its
+    statistics and its table row, after the registered methods, in name order."""
+    rows = rows_for(["zz-custom", "spiral", "aa-custom"])
+    assert list(method_stats(rows, "coverage")) == ["spiral", "aa-custom", "zz-custom"]
+    body = method_table(rows).splitlines()[2:]
+    assert [r.split("|")[1].strip() for r in body] == ["Square spiral", "aa-custom",
+                                                       "zz-custom"]
+    assert [s["method"] for s in summarize(rows)][::2] == ["spiral", "aa-custom", "zz-custom"]
+
+
+def test_summary_rows_are_in_method_then_localizer_order():
+    """summary.csv's rows: methods in registry order, then localizer, field, N and density in
+    sorted order, whatever the order of the episodes."""
+    rows = rows_for(["scan", "spiral"], densities=(0.2, 0.1), localizers=("olstm-dvhop", "dvhop"))
+    keys = [(s["method"], s["localizer"], s["obstacle_density"]) for s in summarize(rows)]
+    assert keys == [(m, loc, d) for m in ("spiral", "scan") for loc in ("dvhop", "olstm-dvhop")
+                    for d in (0.1, 0.2)]
+
+
+def test_markdown_tables_have_as_many_cells_in_every_line():
+    """A Markdown table renders only when its header, separator and rows have the same
+    number of cells."""
+    rows = rows_for(["spiral", "scan"], densities=(0.1, 0.2))
+    text = summary_markdown(rows, "t")
+    assert text.endswith(" |\n")                       # a text file ends its last line
+    tables = [b for b in text.split("\n\n") if b.startswith("| method")]
+    assert len(tables) == 3                             # all episodes, density 0.1 and 0.2
+    for table, n in zip(tables, ("4", "2", "2"), strict=True):   # episodes per method
+        lines = table.strip().splitlines()
+        assert set(lines[1].strip("|").split("|")) == {"---"}
+        assert len({line.count("|") for line in lines}) == 1
+        assert lines[0].endswith("| n |")
+        assert [line.split("|")[-2].strip() for line in lines[2:]] == [n, n]
+
+
+def test_markdown_tables_per_dimension_hold_that_value_s_episodes_only():
+    """"### obstacle density 0.10" is the table of the density-0.1 episodes alone (the
+    methods' values differ by density, so the wrong episodes would show)."""
+    rows = rows_for(["spiral", "scan"], densities=(0.1, 0.2))
+    for r in rows:
+        r["coverage"] = 0.5 if r["obstacle_density"] == 0.1 else 0.8
+    text = summary_markdown(rows, "t")
+    for d in (0.1, 0.2):
+        part = text.split(f"### obstacle density {d:.2f}\n\n")[1].split("\n\n")[0]
+        assert part.strip() == method_table([r for r in rows if r["obstacle_density"] == d])
+
+
+def test_paired_ratio_leaves_out_pairs_with_a_missing_value():
+    """A pair where either side has no value (NaN) is not summed: the ratio is that of the
+    complete pairs."""
+    rows = rows_for(["spiral", "scan"], seeds=3)
+    for r in rows:
+        r["energy_total"] = {("spiral", 0): 100.0, ("scan", 0): 150.0, ("spiral", 1): 200.0,
+                             ("scan", 1): math.nan, ("spiral", 2): math.nan,
+                             ("scan", 2): 50.0}[r["method"], r["seed"]]
+    assert paired_ratio(rows, "scan", "spiral") == (1, pytest.approx(1.5))
+    assert paired_stats(rows, "scan", "spiral", "energy_total")[:2] == (1, pytest.approx(50.0))

@@ -76,3 +76,26 @@ def test_no_beacons_is_a_clear_error() -> None:
 def test_bad_flood_limit(small_log, limit) -> None:
     with pytest.raises(ValueError, match="flood_limit"):
         hop_counts(small_log, limit)
+
+
+def test_default_flooding_limit_is_the_documented_three_hops() -> None:
+    """docs/localization.md: the flood travels 3 hops by default. On a chain beacon 0 -> node 0
+    -> node 1 -> node 2 -> node 3 <- beacon 1, node 2 is 3 hops from beacon 0, node 3 is
+    beyond the limit (4 hops), and the two beacons (5 hops apart) do not reach each other."""
+    nodes = np.array([[10.0, 0.0], [20.0, 0.0], [30.0, 0.0], [40.0, 0.0]])
+    log = make_log(nodes, np.array([[0.0, 0.0], [50.0, 0.0]]), [[0, 0], [1, 3]],
+                   [[0, 1], [1, 2], [2, 3]])
+    hops = hop_counts(log)
+    assert hops.flood_limit == 3
+    np.testing.assert_array_equal(hops.beacon_node, [[1, 2, 3, np.inf], [np.inf, 3, 2, 1]])
+    np.testing.assert_array_equal(hops.beacon_beacon, [[0, np.inf], [np.inf, 0]])
+    np.testing.assert_array_equal(hop_counts(log, 5).beacon_beacon, [[0, 5], [5, 0]])
+
+
+def test_hop_counts_are_read_only(small_log) -> None:
+    """An episode caches its hop counts for every localizer: writing into them must fail
+    instead of changing what the next localizer reads."""
+    hops = hop_counts(small_log)
+    for counts in (hops.beacon_node, hops.beacon_beacon):
+        with pytest.raises(ValueError, match="read-only"):
+            counts[0, 0] = 7.0

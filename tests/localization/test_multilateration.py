@@ -77,3 +77,49 @@ def test_bad_field_limits_and_distances_are_named(change: dict, message: str) ->
     with pytest.raises(ValueError) as info:
         multilaterate(**args)
     assert str(info.value) == message
+
+
+@pytest.mark.parametrize("seed", [550030, 550031, 550032])
+def test_noisy_weighted_fit_is_the_least_squares_minimum(seed: int) -> None:
+    """With noisy distances (no exact solution) and unequal weights, each estimate is the
+    minimum of sum_i w_i (d_i - |a_i - p|)^2 as an independent solver (scipy's least squares
+    on sqrt(w_i)-scaled residuals) finds it: anchors all round each node keep the minimum
+    unique and inside the field."""
+    from scipy.optimize import least_squares
+
+    rng = np.random.default_rng(seed)
+    s, m = 20, 6
+    truth = rng.uniform(30, 70, (s, 2))
+    ang = rng.uniform(0, 2 * np.pi, (s, 1)) + np.arange(m) * 2 * np.pi / m
+    rad = rng.uniform(10, 30, (s, m))
+    anchors = truth[:, None] + np.stack([rad * np.cos(ang), rad * np.sin(ang)], axis=2)
+    dist = np.abs(rad + rng.normal(0, 3, (s, m)))
+    weights = rng.uniform(0.2, 1.0, (s, m))
+    init = truth + rng.normal(0, 5, truth.shape)
+    est = multilaterate(anchors, dist, weights, init, (100.0, 100.0))
+    for k in range(s):
+        def residuals(p: np.ndarray, k: int = k) -> np.ndarray:
+            return np.sqrt(weights[k]) * (np.hypot(*(p - anchors[k]).T) - dist[k])
+        fit = least_squares(residuals, init[k], xtol=1e-14, ftol=1e-14, gtol=1e-14)
+        np.testing.assert_allclose(est[k], fit.x, atol=1e-3)
+
+
+def test_estimates_reach_the_field_edges() -> None:
+    """Nodes within a metre of the field's lower edges are found where they are (the bounds
+    are [0, w] x [0, h], not narrower), from starting points outside the field too."""
+    truth = np.array([[0.3, 0.2], [0.0, 5.0], [7.0, 0.6]])
+    anchors = truth[:, None, :] + np.array([[6.0, 1.0], [-2.0, 7.0], [4.0, 9.0], [9.0, 3.0]])
+    anchors = np.clip(anchors, 0.0, 20.0)
+    dist = np.hypot(*(anchors - truth[:, None, :]).transpose(2, 0, 1))
+    est = multilaterate(anchors, dist, np.ones_like(dist), [[-3.0, -3.0], [2.0, 2.0],
+                                                            [5.0, -1.0]], (20.0, 20.0))
+    np.testing.assert_allclose(est, truth, atol=1e-3)
+
+
+def test_a_node_without_anchors_stays_at_its_clipped_start() -> None:
+    """Zero weights (no anchor): nothing to fit, the estimate is the start clipped to the
+    field, per coordinate."""
+    init = np.array([[-5.0, 0.5], [0.4, 12.0], [3.0, 4.0]])
+    est = multilaterate(np.zeros((3, 2, 2)), np.ones((3, 2)), np.zeros((3, 2)), init,
+                        (10.0, 10.0))
+    np.testing.assert_array_equal(est, [[0.0, 0.5], [0.4, 10.0], [3.0, 4.0]])

@@ -190,3 +190,36 @@ def test_a_border_whose_extent_overflows_is_named_with_its_line(tmp_path):
     path.write_text("[SCALE]\n1\n[BORDER]\n-1e308 0\n1e308 0\n1e308 1\n-1e308 1\n")
     with pytest.raises(MapFormatError, match=r"huge.txt:3: the border's extent overflows"):
         read_map(path)
+
+
+def test_a_stretched_non_rectangular_border_blocks_the_stretched_outside(tmp_path):
+    """The L-shaped border of the clipping test, stretched to 20 x 40 m: the missing corner
+    [5, 10] x [5, 10] becomes the obstacle [10, 20] x [20, 40] (area 200 m^2, a quarter)."""
+    text = "[SCALE]\n1\n[BORDER]\n0 0\n10 0\n10 5\n5 5\n5 10\n0 10\n"
+    m = read_map(write(tmp_path, text), field_size=(20, 40))
+    assert (m.width, m.height) == (20.0, 40.0)
+    (outside,) = m.polygons
+    assert shapely.Polygon(outside).equals(shapely.box(10.0, 20.0, 20.0, 40.0))
+    assert m.density == pytest.approx(0.25)
+
+
+def test_an_obstacle_past_the_far_edges_is_clipped_and_small_pieces_are_kept(tmp_path):
+    """An obstacle reaching past the right edge with a vertex inside is clipped to the field
+    (2 x 2 m left); one reaching past the top leaves a 0.5 x 0.5 m piece; a 0.5 x 0.5 m
+    notch cut out of the border's corner is an obstacle too (areas under 1 m^2 count)."""
+    text = ("[SCALE]\n1\n[BORDER]\n0 0\n10 0\n10 9.5\n9.5 9.5\n9.5 10\n0 10\n"
+            "[OBSTACLE]\n8 2\n12 2\n12 4\n8 4\n"
+            "[OBSTACLE]\n2 9.5\n2.5 9.5\n2.5 12\n2 12\n")
+    m = read_map(write(tmp_path, text))
+    assert (m.width, m.height) == (10.0, 10.0)
+    shapes = sorted((shapely.Polygon(p) for p in m.polygons), key=lambda p: p.bounds)
+    assert [p.bounds for p in shapes] == [(2.0, 9.5, 2.5, 10.0), (8.0, 2.0, 10.0, 4.0),
+                                          (9.5, 9.5, 10.0, 10.0)]
+    assert [p.area for p in shapes] == pytest.approx([0.25, 4.0, 0.25])
+
+
+def test_a_written_map_file_ends_with_a_newline(tmp_path):
+    path = tmp_path / "m.txt"
+    write_map(ObstacleMap(10.0, 10.0, [box(1, 1, 2, 2)]), path)
+    text = path.read_text(encoding="utf-8")
+    assert text.endswith("\n") and not text.endswith("\n\n")
