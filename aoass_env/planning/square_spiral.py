@@ -161,7 +161,10 @@ def square_spiral(width: float, height: float, spacing: float, step: float, *,
     for j in range(max_legs):
         d = DIRECTIONS[j % 4]
         virtual = virtual + (j // 2 + 1) * spacing * d
-        end = np.clip(virtual, lo, hi)
+        # a corner within round-off of a border, either side, is on it (one ulp short of it,
+        # the pass along it did not count and the spiral ran a whole extra ring)
+        end = np.where(np.abs(virtual - hi) <= roundoff, hi,
+                       np.where(np.abs(virtual - lo) <= roundoff, lo, np.clip(virtual, lo, hi)))
         if np.abs(end - virtual).max() <= roundoff:
             virtual = end
         seg = float(np.abs(end - pos).sum())

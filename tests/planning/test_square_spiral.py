@@ -177,29 +177,37 @@ def test_legs_corners_and_default_margin():
     np.testing.assert_allclose(sp.arc_length, np.r_[0.0, np.cumsum(gaps)], rtol=0, atol=1e-9)
 
 
-@pytest.mark.parametrize(("width", "height", "origin"), [
-    (100.0, 100.0, None),
-    pytest.param(100.0, 80.0, (30.0, 40.0), marks=pytest.mark.xfail(strict=True, reason=(
-        "known bug: the fitted spacing's right pass ends at x = 98.49999999999999, one ulp "
-        "short of the clipped border 98.5, so it does not count as a border pass and the "
-        "spiral runs a whole extra ring (940 m instead of 592 m)"))),
-    (100.0, 100.0, (20.0, 50.0)),
-    (200.0, 200.0, None), (60.0, 100.0, (10.0, 90.0))])
-def test_the_spiral_stops_once_all_four_borders_are_run_along(width, height, origin):
+@pytest.mark.parametrize(("width", "height", "origin", "radio_range", "margin"), [
+    (100.0, 100.0, None, 25.0, 1.5),
+    # corners one ulp short of a clipped border: its pass did not count and the spiral ran a
+    # whole extra ring (940 m instead of 592 m; 980 instead of 784; 5 516 instead of 5 122)
+    (100.0, 80.0, (30.0, 40.0), 25.0, 1.5), (100.0, 100.0, None, 25.0, 1.0),
+    (200.0, 200.0, None, 10.0, 1.5), (80.0, 100.0, None, 25.0, 1.5),
+    (100.0, 100.0, (20.0, 50.0), 25.0, 1.5),
+    (200.0, 200.0, None, 25.0, 1.5), (60.0, 100.0, (10.0, 90.0), 25.0, 1.5)])
+def test_the_spiral_stops_once_all_four_borders_are_run_along(width, height, origin,
+                                                              radio_range, margin):
     """Complete once the path has run along all four clipped borders: the last leg is the
     first along the fourth border (one more leg would repeat a border pass)."""
-    s = default_spacing(width, height, 25.0, 2.0, 1.5, origin)
-    sp = square_spiral(width, height, s, 2.0, margin=1.5, origin=origin)
-    lo, hi = np.array([1.5, 1.5]), np.array([width - 1.5, height - 1.5])
+    s = default_spacing(width, height, radio_range, 2.0, margin, origin)
+    sp = square_spiral(width, height, s, 2.0, margin=margin, origin=origin)
+    lo, hi = np.array([margin, margin]), np.array([width - margin, height - margin])
     corners = sp.corners()
     borders = []            # the borders each leg runs along
     for a, b in zip(corners[:-1], corners[1:], strict=True):
         axis = 0 if a[0] == b[0] else 1             # the leg's constant coordinate
-        on = {(axis, "lo") for _ in [0] if math.isclose(a[axis], lo[axis])}
-        on |= {(axis, "hi") for _ in [0] if math.isclose(a[axis], hi[axis])}
+        on = set()
+        if math.isclose(a[axis], lo[axis]):
+            on.add((axis, "lo"))
+        if math.isclose(a[axis], hi[axis]):
+            on.add((axis, "hi"))
         borders.append(on)
     assert len(set().union(*borders)) == 4
     assert len(set().union(*borders[:-1])) == 3
+    # a corner on a border sits on it exactly (the snap; no ulp short of it)
+    for c in corners:
+        for k in (0, 1):
+            assert not 0 < abs(c[k] - lo[k]) <= 1e-6 and not 0 < abs(c[k] - hi[k]) <= 1e-6
 
 
 def test_a_field_of_whole_rings_at_max_spacing_gets_max_spacing():
