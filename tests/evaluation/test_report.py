@@ -137,18 +137,9 @@ def test_a_localizer_a_method_was_not_run_with_is_a_dash():
 def test_robustness_gap_is_paired_with_the_spiral_of_the_same_episode():
     """Two seeds per density; the spiral covers 0.9 and 0.5 (seed 0, 1), scan 0.8 and 0.6: the
     per-method means differ by 0 points, the paired gaps are -10 and +10."""
-    rows = []
-    for method, coverage in (("spiral", (0.9, 0.5)), ("scan", (0.8, 0.6))):
-        for d in (0.1, 0.6):
-            for s in range(2):
-                row = dict.fromkeys(COLUMNS, 1.0)
-                row.update(method=method, map=f"generated/d{d:.2f}_f100_r{s}", field_size=100.0,
-                           n_nodes=100, obstacle_density=d, seed=700 + s, localizer="none",
-                           rmse=math.nan, localized=math.nan, localize_seconds=0.0,
-                           coverage=coverage[s] if d == 0.1 else coverage[s] - 0.1,
-                           path_complete=int(method == "spiral" or s == 0),
-                           collisions_static=3 * s, collisions_moving=1)
-                rows.append(row)
+    rows = _robustness_rows(
+        complete=lambda method, d, s: int(method == "spiral" or s == 0),
+        static=lambda method, d, s: 3 * s, moving=lambda method, d, s: 1)
     rows.append({**rows[-1], "method": "ohm", "seed": 999})      # no spiral on its episode
     stats = robustness_stats(rows)
     assert [(s["obstacle_density"], s["method"]) for s in stats] == [
@@ -170,9 +161,12 @@ def test_robustness_gap_is_paired_with_the_spiral_of_the_same_episode():
     assert "RMSE" not in method_table(rows) and draw_figures(rows, Path("/nonexistent")) == []
 
 
-def _robustness_rows():
+def _robustness_rows(complete=lambda method, d, s: 1, static=lambda method, d, s: 0,
+                     moving=lambda method, d, s: 1 if d == 0.1 else 2):
     """Two densities, spiral and scan, two seeds: coverage 0.9 / 0.5 (spiral) and 0.8 / 0.6
-    (scan) at density 0.1, 0.1 lower at 0.6; at 0.6 every sweep has 2 moving contacts."""
+    (scan) at density 0.1, 0.1 lower at 0.6; by default every sweep complete, no static
+    contact, at 0.6 2 moving contacts (else 1); ``complete``, ``static``, ``moving`` of
+    (method, density, seed index) set them."""
     rows = []
     for method, coverage in (("spiral", (0.9, 0.5)), ("scan", (0.8, 0.6))):
         for d in (0.1, 0.6):
@@ -182,8 +176,9 @@ def _robustness_rows():
                            n_nodes=100, obstacle_density=d, seed=700 + s, localizer="none",
                            rmse=math.nan, localized=math.nan, localize_seconds=0.0,
                            coverage=coverage[s] if d == 0.1 else coverage[s] - 0.1,
-                           path_complete=1, collisions_static=0,
-                           collisions_moving=1 if d == 0.1 else 2)
+                           path_complete=complete(method, d, s),
+                           collisions_static=static(method, d, s),
+                           collisions_moving=moving(method, d, s))
                 rows.append(row)
     return rows
 
