@@ -338,23 +338,19 @@ MAX_LOOK_AHEAD_SAMPLES = 2000
 
 def _horizon(c: AOASSConfig, cfg: SafetyConfig) -> float:
     """The look-ahead's horizon (s): ``look_ahead_horizon``, else the anchor's reaction time
-    (:func:`~aoass_env.safety.lookahead.look_ahead_horizon`)."""
-    return cfg.look_ahead_horizon or look_ahead_horizon(
+    (:func:`~aoass_env.safety.lookahead.look_ahead_horizon`); :class:`ConfigError` when it
+    takes more than :data:`MAX_LOOK_AHEAD_SAMPLES` half-period samples (a slow turn rate or
+    acceleration made every step slow, then ran out of memory: 1e-9 rad/s asked for 94 GiB)."""
+    horizon = cfg.look_ahead_horizon or look_ahead_horizon(
         c.anchor_max_speed, c.anchor_max_accel, c.anchor_max_turn_rate, c.dt)
-
-
-def _check_look_ahead(c: AOASSConfig, cfg: SafetyConfig) -> None:
-    """ConfigError when the look-ahead's :func:`_horizon` takes more than
-    :data:`MAX_LOOK_AHEAD_SAMPLES` half-period samples: a slow turn rate or acceleration made
-    every step slow, then ran out of memory (1e-9 rad/s asked for 94 GiB)."""
-    horizon = _horizon(c, cfg)
-    if not horizon / (0.5 * c.dt) <= MAX_LOOK_AHEAD_SAMPLES:
+    if cfg.look_ahead and not horizon / (0.5 * c.dt) <= MAX_LOOK_AHEAD_SAMPLES:
         raise ConfigError(
             f"the safety stack's look-ahead horizon {horizon:.4g} s (dt + anchor_max_speed / "
             f"anchor_max_accel + pi / anchor_max_turn_rate, or safety look_ahead_horizon) takes "
             f"more than {MAX_LOOK_AHEAD_SAMPLES} samples of dt / 2 = {0.5 * c.dt:g} s; raise "
             f"anchor_max_turn_rate={c.anchor_max_turn_rate:g} rad/s or anchor_max_accel="
             f"{c.anchor_max_accel:g} m/s^2, or set the safety config's look_ahead_horizon")
+    return horizon
 
 
 class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
@@ -415,8 +411,8 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
                 "aoass_env.make_safe_env")
         self._tracker = tracker
         self.config = config = SafetyConfig.coerce(config, "safety")
-        if config.look_ahead:
-            _check_look_ahead(base.config, config)
+        #: the look-ahead's horizon (s); the configs are fixed for the env's life
+        self._look_ahead_s = _horizon(base.config, config)
         #: what the agent's action means: the environment's action type (residual or
         #: adaptive) with its config's scales
         self.agent_action = type(inner).from_config(base.config)
@@ -504,7 +500,7 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         escape_velocity`) for the ``anchor`` as it is this period: the tracks' prediction and
         covariance against the anchor's unicycle rolled out among the static edges."""
         c, cfg = self._base.config, self.config
-        horizon = _horizon(c, cfg)
+        horizon = self._look_ahead_s
         tracks = self._tracker.tracked_obstacles
         tracks[:, 4] += c.anchor_radius
         radius = c.anchor_radius + cfg.margin
