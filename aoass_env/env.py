@@ -25,7 +25,12 @@ from aoass_env.planning import AdaptiveConfig, AdaptiveSweep, WaypointFollower
 from aoass_env.planning.adaptive import sweep_config
 from aoass_env.planning.square_spiral import episode_spiral
 from aoass_env.reward import energy_imbalance, online_rmse, reward_terms
-from aoass_env.simulator import Simulator, check_waypoint_step, episode_summary
+from aoass_env.simulator import (
+    Simulator,
+    check_waypoint_step,
+    episode_step_limit,
+    episode_summary,
+)
 from aoass_env.validators import keyword_names
 from aoass_env.world import wrap_angle
 
@@ -33,8 +38,6 @@ __all__ = ["COST_KEYS", "AOASSEnv", "AnchorState", "EndOnTruncation", "EpisodeTi
            "make_env", "max_episode_steps"]
 
 
-#: The longest episode (control periods) :func:`max_episode_steps` gives.
-MAX_EPISODE_STEPS = 10**9
 #: The per-step safe-RL cost keys of ``info``: the step's new contacts, all, with static
 #: obstacles and walls, and with moving obstacles (docs/env.md).
 COST_KEYS = ("cost", "cost_static", "cost_moving")
@@ -58,15 +61,8 @@ def max_episode_steps(config: AOASSConfig, obstacle_map: ObstacleMap | None = No
              else ObstacleMap(obstacle_map.width, obstacle_map.height))
     check_waypoint_step(config, field)
     spiral = episode_spiral(config, field)
-    nominal = spiral.nominal_time(config.anchor_nominal_speed) / config.dt
-    limit = config.time_limit_factor * nominal
-    if not limit <= MAX_EPISODE_STEPS:          # math.ceil(inf) was an OverflowError
-        raise ConfigError(
-            f"the episode would last {limit:.3g} control periods (at most {MAX_EPISODE_STEPS}):"
-            f" time_limit_factor={config.time_limit_factor} x the spiral's "
-            f"{spiral.nominal_time(config.anchor_nominal_speed):.3g} s at anchor_nominal_speed="
-            f"{config.anchor_nominal_speed} m/s, over dt={config.dt} s")
-    return math.ceil(limit)
+    return episode_step_limit(config, spiral.nominal_time(config.anchor_nominal_speed),
+                              "the spiral")
 
 
 def _option_map(value: Any, name: str = "reset option 'map'") -> ObstacleMap:

@@ -62,6 +62,25 @@ def episode_map(config: AOASSConfig, rng: np.random.Generator) -> ObstacleMap:
     return load_map(config.map)          # at its own size: a map is never rescaled
 
 
+#: The longest episode (control periods) :func:`episode_step_limit` gives.
+MAX_EPISODE_STEPS = 10**9
+
+
+def episode_step_limit(config: AOASSConfig, nominal_time: float, what: str) -> int:
+    """Control periods an episode may take: ``time_limit_factor`` times ``nominal_time`` (s,
+    a path's duration at nominal speed), ``ceil(factor * nominal_time / dt)``, for the env
+    and the Simulator alike. :class:`ConfigError` beyond :data:`MAX_EPISODE_STEPS`; ``what``
+    names the path in it."""
+    limit = config.time_limit_factor * nominal_time / config.dt
+    if not limit <= MAX_EPISODE_STEPS:          # math.ceil(inf) was an OverflowError
+        raise ConfigError(
+            f"the episode would last {limit:.3g} control periods (at most {MAX_EPISODE_STEPS}):"
+            f" time_limit_factor={config.time_limit_factor} x {what}'s "
+            f"{nominal_time:.3g} s at anchor_nominal_speed="
+            f"{config.anchor_nominal_speed} m/s, over dt={config.dt} s")
+    return math.ceil(limit)
+
+
 def check_waypoint_step(config: AOASSConfig, obstacle_map: ObstacleMap) -> None:
     """:class:`ConfigError` naming ``waypoint_step`` when it exceeds the spiral's pass spacing
     on ``obstacle_map``'s field: longer steps cut the legs' corners and skip whole stretches."""
@@ -206,8 +225,10 @@ class Simulator:
 
     def step_limit(self) -> int:
         """Control periods a method may take: ``time_limit_factor`` times the path's nominal
-        duration (detours at density 0.5-0.6 take up to about 3-4 times as long)."""
-        return math.ceil(self.config.time_limit_factor * self.nominal_steps())
+        duration (detours at density 0.5-0.6 take up to about 3-4 times as long), rounded up
+        once as the env's limit is (:func:`episode_step_limit`)."""
+        return episode_step_limit(
+            self.config, self.path.nominal_time(self.config.anchor_nominal_speed), "the path")
 
     def run(self, max_steps: int | None = None, controller: Controller | None = None
             ) -> BeaconLog:

@@ -107,6 +107,25 @@ def test_a_given_path_is_swept_instead_of_the_spiral():
     assert sim.nominal_steps() == np.ceil(path.length / config.anchor_nominal_speed / config.dt)
 
 
+def test_step_limit_rounds_once_as_the_env_does():
+    """``time_limit_factor`` x the path's nominal duration, rounded up once: the env's formula
+    (it was ``factor x ceil(T / dt)`` here, up to factor - 1 periods more: 12 935 against the
+    env's 12 934 at dt = 0.3 s)."""
+    from aoass_env.env import max_episode_steps
+    from aoass_env.planning import polyline_path
+
+    config = AOASSConfig(field_size=100.0, obstacle_density=0.0, n_nodes=20,
+                         n_moving_obstacles=0, dt=0.3)
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=ObstacleMap(100.0, 100.0))
+    assert sim.step_limit() == max_episode_steps(config) == 12934
+    path = polyline_path(np.array([[5.0, 5.0], [5.0, 66.0]]), 1.0)       # 61 m: 406.7 periods
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=ObstacleMap(100.0, 100.0),
+                    path=path)
+    nominal = 61.0 / config.anchor_nominal_speed / config.dt
+    assert sim.step_limit() == int(np.ceil(config.time_limit_factor * nominal))
+    assert sim.step_limit() < config.time_limit_factor * sim.nominal_steps()
+
+
 def test_run_drives_a_given_controller():
     class Straight:
         """Drive east at 1 m/s for 10 periods."""

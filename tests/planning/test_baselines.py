@@ -11,9 +11,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig
-from aoass_env.maps import ObstacleMap, load_map
+from aoass_env.maps import ObstacleMap, generate_map, load_map
 from aoass_env.planning.baselines import BASELINE_METHODS, fdpp, m_anchoro, ohm
-from aoass_env.planning.baselines.common import free_region
+from aoass_env.planning.baselines.common import free_region, link_clearances, linked_path
+from aoass_env.planning.detour import DetourPlanner
 from aoass_env.simulator import Simulator, episode_map
 
 SMALL = AOASSConfig(field_size=40, n_nodes=30, obstacle_density=0.2, n_moving_obstacles=0)
@@ -194,6 +195,48 @@ def test_m_anchoro_points_avoid_obstacles():
     pts = m_anchoro.beacon_points(omap, SMALL)
     assert len(pts) >= 3
     assert not omap.inside_obstacle(pts, dilation=SMALL.anchor_radius).any()
+
+
+@pytest.mark.parametrize("k", range(3))
+def test_m_anchoro_links_never_cut_through_an_obstacle(k):
+    """Where no straight or detoured link keeps the link clearance, the link falls back to
+    narrower passages, and a point the follower cannot reach at all is not planned: the
+    planned path (Eq. 19's L_ideal) stays out of every obstacle. (It once joined such points
+    straight: 30-100 m of these paths lay inside obstacles.) Fresh maps, seeds used nowhere
+    else."""
+    config = AOASSConfig(field_size=60, n_nodes=30, obstacle_density=0.4)
+    omap = generate_map(60.0, 0.4, np.random.default_rng([560100, k]),
+                        clearance=config.map_clearance)
+    path = m_anchoro.plan(omap, config)
+    line = shapely.LineString(path.waypoints)
+    assert shapely.intersection(line, omap.union).length == 0.0
+    # every beacon point is reachable: in the main free space at the follower's clearance
+    planner = DetourPlanner(omap, min(link_clearances(config)))
+    pts = m_anchoro.beacon_points(omap, config)
+    assert all(planner.visible(a, b) or planner.path(a, b) is not None
+               for a, b in zip(pts[:-1], pts[1:], strict=True))
+
+
+def test_linked_path_narrows_its_clearance_before_skipping_a_point():
+    """Two points either side of a wall with a 2.5 m gap: too narrow for the detour planner at
+    the 1.5 m link clearance, wide enough at a narrower one; a third point walled in is
+    skipped and the path ends at the last point reached."""
+    def rect(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
+        return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+
+    wall = [rect(19.0, 0.0, 21.0, 18.75), rect(19.0, 21.25, 21.0, 40.0)]
+    pocket = [rect(29.0, 29.0, 39.0, 30.0), rect(29.0, 38.0, 39.0, 39.0),
+              rect(29.0, 29.0, 30.0, 39.0), rect(38.0, 29.0, 39.0, 39.0)]
+    omap = ObstacleMap(40.0, 40.0, (*wall, *pocket))
+    config = AOASSConfig(field_size=40, n_nodes=10, obstacle_density=0.0, n_moving_obstacles=0)
+    widest = max(link_clearances(config))
+    assert DetourPlanner(omap, widest).path([10.0, 10.0], [25.0, 10.0]) is None
+    path = linked_path(omap, np.array([[10.0, 10.0], [25.0, 10.0], [34.0, 34.0]]), config)
+    w = path.waypoints
+    assert shapely.intersection(shapely.LineString(w), omap.union).length == 0.0
+    np.testing.assert_allclose(w[0], [10.0, 10.0])
+    np.testing.assert_allclose(w[-1], [25.0, 10.0])       # the walled-in point is skipped
+    assert (np.abs(w[:, 1] - 20.0) < 1.25).any()     # through the gap
 
 
 def test_m_anchoro_pruned_points_still_cover_an_empty_field():

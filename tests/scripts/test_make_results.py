@@ -221,6 +221,35 @@ def test_issue_table_verdicts_follow_the_numbers(values):
     assert len(nodes) == 1 and "| -1.00 ± 0.00 |" in nodes[0] and "**missed**" in nodes[0]
 
 
+@pytest.mark.parametrize(("value", "spec", "bounds", "shown"), [
+    (98.496, ".1f", (98.5,), "98.496"),     # rounds onto the bound: more digits
+    (98.55, ".1f", (98.5,), "98.55"),       # prints 98.5 (binary 98.5499...): above it
+    (98.44, ".1f", (98.5,), "98.4"),        # already on its side
+    (0.7304, ".3f", (0.73,), "0.7304"),
+    (-0.004, "+.2f", (0.0,), "-0.004"),     # "-0.00" beside "lower or equal: met"
+    (0.0, "+.1f", (0.0,), "+0.0"),          # on the bound itself: as it is
+    (900.4, ".0f", (900.0,), "900.4"),
+    (1.3, ".2f", (1.3, 1.0), "1.30"),
+    (1.2999999999, ".2f", (1.3,), "1.300000"),  # six decimals at most
+])
+def test_fmt_prints_a_verdicts_number_on_its_side_of_the_bound(value, spec, bounds, shown):
+    assert make_results._fmt(value, spec, bounds) == shown
+    assert make_results._fmt(value, spec) == format(value, spec)
+
+
+def test_verdict_cells_never_show_a_rounded_bound(values):
+    """A mean just short of a target prints with the digits that show it short (the page
+    once could show 98.5 % beside "missed")."""
+    rows = preset_rows("fig2", ENERGY, RMSE)
+    for row in rows:
+        if row["method"] in ("aoass-adaptive", "aoass-rule"):
+            row["coverage"] = 0.98496
+    issue = make_results.issue_table(make_results.Numbers(rows), make_results.Numbers(rows), None)
+    cov = [line for line in issue.splitlines() if line.startswith("| coverage ≥ 98.5 %")]
+    assert cov == ["| coverage ≥ 98.5 %, `fig2` grid | 98.496 ± 0.0 % | 98.496 ± 0.0 % | "
+                   "policy **missed**, rule **missed** |"]
+
+
 def test_paired_table_and_fresh_energy(values):
     paired = values["paired_table"].splitlines()
     fig2 = [line for line in paired if line.startswith(

@@ -1,4 +1,5 @@
-"""Pieces the reconstructed baselines share: their followers and the anchor's clearance region."""
+"""Pieces the reconstructed baselines share: their followers, the anchor's clearance region and
+the links that join their beacon points."""
 
 from __future__ import annotations
 
@@ -8,9 +9,16 @@ from shapely.geometry.base import BaseGeometry
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.planning.detour import DetourPlanner
+from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
 from aoass_env.planning.follower import WaypointFollower
-from aoass_env.planning.path import polyline_path
+from aoass_env.planning.path import WaypointPath, polyline_path
+
+#: Extra room (m) beyond the anchor radius and the detour margin that beacon points and links
+#: keep from obstacles, so that the turn-rate-limited anchor does not touch them at corners.
+LINK_MARGIN = 0.7
+#: Fractions of ``LINK_MARGIN`` added to the follower's clearance for the links tried, widest
+#: first (:func:`link_clearances`).
+PASSAGE_FRACTIONS = (1.0, 0.5, 0.0)
 
 
 def point_follower(config: AOASSConfig, points: np.ndarray,
@@ -31,3 +39,57 @@ def free_region(obstacle_map: ObstacleMap, clearance: float, border: float) -> B
     if not obstacle_map.polygons:
         return box
     return shapely.difference(box, shapely.buffer(obstacle_map.union, clearance))
+
+
+def main_free_part(obstacle_map: ObstacleMap, passage: float, margin: float) -> BaseGeometry:
+    """The largest connected part of :func:`free_region` with clearance ``passage`` (m): where
+    the anchor's centre moves with that clearance from the field's main free space (an empty
+    Polygon when nothing is free)."""
+    parts = shapely.get_parts(free_region(obstacle_map, passage, margin))
+    return max(parts, key=lambda g: g.area) if len(parts) else shapely.Polygon()
+
+
+def reachable_region(obstacle_map: ObstacleMap, clearance: float, margin: float,
+                     passage: float) -> shapely.Geometry:
+    """Where beacon points go (prepared): :func:`free_region` with ``clearance`` (m), only its
+    parts inside :func:`main_free_part` with the smaller ``passage`` clearance (m), through
+    which the follower can still reach them."""
+    main = main_free_part(obstacle_map, passage, margin)
+    region = shapely.intersection(free_region(obstacle_map, clearance, margin), main)
+    shapely.prepare(region)
+    return region
+
+
+def link_clearances(config: AOASSConfig) -> tuple[float, ...]:
+    """Clearances (m) tried for a link, widest first: the link clearance (anchor radius + detour
+    margin + ``LINK_MARGIN``), then halfway, then the follower's own (anchor radius + detour
+    margin), the narrowest passage the simulator's anchor takes."""
+    follower = config.anchor_radius + DETOUR_MARGIN
+    return tuple(follower + f * LINK_MARGIN for f in PASSAGE_FRACTIONS)
+
+
+def linked_path(obstacle_map: ObstacleMap, points: np.ndarray,
+                config: AOASSConfig) -> WaypointPath:
+    """The path through ``points`` (K, 2) (m) in their order: consecutive points joined straight
+    where a disc of the link clearance passes and by the shortest detour of
+    :class:`~aoass_env.planning.detour.DetourPlanner` otherwise, through narrower passages only
+    when there is no wider way (:func:`link_clearances`); a point unreachable even at the
+    follower's own clearance is skipped (the next link starts from the last point reached), so
+    no link cuts through an obstacle. No points: the field's centre. Waypoints every
+    ``waypoint_step`` / ``beacon_interval`` metres."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(points) == 0:                # every sample inside obstacles: stand at the centre
+        points = np.array([[obstacle_map.width / 2, obstacle_map.height / 2]])
+    planners: dict[float, DetourPlanner] = {}
+    vertices, here = [points[:1]], points[0]
+    for b in points[1:]:
+        for c in link_clearances(config):
+            if c not in planners:
+                planners[c] = DetourPlanner(obstacle_map, c)
+            planner = planners[c]
+            route = np.stack([here, b]) if planner.visible(here, b) else planner.path(here, b)
+            if route is not None:
+                vertices.append(route[1:])
+                here = b
+                break
+    return polyline_path(np.concatenate(vertices), config.path_step)

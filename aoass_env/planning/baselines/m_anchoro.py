@@ -11,15 +11,20 @@ a full-coverage path, remove redundant beacon points); the details are ours (doc
    field lies at most ``sqrt(2) * edge_margin`` outside the lattice's hull, so
    ``a = R - sqrt(2) * edge_margin`` (:func:`lattice_side`) lets every point hear three.
 2. Points inside obstacles dilated by the link clearance (anchor radius + detour margin +
-   ``LINK_MARGIN``) are
-   dropped; candidate points every ``a/2`` along the boundary of that dilated region are added
+   ``LINK_MARGIN``) are dropped, and so are points the follower cannot reach (outside the main
+   free space at its own clearance,
+   :func:`~aoass_env.planning.baselines.common.reachable_region`); candidate points every
+   ``a/2`` along the boundary of that reachable region are added
    greedily (most uncovered samples first) while they restore triple coverage of free sample
    points (:func:`restore_coverage`).
 3. SCAN: points are grouped by the nearest lattice row and visited row by row, alternating
    direction (boustrophedon); consecutive points without a straight collision-free link are
    joined by the shortest detour (same clearance) of
    :class:`~aoass_env.planning.detour.DetourPlanner` (no
-   explicit cell decomposition: the detours do its work).
+   explicit cell decomposition: the detours do its work); where no detour exists at that
+   clearance, at half the link margin, then at the follower's own clearance, as OTPP's links
+   (:func:`~aoass_env.planning.baselines.common.linked_path`); a point unreachable even so is
+   skipped, so no planned link cuts through an obstacle.
 4. Pruning (:func:`prune`): points are removed greedily (those heard by the fewest samples
    first) when every sample they covered still hears >= 3 non-collinear remaining points.
 
@@ -39,18 +44,20 @@ import shapely
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network
-from aoass_env.planning.baselines.common import free_region
-from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
-from aoass_env.planning.path import WaypointPath, polyline_path
+from aoass_env.planning.baselines.common import (
+    LINK_MARGIN,
+    link_clearances,
+    linked_path,
+    reachable_region,
+)
+from aoass_env.planning.detour import DETOUR_MARGIN
+from aoass_env.planning.path import WaypointPath
 from aoass_env.planning.sweep import PlannedMethod
 from aoass_env.radio import Radio
 from aoass_env.validators import positive, real
 
 #: Spacing (m) of the free sample points coverage is checked on.
 SAMPLE_SPACING = 2.0
-#: Extra room (m) beyond the anchor radius and the detour margin that beacon points and links
-#: keep from obstacles, so that the turn-rate-limited anchor does not touch them at corners.
-LINK_MARGIN = 0.7
 
 
 def lattice_side(radio_range: float, margin: float) -> float:
@@ -189,11 +196,14 @@ def beacon_points(obstacle_map: ObstacleMap, config: AOASSConfig) -> np.ndarray:
     lattice, rows = triangle_lattice(obstacle_map.width, obstacle_map.height, a, m)
     row_y = np.unique(lattice[:, 1])
     clearance = config.anchor_radius + DETOUR_MARGIN + LINK_MARGIN
-    points = lattice[~obstacle_map.inside_obstacle(lattice, dilation=clearance)]
+    # the points the follower can reach: off the dilated obstacles, in the main free space
+    region = reachable_region(obstacle_map, clearance, m, min(link_clearances(config)))
+    points = lattice[~obstacle_map.inside_obstacle(lattice, dilation=clearance)
+                     & shapely.intersects_xy(region, lattice[:, 0], lattice[:, 1])]
     samples = free_samples(obstacle_map)
     heard = hearing(points, samples, obstacle_map, config)
     if obstacle_map.polygons:
-        candidates = boundary_points(free_region(obstacle_map, clearance, m), a / 2)
+        candidates = boundary_points(region, a / 2)
         heard_c = hearing(candidates, samples, obstacle_map, config)
         extra = restore_coverage(points, candidates, heard, heard_c, config)
         points = np.vstack([points, candidates[extra]])
@@ -204,16 +214,12 @@ def beacon_points(obstacle_map: ObstacleMap, config: AOASSConfig) -> np.ndarray:
 
 
 def plan(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
-    """The beacon points in SCAN order, consecutive ones joined straight where a disc of the
-    detour clearance passes and by the shortest detour otherwise; waypoints every
-    ``waypoint_step`` / ``beacon_interval`` metres."""
-    points = beacon_points(obstacle_map, config)
-    planner = DetourPlanner(obstacle_map, config.anchor_radius + DETOUR_MARGIN + LINK_MARGIN)
-    vertices = [points[:1]]
-    for a, b in zip(points[:-1], points[1:], strict=True):
-        link = None if planner.visible(a, b) else planner.path(a, b)
-        vertices.append(b[None] if link is None else link[1:])
-    return polyline_path(np.concatenate(vertices), config.path_step)
+    """The beacon points in SCAN order, joined by
+    :func:`~aoass_env.planning.baselines.common.linked_path`: straight where a disc of the link
+    clearance passes, else by the shortest detour, through narrower passages (down to the
+    follower's own clearance) only when there is no wider way; a point unreachable even so is
+    skipped, so no planned link cuts through an obstacle."""
+    return linked_path(obstacle_map, beacon_points(obstacle_map, config), config)
 
 
 M_ANCHORO = PlannedMethod(

@@ -33,7 +33,8 @@ into a V around the obstacle [R]. No code was published; steps 1-4 are our readi
    :func:`~aoass_env.planning.baselines.m_anchoro.hearing`, vectorised in
    :func:`hearing_pairs`). Candidates: a field-aligned ``CANDIDATE_SPACING`` grid over the
    sub-square and a band of ``R - sub-square side + 2 m`` around it (no point farther out is
-   within R of the samples along the far edge), inside :func:`reachable_region` (the field
+   within R of the samples along the far edge), inside
+   :func:`~aoass_env.planning.baselines.common.reachable_region` (the field
    shrunk by the edge margin minus the obstacles dilated by the link clearance, anchor radius +
    detour margin + ``LINK_MARGIN``, and only where the follower's clearance connects it to the
    largest free part). ``reg`` = the candidates that serve the sub-square, found on that grid
@@ -51,8 +52,9 @@ into a V around the obstacle [R]. No code was published; steps 1-4 are our readi
    Consecutive points are joined straight when a disc of the link clearance passes and by the
    shortest detour of :class:`~aoass_env.planning.detour.DetourPlanner` otherwise (the V bend
    around the obstacle); when no detour exists at that clearance, at half the link margin, then
-   at the follower's own clearance (:func:`link_clearances`); a point unreachable even so is
-   skipped.
+   at the follower's own clearance
+   (:func:`~aoass_env.planning.baselines.common.link_clearances`); a point unreachable even so
+   is skipped.
 
 In the simulator the anchor beacons every ``beacon_interval`` along the whole path (the common
 rule), which can only add coverage.
@@ -68,25 +70,22 @@ import shapely
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
-from aoass_env.planning.baselines.common import free_region
-from aoass_env.planning.baselines.m_anchoro import (
+from aoass_env.planning.baselines.common import (
     LINK_MARGIN,
-    SAMPLE_SPACING,
-    free_samples,
-    lattice_side,
+    link_clearances,
+    linked_path,
+    reachable_region,
 )
+from aoass_env.planning.baselines.m_anchoro import SAMPLE_SPACING, free_samples, lattice_side
 from aoass_env.planning.classical import morton_cells
-from aoass_env.planning.detour import DETOUR_MARGIN, DetourPlanner
-from aoass_env.planning.path import WaypointPath, polyline_path
+from aoass_env.planning.detour import DETOUR_MARGIN
+from aoass_env.planning.path import WaypointPath
 from aoass_env.planning.sweep import PlannedMethod
 from aoass_env.radio import LineOfSight
 from aoass_env.validators import positive, real
 
 #: Spacing (m) of the grid of candidate positions a beacon point may move to.
 CANDIDATE_SPACING = 1.5
-#: Fractions of ``LINK_MARGIN`` added to the follower's clearance for the links tried, widest
-#: first (:func:`link_clearances`).
-PASSAGE_FRACTIONS = (1.0, 0.5, 0.0)
 #: Candidates whose hearing is computed at a time, nearest first (the search for the nearest
 #: point of reg usually ends in the first batch).
 SEARCH_BATCH = 16
@@ -158,18 +157,6 @@ def spread(chosen: np.ndarray, candidates: np.ndarray) -> np.ndarray:
     sxx, syy, sxy = (d[..., 0] ** 2).sum(1), (d[..., 1] ** 2).sum(1), (d[..., 0] * d[..., 1]).sum(1)
     low = (sxx + syy) / 2 - np.hypot((sxx - syy) / 2, sxy)
     return np.sqrt(np.maximum(low, 0.0))
-
-
-def reachable_region(obstacle_map: ObstacleMap, clearance: float, margin: float,
-                     passage: float) -> shapely.Geometry:
-    """Where beacon points go (prepared): :func:`free_region` with ``clearance`` (m), only its
-    parts inside the largest connected part of the region with the smaller ``passage``
-    clearance (m), through which the follower can still reach them."""
-    parts = shapely.get_parts(free_region(obstacle_map, passage, margin))
-    main = max(parts, key=lambda g: g.area) if len(parts) else shapely.Polygon()
-    region = shapely.intersection(free_region(obstacle_map, clearance, margin), main)
-    shapely.prepare(region)
-    return region
 
 
 def candidate_grid(box: tuple[float, float, float, float], region: shapely.Geometry,
@@ -270,14 +257,6 @@ def _chain(points: list[np.ndarray], start: np.ndarray | None, end: np.ndarray |
     return [points[i] for i in min(itertools.permutations(range(len(points))), key=length)]
 
 
-def link_clearances(config: AOASSConfig) -> tuple[float, ...]:
-    """Clearances (m) tried for a link, widest first: the link clearance (anchor radius + detour
-    margin + ``LINK_MARGIN``), then halfway, then the follower's own (anchor radius + detour
-    margin), the narrowest passage the simulator's anchor takes."""
-    follower = config.anchor_radius + DETOUR_MARGIN
-    return tuple(follower + f * LINK_MARGIN for f in PASSAGE_FRACTIONS)
-
-
 def beacon_points(obstacle_map: ObstacleMap, config: AOASSConfig) -> np.ndarray:
     """OTPP's beacon points (K, 2) (m) in Z/Morton order (steps 1-4 without the links)."""
     m, r = config.edge_margin, config.radio_range
@@ -317,26 +296,11 @@ def beacon_points(obstacle_map: ObstacleMap, config: AOASSConfig) -> np.ndarray:
 
 
 def plan(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
-    """The beacon points in Z/Morton order, joined straight where a disc of the link clearance
-    passes and by the shortest detour otherwise, through narrower passages only when there is
-    no wider way (:func:`link_clearances`; points unreachable even so are skipped); waypoints
-    every ``waypoint_step`` / ``beacon_interval`` metres."""
-    points = beacon_points(obstacle_map, config)
-    if len(points) == 0:                # every sample inside obstacles: stand at the centre
-        points = np.array([[obstacle_map.width / 2, obstacle_map.height / 2]])
-    planners: dict[float, DetourPlanner] = {}
-    vertices, here = [points[:1]], points[0]
-    for b in points[1:]:
-        for c in link_clearances(config):
-            if c not in planners:
-                planners[c] = DetourPlanner(obstacle_map, c)
-            planner = planners[c]
-            route = np.stack([here, b]) if planner.visible(here, b) else planner.path(here, b)
-            if route is not None:
-                vertices.append(route[1:])
-                here = b
-                break
-    return polyline_path(np.concatenate(vertices), config.path_step)
+    """The beacon points in Z/Morton order, joined by
+    :func:`~aoass_env.planning.baselines.common.linked_path` (straight where a disc of the link
+    clearance passes, else the shortest detour, through narrower passages only when there is no
+    wider way; points unreachable even so are skipped)."""
+    return linked_path(obstacle_map, beacon_points(obstacle_map, config), config)
 
 
 #: The publication OTPP is rebuilt from.
