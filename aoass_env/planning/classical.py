@@ -13,17 +13,46 @@ follower (blocked waypoints skipped, detours around static obstacles). The publi
 Choices of this implementation (docs/planning.md, "Classical sweep paths"):
 
 * Resolution: the square spiral's pass spacing ``d`` (:func:`config_spacing`), so the paths are
-  compared at the same resolution. A side of extent ``E`` is cut into ``n = ceil(E / d)`` equal
-  cells of side ``E / n <= d``; passes (and cell centres) lie at the cell centres, the first one
-  half a cell from the edge, clipped to the edge margin.
+  compared at the same resolution; for SCAN and the Z-curve at most :func:`covering_cell`
+  (below). A side of extent ``E`` is cut into ``n = ceil(E / d)`` equal cells of side
+  ``E / n <= d``; passes (and cell centres) lie at the cell centres, the first one half a cell
+  from the edge, clipped to the edge margin.
 * HILBERT: order ``k``, the smallest with ``max(width, height) / 2**k <= d``.
 * CIRCLES: circles at the cell-centre radii of the shorter side (the outermost half a cell from
-  the edge), inside out, joined by radial links along the +x axis; a last rectangular ring on
+  the edge), inside out, joined by radial links along the +x axis, continued outwards (clipped
+  to the margin-clipped field) while the corners need them (below); a last rectangular ring on
   the margin-clipped border covers the corners beyond the largest circle.
 * LMAT: triangle side ``<= R`` (fitted so the lattice rows land on the clipped border), every
   second row of triangles swept in a zig-zag, rows in boustrophedon order.
 * Z-curve: the cells in Morton order of their (column, row) indices; on a grid that is not a
   power of two the cells outside the grid are skipped, so some jumps are longer than a diagonal.
+
+Coverage of the empty field (Eq. 18: a point must hear >= 3 non-collinear beacons within the
+radio range ``R``; beacons every ``Δs`` along the path). The spiral runs its outermost pass on
+the margin-clipped border and fits its spacing to that (Eq. 5); these paths keep theirs half a
+cell inside, so a border point has a single straight pass (or the border ring) close by and
+must reach a second line farther in. At the spiral's spacing alone that failed on fields from
+about 150 m (R = 25 m, Δs = 2 m, 1.5 m margin). The rules, which leave the default 100 m paths
+unchanged:
+
+* SCAN and the Z-curve visit every cell centre, and every visited centre has a beacon within
+  ``Δs`` of it. The farthest point of the field from its third-nearest non-collinear centres
+  (two of the first row or column, one of the second, 3c/2 in) is a field corner or a border
+  point midway between two columns, ``sqrt(max(c/2, margin)**2 + (3c/2)**2)`` away; so the cell
+  side ``c`` is at most :func:`covering_cell`, where that distance is ``R - Δs``:
+  ``c <= 2 (R - Δs) / sqrt(10)``, 14.55 m (the 100 m field's 14.29 m cells are unchanged; the
+  200 m field's 18.18 m cells put SCAN's second pass 27.3 m from the border, beyond ``R``, and
+  left the Z-curve's corners with one line in reach, and get 14.29 m).
+* CIRCLES: a border point hears two beacons of the ring's perpendicular side only within
+  ``x_L = margin + sqrt(R**2 - (margin + 2 Δs)**2)`` of a corner, and two beacons of a circle
+  within ``a = sqrt(R**2 - Δs**2)`` of it. The circles continue outwards at the same spacing,
+  each clipped to the margin-clipped field (the parts beyond it run along the border), until
+  the largest reaches :func:`corner_radius`, ``max(hypot(w/2 - x_L, h/2), hypot(w/2, h/2 - x_L))
+  - a``: every point farther than ``a`` from it then lies within ``x_L`` of both sides of a
+  corner of the ring, and hears both. At 100 m the inscribed circles already reach it (42.86 m
+  against 30.6 m); at 200 m one clipped circle of 109.1 m is added (the inscribed ones end at
+  90.9 m, the corners need 99.6 m). Beyond about 204 m no inscribed circle could reach it at
+  any spacing.
 """
 
 from __future__ import annotations
@@ -40,9 +69,9 @@ from aoass_env.planning.square_spiral import config_spacing
 from aoass_env.planning.sweep import PlannedMethod
 from aoass_env.validators import integer, positive, real
 
-__all__ = ["CLASSICAL_METHODS", "circles_vertices", "double_scan_vertices", "hilbert_cells",
-           "hilbert_order", "hilbert_vertices", "lmat_vertices", "morton_cells",
-           "scan_vertices", "z_curve_vertices"]
+__all__ = ["CLASSICAL_METHODS", "circles_vertices", "corner_radius", "covering_cell",
+           "double_scan_vertices", "hilbert_cells", "hilbert_order", "hilbert_vertices",
+           "lmat_vertices", "morton_cells", "scan_vertices", "z_curve_vertices"]
 
 
 def _check_field(width: float, height: float, spacing: float, margin: float,
@@ -75,6 +104,33 @@ def _n_cells(extent: float, spacing: float) -> int:
 def _cell_centres(extent: float, n: int, margin: float) -> np.ndarray:
     """(n,) centres (m) of ``n`` equal cells across ``extent`` (m), clipped to the margin."""
     return np.clip((np.arange(n) + 0.5) * extent / n, margin, extent - margin)
+
+
+def _range_and_interval(radio_range: float, beacon_interval: float) -> tuple[float, float]:
+    """The checked radio range and beacon interval (m) of the coverage rules: ValueError
+    naming them unless ``0 < beacon_interval < radio_range``."""
+    r = positive("radio_range", radio_range, "m")
+    ds = positive("beacon_interval", beacon_interval, "m")
+    if ds >= r:
+        raise ValueError(f"beacon_interval={beacon_interval} m must be below radio_range="
+                         f"{radio_range} m for the coverage guarantee")
+    return r, ds
+
+
+def covering_cell(radio_range: float, beacon_interval: float, margin: float) -> float:
+    """Largest cell side ``c`` (m) with which every point of an empty field lies within
+    ``radio_range - beacon_interval`` (m) of three non-collinear cell centres (module docstring,
+    "Coverage of the empty field"): ``sqrt(max(c/2, margin)**2 + (3c/2)**2) <= R - Δs``, i.e.
+    ``c = 2 (R - Δs) / sqrt(10)`` while that keeps ``c/2 >= margin``; ``math.inf`` (no bound) when
+    ``margin >= R - Δs``, where no centre reaches a field corner."""
+    r, ds = _range_and_interval(radio_range, beacon_interval)
+    m = real("margin", margin, "m", low=0.0)
+    reach = r - ds
+    if m >= reach:
+        return math.inf
+    if math.sqrt(10) * m <= reach:
+        return 2 * reach / math.sqrt(10)
+    return math.sqrt(reach**2 - m**2) / 1.5
 
 
 def _boustrophedon(offsets: np.ndarray, start: float, end: float) -> np.ndarray:
@@ -152,20 +208,60 @@ def hilbert_vertices(width: float, height: float, spacing: float, margin: float)
     return np.stack([xs[cells[:, 0]], ys[cells[:, 1]]], axis=1)
 
 
+def corner_radius(width: float, height: float, margin: float, radio_range: float,
+                  beacon_interval: float) -> float:
+    """Radius (m) about the field centre that the largest circle of CIRCLES must reach so that,
+    with the border ring, every point of the empty field hears three non-collinear beacons
+    (module docstring, "Coverage of the empty field"): ``max(hypot(w/2 - x_L, h/2),
+    hypot(w/2, h/2 - x_L)) - a`` with ``a = sqrt(R^2 - Δs^2)`` (a curve that close offers two
+    beacons) and ``x_L = margin + sqrt(R^2 - (margin + 2 Δs)^2)`` (how far from a corner a
+    border point hears two beacons on the ring's perpendicular side; 0 when none does)."""
+    for name, value in (("width", width), ("height", height)):
+        positive(name, value, "m")
+    real("margin", margin, "m", low=0.0, high=min(width, height) / 2, high_open=True,
+         doc=f"for a {width:g} x {height:g} m field")
+    r, ds = _range_and_interval(radio_range, beacon_interval)
+    a = math.sqrt(r**2 - ds**2)
+    side = r**2 - (margin + 2 * ds) ** 2
+    x_l = margin + math.sqrt(side) if side >= 0 else 0.0
+    hx, hy = width / 2, height / 2
+    return max(math.hypot(hx - min(x_l, hx), hy), math.hypot(hx, hy - min(x_l, hy))) - a
+
+
 def circles_vertices(width: float, height: float, spacing: float, margin: float,
-                     max_chord_error: float = 0.1) -> np.ndarray:
+                     max_chord_error: float = 0.1, *, radio_range: float | None = None,
+                     beacon_interval: float | None = None) -> np.ndarray:
     """(V, 2) corners (m) of CIRCLES: concentric circles about the field centre at the cell
     centre radii of the shorter side (at most ``spacing`` apart, the outermost half a cell from
     the edge and inside the margin), inside out, each polygonised with chords that stray at most
     ``max_chord_error`` (m) from the circle, started and ended on the +x axis and joined by radial
     links; then a rectangular ring along the margin-clipped border, which covers the corners
-    beyond the largest circle."""
+    beyond the largest circle.
+
+    Given ``radio_range`` and ``beacon_interval`` (m), the circles continue outwards at the same
+    spacing, clipped to the margin-clipped field (their parts beyond it run along the border),
+    until one reaches :func:`corner_radius` (or the clipped corners): the ring alone then covers
+    what lies beyond (module docstring). Where the inscribed circles already reach it (the
+    100 m field at the default config) nothing is added."""
     _check_field(width, height, spacing, margin)
     positive("max_chord_error", max_chord_error, "m")
+    if (radio_range is None) != (beacon_interval is None):
+        raise ValueError(f"radio_range={radio_range!r} and beacon_interval={beacon_interval!r}: "
+                         f"give both or neither")
     cx, cy = width / 2, height / 2
+    lo_x, lo_y, hi_x, hi_y = margin, margin, width - margin, height - margin
     short = min(width, height)
-    centres = np.unique(_cell_centres(short, _n_cells(short, spacing), margin))
-    radii = centres[centres >= short / 2 - 1e-9] - short / 2
+    n_short = _n_cells(short, spacing)
+    centres = np.unique(_cell_centres(short, n_short, margin))
+    radii = list(centres[centres >= short / 2 - 1e-9] - short / 2)
+    if radio_range is not None:
+        need = corner_radius(width, height, margin, radio_range, beacon_interval)
+        ring = math.hypot(cx - margin, cy - margin)      # the circle through the clipped corners
+        inscribed, cell = radii[-1], short / n_short
+        k = 1
+        while radii[-1] < need and inscribed + k * cell < ring:
+            radii.append(inscribed + k * cell)
+            k += 1
     pieces = []
     for r in radii:
         if r <= 1e-9:
@@ -174,8 +270,8 @@ def circles_vertices(width: float, height: float, spacing: float, margin: float,
         # a chord over angle 2*pi/n strays r * (1 - cos(pi/n)) from the circle
         n = max(4, math.ceil(math.pi / math.acos(max(-1.0, 1 - max_chord_error / r)) + 1e-9))
         angle = np.linspace(0.0, 2 * math.pi, n + 1)
-        pieces.append(np.stack([cx + r * np.cos(angle), cy + r * np.sin(angle)], axis=1))
-    lo_x, lo_y, hi_x, hi_y = margin, margin, width - margin, height - margin
+        pieces.append(np.stack([np.clip(cx + r * np.cos(angle), lo_x, hi_x),
+                                np.clip(cy + r * np.sin(angle), lo_y, hi_y)], axis=1))
     pieces.append(np.array([[hi_x, cy], [hi_x, hi_y], [lo_x, hi_y], [lo_x, lo_y], [hi_x, lo_y],
                             [hi_x, cy]]))
     return np.concatenate(pieces)
@@ -250,15 +346,29 @@ def z_curve_vertices(width: float, height: float, spacing: float, margin: float)
     return np.stack([xs[cells[:, 0]], ys[cells[:, 1]]], axis=1)
 
 
-def _at_spiral_spacing(vertices: Callable[[float, float, float, float], np.ndarray]
-                       ) -> Callable[[ObstacleMap, AOASSConfig], WaypointPath]:
+def _at_spiral_spacing(vertices: Callable[[float, float, float, float], np.ndarray], *,
+                       covering: bool = False) -> Callable[[ObstacleMap, AOASSConfig],
+                                                           WaypointPath]:
     """A plan function that builds ``vertices(width, height, d, edge_margin)`` with ``d`` the
-    square spiral's spacing on the map's field."""
+    square spiral's spacing on the map's field; with ``covering``, ``d`` at most
+    :func:`covering_cell` for the config's radio range, beacon interval and edge margin."""
     def plan(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
         w, h = obstacle_map.width, obstacle_map.height
-        return polyline_path(vertices(w, h, config_spacing(config, w, h), config.edge_margin),
-                             config.path_step)
+        d = config_spacing(config, w, h)
+        if covering:
+            d = min(d, covering_cell(config.radio_range, config.beacon_interval,
+                                     config.edge_margin))
+        return polyline_path(vertices(w, h, d, config.edge_margin), config.path_step)
     return plan
+
+
+def _plan_circles(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
+    """CIRCLES at the spiral's spacing, continued until the ring covers the corners."""
+    w, h = obstacle_map.width, obstacle_map.height
+    return polyline_path(circles_vertices(w, h, config_spacing(config, w, h), config.edge_margin,
+                                          radio_range=config.radio_range,
+                                          beacon_interval=config.beacon_interval),
+                         config.path_step)
 
 
 def _plan_lmat(obstacle_map: ObstacleMap, config: AOASSConfig) -> WaypointPath:
@@ -273,20 +383,20 @@ _KOUTSONIKOLAS = "Koutsonikolas, Das & Hu, Computer Communications 30(13), 2007"
 CLASSICAL_METHODS: dict[str, PlannedMethod] = {
     m.name: m for m in [
         PlannedMethod(name="scan", label="SCAN", source=_KOUTSONIKOLAS,
-                      plan=_at_spiral_spacing(scan_vertices)),
+                      plan=_at_spiral_spacing(scan_vertices, covering=True)),
         PlannedMethod(name="double-scan", label="DOUBLE-SCAN", source=_KOUTSONIKOLAS,
                       plan=_at_spiral_spacing(double_scan_vertices)),
         PlannedMethod(name="hilbert", label="HILBERT", source=_KOUTSONIKOLAS,
                       plan=_at_spiral_spacing(hilbert_vertices)),
         PlannedMethod(name="circles", label="CIRCLES",
                       source="Huang & Zaruba, PerCom Workshops 2007",
-                      plan=_at_spiral_spacing(circles_vertices)),
+                      plan=_plan_circles),
         PlannedMethod(name="lmat", label="LMAT",
                       source="Han et al., Wireless Communications and Mobile Computing 13(14), "
                              "2013",
                       plan=_plan_lmat),
         PlannedMethod(name="z-curve", label="Z-curve",
                       source="Rezazadeh et al., IEEE Sensors Journal 14(9), 2014",
-                      plan=_at_spiral_spacing(z_curve_vertices)),
+                      plan=_at_spiral_spacing(z_curve_vertices, covering=True)),
     ]
 }

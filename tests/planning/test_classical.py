@@ -9,10 +9,13 @@ from hypothesis import strategies as st
 
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
+from aoass_env.network import Network
 from aoass_env.planning.classical import (
     CLASSICAL_METHODS,
     MAX_CELLS,
     circles_vertices,
+    corner_radius,
+    covering_cell,
     double_scan_vertices,
     hilbert_cells,
     hilbert_order,
@@ -22,6 +25,7 @@ from aoass_env.planning.classical import (
     scan_vertices,
     z_curve_vertices,
 )
+from aoass_env.planning.path import polyline_path
 from aoass_env.planning.square_spiral import config_spacing
 from aoass_env.simulator import Simulator, episode_map
 from aoass_env.trajectory import beacons_along
@@ -179,12 +183,14 @@ def test_z_curve_diagonal_jumps_and_length():
     assert len(v) == 64 and _length(v) == pytest.approx(expected)
 
 
-def _beacons(method: str) -> np.ndarray:
-    """(B, 2) beacon points (m) every 2 m along the method's ideal path on the empty 100 m field
-    (the first at the start, as the simulator broadcasts)."""
-    path = CLASSICAL_METHODS[method].plan(EMPTY, CONFIG)
+def _beacons(method: str, obstacle_map: ObstacleMap = EMPTY,
+             config: AOASSConfig = CONFIG) -> np.ndarray:
+    """(B, 2) beacon points (m) every ``config.beacon_interval`` along the method's ideal path on
+    the map (default the empty 100 m field; the first at the start, as the simulator
+    broadcasts)."""
+    path = CLASSICAL_METHODS[method].plan(obstacle_map, config)
     samples = np.c_[path.arc_length, path.waypoints]
-    beacons, _ = beacons_along(samples, 0.0, CONFIG.beacon_interval)
+    beacons, _ = beacons_along(samples, 0.0, config.beacon_interval)
     return np.r_[samples[:1], beacons][:, 1:]
 
 
@@ -200,7 +206,8 @@ def _hears_three_non_collinear(points: np.ndarray, beacons: np.ndarray, r: float
     return (n >= 3) & (np.linalg.eigvalsh(cov)[:, 0] > 1e-3)
 
 
-@pytest.mark.parametrize("method", ["scan", "double-scan", "hilbert", "lmat"])
+@pytest.mark.parametrize("method", ["scan", "double-scan", "hilbert", "circles", "lmat",
+                                    "z-curve"])
 def test_every_point_of_the_empty_field_hears_three_non_collinear_beacons(method):
     beacons = _beacons(method)
     corners = np.array([[0, 0], [L, 0], [0, L], [L, L]])
@@ -209,6 +216,136 @@ def test_every_point_of_the_empty_field_hears_three_non_collinear_beacons(method
     grid = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
     ok = _hears_three_non_collinear(grid, beacons, CONFIG.radio_range)
     assert ok.all(), grid[~ok][:5]
+
+
+def _eq18_covered(method: str, size: float, config: AOASSConfig) -> np.ndarray:
+    """(P,) the Network's Eq.-18 verdict (>= 3 beacons within R, root-sum-square distance from
+    their best line >= collinearity_tol) for sample points of the empty ``size`` m field -- every
+    metre along its four edges, where the uncovered strips lay, and a 5 m grid -- once every
+    beacon of the method's ideal path has been heard."""
+    edge = np.arange(0.0, size + 1e-9, 1.0)
+    inner = np.arange(0.0, size + 1e-9, 5.0)
+    points = np.unique(np.concatenate([
+        np.c_[edge, np.zeros_like(edge)], np.c_[edge, np.full_like(edge, size)],
+        np.c_[np.zeros_like(edge), edge], np.c_[np.full_like(edge, size), edge],
+        np.stack(np.meshgrid(inner, inner), axis=-1).reshape(-1, 2)]), axis=0)
+    net = Network(len(points), config)
+    r2 = config.radio_range**2
+    for b in _beacons(method, ObstacleMap(size, size), config):
+        d = points - b
+        net.record_beacon(b, np.flatnonzero(d[:, 0] ** 2 + d[:, 1] ** 2 <= r2))
+    return net.covered
+
+
+@pytest.mark.parametrize("method", ["scan", "circles", "z-curve"])
+@pytest.mark.parametrize(("size", "radio_range"), [
+    (60, 25), (100, 25), (137, 25), (150, 25), (200, 25), (250, 25), (300, 25), (100, 15),
+    (300, 40)])
+def test_the_whole_empty_field_of_any_size_is_eq18_covered(method, size, radio_range):
+    """Like the spiral, the paths cover the empty field of any size. At the spiral's spacing
+    alone, SCAN, CIRCLES and the Z-curve left border strips or corners hearing a single line
+    on fields from 150 m (200 m, R = 25 m: 2.5 %, 1.6 % and 23 points of a 1 m grid;
+    docs/planning.md, "Classical sweep paths")."""
+    config = AOASSConfig(field_size=size, radio_range=radio_range)
+    covered = _eq18_covered(method, float(size), config)
+    assert covered.all(), f"{(~covered).sum()} of {len(covered)} sample points uncovered"
+
+
+def test_covering_cell_closed_form():
+    """Largest c with sqrt(max(c/2, margin)^2 + (3c/2)^2) = R - beacon interval."""
+    assert covering_cell(25.0, 2.0, 1.5) == pytest.approx(46 / math.sqrt(10))   # 14.546 m
+    assert covering_cell(25.0, 2.0, 1.5) > C                # the 100 m field's 14.29 m cells
+    # a margin wider than half the cell: the first centre sits on the margin
+    c = covering_cell(25.0, 2.0, 10.0)
+    assert c < 20.0 and math.hypot(10.0, 1.5 * c) == pytest.approx(23.0)
+    assert covering_cell(25.0, 2.0, 23.0) == math.inf     # no centre reaches a field corner
+    with pytest.raises(ValueError, match="beacon_interval"):
+        covering_cell(2.0, 2.0, 0.0)
+
+
+@settings(max_examples=50, deadline=None)
+@given(radio_range=st.floats(3, 100), interval_frac=st.floats(0.01, 0.9),
+       margin_frac=st.floats(0, 0.99))
+def test_covering_cell_puts_the_third_centre_at_reach(radio_range, interval_frac, margin_frac):
+    interval = interval_frac * radio_range
+    reach = radio_range - interval
+    margin = margin_frac * reach
+    c = covering_cell(radio_range, interval, margin)
+    assert math.hypot(max(c / 2, margin), 1.5 * c) == pytest.approx(reach)
+
+
+def test_circles_continue_clipped_until_the_corner_radius():
+    """200 m field, default config: 11 cells of c = 18.18 m, inscribed circles up to 5c =
+    90.9 m; the corners need 99.55 m (corner_radius), so one circle of 6c = 109.1 m is added,
+    its parts beyond the clipped field on the border."""
+    size = 200.0
+    config = AOASSConfig(field_size=size)
+    d = config_spacing(config, size, size)
+    c = size / math.ceil(size / d)
+    need = corner_radius(size, size, M, config.radio_range, config.beacon_interval)
+    a = math.sqrt(25**2 - 2**2)
+    x_l = M + math.sqrt(25**2 - (M + 4) ** 2)
+    assert need == pytest.approx(math.hypot(size / 2 - x_l, size / 2) - a)
+    assert 5 * c < need <= 6 * c
+    v = circles_vertices(size, size, d, M, radio_range=config.radio_range,
+                         beacon_interval=config.beacon_interval)
+    assert np.all(v >= M) and np.all(v <= size - M)
+    r = np.hypot(*(v - size / 2).T)
+    clipped = np.any((v == M) | (v == size - M), axis=1)
+    assert r[~clipped].max() == pytest.approx(6 * c)       # the corner arcs of the new circle
+    assert clipped.sum() > 6          # the ring's 6 corners, and the new circle's border parts
+    # without the radio parameters: the inscribed circles and the ring only
+    plain = circles_vertices(size, size, d, M)
+    assert np.hypot(*(plain - size / 2).T)[
+        ~np.any((plain == M) | (plain == size - M), axis=1)].max() == pytest.approx(5 * c)
+
+
+@settings(max_examples=25, deadline=None)
+@given(width=st.floats(10, 300), height=st.floats(10, 300), spacing=st.floats(2, 60),
+       margin_frac=st.floats(0, 0.9), radio_range=st.floats(5, 60),
+       interval_frac=st.floats(0.01, 0.9))
+def test_continued_circles_stay_in_the_clipped_field_and_reach_the_corner_radius(
+        width, height, spacing, margin_frac, radio_range, interval_frac):
+    margin = margin_frac * min(width, height) / 2
+    interval = interval_frac * radio_range
+    v = circles_vertices(width, height, spacing, margin, radio_range=radio_range,
+                         beacon_interval=interval)
+    eps = 1e-9
+    assert np.all(v >= margin - eps)
+    assert np.all(v[:, 0] <= width - margin + eps) and np.all(v[:, 1] <= height - margin + eps)
+    # the circles: the inscribed ones (cell-centre radii of the shorter side), then r_in + k c
+    # for k = 1, 2, ... until one reaches corner_radius or the next would pass the clipped
+    # corners (the circle of the ring); each circle of radius > 0 starts and ends on the +x
+    # axis, as does the ring
+    short = min(width, height)
+    n = math.ceil(short / spacing - 1e-9)
+    cell = short / n
+    centres = np.unique(np.clip((np.arange(n) + 0.5) * cell, margin, short - margin))
+    r_in = centres[centres >= short / 2 - 1e-9] - short / 2
+    need = corner_radius(width, height, margin, radio_range, interval)
+    ring = math.hypot(width / 2 - margin, height / 2 - margin)
+    extra = 0
+    while r_in[-1] + extra * cell < need and r_in[-1] + (extra + 1) * cell < ring:
+        extra += 1
+    on_axis = np.isclose(v[:, 1], height / 2, rtol=0, atol=1e-9) & (v[:, 0] > width / 2 + 1e-9)
+    assert on_axis.sum() == 2 * (np.count_nonzero(r_in > 1e-9) + extra) + 2
+
+
+def test_the_default_100_m_paths_are_unchanged():
+    """At the default 100 m config the coverage rules add nothing: SCAN and the Z-curve keep
+    the spiral-spacing cells (N = 7: covering_cell's 14.55 m >= C = 14.29 m) and CIRCLES its
+    inscribed circles (the largest, 42.86 m, beyond corner_radius's 30.6 m): the waypoints are
+    those of the pure geometry at the spiral's spacing, as before the rules."""
+    assert corner_radius(L, L, M, CONFIG.radio_range, CONFIG.beacon_interval) < 3 * C
+    for method, fn, n_waypoints, length in [
+            ("scan", scan_vertices, 350, N * (L - C) + (N - 1) * C),       # 685.71 m
+            ("circles", circles_vertices, 531, 974.4426280458059),
+            ("z-curve", z_curve_vertices, 535, 992.7286125557047)]:
+        path = CLASSICAL_METHODS[method].plan(EMPTY, CONFIG)
+        np.testing.assert_array_equal(
+            path.waypoints, polyline_path(fn(L, L, D, M), CONFIG.path_step).waypoints)
+        assert len(path.waypoints) == n_waypoints
+        assert path.arc_length[-1] == pytest.approx(length, rel=1e-12)
 
 
 @pytest.mark.parametrize("method", list(CLASSICAL_METHODS))
@@ -248,6 +385,12 @@ def test_bad_grid_parameters():
         morton_cells(3, 0)
     with pytest.raises(ValueError, match="max_chord_error"):
         circles_vertices(100, 100, 10, 1, max_chord_error=0)
+    with pytest.raises(ValueError, match="give both or neither"):
+        circles_vertices(100, 100, 10, 1, radio_range=25.0)
+    with pytest.raises(ValueError, match="beacon_interval"):
+        corner_radius(100, 100, 1, 25.0, 25.0)
+    with pytest.raises(ValueError, match="margin"):
+        corner_radius(100, 100, 50, 25.0, 2.0)
 
 
 @pytest.mark.parametrize("fn", [hilbert_vertices, z_curve_vertices])
