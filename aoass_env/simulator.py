@@ -68,10 +68,10 @@ MAX_EPISODE_STEPS = 10**9
 
 def episode_step_limit(config: AOASSConfig, nominal_time: float, what: str) -> int:
     """Control periods an episode may take: ``time_limit_factor`` times ``nominal_time`` (s,
-    a path's duration at nominal speed), ``ceil(factor * nominal_time / dt)``, for the env
+    a path's duration at nominal speed), ``ceil(factor * (nominal_time / dt))``, for the env
     and the Simulator alike. :class:`ConfigError` beyond :data:`MAX_EPISODE_STEPS`; ``what``
     names the path in it."""
-    limit = config.time_limit_factor * nominal_time / config.dt
+    limit = config.time_limit_factor * (nominal_time / config.dt)   # the env's order, to the bit
     if not limit <= MAX_EPISODE_STEPS:          # math.ceil(inf) was an OverflowError
         raise ConfigError(
             f"the episode would last {limit:.3g} control periods (at most {MAX_EPISODE_STEPS}):"

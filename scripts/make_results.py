@@ -90,23 +90,34 @@ def run_presets(out: Path, seeds: dict[str, int], workers: int | None) -> None:
 
 
 def _side(value: float, bound: float) -> int:
-    return (value > bound) - (value < bound)
+    return int(value > bound) - int(value < bound)
 
 
 def _fmt(value: float, spec: str, bounds: tuple[float, ...] = ()) -> str:
     """``value`` formatted by ``spec`` ('–' when not finite); with ``bounds`` (the values a
     verdict beside it compares ``value`` with, in the printed unit), a fixed-point ``spec``
-    gets more decimals (up to 6) until the printed number lies on the same side of each bound
-    as ``value``: 98.496 against 98.5 prints 98.496, never a 98.5 beside "missed"."""
+    (``.Nf`` or ``+.Nf``; other specs are printed as they are) gets more decimals, up to 6,
+    until the printed number lies on the same side of each bound as ``value``, and past that
+    the shortest text that reads back as ``value`` itself: 98.496 against 98.5 prints 98.496,
+    never a 98.5 beside "missed"."""
     if not math.isfinite(value):
         return "–"
     text = format(value, spec)
     fixed = re.fullmatch(r"([+]?)\.(\d+)f", spec)
-    if fixed:
-        sign, digits = fixed.group(1), int(fixed.group(2))
-        while digits < 6 and any(_side(float(text), b) != _side(value, b) for b in bounds):
-            digits += 1
-            text = format(value, f"{sign}.{digits}f")
+    if not fixed:
+        return text
+    sign, digits = fixed.group(1), int(fixed.group(2))
+
+    def wrong(shown: str) -> bool:
+        return any(_side(float(shown), b) != _side(value, b) for b in bounds)
+
+    while wrong(text) and digits < 6:
+        digits += 1
+        text = format(value, f"{sign}.{digits}f")
+    if wrong(text):
+        text = repr(float(value))
+        if sign and not text.startswith("-"):
+            text = "+" + text
     return text
 
 

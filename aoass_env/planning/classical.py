@@ -32,7 +32,8 @@ radio range ``R``; beacons every ``Δs`` along the path). The spiral runs its ou
 the margin-clipped border and fits its spacing to that (Eq. 5); these paths keep theirs half a
 cell inside, so a border point has a single straight pass (or the border ring) close by and
 must reach a second line farther in. At the spiral's spacing alone that failed on fields from
-about 150 m (R = 25 m, Δs = 2 m, 1.5 m margin). The rules, which leave the default 100 m paths
+about 110-115 m (SCAN, Z-curve) and 160-170 m (CIRCLES), depending on the sample
+grid (R = 25 m, Δs = 2 m, 1.5 m margin). The rules, which leave the default 100 m paths
 unchanged:
 
 * SCAN and the Z-curve visit every cell centre, and every visited centre has a beacon within
@@ -51,7 +52,7 @@ unchanged:
   - a``: every point farther than ``a`` from it then lies within ``x_L`` of both sides of a
   corner of the ring, and hears both. At 100 m the inscribed circles already reach it (42.86 m
   against 30.6 m); at 200 m one clipped circle of 109.1 m is added (the inscribed ones end at
-  90.9 m, the corners need 99.6 m). Beyond about 204 m no inscribed circle could reach it at
+  90.9 m, the corners need 99.6 m). Beyond about 195 m no inscribed circle could reach it at
   any spacing.
 """
 
@@ -121,13 +122,16 @@ def covering_cell(radio_range: float, beacon_interval: float, margin: float) -> 
     """Largest cell side ``c`` (m) with which every point of an empty field lies within
     ``radio_range - beacon_interval`` (m) of three non-collinear cell centres (module docstring,
     "Coverage of the empty field"): ``sqrt(max(c/2, margin)**2 + (3c/2)**2) <= R - Δs``, i.e.
-    ``c = 2 (R - Δs) / sqrt(10)`` while that keeps ``c/2 >= margin``; ``math.inf`` (no bound) when
-    ``margin >= R - Δs``, where no centre reaches a field corner."""
+    ``c = 2 (R - Δs) / sqrt(10)`` while that keeps ``c/2 >= margin``, else
+    ``sqrt((R - Δs)**2 - margin**2) / 1.5``; ``math.inf`` (no bound) when
+    ``sqrt(2) margin >= R - Δs``: the corner's nearest centre, clipped to ``(margin, margin)``,
+    is then out of reach whatever ``c`` (and a second row 3c/2 in would be clipped onto the
+    first)."""
     r, ds = _range_and_interval(radio_range, beacon_interval)
     m = real("margin", margin, "m", low=0.0)
     reach = r - ds
-    if m >= reach:
-        return math.inf
+    if math.sqrt(2) * m >= reach:
+        return math.inf      # the clipped corner centre is already out of reach: no c helps
     if math.sqrt(10) * m <= reach:
         return 2 * reach / math.sqrt(10)
     return math.sqrt(reach**2 - m**2) / 1.5

@@ -237,6 +237,12 @@ def test_linked_path_narrows_its_clearance_before_skipping_a_point():
     np.testing.assert_allclose(w[0], [10.0, 10.0])
     np.testing.assert_allclose(w[-1], [25.0, 10.0])       # the walled-in point is skipped
     assert (np.abs(w[:, 1] - 20.0) < 1.25).any()     # through the gap
+    # a first point shut in the pocket: the path starts at the next one that reaches the field
+    # (it once stayed in the pocket, every later point unreachable: a path of length 0)
+    path = linked_path(omap, np.array([[34.0, 34.0], [10.0, 10.0], [25.0, 10.0],
+                                       [10.0, 30.0]]), config)
+    np.testing.assert_allclose(path.waypoints[0], [10.0, 10.0])
+    np.testing.assert_allclose(path.waypoints[-1], [10.0, 30.0])
 
 
 def test_m_anchoro_pruned_points_still_cover_an_empty_field():

@@ -244,7 +244,7 @@ def _eq18_covered(method: str, size: float, config: AOASSConfig) -> np.ndarray:
 def test_the_whole_empty_field_of_any_size_is_eq18_covered(method, size, radio_range):
     """Like the spiral, the paths cover the empty field of any size. At the spiral's spacing
     alone, SCAN, CIRCLES and the Z-curve left border strips or corners hearing a single line
-    on fields from 150 m (200 m, R = 25 m: 2.5 %, 1.6 % and 23 points of a 1 m grid;
+    on fields from about 110 m (200 m, R = 25 m: 2.5 %, 1.6 % and 23 points of a 1 m grid;
     docs/planning.md, "Classical sweep paths")."""
     config = AOASSConfig(field_size=size, radio_range=radio_range)
     covered = _eq18_covered(method, float(size), config)
@@ -259,6 +259,10 @@ def test_covering_cell_closed_form():
     c = covering_cell(25.0, 2.0, 10.0)
     assert c < 20.0 and math.hypot(10.0, 1.5 * c) == pytest.approx(23.0)
     assert covering_cell(25.0, 2.0, 23.0) == math.inf     # no centre reaches a field corner
+    # the corner's own centre, clipped to (18, 18), is 25.5 m > 23 m away: no c helps (a bound
+    # here once shrank the cells: SCAN at edge_margin 22.99 m ran 6 644 m instead of 1 675 m)
+    assert covering_cell(25.0, 2.0, 18.0) == math.inf
+    assert covering_cell(25.0, 2.0, 23.0 / math.sqrt(2) - 1e-9) < math.inf
     with pytest.raises(ValueError, match="beacon_interval"):
         covering_cell(2.0, 2.0, 0.0)
 
@@ -271,7 +275,11 @@ def test_covering_cell_puts_the_third_centre_at_reach(radio_range, interval_frac
     reach = radio_range - interval
     margin = margin_frac * reach
     c = covering_cell(radio_range, interval, margin)
+    if math.sqrt(2) * margin >= reach:
+        assert c == math.inf
+        return
     assert math.hypot(max(c / 2, margin), 1.5 * c) == pytest.approx(reach)
+    assert 1.5 * c >= margin * (1 - 1e-12)      # the second row is not clipped onto the first
 
 
 def test_circles_continue_clipped_until_the_corner_radius():

@@ -230,7 +230,10 @@ def test_issue_table_verdicts_follow_the_numbers(values):
     (0.0, "+.1f", (0.0,), "+0.0"),          # on the bound itself: as it is
     (900.4, ".0f", (900.0,), "900.4"),
     (1.3, ".2f", (1.3, 1.0), "1.30"),
-    (1.2999999999, ".2f", (1.3,), "1.300000"),  # six decimals at most
+    (1.2999999999, ".2f", (1.3,), "1.2999999999"),  # past six decimals: the exact value
+    (-0.5000000000000001, "+.2f", (-0.5,), "-0.5000000000000001"),
+    (-0.49999999999999994, "+.2f", (-0.5,), "-0.49999999999999994"),
+    (0.7304, ".1%", (0.73,), "73.0%"),      # not a fixed-point spec: as it is
 ])
 def test_fmt_prints_a_verdicts_number_on_its_side_of_the_bound(value, spec, bounds, shown):
     assert make_results._fmt(value, spec, bounds) == shown

@@ -75,18 +75,30 @@ def linked_path(obstacle_map: ObstacleMap, points: np.ndarray,
     :class:`~aoass_env.planning.detour.DetourPlanner` otherwise, through narrower passages only
     when there is no wider way (:func:`link_clearances`); a point unreachable even at the
     follower's own clearance is skipped (the next link starts from the last point reached), so
-    no link cuts through an obstacle. No points: the field's centre. Waypoints every
-    ``waypoint_step`` / ``beacon_interval`` metres."""
+    no link cuts through an obstacle. The path starts at the first point from which the
+    follower reaches the field (``DetourPlanner.can_start``; the first point when none does).
+    No points: the field's centre. Waypoints every ``waypoint_step`` / ``beacon_interval``
+    metres."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if len(points) == 0:                # every sample inside obstacles: stand at the centre
         points = np.array([[obstacle_map.width / 2, obstacle_map.height / 2]])
     planners: dict[float, DetourPlanner] = {}
+
+    def planner_at(c: float) -> DetourPlanner:
+        if c not in planners:
+            planners[c] = DetourPlanner(obstacle_map, c)
+        return planners[c]
+
+    # start at the first point from which the follower reaches the field (a first point shut
+    # in a pocket would leave every later one unreachable)
+    narrowest = min(link_clearances(config))
+    first = next((k for k, p in enumerate(points)
+                  if planner_at(narrowest).can_start(p, narrowest)), 0)
+    points = points[first:]
     vertices, here = [points[:1]], points[0]
     for b in points[1:]:
         for c in link_clearances(config):
-            if c not in planners:
-                planners[c] = DetourPlanner(obstacle_map, c)
-            planner = planners[c]
+            planner = planner_at(c)
             route = np.stack([here, b]) if planner.visible(here, b) else planner.path(here, b)
             if route is not None:
                 vertices.append(route[1:])

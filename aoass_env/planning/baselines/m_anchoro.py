@@ -13,8 +13,9 @@ a full-coverage path, remove redundant beacon points); the details are ours (doc
 2. Points inside obstacles dilated by the link clearance (anchor radius + detour margin +
    ``LINK_MARGIN``) are dropped, and so are points the follower cannot reach (outside the main
    free space at its own clearance,
-   :func:`~aoass_env.planning.baselines.common.reachable_region`); candidate points every
-   ``a/2`` along the boundary of that reachable region are added
+   :func:`~aoass_env.planning.baselines.common.main_free_part`); candidate points every
+   ``a/2`` along the boundary of that dilated region, where the follower reaches them, are
+   added
    greedily (most uncovered samples first) while they restore triple coverage of free sample
    points (:func:`restore_coverage`).
 3. SCAN: points are grouped by the nearest lattice row and visited row by row, alternating
@@ -46,9 +47,10 @@ from aoass_env.maps import ObstacleMap
 from aoass_env.network import Network
 from aoass_env.planning.baselines.common import (
     LINK_MARGIN,
+    free_region,
     link_clearances,
     linked_path,
-    reachable_region,
+    main_free_part,
 )
 from aoass_env.planning.detour import DETOUR_MARGIN
 from aoass_env.planning.path import WaypointPath
@@ -196,14 +198,19 @@ def beacon_points(obstacle_map: ObstacleMap, config: AOASSConfig) -> np.ndarray:
     lattice, rows = triangle_lattice(obstacle_map.width, obstacle_map.height, a, m)
     row_y = np.unique(lattice[:, 1])
     clearance = config.anchor_radius + DETOUR_MARGIN + LINK_MARGIN
-    # the points the follower can reach: off the dilated obstacles, in the main free space
-    region = reachable_region(obstacle_map, clearance, m, min(link_clearances(config)))
-    points = lattice[~obstacle_map.inside_obstacle(lattice, dilation=clearance)
-                     & shapely.intersects_xy(region, lattice[:, 0], lattice[:, 1])]
+    # the points the follower can reach: off the dilated obstacles, in the main free space at
+    # its own clearance (the candidates, on the dilated region's boundary, lie well inside it)
+    main = main_free_part(obstacle_map, min(link_clearances(config)), m)
+    shapely.prepare(main)
+
+    def reachable(p: np.ndarray) -> np.ndarray:
+        return p[shapely.intersects_xy(main, p[:, 0], p[:, 1])]
+
+    points = reachable(lattice[~obstacle_map.inside_obstacle(lattice, dilation=clearance)])
     samples = free_samples(obstacle_map)
     heard = hearing(points, samples, obstacle_map, config)
     if obstacle_map.polygons:
-        candidates = boundary_points(region, a / 2)
+        candidates = reachable(boundary_points(free_region(obstacle_map, clearance, m), a / 2))
         heard_c = hearing(candidates, samples, obstacle_map, config)
         extra = restore_coverage(points, candidates, heard, heard_c, config)
         points = np.vstack([points, candidates[extra]])
