@@ -9,7 +9,8 @@ on a fresh 100 m map that takes seconds, most of an episode of ``aoass-rule`` in
 with the current module and with ``aoass_env/planning/pruning.py`` of ``--against`` (read with
 ``git show``), in turn ``--rounds`` times per map (the current module first in the
 odd-numbered rounds 1, 3, ..., second in the even ones: ``git_history.in_turn``), each run
-with its own planner search state, and checks that both give the same plan bit for bit. Prints
+with its own planner search state, after one untimed plan of each on a small map of its own
+(the compiled kernels' first calls), and checks that both give the same plan bit for bit. Prints
 the CPU seconds per plan of both (medians) and the median of the per-map ratios.
 """
 
@@ -36,6 +37,8 @@ from aoass_env.validators import argparse_number, one_line
 #: the commit before the batched measure of the ways
 BEFORE = "3c3f17c"
 SEED = 4242
+#: the untimed warm-up plan's map: field side (m) and seed, apart from the timed maps' seeds
+WARM_UP_FIELD, WARM_UP_SEED = 60.0, 9999
 
 
 def plan_once(module, sim: Simulator, config: AOASSConfig) -> tuple[float, object]:
@@ -100,6 +103,13 @@ def main() -> None:
             args.field, args.density, np.random.default_rng([SEED, k]))) for k in range(args.maps)]
     except ValueError as err:       # MapError, or no room for the moving obstacles
         parser.error(f"--field {args.field:g} with --density {args.density:g}: {one_line(err)}")
+    # one untimed plan of each module first, on a map of its own: the compiled kernels'
+    # first calls (compilation or cache loading) stay out of the timings, whatever --rounds
+    warm_config = AOASSConfig(field_size=WARM_UP_FIELD, obstacle_density=0.2)
+    warm = Simulator(warm_config, np.random.default_rng(WARM_UP_SEED), obstacle_map=generate_map(
+        WARM_UP_FIELD, 0.2, np.random.default_rng([SEED, WARM_UP_SEED])))
+    for module in (pruning, old):
+        plan_once(module, warm, warm_config)
     times: dict[str, list[float]] = {"now": [], args.against: []}
     ratios, same = [], True
     for k, sim in enumerate(sims):
