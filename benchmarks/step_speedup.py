@@ -7,7 +7,8 @@ first: random actions in ``gymnasium.make("AOASS-v0")`` (default config), ``--st
 each of seeds 0, 1, ... after 3 000 steps of warm-up on seed 9 999 (imports, caches, compiled
 kernels), resets included, timed in the process's CPU time: once with each action drawn by
 ``action_space.sample()`` inside the loop (issue 20's measure), once with the same actions
-drawn before the clock starts (the step alone; the difference is the draw, whose cost depends
+drawn before the clock starts (the two passes in an order that alternates with the seed and
+the round; the step alone; the difference is the draw, whose cost depends
 on the tree's action space: ``aoass_env.action.ActionBox`` since 2026-11-29). The
 fingerprint test pins the same episodes for the same seeds since before issue 20, and both
 trees' action spaces draw the same actions, so both trees step through the same states.
@@ -49,12 +50,15 @@ WARM_UP_SEED, WARM_UP_STEPS = 9_999, 3_000
 ENVS = (("AOASS-v0", 1), ("Pendulum-v1", 3))
 
 
-def seed_cpu_s(env: gym.Env, seed: int, steps: int) -> tuple[float, float]:
+def seed_cpu_s(env: gym.Env, seed: int, steps: int, swap: bool = False
+               ) -> tuple[float, float]:
     """CPU seconds of ``steps`` random steps of ``env`` from ``seed`` (resets included): (each
     action drawn with ``action_space.sample()`` in the loop, issue 20's measure; the same
-    actions drawn before the clock starts, the step alone)."""
-    spent = []
-    for drawn_first in (False, True):
+    actions drawn before the clock starts, the step alone). The in-the-loop pass runs first,
+    or second with ``swap`` (callers alternate it, so a drift of the machine's speed does not
+    land on the draw's cost, the difference of the two)."""
+    spent = {}
+    for drawn_first in ((True, False) if swap else (False, True)):
         env.reset(seed=seed)
         env.action_space.seed(seed)
         drawn = [env.action_space.sample() for _ in range(steps)] if drawn_first else None
@@ -64,8 +68,8 @@ def seed_cpu_s(env: gym.Env, seed: int, steps: int) -> tuple[float, float]:
             _, _, terminated, truncated, _ = env.step(action)
             if terminated or truncated:
                 env.reset()
-        spent.append(time.process_time() - start)
-    return spent[0], spent[1]
+        spent[drawn_first] = time.process_time() - start
+    return spent[False], spent[True]
 
 
 def cpu_us_per_step(steps: int, seeds: int, round_: int = 0, warm_up: int = WARM_UP_STEPS
@@ -74,7 +78,8 @@ def cpu_us_per_step(steps: int, seeds: int, round_: int = 0, warm_up: int = WARM
     this one process: (action drawn in the loop, drawn before the clock; :func:`seed_cpu_s`)
     over its share of ``steps`` steps from each of seeds 0 .. ``seeds`` - 1. Each env first
     takes ``warm_up`` untimed steps from :data:`WARM_UP_SEED`; then, seed by seed, the envs run
-    in turn, in the order ``in_turn(round_ + seed, ...)``."""
+    in turn, in the order ``in_turn(round_ + seed, ...)``, and each env's two passes in the
+    order that alternates with ``round_ + seed`` too."""
     import aoass_env  # noqa: F401  (registers AOASS-v0 of the tree first on the path)
 
     envs = {env_id: gym.make(env_id) for env_id, _ in ENVS}
@@ -84,7 +89,8 @@ def cpu_us_per_step(steps: int, seeds: int, round_: int = 0, warm_up: int = WARM
     spent = {env_id: [0.0, 0.0] for env_id in envs}
     for seed in range(seeds):
         for env_id in in_turn(round_ + seed, *envs):
-            sampled, alone = seed_cpu_s(envs[env_id], seed, share[env_id] * steps)
+            sampled, alone = seed_cpu_s(envs[env_id], seed, share[env_id] * steps,
+                                        swap=(round_ + seed) % 2 == 1)
             spent[env_id][0] += sampled
             spent[env_id][1] += alone
     for env in envs.values():
