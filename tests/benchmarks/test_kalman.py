@@ -23,12 +23,18 @@ def test_the_reference_is_the_trackers_filtering_with_the_association_given(velo
     assert len(tracker.confirmed) == 3
     np.testing.assert_allclose(tracker.states(),
                                np.array([kf.x[:, 0] for kf in reference.filters]), rtol=1e-12)
+    # the prediction's reference carries the same states ahead: the same positions
+    np.testing.assert_allclose(tracker.predict_positions(bench.HORIZON),
+                               reference.predict_positions(bench.HORIZON), rtol=1e-12)
 
 
 def test_each_step_line_prints_the_reference_and_the_ratio(capsys):
     load_benchmark("kalman").main(["--steps", "20"])
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 3
+    predicted = float(lines[2].split(": ")[1].split()[0])
+    reference = float(lines[2].split("each: ")[1].split()[0])
+    assert float(lines[2].split("ratio ")[1]) == pytest.approx(predicted / reference, abs=0.01)
     for line in lines[:2]:
         tracker = float(line.split(": ")[1].split()[0])
         reference = float(line.split("given: ")[1].split()[0])
