@@ -1,6 +1,7 @@
 """CPU microseconds per call of the step parts changed in issue 20's seventh round, at one state.
 
-A seeded random-action AOASS-Safe-v0 episode is run ``--steps`` steps; at that state each part
+A seeded random-action AOASS-Safe-v0 episode is run ``--steps`` steps, and on until the
+tracker holds ``--tracks`` (1) confirmed tracks of moving obstacles; at that state each part
 is called ``--calls`` times (best of five rounds) without stepping on: the rays, the observer's
 moving-obstacle slots, the fuzzy controller, the braking envelope, the filter's moving
 obstacles and its whole verdict, the tracker's observation, and the radios' links of a beacon
@@ -62,6 +63,9 @@ def main(argv: list[str] | None = None) -> None:
                         default=400, help="steps before the state")
     parser.add_argument("--calls", type=argparse_number(int, 1),
                         default=3000, help="calls per round")
+    parser.add_argument("--tracks", type=argparse_number(int, 0), default=1,
+                        help="after --steps, step on until the tracker holds at least this "
+                             "many confirmed tracks (0: stop at --steps)")
     args = parser.parse_args(argv)
     env = gym.make("AOASS-Safe-v0", n_nodes=100)
     env.reset(seed=0)
@@ -81,6 +85,15 @@ def main(argv: list[str] | None = None) -> None:
     while not isinstance(safe, FuzzyORCASafety):
         safe = safe.env
     tracker, base = safe.env, safe._base
+    # a state with moving obstacles tracked: the tracker's and the filter's parts then do
+    # their full work (with no track, at 400 steps of seed 0, they had little to do)
+    steps = args.steps
+    while len(tracker.tracked_obstacles) < args.tracks:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        steps += 1
+        if terminated or truncated:
+            parser.error(f"--tracks {args.tracks}: the seed-0 episode ends after {steps} steps "
+                         f"with fewer confirmed tracks; give fewer (0 stops at --steps)")
     world, observer = base.sim.world, base._observe
     position, inner = base.anchor.position, base._observation()
     action = np.array([0.3, -0.2], np.float32)
@@ -96,7 +109,7 @@ def main(argv: list[str] | None = None) -> None:
         "FuzzyORCASafety._filter": lambda: safe._filter(action),
         "KalmanObstacleTracker.observation": lambda: tracker.observation(inner),
     }
-    print(f"aoass_env from {aoass_env.__file__}; state after {args.steps} steps "
+    print(f"aoass_env from {aoass_env.__file__}; state after {steps} steps "
           f"({len(tracker.tracked_obstacles)} confirmed tracks)")
     before = pendulum_us(args.calls)
     times = {name: best_of(function, args.calls) for name, function in parts.items()}
