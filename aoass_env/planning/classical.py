@@ -66,7 +66,7 @@ import numpy as np
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import ObstacleMap
 from aoass_env.planning.path import WaypointPath, polyline_path
-from aoass_env.planning.square_spiral import config_spacing
+from aoass_env.planning.square_spiral import config_spacing, range_and_interval
 from aoass_env.planning.sweep import PlannedMethod
 from aoass_env.validators import integer, positive, real
 
@@ -107,17 +107,6 @@ def _cell_centres(extent: float, n: int, margin: float) -> np.ndarray:
     return np.clip((np.arange(n) + 0.5) * extent / n, margin, extent - margin)
 
 
-def _range_and_interval(radio_range: float, beacon_interval: float) -> tuple[float, float]:
-    """The checked radio range and beacon interval (m) of the coverage rules: ValueError
-    naming them unless ``0 < beacon_interval < radio_range``."""
-    r = positive("radio_range", radio_range, "m")
-    ds = positive("beacon_interval", beacon_interval, "m")
-    if ds >= r:
-        raise ValueError(f"beacon_interval={beacon_interval} m must be below radio_range="
-                         f"{radio_range} m for the coverage guarantee")
-    return r, ds
-
-
 def covering_cell(radio_range: float, beacon_interval: float, margin: float) -> float:
     """Largest cell side ``c`` (m) with which every point of an empty field lies within
     ``radio_range - beacon_interval`` (m) of three non-collinear cell centres (module docstring,
@@ -127,7 +116,7 @@ def covering_cell(radio_range: float, beacon_interval: float, margin: float) -> 
     ``sqrt(2) margin >= R - Δs``: the corner's nearest centre, clipped to ``(margin, margin)``,
     is then out of reach whatever ``c`` (and a second row 3c/2 in would be clipped onto the
     first)."""
-    r, ds = _range_and_interval(radio_range, beacon_interval)
+    r, ds = range_and_interval(radio_range, beacon_interval)
     m = real("margin", margin, "m", low=0.0)
     reach = r - ds
     if math.sqrt(2) * m >= reach:
@@ -224,7 +213,7 @@ def corner_radius(width: float, height: float, margin: float, radio_range: float
         positive(name, value, "m")
     real("margin", margin, "m", low=0.0, high=min(width, height) / 2, high_open=True,
          doc=f"for a {width:g} x {height:g} m field")
-    r, ds = _range_and_interval(radio_range, beacon_interval)
+    r, ds = range_and_interval(radio_range, beacon_interval)
     a = math.sqrt(r**2 - ds**2)
     side = r**2 - (margin + 2 * ds) ** 2
     x_l = margin + math.sqrt(side) if side >= 0 else 0.0

@@ -44,14 +44,21 @@ from aoass_env.validators import integer, positive, real, vec2
 DIRECTIONS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
 
 
-def max_spacing(radio_range: float, beacon_interval: float, margin: float = 0.0) -> float:
-    """Largest spacing (m) between passes that keeps every point covered (module docstring)."""
-    positive("radio_range", radio_range, "m")
-    positive("beacon_interval", beacon_interval, "m")
-    real("margin", margin, "m", low=0.0)
-    if beacon_interval >= radio_range:
+def range_and_interval(radio_range: float, beacon_interval: float) -> tuple[float, float]:
+    """The radio range and beacon interval (m) of a coverage guarantee, checked: ValueError
+    naming them unless ``0 < beacon_interval < radio_range``."""
+    r = positive("radio_range", radio_range, "m")
+    ds = positive("beacon_interval", beacon_interval, "m")
+    if ds >= r:
         raise ValueError(f"beacon_interval={beacon_interval} m must be below radio_range="
                          f"{radio_range} m for the coverage guarantee")
+    return r, ds
+
+
+def max_spacing(radio_range: float, beacon_interval: float, margin: float = 0.0) -> float:
+    """Largest spacing (m) between passes that keeps every point covered (module docstring)."""
+    range_and_interval(radio_range, beacon_interval)
+    real("margin", margin, "m", low=0.0)
     s = math.sqrt(radio_range**2 - beacon_interval**2) - margin
     if s <= 0:
         raise ValueError(f"margin={margin} m leaves no valid spacing for radio_range="
