@@ -1,0 +1,40 @@
+"""scripts/baselines_table.py: the tables of docs/baselines.md."""
+
+from __future__ import annotations
+
+from aoass_env.config import AOASSConfig
+from aoass_env.maps import load_map
+from aoass_env.planning.square_spiral import episode_spiral
+from tests.scripts.test_script_input import load, refused
+
+
+def test_fdpp_spends_the_budget_it_is_given():
+    """FDPP drives its budget, 1.0 x or 1.5 x the spiral, and at most one control period more
+    (its table's point)."""
+    script = load("baselines_table")
+    name = script.first_test_map(0.1)
+    assert name == "test/d0.10_f100_s500"
+    config = AOASSConfig(field_size=100.0, n_nodes=100, map=name)
+    spiral = episode_spiral(config, load_map(name)).length
+    period = config.anchor_max_speed * config.dt
+    paths = []
+    for budget in script.BUDGETS:
+        coverage, path, contacts, seconds = script.fdpp_episode(name, 0, budget)
+        assert 0.0 < coverage <= 1.0 and contacts >= 0 and seconds > 0
+        assert budget * spiral - 5.0 < path <= budget * spiral + period
+        paths.append(path)
+    assert paths[1] > paths[0]
+
+
+def test_measured_row_names_the_map_and_the_planned_length():
+    script = load("baselines_table")
+    (row,) = script.measured_rows(["fdpp"], (0.1,))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[:3] == ["FDPP", "d0.10_f100_s500", "776"]     # its plan is the 776 m spiral
+    assert len(cells) == 7
+
+
+def test_an_unknown_table_is_refused_in_one_line(capsys, monkeypatch):
+    assert refused(capsys, monkeypatch, "baselines_table", "--table", "otpp").startswith(
+        "argument --table: invalid choice: 'otpp'")
+
