@@ -218,11 +218,6 @@ class Simulator:
                              time_limit=self.step_limit() * self.config.dt,
                              density=self.map.density)
 
-    def nominal_steps(self) -> int:
-        """Control periods the ideal path takes at nominal speed."""
-        return math.ceil(self.path.nominal_time(self.config.anchor_nominal_speed)
-                         / self.config.dt)
-
     def step_limit(self) -> int:
         """Control periods a method may take: ``time_limit_factor`` times the path's nominal
         duration (detours at density 0.5-0.6 take up to about 3-4 times as long), rounded up

@@ -104,7 +104,8 @@ def test_a_given_path_is_swept_instead_of_the_spiral():
     np.testing.assert_allclose(sim.world.position, first_free, atol=1e-9)
     log = sim.run()
     assert np.linalg.norm(log.anchor_path[-1, 1:] - [35.0, 35.0]) < 1.0
-    assert sim.nominal_steps() == np.ceil(path.length / config.anchor_nominal_speed / config.dt)
+    assert sim.path.nominal_time(config.anchor_nominal_speed) == pytest.approx(
+        path.length / config.anchor_nominal_speed)
 
 
 def test_step_limit_rounds_once_as_the_env_does():
@@ -123,7 +124,7 @@ def test_step_limit_rounds_once_as_the_env_does():
                     path=path)
     nominal = 61.0 / config.anchor_nominal_speed / config.dt
     assert sim.step_limit() == int(np.ceil(config.time_limit_factor * nominal))
-    assert sim.step_limit() < config.time_limit_factor * sim.nominal_steps()
+    assert sim.step_limit() < config.time_limit_factor * np.ceil(nominal)   # the old formula
 
 
 def test_run_drives_a_given_controller():
