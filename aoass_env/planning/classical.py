@@ -13,11 +13,11 @@ follower (blocked waypoints skipped, detours around static obstacles). The publi
 Choices of this implementation (docs/planning.md, "Classical sweep paths"):
 
 * Resolution: the square spiral's pass spacing ``d`` (:func:`config_spacing`), so the paths are
-  compared at the same resolution; for SCAN and the Z-curve at most :func:`covering_cell`
-  (below). A side of extent ``E`` is cut into ``n = ceil(E / d)`` equal cells of side
-  ``E / n <= d``; passes (and cell centres) lie at the cell centres, the first one half a cell
-  from the edge, clipped to the edge margin.
-* HILBERT: order ``k``, the smallest with ``max(width, height) / 2**k <= d``.
+  compared at the same resolution; for SCAN, HILBERT and the Z-curve at most
+  :func:`covering_cell` (below). A side of extent ``E`` is cut into ``n = ceil(E / d)`` equal
+  cells of side ``E / n <= d``; passes (and cell centres) lie at the cell centres, the first one
+  half a cell from the edge, clipped to the edge margin.
+* HILBERT: order ``k``, the smallest with ``max(width, height) / 2**k <= d`` (that ``d``).
 * CIRCLES: circles at the cell-centre radii of the shorter side (the outermost half a cell from
   the edge), inside out, joined by radial links along the +x axis, continued outwards (clipped
   to the margin-clipped field) while the corners need them (below); a last rectangular ring on
@@ -36,14 +36,18 @@ about 110-115 m (SCAN, Z-curve) and 160-170 m (CIRCLES), depending on the sample
 grid (R = 25 m, Δs = 2 m, 1.5 m margin). The rules, which leave the default 100 m paths
 unchanged:
 
-* SCAN and the Z-curve visit every cell centre, and every visited centre has a beacon within
-  ``Δs`` of it. The farthest point of the field from its third-nearest non-collinear centres
-  (two of the first row or column, one of the second, 3c/2 in) is a field corner or a border
-  point midway between two columns, ``sqrt(max(c/2, margin)**2 + (3c/2)**2)`` away; so the cell
-  side ``c`` is at most :func:`covering_cell`, where that distance is ``R - Δs``:
-  ``c <= 2 (R - Δs) / sqrt(10)``, 14.55 m (the 100 m field's 14.29 m cells are unchanged; the
-  200 m field's 18.18 m cells put SCAN's second pass 27.3 m from the border, beyond ``R``, and
-  left the Z-curve's corners with one line in reach, and get 14.29 m).
+* SCAN, HILBERT and the Z-curve visit every cell centre, and every visited centre has a beacon
+  within ``Δs`` of it. The farthest point of the field from its third-nearest non-collinear
+  centres (two of the first row or column, one of the second, 3c/2 in) is a field corner or a
+  border point midway between two columns, ``sqrt(max(c/2, margin)**2 + (3c/2)**2)`` away; so
+  the cell side ``c`` is at most :func:`covering_cell`, where that distance is ``R - Δs``:
+  ``c <= 2 (R - Δs) / sqrt(10)``, 14.55 m (the 100 m field's 14.29 m cells are unchanged; the 200 m
+  field's 18.18 m cells put SCAN's second pass 27.3 m from the border, beyond ``R``, and left
+  the Z-curve's corners with one line in reach, and get 14.29 m). HILBERT's cells halve with its
+  order, so the rule raises the order by one where ``max(w, h) / 2**k`` at the spiral's spacing
+  exceeds it, doubling the path: at 137 m (17.1 m cells, 11 sample points of the border and a
+  5 m grid uncovered) and 250-300 m at R = 25 m (300 m: 18.75 m cells, 23 points), and at 150 and
+  300 m at R = 15 m; at 100, 150 and 200 m (12.5, 9.4 and 12.5 m cells) it keeps its order.
 * CIRCLES: a border point hears two beacons of the ring's perpendicular side only within
   ``x_L = margin + sqrt(R**2 - (margin + 2 Δs)**2)`` of a corner, and two beacons of a circle
   within ``a = sqrt(R**2 - Δs**2)`` of it. The circles continue outwards at the same spacing,
@@ -380,7 +384,7 @@ CLASSICAL_METHODS: dict[str, PlannedMethod] = {
         PlannedMethod(name="double-scan", label="DOUBLE-SCAN", source=_KOUTSONIKOLAS,
                       plan=_at_spiral_spacing(double_scan_vertices)),
         PlannedMethod(name="hilbert", label="HILBERT", source=_KOUTSONIKOLAS,
-                      plan=_at_spiral_spacing(hilbert_vertices)),
+                      plan=_at_spiral_spacing(hilbert_vertices, covering=True)),
         PlannedMethod(name="circles", label="CIRCLES",
                       source="Huang & Zaruba, PerCom Workshops 2007",
                       plan=_plan_circles),

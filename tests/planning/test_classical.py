@@ -237,15 +237,16 @@ def _eq18_covered(method: str, size: float, config: AOASSConfig) -> np.ndarray:
     return net.covered
 
 
-@pytest.mark.parametrize("method", ["scan", "circles", "z-curve"])
+@pytest.mark.parametrize("method", ["scan", "hilbert", "circles", "z-curve"])
 @pytest.mark.parametrize(("size", "radio_range"), [
     (60, 25), (100, 25), (137, 25), (150, 25), (200, 25), (250, 25), (300, 25), (100, 15),
-    (300, 40)])
+    (150, 15), (300, 40)])
 def test_the_whole_empty_field_of_any_size_is_eq18_covered(method, size, radio_range):
     """Like the spiral, the paths cover the empty field of any size. At the spiral's spacing
     alone, SCAN, CIRCLES and the Z-curve left border strips or corners hearing a single line
     on fields from about 110 m (200 m, R = 25 m: 2.5 %, 1.6 % and 23 points of a 1 m grid;
-    docs/planning.md, "Classical sweep paths")."""
+    docs/planning.md, "Classical sweep paths"), and HILBERT at 137 m (11 of these sample
+    points), 300 m (23) and at 150 m for R = 15 m (1)."""
     config = AOASSConfig(field_size=size, radio_range=radio_range)
     covered = _eq18_covered(method, float(size), config)
     assert covered.all(), f"{(~covered).sum()} of {len(covered)} sample points uncovered"
@@ -341,12 +342,14 @@ def test_continued_circles_stay_in_the_clipped_field_and_reach_the_corner_radius
 
 def test_the_default_100_m_paths_are_unchanged():
     """At the default 100 m config the coverage rules add nothing: SCAN and the Z-curve keep
-    the spiral-spacing cells (N = 7: covering_cell's 14.55 m >= C = 14.29 m) and CIRCLES its
-    inscribed circles (the largest, 42.86 m, beyond corner_radius's 30.6 m): the waypoints are
-    those of the pure geometry at the spiral's spacing, as before the rules."""
+    the spiral-spacing cells (N = 7: covering_cell's 14.55 m >= C = 14.29 m), HILBERT its
+    order 3 (12.5 m cells) and CIRCLES its inscribed circles (the largest, 42.86 m, beyond
+    corner_radius's 30.6 m): the waypoints are those of the pure geometry at the spiral's
+    spacing, as before the rules. HILBERT keeps its order on fig3's 200 m field too."""
     assert corner_radius(L, L, M, CONFIG.radio_range, CONFIG.beacon_interval) < 3 * C
     for method, fn, n_waypoints, length in [
             ("scan", scan_vertices, 350, N * (L - C) + (N - 1) * C),       # 685.71 m
+            ("hilbert", hilbert_vertices, 442, 787.5),
             ("circles", circles_vertices, 531, 974.4426280458059),
             ("z-curve", z_curve_vertices, 535, 992.7286125557047)]:
         path = CLASSICAL_METHODS[method].plan(EMPTY, CONFIG)
@@ -354,6 +357,11 @@ def test_the_default_100_m_paths_are_unchanged():
             path.waypoints, polyline_path(fn(L, L, D, M), CONFIG.path_step).waypoints)
         assert len(path.waypoints) == n_waypoints
         assert path.arc_length[-1] == pytest.approx(length, rel=1e-12)
+    config = AOASSConfig(field_size=200.0)
+    path = CLASSICAL_METHODS["hilbert"].plan(ObstacleMap(200.0, 200.0), config)
+    np.testing.assert_array_equal(path.waypoints, polyline_path(hilbert_vertices(
+        200.0, 200.0, config_spacing(config, 200.0, 200.0), M), config.path_step).waypoints)
+    assert path.arc_length[-1] == pytest.approx(255 * 12.5)          # order 4
 
 
 @pytest.mark.parametrize("method", list(CLASSICAL_METHODS))
