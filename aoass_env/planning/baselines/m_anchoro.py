@@ -15,9 +15,10 @@ a full-coverage path, remove redundant beacon points); the details are ours (doc
    free space at its own clearance,
    :func:`~aoass_env.planning.baselines.common.main_free_part`); candidate points every
    ``a/2`` along the boundary of that dilated region, where the follower reaches them, are
-   added
-   greedily (most uncovered samples first) while they restore triple coverage of free sample
-   points (:func:`restore_coverage`).
+   added greedily (most uncovered samples first) while they restore triple coverage of free
+   sample points (:func:`restore_coverage`): a candidate is kept when it covers a sample or
+   gives an uncovered sample that hears fewer than three points one more, so coverage that
+   needs several new points at once is built up (step 4 removes what did not lead to it).
 3. SCAN: points are grouped by the nearest lattice row and visited row by row, alternating
    direction (boustrophedon); consecutive points without a straight collision-free link are
    joined by the shortest detour (same clearance) of
@@ -131,23 +132,28 @@ def restore_coverage(points: np.ndarray, candidates: np.ndarray, heard: np.ndarr
                      heard_candidates: np.ndarray, config: AOASSConfig) -> np.ndarray:
     """Indices into ``candidates`` (C, 2) to add to ``points`` (P, 2) (m), greedily: each round
     the candidate heard by the most still-uncovered samples is tried and kept when the number
-    of covered samples grows; ends when no untried candidate hears an uncovered sample.
-    ``heard`` (P, S) and ``heard_candidates`` (C, S) are the hearing matrices."""
+    of covered samples grows or when an uncovered sample that hears fewer than three points
+    hears it (coverage that needs two or three new points at once, as where obstacles leave a
+    sample no lattice point, is built up; kept only on completing a sample, the restoration
+    stopped there and left dense maps mostly uncovered); ends when no untried candidate hears
+    an uncovered sample. ``heard`` (P, S) and ``heard_candidates`` (C, S) are the hearing
+    matrices."""
     added: list[int] = []
     tried = np.zeros(len(candidates), dtype=bool)
     pts, hrd = np.asarray(points).reshape(-1, 2), heard
     covered = triple_covered(pts, hrd, config)
+    hears = hrd.sum(axis=0)
     while True:
         gain = np.where(tried, -1, (heard_candidates & ~covered).sum(axis=1))
         if len(gain) == 0 or gain.max() <= 0:
             return np.array(added, dtype=np.int64)
         best = int(np.argmax(gain))
         tried[best] = True
-        trial = triple_covered(np.vstack([pts, candidates[best]]),
-                               np.vstack([hrd, heard_candidates[best]]), config)
-        if trial.sum() > covered.sum():
-            pts, hrd, covered = np.vstack([pts, candidates[best]]), \
-                np.vstack([hrd, heard_candidates[best]]), trial
+        row = heard_candidates[best]
+        trial = triple_covered(np.vstack([pts, candidates[best]]), np.vstack([hrd, row]), config)
+        if trial.sum() > covered.sum() or (row & ~covered & (hears < 3)).any():
+            pts, hrd, covered = np.vstack([pts, candidates[best]]), np.vstack([hrd, row]), trial
+            hears = hears + row
             added.append(best)
 
 
