@@ -104,6 +104,8 @@ def test_a_given_path_is_swept_instead_of_the_spiral():
     np.testing.assert_allclose(sim.world.position, first_free, atol=1e-9)
     log = sim.run()
     assert np.linalg.norm(log.anchor_path[-1, 1:] - [35.0, 35.0]) < 1.0
+    np.testing.assert_array_equal(sim.path.waypoints, path.waypoints)
+    assert sim.path.length == path.length
     assert sim.path.nominal_time(config.anchor_nominal_speed) == pytest.approx(
         path.length / config.anchor_nominal_speed)
 

@@ -17,7 +17,8 @@ Choices of this implementation (docs/planning.md, "Classical sweep paths"):
   :func:`covering_cell` (below). A side of extent ``E`` is cut into ``n = ceil(E / d)`` equal
   cells of side ``E / n <= d``; passes (and cell centres) lie at the cell centres, the first one
   half a cell from the edge, clipped to the edge margin.
-* HILBERT: order ``k``, the smallest with ``max(width, height) / 2**k <= d`` (that ``d``).
+* HILBERT: order ``k``, the smallest with ``max(width, height) / 2**k <= d`` (``d`` as bounded
+  above).
 * CIRCLES: circles at the cell-centre radii of the shorter side (the outermost half a cell from
   the edge), inside out, joined by radial links along the +x axis, continued outwards (clipped
   to the margin-clipped field) while the corners need them (below); a last rectangular ring on
@@ -46,8 +47,9 @@ unchanged:
   the Z-curve's corners with one line in reach, and get 14.29 m). HILBERT's cells halve with its
   order, so the rule raises the order by one where ``max(w, h) / 2**k`` at the spiral's spacing
   exceeds it, doubling the path: at 137 m (17.1 m cells, 11 sample points of the border and a
-  5 m grid uncovered) and 250-300 m at R = 25 m (300 m: 18.75 m cells, 23 points), and at 150 and
-  300 m at R = 15 m; at 100, 150 and 200 m (12.5, 9.4 and 12.5 m cells) it keeps its order.
+  5 m grid uncovered) and 250-300 m at R = 25 m (300 m: 18.75 m cells, 23 points), for
+  example, and at 137, 150 and 300 m at R = 15 m, 200 m at R = 40 m; at the defaults on the
+  100, 150 and 200 m fields (12.5, 9.4 and 12.5 m cells) it keeps its order.
 * CIRCLES: a border point hears two beacons of the ring's perpendicular side only within
   ``x_L = margin + sqrt(R**2 - (margin + 2 Δs)**2)`` of a corner, and two beacons of a circle
   within ``a = sqrt(R**2 - Δs**2)`` of it. The circles continue outwards at the same spacing,

@@ -240,7 +240,7 @@ def _eq18_covered(method: str, size: float, config: AOASSConfig) -> np.ndarray:
 @pytest.mark.parametrize("method", ["scan", "hilbert", "circles", "z-curve"])
 @pytest.mark.parametrize(("size", "radio_range"), [
     (60, 25), (100, 25), (137, 25), (150, 25), (200, 25), (250, 25), (300, 25), (100, 15),
-    (150, 15), (300, 40)])
+    (137, 15), (150, 15), (200, 40), (300, 40)])
 def test_the_whole_empty_field_of_any_size_is_eq18_covered(method, size, radio_range):
     """Like the spiral, the paths cover the empty field of any size. At the spiral's spacing
     alone, SCAN, CIRCLES and the Z-curve left border strips or corners hearing a single line

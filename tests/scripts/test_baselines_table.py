@@ -37,4 +37,3 @@ def test_measured_row_names_the_map_and_the_planned_length():
 def test_an_unknown_table_is_refused_in_one_line(capsys, monkeypatch):
     assert refused(capsys, monkeypatch, "baselines_table", "--table", "otpp").startswith(
         "argument --table: invalid choice: 'otpp'")
-

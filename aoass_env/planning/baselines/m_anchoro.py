@@ -133,11 +133,12 @@ def restore_coverage(points: np.ndarray, candidates: np.ndarray, heard: np.ndarr
     """Indices into ``candidates`` (C, 2) to add to ``points`` (P, 2) (m), greedily: each round
     the candidate heard by the most still-uncovered samples is tried and kept when the number
     of covered samples grows or when an uncovered sample that hears fewer than three points
-    hears it (coverage that needs two or three new points at once, as where obstacles leave a
-    sample no lattice point, is built up; kept only on completing a sample, the restoration
-    stopped there and left dense maps mostly uncovered); ends when no untried candidate hears
-    an uncovered sample. ``heard`` (P, S) and ``heard_candidates`` (C, S) are the hearing
-    matrices."""
+    hears it, so coverage that needs two or three new points at once (a sample no lattice point
+    reaches) is built up; ends when no untried candidate hears an uncovered sample. (Fewer
+    than two would do where two heard points are far apart: a third off their line covers the
+    sample and is kept for that; three leaves slack for points nearly on a line, and on fresh
+    maps gave the same coverage or more.) ``heard`` (P, S) and ``heard_candidates`` (C, S) are
+    the hearing matrices; :func:`prune` removes the points that led to no coverage."""
     added: list[int] = []
     tried = np.zeros(len(candidates), dtype=bool)
     pts, hrd = np.asarray(points).reshape(-1, 2), heard
@@ -160,9 +161,9 @@ def restore_coverage(points: np.ndarray, candidates: np.ndarray, heard: np.ndarr
 def prune(points: np.ndarray, heard: np.ndarray, config: AOASSConfig) -> np.ndarray:
     """Mask (P,) of the points kept after greedy removal of redundant ones: a point (fewest
     hearing samples first) goes when every sample it helped cover still hears >= 3
-    non-collinear kept points. When no sample is covered (a dense map where no free spot hears
-    three lattice points) nothing is pruned: there is no coverage to preserve, and removing
-    every point would leave no path."""
+    non-collinear kept points. When no sample is covered (a map so dense that even the restored
+    points cover no free spot) nothing is pruned: there is no coverage to preserve, and
+    removing every point would leave no path."""
     pts = np.asarray(points).reshape(-1, 2)
     keep = np.ones(len(pts), dtype=bool)
     covered = triple_covered(pts, heard, config)
