@@ -1,19 +1,25 @@
 """Regenerate docs/results.md: run the benchmark presets and fill the page's template.
 
-Run: ``python3 scripts/make_results.py [--workers W] [--skip-runs | --presets P ...]``
+Run: ``python3 scripts/make_results.py [--workers W] [--skip-runs | [--presets P ...]
+[--rerun M ...]]``
 
 1. Runs ``evaluate.py --preset P --seeds S`` for each preset of :data:`SEEDS` (or only those of
-   ``--presets``) into ``out/P``. The sweeps resume: episodes already in ``out/P/episodes.csv``
-   are not run again, so an interrupted regeneration continues where it stopped; the episodes
-   of a method whose config defaults or checkpoints changed since they ran are dropped and run
-   again (``--discard-changed``), those of the other methods kept.
+   ``--presets``) into ``docs/results-data/P`` (:data:`DATA`, committed with the page, so that
+   the page can be checked and rebuilt without running an episode, and a regeneration that a
+   session could not finish resumes on another machine). The sweeps resume: episodes already in
+   ``P/episodes.csv`` are not run again, so an interrupted regeneration continues where it
+   stopped; the episodes of a method whose config defaults or checkpoints changed since they
+   ran are dropped and run again (``--discard-changed``), those of the other methods kept;
+   ``--rerun M ...`` drops the episodes of methods whose code changed (no digest sees that).
 2. Reads the episodes back (only the seeds of :data:`SEEDS`, so a folder that holds more seeds
    gives the same page; the figures are drawn from the same rows) and the wall times that
-   ``evaluate.py`` recorded in ``out/P/runs.jsonl``. The ``robustness`` preset is optional: a
+   ``evaluate.py`` recorded in ``P/runs.jsonl``. The ``robustness`` preset is optional: a
    page built without its folder says that it was not run.
 3. Draws the figures to ``docs/figures/results_<preset>.png`` and writes docs/results.md from
    ``scripts/results_template.md``: every ``$name`` there is a table, a figure's path or a
-   number computed here (:func:`page_values`), so no number on the page is typed by hand.
+   number computed here (:func:`page_values`), so no number on the page is typed by hand
+   (tests/scripts/test_make_results.py rebuilds the page's text from :data:`DATA` and checks
+   that it is the committed page).
 """
 
 from __future__ import annotations
@@ -42,7 +48,7 @@ from aoass_env.evaluation.report import (
     paired_stats,
     robustness_markdown,
 )
-from aoass_env.evaluation.store import EvaluationError, read_episodes, read_runs
+from aoass_env.evaluation.store import EpisodeStore, EvaluationError, read_episodes, read_runs
 from aoass_env.evaluation.sweep import PRESETS, ROBUSTNESS_EPISODE_SEED_BASE, episode_jobs
 from aoass_env.validators import argparse_number
 
@@ -50,6 +56,14 @@ ROOT = Path(__file__).resolve().parents[1]
 TEMPLATE = Path(__file__).with_name("results_template.md")
 PAGE = ROOT / "docs" / "results.md"
 FIGURES = ROOT / "docs" / "figures"
+#: The presets' episodes behind the page, one folder per preset (``evaluate.py``'s output).
+DATA = ROOT / "docs" / "results-data"
+
+
+def _shown(path: Path) -> str:
+    """``path`` as the page names it: relative to the repository's root."""
+    return path.relative_to(ROOT).as_posix()
+
 
 #: Seeds per grid point of each preset on the page (the presets' default is 30 for the figures'
 #: grids, 50 maps per density for robustness; see the page).
@@ -87,6 +101,27 @@ def run_presets(out: Path, seeds: dict[str, int], workers: int | None) -> None:
         if status != 0:
             sys.exit(f"evaluate.py {' '.join(argv)} exited with {status}; fix it and run "
                      f"this script again (finished episodes are kept)")
+
+
+def drop_methods(out: Path, presets: list[str], methods: list[str]) -> None:
+    """Drop the episodes of ``methods`` from the folders of ``presets`` in ``out`` (each file
+    rewritten atomically), so that the presets' next run plays them again after a change of
+    the methods' code (``--discard-changed`` does it for a changed config default or
+    checkpoint, which ``inputs.json`` records; no digest records the code); exits naming an
+    unknown method."""
+    try:
+        select_methods(methods)
+    except EvaluationError as exc:
+        sys.exit(f"--rerun: {exc}")
+    for preset in presets:
+        path = out / preset / "episodes.csv"
+        if not path.is_file():
+            continue
+        with EpisodeStore(path) as store:
+            before = len(store.rows)
+            store.discard(lambda row: row["method"] in methods)
+        print(f"--rerun: dropped {before - len(store.rows)} rows of {', '.join(methods)} from "
+              f"{path}", flush=True)
 
 
 def _side(value: float, bound: float) -> int:
@@ -350,7 +385,7 @@ def _wall(name: str, rows: Rows, runs: list[dict[str, Any]]) -> str:
     text = f"{episodes} episodes; {seconds:.0f} s of wall time on {where} for {timed} episode runs"
     if timed < episodes:
         text += (f" (the others ran before evaluate.py recorded its runs in "
-                 f"`out/{name}/runs.jsonl`)")
+                 f"`{_shown(DATA / name / 'runs.jsonl')}`)")
     return text
 
 
@@ -360,7 +395,8 @@ def robustness_values(rows: Rows | None, runs: list[dict[str, Any]], seeds: int
     ``$robustness_tables`` of the page; ``rows`` None or empty: the preset was not run."""
     name, command = "robustness", "python3 scripts/make_results.py --presets robustness"
     if not rows:
-        return {"robustness_text": f"**Not run for this page**: `out/{name}/episodes.csv` was "
+        return {"robustness_text": f"**Not run for this page**: "
+                                   f"`{_shown(DATA / name / 'episodes.csv')}` was "
                                    f"missing when it was built. `{command}` runs the preset "
                                    f"({seeds} maps per density) and rebuilds the page.",
                 "robustness_tables": "", "robustness_energy": ""}
@@ -472,46 +508,68 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--workers", type=argparse_number(int, 1),
                         help="evaluate.py --workers (default: all cores)")
-    parser.add_argument("--out", type=Path, default=ROOT / "out", help="the presets' folders")
+    parser.add_argument("--out", type=Path, default=DATA,
+                        help=f"the presets' folders (default: {_shown(DATA)})")
     parser.add_argument("--skip-runs", action="store_true",
                         help="only rebuild the page from the episodes already in --out")
     parser.add_argument("--presets", nargs="+", choices=list(SEEDS), metavar="P",
                         help=f"run only these presets ({', '.join(SEEDS)}; default: all), then "
                              f"rebuild the page from every preset's folder")
+    parser.add_argument("--rerun", nargs="+", metavar="M",
+                        help="first drop these methods' episodes from the presets' folders, so "
+                             "that they run again (after a change of their code)")
     args = parser.parse_args(argv)
-    if args.skip_runs and args.presets:
-        parser.error("--skip-runs runs no preset; --presets does not go with it")
+    if args.skip_runs and (args.presets or args.rerun):
+        parser.error("--skip-runs runs no preset; --presets and --rerun do not go with it")
     if not args.skip_runs:
-        run_presets(args.out, {p: SEEDS[p] for p in args.presets or SEEDS}, args.workers)
-    rows: dict[str, Rows | None] = {}
-    runs, figures = {}, {}
+        presets = args.presets or list(SEEDS)
+        if args.rerun:
+            drop_methods(args.out, presets, args.rerun)
+        run_presets(args.out, {p: SEEDS[p] for p in presets}, args.workers)
     only_optional = bool(args.presets) and set(args.presets) <= set(OPTIONAL)
-    for name, n in SEEDS.items():
-        folder = args.out / name
-        runs[name] = [r for r in read_runs(folder) if r.get("preset") == name]
-        if not (folder / "episodes.csv").is_file():
-            if name in OPTIONAL:
-                rows[name] = None
-                continue
-            if only_optional:       # rebuild the robustness section of the page alone
-                return _rebuild_section(args.out)
-            sys.exit(f"{folder / 'episodes.csv'} is missing: run this script without "
-                     f"--skip-runs")
-        rows[name] = preset_rows(folder, name, n)
-        if name not in FIGURE:
-            continue
+    if only_optional and any(not (args.out / name / "episodes.csv").is_file()
+                             for name in SEEDS if name not in OPTIONAL):
+        return _rebuild_section(args.out)       # rebuild the robustness section alone
+    rows, runs = read_presets(args.out)
+    figures = {}
+    for name in FIGURE:
         with tempfile.TemporaryDirectory() as tmp:
-            drawn = {p.name: p for p in draw_figures(rows[name], Path(tmp))}
+            drawn = {p.name: p for p in draw_figures(rows[name] or [], Path(tmp))}
             target = FIGURES / f"results_{name}.png"
             with atomic_open(target, "wb") as f:       # a kill leaves the old figure
                 f.write(drawn[FIGURE[name]].read_bytes())
         figures[name] = target.relative_to(PAGE.parent).as_posix()
-    values = page_values(rows, runs, SEEDS, figures)
-    page = string.Template(TEMPLATE.read_text(encoding="utf-8")).substitute(values)
-    page = page.rstrip("\n") + "\n"         # an empty last table leaves no blank tail
-    write_text_atomic(PAGE, page)
+    write_text_atomic(PAGE, page_text(rows, runs, figures))
     print(f"wrote {PAGE}")
     return 0
+
+
+def read_presets(out: Path) -> tuple[dict[str, Rows | None], dict[str, list[dict[str, Any]]]]:
+    """The rows (:func:`preset_rows`; None for an :data:`OPTIONAL` preset without episodes)
+    and the recorded runs of every preset of :data:`SEEDS` in ``out``; exits naming the file
+    when a needed preset's episodes are missing."""
+    rows: dict[str, Rows | None] = {}
+    runs = {}
+    for name, n in SEEDS.items():
+        folder = out / name
+        runs[name] = [r for r in read_runs(folder) if r.get("preset") == name]
+        if (folder / "episodes.csv").is_file():
+            rows[name] = preset_rows(folder, name, n)
+        elif name in OPTIONAL:
+            rows[name] = None
+        else:
+            sys.exit(f"{folder / 'episodes.csv'} is missing: run this script without "
+                     f"--skip-runs")
+    return rows, runs
+
+
+def page_text(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any]]],
+              figures: dict[str, str]) -> str:
+    """docs/results.md from the template, the presets' rows and runs (:func:`read_presets`)
+    and the figures' paths relative to the page."""
+    page = string.Template(TEMPLATE.read_text(encoding="utf-8")).substitute(
+        page_values(rows, runs, SEEDS, figures))
+    return page.rstrip("\n") + "\n"         # an empty last table leaves no blank tail
 
 
 def preset_rows(folder: Path, name: str, n: int) -> Rows:
@@ -540,7 +598,8 @@ def preset_rows(folder: Path, name: str, n: int) -> Rows:
 
 
 def _rebuild_section(out: Path) -> int:
-    """Rebuild only the robustness section of docs/results.md from ``out/robustness``."""
+    """Rebuild only the robustness section of docs/results.md from ``out``'s robustness
+    folder."""
     name, n = "robustness", SEEDS["robustness"]
     folder = out / name
     rows = preset_rows(folder, name, n) if (folder / "episodes.csv").is_file() else None

@@ -3,6 +3,7 @@
 import importlib.util
 import math
 import string
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -300,3 +301,47 @@ def test_a_preset_takes_its_grid_alone_and_stops_on_a_missing_point(tmp_path):
     with pytest.raises(SystemExit, match=rf"1 of the {len(fig4)} grid points of preset fig4 "
                                          rf"\(2 seeds\) have no episode"):
         make_results.preset_rows(tmp_path / "short", "fig4", 2)
+
+
+def test_the_committed_page_is_what_its_committed_episodes_give():
+    """docs/results.md is the template filled from the episodes committed beside it
+    (docs/results-data): no number on the page was typed or edited by hand, and the template
+    was not changed without rebuilding the page (``make_results.py --skip-runs``)."""
+    rows, runs = make_results.read_presets(make_results.DATA)
+    figures = {name: f"figures/results_{name}.png" for name in make_results.FIGURE}
+    for path in figures.values():
+        assert (make_results.PAGE.parent / path).is_file(), path
+    built = make_results.page_text(rows, runs, figures)
+    committed = make_results.PAGE.read_text(encoding="utf-8")
+    if built != committed:     # name the first line that differs, not a 40 kB diff
+        new, old = built.splitlines(), committed.splitlines()
+        at = next((i for i, (a, b) in enumerate(zip(new, old, strict=False)) if a != b),
+                  min(len(new), len(old)))
+        pytest.fail(f"docs/results.md line {at + 1} is not what its episodes give: "
+                    f"{old[at:at + 1]} against {new[at:at + 1]}; rebuild it with "
+                    f"`python3 scripts/make_results.py --skip-runs`")
+
+
+def test_rerun_drops_the_methods_episodes_before_the_run(monkeypatch, tmp_path):
+    """--rerun M drops M's rows from the chosen presets' folders (the other methods' stay), then
+    runs the presets; an unknown method is refused in one line naming the flag."""
+    rows = [{k: int(v) if isinstance(v, float) and v.is_integer() else v for k, v in r.items()}
+            for r in preset_rows("fig4", ENERGY, RMSE)]     # whole numbers as the CSV has them
+    for name in ("fig4", "quick"):
+        with make_results.EpisodeStore(tmp_path / name / "episodes.csv") as store:
+            store.append(rows)
+
+    def methods(preset: str) -> Counter:
+        return Counter(r["method"] for r in
+                       make_results.read_episodes(tmp_path / preset / "episodes.csv"))
+
+    seen = []
+    monkeypatch.setattr(make_results, "run_presets",
+                        lambda out, seeds, workers: seen.append((dict(seeds), methods("fig4"))))
+    with pytest.raises(SystemExit, match="quick"):   # the page then needs the other presets
+        make_results.main(["--presets", "fig4", "--rerun", "spiral", "--out", str(tmp_path)])
+    per_method = len(rows) // len(METHODS)
+    assert seen == [({"fig4": 30}, Counter({m: per_method for m in METHODS if m != "spiral"}))]
+    assert methods("quick") == Counter({m: per_method for m in METHODS})    # not chosen: kept
+    with pytest.raises(SystemExit, match="--rerun: unknown method.*'spirl'.*valid:"):
+        make_results.main(["--rerun", "spirl", "--out", str(tmp_path)])
