@@ -33,7 +33,7 @@ NOT_AT_FLOOR = {"torch": Version("2.13.0")}
 
 # The module each distribution is imported as, where the two names differ.
 MODULES = {"pyyaml": "yaml", "scikit-fuzzy": "skfuzzy", "stable-baselines3": "stable_baselines3",
-           "sb3-contrib": "sb3_contrib"}
+           "sb3-contrib": "sb3_contrib", "pytest-xdist": "xdist"}
 
 
 def _requirements() -> list[Requirement]:
