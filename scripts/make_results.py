@@ -531,15 +531,12 @@ def main(argv: list[str] | None = None) -> int:
                              for name in SEEDS if name not in OPTIONAL):
         return _rebuild_section(args.out)       # rebuild the robustness section alone
     rows, runs = read_presets(args.out)
-    figures = {}
     for name in FIGURE:
         with tempfile.TemporaryDirectory() as tmp:
-            drawn = {p.name: p for p in draw_figures(rows[name] or [], Path(tmp))}
-            target = FIGURES / f"results_{name}.png"
-            with atomic_open(target, "wb") as f:       # a kill leaves the old figure
+            drawn = {p.name: p for p in draw_figures(rows[name], Path(tmp))}
+            with atomic_open(figure_file(name), "wb") as f:     # a kill leaves the old figure
                 f.write(drawn[FIGURE[name]].read_bytes())
-        figures[name] = target.relative_to(PAGE.parent).as_posix()
-    write_text_atomic(PAGE, page_text(rows, runs, figures))
+    write_text_atomic(PAGE, page_text(rows, runs))
     print(f"wrote {PAGE}")
     return 0
 
@@ -563,10 +560,15 @@ def read_presets(out: Path) -> tuple[dict[str, Rows | None], dict[str, list[dict
     return rows, runs
 
 
-def page_text(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any]]],
-              figures: dict[str, str]) -> str:
-    """docs/results.md from the template, the presets' rows and runs (:func:`read_presets`)
-    and the figures' paths relative to the page."""
+def figure_file(name: str) -> Path:
+    """Where the page's figure of preset ``name`` (:data:`FIGURE`) is drawn."""
+    return FIGURES / f"results_{name}.png"
+
+
+def page_text(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any]]]) -> str:
+    """docs/results.md from the template and the presets' rows and runs
+    (:func:`read_presets`), its figures at :func:`figure_file`."""
+    figures = {name: figure_file(name).relative_to(PAGE.parent).as_posix() for name in FIGURE}
     page = string.Template(TEMPLATE.read_text(encoding="utf-8")).substitute(
         page_values(rows, runs, SEEDS, figures))
     return page.rstrip("\n") + "\n"         # an empty last table leaves no blank tail

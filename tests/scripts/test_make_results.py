@@ -308,10 +308,9 @@ def test_the_committed_page_is_what_its_committed_episodes_give():
     (docs/results-data): no number on the page was typed or edited by hand, and the template
     was not changed without rebuilding the page (``make_results.py --skip-runs``)."""
     rows, runs = make_results.read_presets(make_results.DATA)
-    figures = {name: f"figures/results_{name}.png" for name in make_results.FIGURE}
-    for path in figures.values():
-        assert (make_results.PAGE.parent / path).is_file(), path
-    built = make_results.page_text(rows, runs, figures)
+    for name in make_results.FIGURE:
+        assert make_results.figure_file(name).is_file(), name
+    built = make_results.page_text(rows, runs)
     committed = make_results.PAGE.read_text(encoding="utf-8")
     if built != committed:     # name the first line that differs, not a 40 kB diff
         new, old = built.splitlines(), committed.splitlines()
