@@ -9,7 +9,7 @@ key                 shape, dtype     meaning
 ==================  ===============  ====================================================
 version             (), int          schema version (1)
 config_json         (), str          full config, seed and method name as a JSON object
-field               (2,), float      field width, height [m]
+field               (2,), float      field width, height [m], each in (0, 2000]
 obstacle_vertices   (V, 2), float    all polygon vertices, concatenated [m]
 obstacle_offsets    (P+1,), int      polygon p is ``obstacle_vertices[off[p]:off[p+1]]``
 nodes               (N, 2), float    true node positions [m]
@@ -80,6 +80,10 @@ _KINDS = {"int": ("iu", np.int64, "an integer"), "float": ("fiu", np.float64, "a
 #: How far (a fraction of the field's width and height) a recorded position may lie outside
 #: the field before a log is refused as impossible.
 FIELD_TOLERANCE = 0.01
+#: The largest field side (m) a log may have: AOASSConfig's bound on ``field_size``, the side of
+#: every field an episode is recorded on.
+MAX_FIELD = next(f.metadata["high"] for f in dataclasses.fields(AOASSConfig)
+                 if f.name == "field_size")
 
 
 class BeaconLogError(ValueError):
@@ -194,6 +198,9 @@ class BeaconLog:
         _parse_config(str(values["config_json"]))
         if not np.all(values["field"] > 0):
             raise BeaconLogError("width and height must be positive", "field")
+        if np.any(values["field"] > MAX_FIELD):
+            raise BeaconLogError(f"width and height must be at most {MAX_FIELD:g} m (the largest "
+                                 f"field_size), got {values['field'].tolist()}", "field")
         obstacle_map = self._obstacles(values["field"], values["obstacle_vertices"],
                                        values["obstacle_offsets"])
         n, b = dims["N"], dims["B"]

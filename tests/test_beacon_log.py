@@ -160,6 +160,8 @@ CORRUPTIONS = [
     ("config_json", np.int64(5), "dtype"),
     ("field", np.array([20.0]), "expected (2,)"),
     ("field", np.array([20.0, -1.0]), "positive"),
+    # a float-maximum field overflowed the positions' bound to inf and loaded
+    ("field", np.array([20.0, 1e308]), "at most 2000 m"),
     ("field", np.array([np.nan, 1.0]), "non-finite"),
     ("obstacle_vertices", np.zeros((10, 3)), "expected (V, 2)"),
     ("obstacle_vertices", np.full((10, 2), np.inf), "non-finite"),
