@@ -3,13 +3,13 @@
 With ``--adaptive``, the adaptive policy against the hand-written rule (the adaptive action
 type's zero action, issue 19: a higher return, energy no higher, coverage within 0.5 point).
 
-On the shipped 100 m test maps of densities 0.1-0.4, ``--seeds`` seeds per density (each seed a
-test map of that density in turn, the same episodes for both), both policies drive the full
-stack (AOASS-Safe-v0). Per episode: the Eq. 14 return, η_traj (Eq. 19), node coverage
-(Eq. 18) and anchor contacts. Issue 6's criteria: a higher mean return, η_traj no lower,
-coverage no more than 1 point lower, no more contacts. Prints a table per density and overall
-(means, and the mean paired difference with its 95 % interval) and saves ``OUT/results.json``
-and ``OUT/episodes.csv``.
+On the shipped 100 m test maps of densities 0.1-0.4 (``--densities``: any of 0.1-0.6),
+``--seeds`` seeds per density (each seed a test map of that density in turn, the same episodes
+for both), both policies drive the full stack (AOASS-Safe-v0). Per episode: the Eq. 14 return,
+η_traj (Eq. 19), node coverage (Eq. 18) and anchor contacts. Issue 6's criteria: a higher mean
+return, η_traj no lower, coverage no more than 1 point lower, no more contacts. Prints a table
+per density and overall (means, and the mean paired difference with its 95 % interval) and saves
+``OUT/results.json`` and ``OUT/episodes.csv``.
 
 With ``--maps validation`` the episodes are on the validation split of the 100 m training maps
 instead (:func:`~aoass_env.maps.registry.validation_split`): the maps on which to choose between
@@ -57,6 +57,8 @@ from aoass_env.maps.registry import validation_split
 from aoass_env.validators import argparse_number
 
 DENSITIES = ("0.10", "0.20", "0.30", "0.40")
+#: The densities ``--densities`` may name: those of the shipped maps.
+ALL_DENSITIES = (*DENSITIES, "0.50", "0.60")
 #: An action entry at or beyond this magnitude counts as at its bound (``saturated``).
 SATURATED = 0.9
 METRICS = ("return", "eta_traj", "coverage", "energy", "contacts", "steps")
@@ -64,6 +66,17 @@ METRICS = ("return", "eta_traj", "coverage", "energy", "contacts", "steps")
 
 #: Prefix of a freshly generated map's name (``fresh/d0.30_s<SEED>_<s>``, :func:`fresh_map`).
 FRESH = "fresh/"
+
+
+def density_name(text: str) -> str:
+    """``--densities``' value ``text`` as a density's name (``"0.5"`` -> ``"0.50"``)."""
+    try:
+        name = f"{float(text):.2f}"
+    except ValueError:
+        name = ""
+    if name not in ALL_DENSITIES:
+        raise argparse.ArgumentTypeError(f"{text!r} is not one of {', '.join(ALL_DENSITIES)}")
+    return name
 
 
 def fresh_name(seed: int, density: str, index: int) -> str:
@@ -166,6 +179,10 @@ def main() -> None:
     parser.add_argument("--constant", metavar="A,B,...",
                         help="take this action at every decision instead of --model's (in "
                              "--model's stack)")
+    parser.add_argument("--densities", nargs="+", type=density_name, default=list(DENSITIES),
+                        metavar="D",
+                        help=f"the map densities, each one of {', '.join(ALL_DENSITIES)} "
+                             f"(default: {' '.join(DENSITIES)}, the policies' training range)")
     parser.add_argument("--localizer", choices=LOCALIZERS,
                         help="also localize every beacon log with this localizer and compare "
                              "the Eq. 15 RMSE")
@@ -190,8 +207,9 @@ def main() -> None:
     if args.fresh is not None and args.fresh < 0:
         parser.error(f"--fresh must be a non-negative seed, got {args.fresh}")
     metrics = METRICS + (("rmse",) if args.localizer else ())
+    densities = tuple(dict.fromkeys(args.densities))
     tasks = []
-    for d in DENSITIES:
+    for d in densities:
         if args.maps == "test":
             maps = list_maps("test", field_size=100, densities=(float(d), float(d)))
         elif args.maps == "fresh":
@@ -214,7 +232,7 @@ def main() -> None:
           "stack")
     print(f"{'density':8s} {'policy':7s} " + " ".join(f"{k:>9s}" for k in metrics))
     summary: dict = {}
-    for d in (*DENSITIES, "all"):
+    for d in (*densities, "all"):
         sel = [r for r in rows if d == "all" or r["density"] == d]
         summary[d] = {}
         for policy in ("agent", "zero"):

@@ -101,6 +101,8 @@ def test_a_fresh_map_is_the_generator_s_map_of_its_seed_density_and_index():
     (["--seeds", "0"], "argument --seeds: must be an integer >= 1, got '0'"),
     (["--jobs", "0"], "argument --jobs: must be an integer >= 1, got '0'"),
     (["--model", "README.md"], "README.md: no run.yml beside it"),
+    (["--densities", "0.7"], "--densities: '0.7' is not one of 0.10, 0.20, 0.30, 0.40, 0.50"),
+    (["--densities", "dense"], "--densities: 'dense' is not one of"),
 ])
 def test_fresh_flags_are_checked_before_any_episode(monkeypatch, capsys, argv, message):
     monkeypatch.setattr("sys.argv", ["agent_vs_spiral.py", "--adaptive", "--model",
@@ -109,3 +111,9 @@ def test_fresh_flags_are_checked_before_any_episode(monkeypatch, capsys, argv, m
     with pytest.raises(SystemExit):
         bench.main()
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text, name", [("0.5", "0.50"), ("0.10", "0.10"), (".6", "0.60")])
+def test_a_density_is_named_as_the_maps_name_it(text, name):
+    assert bench.density_name(text) == name
+
