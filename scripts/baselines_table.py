@@ -1,7 +1,7 @@
 """Regenerate the measured tables of docs/baselines.md: the reconstructed baselines on the
 shipped 100 m test maps.
 
-    python3 scripts/baselines_table.py [--table {measured,fdpp-budget,all}]
+    python3 scripts/baselines_table.py [--table {measured,fdpp-budget,otpp,all}]
 
 ``measured`` ("Measured behaviour"): OHM, FDPP, M-ANCHORO and OTPP, each on the first shipped
 100 m test map of every density 0.1-0.6, N = 100 nodes, seed 0, no moving obstacles, default
@@ -13,6 +13,11 @@ the planners are compared alone): the planned path (m, Eq. 19's ideal), the dist
 square spiral's length) on the same maps, seeds 0-2, default config with its moving obstacles:
 coverage per seed and their mean, the mean distance driven (m), contacts summed over the three
 episodes and wall seconds per episode.
+
+``otpp`` (OTPP's "Dense maps" and "Planning time" items): on the first shipped test map of every
+density 0.1-0.6, 100 m and 200 m, the sub-squares whose ``reg`` is not empty (Lemma 2's premise,
+``otpp.served_sub_squares``) out of those with free samples, and the wall seconds of OTPP's plan
+(``otpp.plan``) and of its beacon points alone (``otpp.beacon_points``; the rest is the links).
 
 Wall seconds depend on the machine and its load; every other number is the same on every run.
 """
@@ -27,8 +32,9 @@ import numpy as np
 
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation.methods import METHODS, RunOptions
-from aoass_env.maps import list_maps, load_map
-from aoass_env.planning.baselines import BASELINE_METHODS
+from aoass_env.maps import MAPS_DIR, list_maps, load_map
+from aoass_env.maps.text_format import read_map
+from aoass_env.planning.baselines import BASELINE_METHODS, otpp
 from aoass_env.planning.baselines.fdpp import FDPP, FDPPController
 from aoass_env.simulator import Simulator
 
@@ -40,9 +46,13 @@ BUDGETS = (1.0, 1.5)
 FDPP_SEEDS = (0, 1, 2)
 
 
-def first_test_map(density: float) -> str:
-    """The first shipped 100 m test map of ``density`` (its name)."""
-    return list_maps("test", field_size=100.0, densities=(density, density))[0]
+#: Field sides (m) of OTPP's table.
+OTPP_FIELDS = (100.0, 200.0)
+
+
+def first_test_map(density: float, field_size: float = 100.0) -> str:
+    """The first shipped test map of ``density`` and side ``field_size`` (m) (its name)."""
+    return list_maps("test", field_size=field_size, densities=(density, density))[0]
 
 
 def measured_rows(methods: Sequence[str] = tuple(BASELINE_METHODS),
@@ -96,10 +106,32 @@ def fdpp_budget_rows(densities: Sequence[float] = DENSITIES,
     return rows
 
 
+def otpp_rows(fields: Sequence[float] = OTPP_FIELDS,
+              densities: Sequence[float] = DENSITIES) -> list[str]:
+    """The rows of OTPP's table (markdown), one per map: sub-squares with a non-empty ``reg``
+    out of those with free samples, the wall seconds of the plan and of its beacon points, each
+    timed on the map read afresh (a map keeps what it derives: the region, the planner's grid)."""
+    rows = []
+    for field_size in fields:
+        config = AOASSConfig(field_size=field_size)
+        for density in densities:
+            name = first_test_map(density, field_size)
+            seconds = []
+            for step in (otpp.plan, otpp.beacon_points):
+                obstacle_map = read_map(MAPS_DIR / f"{name}.txt")
+                t0 = time.perf_counter()
+                step(obstacle_map, config)
+                seconds.append(time.perf_counter() - t0)
+            served, squares = otpp.served_sub_squares(load_map(name), config)
+            rows.append(f"| {name.removeprefix('test/')} | {served}/{squares} "
+                        f"| {seconds[0]:.2f} | {seconds[1]:.2f} |")
+    return rows
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--table", choices=("measured", "fdpp-budget", "all"), default="all",
-                        help="which table to print (default: all)")
+    parser.add_argument("--table", choices=("measured", "fdpp-budget", "otpp", "all"),
+                        default="all", help="which table to print (default: all)")
     args = parser.parse_args(argv)
     if args.table in ("measured", "all"):
         print("| method | map | planned (m) | path (m) | coverage | contacts | s/episode |")
@@ -114,6 +146,12 @@ def main(argv: list[str] | None = None) -> None:
               f"| contacts | s/ep | coverage {budgets[1]} | mean | path (m) | contacts | s/ep |")
         print("|---|---|---|---|---|---|---|---|---|---|---|")
         for row in fdpp_budget_rows():
+            print(row, flush=True)
+        print()
+    if args.table in ("otpp", "all"):
+        print("| map | sub-squares with reg | plan (s) | of it, beacon points (s) |")
+        print("|---|---|---|---|")
+        for row in otpp_rows():
             print(row, flush=True)
 
 

@@ -97,6 +97,19 @@ def test_one_obstacle_on_c0_is_tolerated(half, c0):
     assert len(pts) > 19                                                  # c0 moved several ways
 
 
+def test_served_sub_squares_counts_where_lemma_2s_premise_holds():
+    """An empty field and one obstacle on a c0 (the paper's assumption): every sub-square has a
+    point that every one of its samples hears. A 1 m wall across the field at y = 22 m splits
+    the samples of the four sub-squares of that row (y in 15.75-30 m) into two sides that no
+    point sees both of."""
+    assert otpp.served_sub_squares(ObstacleMap(60.0, 60.0), EMPTY_CONFIG) == (16, 16)
+    square = np.array([15.75, 44.25]) + 7.0 * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0],
+                                                         [-1.0, 1.0]])
+    assert otpp.served_sub_squares(ObstacleMap(60.0, 60.0, (square,)), EMPTY_CONFIG) == (16, 16)
+    wall = np.array([[3.0, 21.5], [57.0, 21.5], [57.0, 22.5], [3.0, 22.5]])
+    assert otpp.served_sub_squares(ObstacleMap(60.0, 60.0, (wall,)), EMPTY_CONFIG) == (12, 16)
+
+
 def test_vectorised_hearing_matches_the_radio():
     omap = load_map("test/d0.30_f100_s506")
     samples = m_anchoro.free_samples(omap, 3.0)

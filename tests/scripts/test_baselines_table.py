@@ -35,5 +35,14 @@ def test_measured_row_names_the_map_and_the_planned_length():
 
 
 def test_an_unknown_table_is_refused_in_one_line(capsys, monkeypatch):
-    assert refused(capsys, monkeypatch, "baselines_table", "--table", "otpp").startswith(
-        "argument --table: invalid choice: 'otpp'")
+    assert refused(capsys, monkeypatch, "baselines_table", "--table", "ohm").startswith(
+        "argument --table: invalid choice: 'ohm'")
+
+
+def test_otpp_row_names_the_map_and_counts_its_sub_squares():
+    script = load("baselines_table")
+    (row,) = script.otpp_rows((100.0,), (0.6,))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[:2] == ["d0.60_f100_s515", "0/36"]     # no sub-square of it has a reg
+    assert len(cells) == 4 and float(cells[2]) > 0 and float(cells[3]) > 0   # wall seconds
+

@@ -64,6 +64,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import NamedTuple
 
 import numpy as np
 import shapely
@@ -257,8 +258,19 @@ def _chain(points: list[np.ndarray], start: np.ndarray | None, end: np.ndarray |
     return [points[i] for i in min(itertools.permutations(range(len(points))), key=length)]
 
 
-def beacon_points(obstacle_map: ObstacleMap, config: AOASSConfig) -> np.ndarray:
-    """OTPP's beacon points (K, 2) (m) in Z/Morton order (steps 1-4 without the links)."""
+class _SubSquares(NamedTuple):
+    """What steps 1-3 share for one map: the Z's defaults and their grid nodes, the region the
+    points may move in, line of sight (None without it) and, per sub-square with free samples
+    in Z order, (sub-square, its three slots, its candidates' box, its samples)."""
+    defaults: np.ndarray
+    nodes: np.ndarray
+    region: shapely.Geometry
+    los: LineOfSight | None
+    squares: list[tuple[tuple[int, int], list[tuple[int, int]], tuple[float, ...], np.ndarray]]
+
+
+def _sub_squares(obstacle_map: ObstacleMap, config: AOASSConfig) -> _SubSquares:
+    """Steps 1-2 and the inputs of step 3 for every sub-square (module docstring)."""
     m, r = config.edge_margin, config.radio_range
     side = basic_square_side(r, m)
     hx, hy = (half_lines(e, side, m) for e in (obstacle_map.width, obstacle_map.height))
@@ -268,17 +280,39 @@ def beacon_points(obstacle_map: ObstacleMap, config: AOASSConfig) -> np.ndarray:
     samples = free_samples(obstacle_map)
     los = LineOfSight(obstacle_map) if config.line_of_sight else None
     owner = sub_square_of(samples, hx, hy)
-    default_at = {tuple(n): p for n, p in zip(nodes.tolist(), defaults, strict=True)}
-    chosen: dict[tuple[tuple[int, int], tuple[int, int]], np.ndarray] = {}
+    squares = []
     for sub in sorted({tuple(s) for s in owner.tolist()}):
-        slots = sub_square_slots(sub)
         reach = r - min(hx[sub[0] + 1] - hx[sub[0]], hy[sub[1] + 1] - hy[sub[1]]) \
             + SAMPLE_SPACING
         box = (hx[sub[0]] - reach, hy[sub[1]] - reach, hx[sub[0] + 1] + reach,
                hy[sub[1] + 1] + reach)
         mine = samples[(owner[:, 0] == sub[0]) & (owner[:, 1] == sub[1])]
-        points = choose_points(np.array([default_at[s] for s in slots]), mine, box, region,
-                               los, config)
+        squares.append((sub, sub_square_slots(sub), box, mine))
+    return _SubSquares(defaults, nodes, region, los, squares)
+
+
+def served_sub_squares(obstacle_map: ObstacleMap, config: AOASSConfig) -> tuple[int, int]:
+    """(sub-squares whose ``reg`` is not empty, sub-squares with free samples): how often
+    Lemma 2's premise holds on ``obstacle_map`` (some candidate serves every sample of the
+    sub-square); docs/baselines.md reports it per density
+    (``scripts/baselines_table.py --table otpp``)."""
+    shared = _sub_squares(obstacle_map, config)
+    served = sum(
+        bool(hearing_pairs(candidate_grid(box, shared.region), mine, shared.los,
+                           config.radio_range).all(axis=1).any())
+        for _, _, box, mine in shared.squares)
+    return served, len(shared.squares)
+
+
+def beacon_points(obstacle_map: ObstacleMap, config: AOASSConfig) -> np.ndarray:
+    """OTPP's beacon points (K, 2) (m) in Z/Morton order (steps 1-4 without the links)."""
+    shared = _sub_squares(obstacle_map, config)
+    defaults, nodes = shared.defaults, shared.nodes
+    default_at = {tuple(n): p for n, p in zip(nodes.tolist(), defaults, strict=True)}
+    chosen: dict[tuple[tuple[int, int], tuple[int, int]], np.ndarray] = {}
+    for sub, slots, box, mine in shared.squares:
+        points = choose_points(np.array([default_at[s] for s in slots]), mine, box,
+                               shared.region, shared.los, config)
         chosen.update({(sub, s): p for s, p in zip(slots, points, strict=True)
                        if not np.isnan(p).any()})
     ordered: list[np.ndarray] = []
