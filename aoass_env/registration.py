@@ -13,8 +13,9 @@
   the zero action is the hand-written rule.
 * ``AOASS-Adaptive-Train-v0`` (:func:`aoass_env.wrappers.make_training_env`): the adaptive
   policy's training setup (configs/aoass_adaptive.yml): ``AOASS-Adaptive-v0`` with the
-  training setup's decisions, scales and maps, and the sweep's rule the shipped adaptive
-  policy trained on (every field named, not ``AdaptiveConfig``'s defaults).
+  training setup's decisions, speed scale and maps, a ±5° heading residual, and the sweep's
+  rule the shipped adaptive policy trained on (every field named, not ``AdaptiveConfig``'s
+  defaults).
 
 None has a ``reward_threshold``: Eq. 14 has no level at which the task counts as solved
 (docs/env.md gives the reference returns instead).
@@ -58,6 +59,10 @@ ADAPTIVE_TRAIN_ENV_ID = "AOASS-Adaptive-Train-v0"
 _AGENT = {"action_repeat": 16, "action_heading_scale": round(math.pi / 12, 4), "n_nodes": 100}
 #: What makes a setup adaptive (configs/aoass_adaptive.yml).
 _ADAPTIVE = {"action_type": "adaptive", "obs_coverage_sectors": 8}
+#: The adaptive policy's heading corrections: at most ±π/36 rad (±5°), rounded as in
+#: configs/aoass_adaptive.yml (every trained policy holds that entry at a bound, and the offset
+#: it holds costs path: docs/adaptive.md).
+_ADAPTIVE_HEADING = round(math.pi / 36, 4)
 #: The sweep's rule the shipped adaptive policy trained on (configs/aoass_adaptive.yml's
 #: ``adaptive``: the site tour), every field named so that AdaptiveConfig's defaults changing
 #: later does not change it.
@@ -82,7 +87,8 @@ _IDS: dict[str, tuple[str, dict]] = {
     ADAPTIVE_ENV_ID: ("aoass_env.wrappers:make_safe_env", dict(_ADAPTIVE)),
     ADAPTIVE_TRAIN_ENV_ID: ("aoass_env.wrappers:make_training_env",
                             {"split": "train", "field_size": 100.0, "densities": [0.1, 0.4],
-                             **_AGENT, **_ADAPTIVE, "adaptive": dict(_ADAPTIVE_POLICY_RULE)}),
+                             **_AGENT, "action_heading_scale": _ADAPTIVE_HEADING, **_ADAPTIVE,
+                             "adaptive": dict(_ADAPTIVE_POLICY_RULE)}),
 }
 #: Every registered id.
 ENV_IDS = tuple(_IDS)
