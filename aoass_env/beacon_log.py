@@ -9,7 +9,7 @@ key                 shape, dtype     meaning
 ==================  ===============  ====================================================
 version             (), int          schema version (1)
 config_json         (), str          full config, seed and method name as a JSON object
-field               (2,), float      field width, height [m], each in (0, 2000]
+field               (2,), float      field width, height [m], each in (0, MAX_FIELD]
 obstacle_vertices   (V, 2), float    all polygon vertices, concatenated [m]
 obstacle_offsets    (P+1,), int      polygon p is ``obstacle_vertices[off[p]:off[p+1]]``
 nodes               (N, 2), float    true node positions [m]

@@ -116,4 +116,3 @@ def test_fresh_flags_are_checked_before_any_episode(monkeypatch, capsys, argv, m
 @pytest.mark.parametrize("text, name", [("0.5", "0.50"), ("0.10", "0.10"), (".6", "0.60")])
 def test_a_density_is_named_as_the_maps_name_it(text, name):
     assert bench.density_name(text) == name
-

@@ -45,4 +45,3 @@ def test_otpp_row_names_the_map_and_counts_its_sub_squares():
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert cells[:2] == ["d0.60_f100_s515", "0/36"]     # no sub-square of it has a reg
     assert len(cells) == 4 and float(cells[2]) > 0 and float(cells[3]) > 0   # wall seconds
-
