@@ -19,7 +19,9 @@ Run: ``python3 scripts/make_results.py [--workers W] [--skip-runs | [--presets P
    ``scripts/results_template.md``: every ``$name`` there is a table, a figure's path or a
    number computed here (:func:`page_values`), so no number on the page is typed by hand
    (tests/scripts/test_make_results.py rebuilds the page's text from :data:`DATA` and checks
-   that it is the committed page).
+   that it is the committed page). With ``--out`` another folder, the page and its figures are
+   written into that folder (``results.md``, ``figures/``) and name it: docs/results.md is
+   only ever the page of :data:`DATA`.
 """
 
 from __future__ import annotations
@@ -61,8 +63,28 @@ DATA = ROOT / "docs" / "results-data"
 
 
 def _shown(path: Path) -> str:
-    """``path`` as the page names it: relative to the repository's root."""
-    return path.relative_to(ROOT).as_posix()
+    """``path`` as the page names it: relative to the repository's root when inside it."""
+    path = path.resolve()
+    return path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else path.as_posix()
+
+
+def page_file(out: Path) -> Path:
+    """The page built from the presets' folder ``out``: docs/results.md for :data:`DATA`,
+    ``out/results.md`` for any other folder (the committed page names its data; a page built
+    from other episodes is written beside them, naming them)."""
+    return PAGE if out.resolve() == DATA else out / "results.md"
+
+
+def figure_file(name: str, out: Path = DATA) -> Path:
+    """Where the figure of preset ``name`` (:data:`FIGURE`) of the page of ``out`` is drawn:
+    docs/figures for :data:`DATA`, ``out/figures`` for any other folder."""
+    folder = FIGURES if out.resolve() == DATA else out / "figures"
+    return folder / f"results_{name}.png"
+
+
+def _out_flag(out: Path) -> str:
+    """The ``--out`` a command on the page of ``out`` needs (none for :data:`DATA`)."""
+    return "" if out.resolve() == DATA else f" --out {_shown(out)}"
 
 
 #: Seeds per grid point of each preset on the page (the presets' default is 30 for the figures'
@@ -373,9 +395,9 @@ def issue_table(fig2: Numbers, fig4: Numbers, robustness: Rows | None) -> str:
     return "\n".join(lines)
 
 
-def _wall(name: str, rows: Rows, runs: list[dict[str, Any]]) -> str:
+def _wall(name: str, rows: Rows, runs: list[dict[str, Any]], data: Path = DATA) -> str:
     """How long the preset took: the episodes on the page, and the wall time and episode runs
-    that evaluate.py recorded for the folder (`runs.jsonl`)."""
+    that evaluate.py recorded for its folder in ``data`` (`runs.jsonl`)."""
     episodes = len({(r["method"], r["map"], r["n_nodes"], r["seed"]) for r in rows})
     timed = sum(r.get("finished", 0) for r in runs)
     seconds = sum(r.get("wall_seconds", 0.0) for r in runs)
@@ -385,18 +407,20 @@ def _wall(name: str, rows: Rows, runs: list[dict[str, Any]]) -> str:
     text = f"{episodes} episodes; {seconds:.0f} s of wall time on {where} for {timed} episode runs"
     if timed < episodes:
         text += (f" (the others ran before evaluate.py recorded its runs in "
-                 f"`{_shown(DATA / name / 'runs.jsonl')}`)")
+                 f"`{_shown(data / name / 'runs.jsonl')}`)")
     return text
 
 
-def robustness_values(rows: Rows | None, runs: list[dict[str, Any]], seeds: int
-                      ) -> dict[str, str]:
+def robustness_values(rows: Rows | None, runs: list[dict[str, Any]], seeds: int,
+                      data: Path = DATA) -> dict[str, str]:
     """``$robustness_text`` (how the maps and seeds were made, the preset's wall time) and
-    ``$robustness_tables`` of the page; ``rows`` None or empty: the preset was not run."""
-    name, command = "robustness", "python3 scripts/make_results.py --presets robustness"
+    ``$robustness_tables`` of the page of the presets' folder ``data``; ``rows`` None or
+    empty: the preset was not run."""
+    name = "robustness"
+    command = f"python3 scripts/make_results.py --presets robustness{_out_flag(data)}"
     if not rows:
         return {"robustness_text": f"**Not run for this page**: "
-                                   f"`{_shown(DATA / name / 'episodes.csv')}` was "
+                                   f"`{_shown(data / name / 'episodes.csv')}` was "
                                    f"missing when it was built. `{command}` runs the preset "
                                    f"({seeds} maps per density) and rebuilds the page.",
                 "robustness_tables": "", "robustness_energy": ""}
@@ -409,7 +433,7 @@ def robustness_values(rows: Rows | None, runs: list[dict[str, Any]], seeds: int
     sizes = " / ".join(f"{f:g}" for f in sorted({r["field_size"] for r in rows}))
     nodes = " / ".join(str(n) for n in sorted({r["n_nodes"] for r in rows}))
     text = (f"`python3 evaluate.py --preset {name} --seeds {seeds}` (`{command}` reruns it "
-            f"alone and rebuilds this page): {_wall(name, rows, runs)}. {methods} methods, "
+            f"alone and rebuilds this page): {_wall(name, rows, runs, data)}. {methods} methods, "
             f"each on {count} freshly generated maps per density "
             f"({', '.join(f'{d:.1f}' for d in densities)}; {len(maps)} maps in all), "
             f"{sizes} m field, N = {nodes}, not localized. Map s of density d is "
@@ -429,10 +453,12 @@ def robustness_values(rows: Rows | None, runs: list[dict[str, Any]], seeds: int
 
 
 def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any]]],
-                seeds: dict[str, int], figures: dict[str, str]) -> dict[str, str]:
+                seeds: dict[str, int], figures: dict[str, str], data: Path = DATA
+                ) -> dict[str, str]:
     """Every ``$name`` of the template from the presets' rows and recorded runs (the rows of
-    an :data:`OPTIONAL` preset may be None: not run)."""
+    an :data:`OPTIONAL` preset may be None: not run) in the presets' folder ``data``."""
     values: dict[str, str] = {
+        "data": _shown(data), "out_flag": _out_flag(data),
         "paper_table": paper_table(Numbers(rows["fig2"]), Numbers(rows["fig3"]),
                                    Numbers(rows["fig4"])),
         "issue_table": issue_table(Numbers(rows["fig2"]), Numbers(rows["fig4"]),
@@ -440,10 +466,10 @@ def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any
         "paired_table": paired_table({name: rows.get(name) for name in
                                       ("fig2", "fig3", "fig4", "robustness")})}
     values.update(robustness_values(rows.get("robustness"), runs.get("robustness", []),
-                                    seeds.get("robustness", SEEDS["robustness"])))
+                                    seeds.get("robustness", SEEDS["robustness"]), data))
     for name in FIGURE:
         values[f"seeds_{name}"] = str(seeds[name])
-        values[f"wall_{name}"] = _wall(name, rows[name], runs[name])
+        values[f"wall_{name}"] = _wall(name, rows[name], runs[name], data)
         values[f"table_{name}"] = method_table(rows[name])
         values[f"figure_{name}"] = figures[name]
         per_method = Numbers(rows[name]).stat("spiral", "coverage")[0]
@@ -509,7 +535,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=argparse_number(int, 1),
                         help="evaluate.py --workers (default: all cores)")
     parser.add_argument("--out", type=Path, default=DATA,
-                        help=f"the presets' folders (default: {_shown(DATA)})")
+                        help=f"the presets' folders (default: {_shown(DATA)}, whose page is "
+                             f"{_shown(PAGE)}; another folder's page and figures are written "
+                             f"into it: results.md, figures/)")
     parser.add_argument("--skip-runs", action="store_true",
                         help="only rebuild the page from the episodes already in --out")
     parser.add_argument("--presets", nargs="+", choices=list(SEEDS), metavar="P",
@@ -534,10 +562,13 @@ def main(argv: list[str] | None = None) -> int:
     for name in FIGURE:
         with tempfile.TemporaryDirectory() as tmp:
             drawn = {p.name: p for p in draw_figures(rows[name], Path(tmp))}
-            with atomic_open(figure_file(name), "wb") as f:     # a kill leaves the old figure
+            figure = figure_file(name, args.out)
+            figure.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_open(figure, "wb") as f:     # a kill leaves the old figure
                 f.write(drawn[FIGURE[name]].read_bytes())
-    write_text_atomic(PAGE, page_text(rows, runs))
-    print(f"wrote {PAGE}")
+    page = page_file(args.out)
+    write_text_atomic(page, page_text(rows, runs, args.out))
+    print(f"wrote {page}")
     return 0
 
 
@@ -560,18 +591,17 @@ def read_presets(out: Path) -> tuple[dict[str, Rows | None], dict[str, list[dict
     return rows, runs
 
 
-def figure_file(name: str) -> Path:
-    """Where the page's figure of preset ``name`` (:data:`FIGURE`) is drawn."""
-    return FIGURES / f"results_{name}.png"
-
-
-def page_text(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any]]]) -> str:
-    """docs/results.md from the template and the presets' rows and runs
-    (:func:`read_presets`), its figures at :func:`figure_file`."""
-    figures = {name: figure_file(name).relative_to(PAGE.parent).as_posix() for name in FIGURE}
-    page = string.Template(TEMPLATE.read_text(encoding="utf-8")).substitute(
-        page_values(rows, runs, SEEDS, figures))
-    return page.rstrip("\n") + "\n"         # an empty last table leaves no blank tail
+def page_text(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any]]],
+              out: Path = DATA) -> str:
+    """The page of the presets' folder ``out`` (docs/results.md for :data:`DATA`) from the
+    template and the presets' rows and runs (:func:`read_presets`), its figures at
+    :func:`figure_file`."""
+    page = page_file(out)
+    figures = {name: figure_file(name, out).relative_to(page.parent).as_posix()
+               for name in FIGURE}
+    text = string.Template(TEMPLATE.read_text(encoding="utf-8")).substitute(
+        page_values(rows, runs, SEEDS, figures, out))
+    return text.rstrip("\n") + "\n"         # an empty last table leaves no blank tail
 
 
 def preset_rows(folder: Path, name: str, n: int) -> Rows:
@@ -600,20 +630,24 @@ def preset_rows(folder: Path, name: str, n: int) -> Rows:
 
 
 def _rebuild_section(out: Path) -> int:
-    """Rebuild only the robustness section of docs/results.md from ``out``'s robustness
-    folder."""
+    """Rebuild only the robustness section of ``out``'s page (:func:`page_file`) from
+    ``out``'s robustness folder."""
     name, n = "robustness", SEEDS["robustness"]
     folder = out / name
     rows = preset_rows(folder, name, n) if (folder / "episodes.csv").is_file() else None
     runs = [r for r in read_runs(folder) if r.get("preset") == name]
+    path = page_file(out)
+    if not path.is_file():
+        sys.exit(f"{path} is missing, so its robustness section cannot be rebuilt alone: run "
+                 f"the other presets into {out} too (this script without --presets)")
     try:
-        page = replace_section(PAGE.read_text(encoding="utf-8"),
+        page = replace_section(path.read_text(encoding="utf-8"),
                                TEMPLATE.read_text(encoding="utf-8"),
-                               robustness_values(rows, runs, n))
+                               robustness_values(rows, runs, n, out))
     except ValueError as exc:
-        sys.exit(f"{PAGE}: {exc}; rebuild the whole page (run this script without --presets)")
-    write_text_atomic(PAGE, page)
-    print(f"rebuilt the robustness section of {PAGE} (the other presets' episodes are not in "
+        sys.exit(f"{path}: {exc}; rebuild the whole page (run this script without --presets)")
+    write_text_atomic(path, page)
+    print(f"rebuilt the robustness section of {path} (the other presets' episodes are not in "
           f"{out}; the rest of the page is kept)")
     return 0
 

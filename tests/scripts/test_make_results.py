@@ -136,17 +136,45 @@ def test_only_the_chosen_presets_run(monkeypatch, tmp_path):
 
 
 def test_robustness_alone_rebuilds_only_its_section(monkeypatch, tmp_path):
-    """With only --presets robustness and the other presets' episodes missing, the page keeps
-    everything but the robustness section."""
+    """With only --presets robustness and the other presets' episodes missing, the page of
+    --out keeps everything but the robustness section, which names --out."""
     monkeypatch.setattr(make_results, "run_presets", lambda out, seeds, workers: None)
-    page = tmp_path / "results.md"
+    out = tmp_path / "out"
+    argv = ["--presets", "robustness", "--out", str(out)]
+    with pytest.raises(SystemExit, match="results.md is missing"):
+        make_results.main(argv)            # no page of that folder to rebuild a section of
+    out.mkdir()
+    page = out / "results.md"
     begin, end = make_results.SECTION
     page.write_text(f"# Results\nfig2 numbers\n{begin}\nold section\n{end}\ntail\n")
-    monkeypatch.setattr(make_results, "PAGE", page)
-    assert make_results.main(["--presets", "robustness", "--out", str(tmp_path / "out")]) == 0
+    assert make_results.main(argv) == 0
     text = page.read_text()
     assert text.startswith("# Results\nfig2 numbers\n") and text.endswith(f"{end}\ntail\n")
     assert "old section" not in text and "Not run for this page" in text
+    assert f"{out.resolve().as_posix()}/robustness/episodes.csv" in text
+    assert f"--presets robustness --out {out.resolve().as_posix()}" in text
+
+
+def test_a_page_of_another_folder_is_written_there_and_names_it(values, tmp_path):
+    """The committed page names docs/results-data; a page built from another --out is written
+    into that folder with its figures, and every path and command on it names that folder."""
+    data = make_results.DATA
+    assert make_results.page_file(data) == make_results.PAGE
+    assert make_results.figure_file("fig2", data).parent == make_results.FIGURES
+    assert values["data"] == "docs/results-data" and values["out_flag"] == ""
+    out = tmp_path / "mine"
+    assert make_results.page_file(out) == out / "results.md"
+    assert make_results.figure_file("fig2", out) == out / "figures" / "results_fig2.png"
+    rows = {name: preset_rows("fig2" if name == "quick" else name, ENERGY, RMSE)
+            for name in make_results.FIGURE}
+    rows["robustness"] = None
+    runs = {name: [] for name in make_results.SEEDS}
+    page = make_results.page_text(rows, runs, out)
+    shown = out.resolve().as_posix()
+    assert "docs/results-data" not in page
+    assert f"make_results.py --out {shown}\n" in page and f"`{shown}/<preset>/`" in page
+    assert f"--presets robustness --out {shown}" in page
+    assert "![Figure 2](figures/results_fig2.png)" in page
 
 
 def test_replace_section_fills_the_template_part(values):
