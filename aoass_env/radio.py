@@ -25,7 +25,6 @@ at 1 degree resolution, a closed random walk with ``|K_i - K_{i-1}| <= doi`` (al
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Sequence
 from fractions import Fraction
 from functools import cached_property
@@ -45,10 +44,6 @@ __all__ = ["LineOfSight", "Radio", "doi_pattern", "points_within", "range_factor
 
 #: Relative slack of kd-tree queries; candidates are then filtered with the exact criterion.
 _QUERY_SLACK = 1e-9
-
-#: map -> its LineOfSight (:meth:`LineOfSight.for_map`), kept while the map lives
-_LINES_OF_SIGHT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
 
 def _points(value: object, name: str, *, single: bool = False) -> np.ndarray:
     """Finite float64 points: (M, 2), or (2,) when ``single``; errors name ``name``."""
@@ -133,10 +128,7 @@ class LineOfSight:
     def for_map(cls, obstacle_map: ObstacleMap) -> LineOfSight:
         """The line-of-sight test of ``obstacle_map``, built once per map (maps are immutable):
         the radios on one map share it, so :func:`receivers_at` can test their links at once."""
-        los = _LINES_OF_SIGHT.get(obstacle_map)
-        if los is None:
-            los = _LINES_OF_SIGHT[obstacle_map] = cls(obstacle_map)
-        return los
+        return obstacle_map.derived(("line of sight", cls), lambda: cls(obstacle_map))
 
     def inside(self, points: np.ndarray) -> np.ndarray:
         """Mask of points (M, 2) [m] strictly inside some obstacle polygon.

@@ -9,7 +9,6 @@ model (dynamics, moving obstacles, sensing, contact semantics) in full.
 from __future__ import annotations
 
 import math
-import weakref
 from typing import Any
 
 import numpy as np
@@ -86,11 +85,6 @@ _TWO_PI = 2.0 * math.pi
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """Angle(s) (rad) wrapped to ``(-pi, pi]``."""
     return math.pi - (math.pi - angle) % (2.0 * math.pi)
-
-
-#: :meth:`World._static_shapes` per map (maps are immutable; the episodes on one map share them)
-_STATIC_SHAPES: weakref.WeakKeyDictionary[ObstacleMap, StaticShapes] = \
-    weakref.WeakKeyDictionary()
 
 
 def _obstacle_ids(obstacle_map: ObstacleMap) -> np.ndarray:
@@ -243,11 +237,8 @@ class World:
     def _static_shapes(self) -> StaticShapes:
         """The walls and static parts as Chipmunk holds them (:class:`~aoass_env.rays.
         StaticShapes`), read once per map: they depend on the map alone."""
-        shapes = _STATIC_SHAPES.get(self.obstacle_map)
-        if shapes is None:
-            shapes = _STATIC_SHAPES[self.obstacle_map] = StaticShapes.of(
-                shape for shape in self._owner if shape.body is self._space.static_body)
-        return shapes
+        return self.obstacle_map.derived(("static shapes",), lambda: StaticShapes.of(
+            shape for shape in self._owner if shape.body is self._space.static_body))
 
     def _add_static(self, shape: pymunk.Shape, ctype: int, category: int,
                     owner: tuple[str, int]) -> None:

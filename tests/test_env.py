@@ -331,3 +331,25 @@ def test_a_deferred_observation_is_built_on_demand_and_only_then():
             with pytest.raises(RuntimeError, match="deferred_observation"):
                 base.deferred_observation()
         assert obs.tobytes() == want[0].tobytes() and got[1] == want[1]
+
+
+@pytest.mark.parametrize("env_id", ["AOASS-v0", "AOASS-Adaptive-v0"])
+def test_generated_maps_are_freed_after_their_episodes(env_id):
+    """A map generated for an episode, and what the env derives from it (planner grid, coverage
+    raster, line-of-sight test, plans), is freed once no episode and no cache holds it: resets
+    on fresh maps do not grow memory without bound (each map pinned itself through its coverage
+    raster's radio before)."""
+    import gc
+    import weakref
+
+    from aoass_env.maps import generator
+
+    env = gym.make(env_id, field_size=40.0, obstacle_density=0.2, n_nodes=20).unwrapped
+    env.reset(seed=0)
+    first = weakref.ref(env.obstacle_map)
+    for seed in range(1, 3):
+        env.reset(seed=seed)
+    generator.clear_cache()
+    gc.collect()
+    assert first() is None
+    env.close()

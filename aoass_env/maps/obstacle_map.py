@@ -9,8 +9,10 @@ of the other modules (shapely views, edges, convex parts, point tests) and the r
 
 from __future__ import annotations
 
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any, TypeVar
 
 import numpy as np
 import shapely
@@ -19,6 +21,8 @@ from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
 
 from aoass_env.validators import integer, positive, real
+
+_T = TypeVar("_T")
 
 
 class MapError(ValueError):
@@ -92,6 +96,28 @@ class ObstacleMap:
         object.__setattr__(self, "width", width)
         object.__setattr__(self, "height", height)
         object.__setattr__(self, "polygons", tuple(polys))
+
+    # --- what other modules derive from the map, kept as long as the map ------------------
+    def derived(self, key: Hashable, build: Callable[[], _T]) -> _T:
+        """The value ``build()`` gives, built on the first call with ``key`` and kept on the map
+        (maps are immutable, so the episodes on one map share it): the other modules' per-map
+        caches (planner grids, static shapes, line-of-sight tests, coverage rasters).
+
+        Kept on the map itself rather than in a module-level dictionary weakly keyed by the
+        map: a value that refers back to its map (a :class:`~aoass_env.radio.Radio` does)
+        would keep its key alive there, and every map with it.
+        """
+        store = self.__dict__.setdefault("_derived", {})
+        if key not in store:
+            store[key] = build()
+        return store[key]
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The map without what :meth:`derived` keeps (built again on demand after unpickling;
+        some of it, such as a planner's compiled state, does not pickle)."""
+        state = self.__dict__.copy()
+        state.pop("_derived", None)
+        return state
 
     # --- shapely views (cached; the map is immutable) -------------------------------------
     @cached_property

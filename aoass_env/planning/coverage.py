@@ -28,7 +28,6 @@ spread = 1 - min(1, residual / collinearity_tol); a cell that heard nothing has 
 from __future__ import annotations
 
 import math
-import weakref
 
 import numpy as np
 import shapely
@@ -85,33 +84,33 @@ def _free_points(obstacle_map: ObstacleMap, index: np.ndarray, cell: float) -> n
     return out
 
 
-#: The cells of the last maps seen, per map: (cell, reach, line of sight) -> (shape, index,
-#: centres, radio); maps are immutable, so the episodes on one map share them.
-_CELLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def _cells(obstacle_map: ObstacleMap, cell: float, reach: float, line_of_sight: bool
            ) -> tuple[tuple[int, int], np.ndarray, np.ndarray, Radio]:
     """The map's raster: (nx, ny), the kept cells' (i, j) and virtual nodes (read-only), and
-    the radio of the virtual nodes (:class:`CoverageMap`); built once per map and settings."""
-    per_map = _CELLS.setdefault(obstacle_map, {})
-    key = (float(cell), float(reach), bool(line_of_sight))
-    if key not in per_map:
-        nx = max(1, math.ceil(obstacle_map.width / cell))
-        ny = max(1, math.ceil(obstacle_map.height / cell))
-        gi, gj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
-        index = np.stack([gi.ravel(), gj.ravel()], axis=1)
-        centres = (index + 0.5) * cell
-        centres = np.minimum(centres, [obstacle_map.width, obstacle_map.height])
-        free = ~obstacle_map.inside_obstacle(centres)
-        centres[~free] = _free_points(obstacle_map, index[~free], cell)
-        free |= np.isfinite(centres[:, 0])
-        index, centres = index[free], centres[free]
-        index.flags.writeable = False
-        centres.flags.writeable = False
-        per_map[key] = ((nx, ny), index, centres,
-                        Radio(centres, obstacle_map, reach, line_of_sight=line_of_sight))
-    return per_map[key]
+    the radio of the virtual nodes (:class:`CoverageMap`); built once per map and settings
+    (:meth:`~aoass_env.maps.ObstacleMap.derived`: the radio refers back to the map)."""
+    return obstacle_map.derived(("coverage cells", float(cell), float(reach),
+                                 bool(line_of_sight)),
+                                lambda: _build_cells(obstacle_map, cell, reach, line_of_sight))
+
+
+def _build_cells(obstacle_map: ObstacleMap, cell: float, reach: float, line_of_sight: bool
+                 ) -> tuple[tuple[int, int], np.ndarray, np.ndarray, Radio]:
+    """:func:`_cells` built."""
+    nx = max(1, math.ceil(obstacle_map.width / cell))
+    ny = max(1, math.ceil(obstacle_map.height / cell))
+    gi, gj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    index = np.stack([gi.ravel(), gj.ravel()], axis=1)
+    centres = (index + 0.5) * cell
+    centres = np.minimum(centres, [obstacle_map.width, obstacle_map.height])
+    free = ~obstacle_map.inside_obstacle(centres)
+    centres[~free] = _free_points(obstacle_map, index[~free], cell)
+    free |= np.isfinite(centres[:, 0])
+    index, centres = index[free], centres[free]
+    index.flags.writeable = False
+    centres.flags.writeable = False
+    return ((nx, ny), index, centres,
+            Radio(centres, obstacle_map, reach, line_of_sight=line_of_sight))
 
 
 class CoverageMap:

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import copy
 import math
-import weakref
 from collections.abc import Callable
 
 import numpy as np
@@ -52,11 +51,6 @@ DETOUR_MARGIN = 0.3
 #: How far (m) a start must lead out, through cells of exact clearance, to count as open
 #: (:meth:`DetourPlanner.leads_out`).
 LEAD_OUT = 10.0
-
-#: map -> {(radius, resolution): planner}: the planners :meth:`DetourPlanner.for_map` copies
-#: (kept while the map lives)
-_PLANNERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
 
 class DetourPlanner:
     """Collision-free paths for a disc among the static obstacles of a map.
@@ -121,11 +115,9 @@ class DetourPlanner:
         buffered obstacles are built once per map (maps are immutable) and shared by the
         planners of every episode on it (a reset on a named map, or a generated map drawn
         again from the same seed, does not rebuild them)."""
-        per_map = _PLANNERS.setdefault(obstacle_map, {})
-        key = (float(radius), float(resolution))
-        template = per_map.get(key)
-        if template is None:
-            template = per_map[key] = cls(obstacle_map, radius, resolution)
+        template = obstacle_map.derived(
+            ("detour planner", cls, float(radius), float(resolution)),
+            lambda: cls(obstacle_map, radius, resolution))
         planner = copy.copy(template)
         planner._tree = planner._arrays = None
         return planner

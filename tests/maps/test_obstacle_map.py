@@ -128,3 +128,28 @@ def test_repeated_vertices_are_dropped_and_the_stored_vertices_are_read_only():
     # maps are shared from caches: an in-place edit would change every later draw
     with pytest.raises(ValueError, match="read-only"):
         m.polygons[0][:] += 1.0
+
+
+def test_derived_values_are_built_once_and_die_with_their_map():
+    """``derived`` builds a value once per key; a value that refers back to its map (a Radio
+    does) does not keep the map alive, and pickling leaves the derived values out."""
+    import gc
+    import pickle
+    import weakref
+
+    from aoass_env.radio import Radio
+
+    m = ObstacleMap(20, 20, [box(4, 4, 8, 8)], "one")
+    built = []
+    first = m.derived(("test", 1), lambda: built.append(1) or [1])
+    assert m.derived(("test", 1), lambda: built.append(2) or [2]) is first and built == [1]
+    assert m.derived(("test", 2), lambda: [2]) == [2]
+    radio = m.derived(("radio",), lambda m=m: Radio(np.array([[1.0, 1.0]]), m, 5.0))
+    assert radio.obstacle_map is m
+    copy = pickle.loads(pickle.dumps(m))
+    assert "_derived" not in vars(copy) and copy.name == "one"
+    assert copy.derived(("test", 1), lambda: [3]) == [3]
+    ref = weakref.ref(m)
+    del m, radio, first
+    gc.collect()
+    assert ref() is None
