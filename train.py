@@ -48,6 +48,17 @@ def _key_value(flag: str) -> Callable[[str], tuple[str, Any]]:
     return parse
 
 
+def _overrides(flag: str, pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """The ``key:value`` pairs of ``flag`` as a dict; a key given twice is a ValueError naming
+    it (the last one used to win unseen, where a key given twice in a YAML file is refused)."""
+    found: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in found:
+            raise ValueError(f"{flag} {key}: given twice ({found[key]!r}, then {value!r})")
+        found[key] = value
+    return found
+
+
 def _path(text: str) -> Path:
     """An argparse ``type``: a path, never the empty string (which ``Path`` reads as the
     working folder)."""
@@ -125,8 +136,8 @@ def _agent_parser() -> argparse.ArgumentParser:
     p.add_argument("--timesteps", type=argparse_number(int, 1), default=None,
                    help="environment steps (default: the config's n_timesteps)")
     seeds = p.add_mutually_exclusive_group()
-    seeds.add_argument("--seed", type=argparse_number(int, 0, high=MAX_SEED), default=0,
-                       help="(default: 0)")
+    seeds.add_argument("--seed", type=argparse_number(int, 0, high=MAX_SEED), default=None,
+                       help="(default: 0; with --resume, the resumed run's, from its run.yml)")
     seeds.add_argument("--seeds", metavar="LIST",
                        help="one run per seed: a range 0-4 and/or a list 0,2,5; run S writes "
                             "into <out>/seed<S>/")
@@ -179,6 +190,7 @@ def _run_agent(argv: list[str]) -> None:
         occupied_message,
         other_run_files,
         run_hyperparams,
+        run_seed,
         train_agent,
     )
     parser = _agent_parser()
@@ -194,12 +206,14 @@ def _run_agent(argv: list[str]) -> None:
         _folder("--out", out)
         if not args.no_tensorboard:
             _folder("--log-dir", args.log_dir)
-        run = TrainRun(algo=args.algo, timesteps=args.timesteps, seed=args.seed,
+        run = TrainRun(algo=args.algo, timesteps=args.timesteps,
+                       seed=run_seed(args.resume, args.seed),
                        n_envs=args.n_envs, config=args.config, resume=args.resume, out=out,
                        log_dir=None if args.no_tensorboard else args.log_dir,
                        progress_bar=not args.no_progress and args.backend == "local",
                        command="python train.py " + " ".join(shlex.quote(a) for a in argv),
-                       hyperparams=dict(args.hyperparams), env_kwargs=dict(args.env_kwargs),
+                       hyperparams=_overrides("--hyperparams", args.hyperparams),
+                       env_kwargs=_overrides("--env-kwargs", args.env_kwargs),
                        eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                        checkpoint_freq=args.checkpoint_freq, log_interval=args.log_interval,
                        overwrite=args.overwrite)

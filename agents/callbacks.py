@@ -204,27 +204,32 @@ class RunEvalCallback(EvalCallback):
     (``callback_on_new_best``) is saved after the record that holds its evaluation, so a kill
     between the two leaves a record whose rows name every saved model's step. ``best_step``:
     the step the run's best model so far was saved at (a resume), whose evaluation in
-    ``previous`` is the one to beat (the best of the record when it is not there). Other
-    arguments as ``EvalCallback``'s (``log_path`` and ``best_model_save_path`` are not taken:
-    use ``path`` and ``callback_on_new_best``). ``eval_seed``: the seed ``eval_env`` is
-    reseeded with before every evaluation, so that every evaluation plays the same episodes
+    ``previous`` is the one to beat (the best of the record when it is not there). ``until``:
+    the step the resumed model was saved at; the rows of ``previous`` after it, evaluations of
+    steps the resume replays, leave the record (the replay evaluates them again, and the record
+    stays one of increasing steps, which a later resume reads), though the best model's
+    evaluation among them still is the one to beat. Other arguments as ``EvalCallback``'s
+    (``log_path`` and ``best_model_save_path`` are not taken: use ``path`` and
+    ``callback_on_new_best``). ``eval_seed``: the seed ``eval_env`` is reseeded with before
+    every evaluation, so that every evaluation plays the same episodes
     (None: SB3's way, each evaluation going on from the last one's episodes, so that models
     were compared on different maps and nodes)."""
 
     def __init__(self, eval_env: Any, path: str | Path, previous: Evaluations | None = None,
-                 *, best_step: int | None = None, eval_seed: int | None = None,
-                 **kwargs: Any) -> None:
+                 *, best_step: int | None = None, until: int | None = None,
+                 eval_seed: int | None = None, **kwargs: Any) -> None:
         super().__init__(eval_env, log_path=None, best_model_save_path=None, **kwargs)
         self.path = Path(path)
         self.eval_seed = None if eval_seed is None else integer("eval_seed", eval_seed, low=0)
         if previous is not None and len(previous.timesteps):
-            self.evaluations_timesteps = previous.timesteps.tolist()
-            self.evaluations_results = previous.results.tolist()
-            self.evaluations_length = previous.ep_lengths.tolist()
             means = previous.results.mean(axis=1)
             saved = previous.timesteps == best_step
             # a kill after a better evaluation's row, before its model: the saved one's counts
             self.best_mean_reward = float(means[saved].max() if saved.any() else means.max())
+            kept = slice(None) if until is None else previous.timesteps <= until
+            self.evaluations_timesteps = previous.timesteps[kept].tolist()
+            self.evaluations_results = previous.results[kept].tolist()
+            self.evaluations_length = previous.ep_lengths[kept].tolist()
 
     def _on_step(self) -> bool:
         # SB3 keeps its record only with a log path, and writes it there with np.savez: the

@@ -56,7 +56,7 @@ from agents.callbacks import (
 from agents.checkpoints import PolicyFileError, read_record, record_path, saved_step
 from agents.envs import POLICY_STACK_KEYS, TRAINING_SPLITS, make_training_env
 from agents.hyperparams import ALGORITHMS, action_noise, load_hyperparams, read_run_record
-from agents.sections import model_kwargs, override_section, policy_name
+from agents.sections import HyperparameterError, model_kwargs, override_section, policy_name
 from aoass_env.atomic import remove_stale_temporaries, write_text_atomic
 from aoass_env.data import shipped_dir
 from aoass_env.validators import first_difference, integer
@@ -221,11 +221,17 @@ def run_hyperparams(run: TrainRun) -> dict[str, Any]:
     if evaluation:
         hyperparams["eval"] = {**hp.get("eval", {}), **hyperparams.get("eval", {}),
                                **evaluation}
-    if not hyperparams and not run.env_kwargs:
-        return hp
-    return override_section(hp, ALGORITHMS[run.algo],
-                            f"the command line's overrides over {run.config}: {run.algo}",
-                            hyperparams=hyperparams, env=run.env_kwargs)
+    if hyperparams or run.env_kwargs:
+        hp = override_section(hp, ALGORITHMS[run.algo],
+                              f"the command line's overrides over {run.config}: {run.algo}",
+                              hyperparams=hyperparams, env=run.env_kwargs)
+    train_freq = hp.get("train_freq")
+    if run.n_envs > 1 and isinstance(train_freq, list) and train_freq[1] == "episode":
+        # SB3 asserts this deep inside learn(), after run.yml is written
+        raise HyperparameterError(f"train_freq: {train_freq} counts episodes, which SB3 does "
+                                  f"with one environment only, not --n-envs {run.n_envs}; give "
+                                  f"train_freq in steps, or --n-envs 1")
+    return hp
 
 
 def train_agent(run: TrainRun, report: Any = print) -> Path:
@@ -237,6 +243,13 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
         raise ValueError(occupied_message(run, others))
     if run.resume is not None:      # the record the model is rebuilt from, read once
         record = _resume_record(Path(run.resume), hp, cls)
+        recorded = _record_seed(record, record_path(run.resume))
+        if recorded is not None and recorded != run.seed:
+            raise PolicyFileError(
+                f"{run.resume}: its run was trained with seed {recorded} "
+                f"({record_path(run.resume)}), not this run's {run.seed}: a resume continues "
+                f"the run's seed (its validation episodes and the seeds drawn from it); give "
+                f"--seed {recorded}, or no --seed")
     timesteps = run.timesteps or int(hp.get("n_timesteps", 100_000))
     env_kwargs = dict(hp.get("env", {}))
     evaluation = dict(hp.get("eval", {}))
@@ -282,6 +295,7 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
                  RunEvalCallback(eval_env, out / "evaluations.npz", previous,
                                  best_step=(saved_step(out / "best.zip") if previous is not None
                                             and (out / "best.zip").is_file() else None),
+                                 until=model.num_timesteps if previous is not None else None,
                                  eval_seed=eval_seed, n_eval_episodes=eval_episodes,
                                  eval_freq=max(int(evaluation.get("freq", 10_000)) // n, 1),
                                  deterministic=True, verbose=0,
@@ -300,6 +314,31 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     eval_env.close()
     report(f"trained {model.num_timesteps} steps; models in {out}")
     return final
+
+
+def run_seed(resume: Path | None, seed: int | None) -> int:
+    """The seed of a run: ``seed``; for a resume without one, the seed of the run it resumes
+    (the ``run.yml`` beside ``resume``; 0 without a record). A differing ``seed`` is refused by
+    :func:`train_agent`."""
+    if seed is not None:
+        return seed
+    if resume is None or not record_path(resume).is_file():
+        return 0
+    path = record_path(resume)
+    recorded = _record_seed(read_run_record(path), path)
+    return 0 if recorded is None else recorded
+
+
+def _record_seed(record: dict[str, Any], path: Path) -> int | None:
+    """The ``seed`` of a run record (None for a record without one); a value that is not a
+    seed is a :class:`PolicyFileError` naming the file."""
+    seed = record.get("seed")
+    if seed is None:
+        return None
+    try:
+        return integer("seed", seed, low=0, high=MAX_SEED)
+    except (TypeError, ValueError) as exc:
+        raise PolicyFileError(f"{path}: {exc}") from None
 
 
 def resume_seed(seed: int, step: int) -> int:

@@ -782,6 +782,11 @@ def make_training_env(*, split: str = "train", field_size: float = 100.0,
     if split not in TRAINING_SPLITS:
         raise ValueError(f"split={split!r} must be one of {TRAINING_SPLITS} (maps/test is for "
                          f"reported results only)")
+    if "obstacle_density" in config:    # it shapes generated maps only: it would be ignored
+        raise ConfigError(f"obstacle_density={config['obstacle_density']!r}: a training setup "
+                          f"draws shipped maps whose density lies in densities (here "
+                          f"{list(densities)}); obstacle_density sets the density of generated "
+                          f"maps only (AOASS-Safe-v0)")
     fit, held_out = validation_split(list_maps("train", field_size=field_size,
                                                densities=densities))
     maps = fit if split == "train" else held_out

@@ -381,6 +381,14 @@ def test_overrides_and_frequencies_from_the_command_line(tiny: Path, tmp_path: P
     (["--hyperparams", "policy:!!python/object/apply:os.system [echo]"],
      "the value is not valid YAML"),
     (["--eval-freq", "0"], "--eval-freq: must be an integer >= 1"),
+    # the last of a key given twice used to win unseen
+    (["--hyperparams", "batch_size:4", "batch_size:8"],
+     "--hyperparams batch_size: given twice (4, then 8)"),
+    (["--env-kwargs", "n_nodes:30", "n_nodes:40"], "--env-kwargs n_nodes: given twice"),
+    # SB3 asserted this in learn(), a traceback after run.yml was written (a blocked --out)
+    (["--n-envs", "2", "--hyperparams", "train_freq:[1, episode]"],
+     "train_freq: [1, 'episode'] counts episodes, which SB3 does with one environment only, "
+     "not --n-envs 2; give train_freq in steps, or --n-envs 1"),
 ])
 def test_bad_overrides_are_one_line_errors_naming_the_flag(tiny: Path, tmp_path: Path,
                                                            capsys: pytest.CaptureFixture,
@@ -477,6 +485,42 @@ def test_a_resume_continues_the_runs_evaluations(tiny: Path, tmp_path: Path, tra
     assert ((out / "best.zip").read_bytes() != best) == replaced
     if replaced:
         assert RecurrentTD3.load(out / "best.zip", device="cpu").num_timesteps == 200
+
+
+def test_a_resume_drops_the_evaluations_it_replays_and_can_be_resumed_again(
+        tiny: Path, tmp_path: Path, train_script):
+    """Evaluations made after last.zip (before an interruption) leave the record when a resume
+    from last.zip replays their steps: the record's steps keep increasing, so the run can be
+    resumed again (a repeated step used to make the next resume refuse the record)."""
+    out = tmp_path / "run"
+    common = ["--config", str(tiny), "--out", str(out), "--no-tensorboard", "--no-progress",
+              "--checkpoint-freq", "100", "--eval-freq", "50"]
+    train_script.main([*common, "--timesteps", "160"])
+    with np.load(out / "evaluations.npz", allow_pickle=False) as data:
+        assert data["timesteps"].tolist() == [50, 100, 150]
+    for _ in range(2):
+        train_script.main([*common, "--timesteps", "60", "--resume", str(out / "last.zip")])
+        with np.load(out / "evaluations.npz", allow_pickle=False) as data:
+            assert data["timesteps"].tolist() == [50, 100, 150]
+
+
+def test_a_resume_keeps_the_runs_seed(tiny: Path, tmp_path: Path, train_script,
+                                      capsys: pytest.CaptureFixture):
+    """A resume without --seed takes the run's seed from its run.yml (it used to take 0, whose
+    validation episodes are other maps than the run's); another --seed is refused."""
+    out = tmp_path / "run"
+    common = ["--config", str(tiny), "--out", str(out), "--no-tensorboard", "--no-progress",
+              "--timesteps", "60"]
+    train_script.main([*common, "--seed", "3"])
+    with pytest.raises(SystemExit) as exit_:
+        train_script.main([*common, "--resume", str(out / "last.zip"), "--seed", "5"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert (f"{out / 'last.zip'}: its run was trained with seed 3 ({out / 'run.yml'}), not "
+            f"this run's 5") in err and "give --seed 3, or no --seed" in err
+    train_script.main([*common, "--resume", str(out / "last.zip")])
+    record = yaml.safe_load((out / "run.yml").read_text())
+    assert record["seed"] == 3 and [r["seed"] for r in record["resumes"]] == [3]
 
 
 @pytest.mark.parametrize("damage, message", [

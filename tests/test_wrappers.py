@@ -335,6 +335,11 @@ def test_safety_filter_needs_full_range_actions_and_its_tracker():
         gym.make("AOASS-Train-v0", densities=[0.1, 0.2, 0.3])
     with pytest.raises(ValueError, match="cycle must be a bool, got 'yes'"):
         wrappers.make_training_env(cycle="yes")
+    # a generated map's density, which the shipped maps' draw would ignore (it was accepted,
+    # recorded in run.yml and without effect)
+    with pytest.raises(ConfigError, match=r"obstacle_density=0\.55: a training setup draws "
+                                          r"shipped maps whose density lies in densities"):
+        gym.make("AOASS-Train-v0", obstacle_density=0.55)
     # whole numbers of NumPy or float type are the integers they hold (they used to be refused
     # with a message naming the value they held), any iterable of maps is a list
     assert make_safe_env(**SMALL, action_repeat=np.int64(2)).repeat == 2

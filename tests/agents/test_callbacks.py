@@ -97,6 +97,15 @@ def test_a_resume_beats_the_saved_best_model_s_evaluation(tmp_path: Path):
         evaluation = RunEvalCallback(_pendulum(), tmp_path / "e.npz", previous,
                                      best_step=best_step, verbose=0)
         assert evaluation.best_mean_reward == threshold, best_step
+    # a resume from step 20: the row of step 30 (a step it replays) leaves the record, but a
+    # best model saved there is still the one to beat
+    for best_step, threshold in ((30, -3.0), (20, -1.0), (None, -1.0)):
+        evaluation = RunEvalCallback(_pendulum(), tmp_path / "e.npz", previous,
+                                     best_step=best_step, until=20, verbose=0)
+        assert evaluation.best_mean_reward == threshold, best_step
+        assert evaluation.evaluations_timesteps == [10, 20]
+        assert evaluation.evaluations_results == [[-5.0], [-1.0]]
+        assert evaluation.evaluations_length == [[20], [20]]
 
 
 @pytest.mark.parametrize("steps, every", [(60, 60), (50, 20)])
