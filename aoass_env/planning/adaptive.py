@@ -74,7 +74,7 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
-from aoass_env.config import AOASSConfig
+from aoass_env.config import AOASSConfig, ConfigError
 from aoass_env.network import Network
 from aoass_env.planning.coverage import CoverageMap
 from aoass_env.planning.detour import DetourPlanner
@@ -84,7 +84,7 @@ from aoass_env.planning.square_spiral import config_spacing
 from aoass_env.radio import Radio
 from aoass_env.validators import ValidatedConfig, param
 
-__all__ = ["AdaptiveConfig", "AdaptiveSweep", "SweepKnobs", "coverable", "site_radio",
+__all__ = ["AdaptiveConfig", "AdaptiveSweep", "SweepKnobs", "check_rule", "coverable", "site_radio",
            "sweep_config"]
 
 #: Open waypoints (nearest first) whose way the planner measures to choose the next densify run.
@@ -144,8 +144,10 @@ class AdaptiveConfig(ValidatedConfig):
                               "spacing rounded down, not up (spiral_spacing left unset): wider "
                               "passes, the gaps left to the densify phase", kind="bool")
     skip_radius: float = param(8.0, "a spiral waypoint's surroundings: the free cells within "
-                               "this distance that it sees", unit="m", low=0.0, high=1000.0,
-                               low_open=True)
+                               "this distance that a beacon sent there reaches (in sight, and "
+                               "no farther than the cells' guaranteed range r_cell); at least "
+                               "half a cell's diagonal, coverage_cell / sqrt 2", unit="m",
+                               low=0.0, high=1000.0, low_open=True)
     skip_need: float = param(-0.25, "a target whose surroundings' mean coverage deficit (in "
                              "[0, 1]) is at most this is passed over (below 0: never, unless "
                              "the agent's knob raises it; the pruned plan has already left out "
@@ -227,13 +229,28 @@ def sweep_config(config: AOASSConfig, rule: AdaptiveConfig, side: float) -> AOAS
     ``rule.wide_passes`` and no ``spiral_spacing`` of its own, the wide passes'
     (:func:`~aoass_env.planning.square_spiral.default_spacing` with ``wide``); with
     ``rule.beacon_interval``, that interval between beacons, the spiral's waypoints still
-    ``config.path_step`` apart."""
+    ``config.path_step`` apart. A ``rule.skip_radius`` below half a cell's diagonal is a
+    :class:`~aoass_env.config.ConfigError` (:func:`check_rule`)."""
+    check_rule(config, rule)
     if rule.beacon_interval is not None and rule.beacon_interval != config.beacon_interval:
         config = config.replace(beacon_interval=rule.beacon_interval,
                                 waypoint_step=config.path_step)
     if not rule.wide_passes or config.spiral_spacing is not None:
         return config
     return config.replace(spiral_spacing=config_spacing(config, side, side, wide=True))
+
+
+def check_rule(config: AOASSConfig, rule: AdaptiveConfig) -> None:
+    """:class:`~aoass_env.config.ConfigError` unless ``rule`` fits ``config``'s coverage
+    map: a ``skip_radius`` shorter than half a cell's diagonal (coverage_cell / sqrt 2) can
+    hold no cell centre around a waypoint, whose need would read 0 (nothing to cover) and pass
+    it over as covered, unheard."""
+    least = config.coverage_cell / math.sqrt(2.0)
+    if rule.skip_radius < least:
+        raise ConfigError(f"adaptive skip_radius={rule.skip_radius:g} m must be at least half "
+                          f"a coverage cell's diagonal, coverage_cell / sqrt 2 = {least:.3g} m "
+                          f"(coverage_cell={config.coverage_cell:g} m): a waypoint's "
+                          f"surroundings would hold no cell")
 
 
 class OnlineThresholds(NamedTuple):
@@ -302,10 +319,12 @@ class AdaptiveSweep:
     _judged: int = -1
     _localizing: np.ndarray | None = None
     _dropped: np.ndarray | None = None
-    _recoveries: int = 0
+    _recoveries: int = 0      # back-outs of the runs and ways retired so far
+    _retired: WaypointFollower | None = None   # the last run counted in _recoveries
     _done: bool = False
 
     def __post_init__(self) -> None:
+        check_rule(self.config, self.rule)
         if self.rule.prune:
             self.plan = self._prune()
             if not self.rule.skip_localizing:
@@ -372,7 +391,8 @@ class AdaptiveSweep:
     def recoveries(self) -> int:
         """Back-outs of the spiral's follower, of the densify runs and of the ways round the
         other side."""
-        extra = self._runner.recoveries if self.densifying else 0
+        extra = (self._runner.recoveries
+                 if self.densifying and self._runner is not self._retired else 0)
         via = self._via.recoveries if self._via is not None else 0
         return self.follower.recoveries + self._recoveries + extra + via
 
@@ -420,7 +440,9 @@ class AdaptiveSweep:
 
     def need(self, index: int) -> float:
         """Mean coverage deficit of the free cells within ``skip_radius`` of spiral waypoint
-        ``index`` that it sees (0 when it sees none)."""
+        ``index`` that a beacon sent there reaches (in sight, within the cells' guaranteed
+        range: :meth:`~aoass_env.planning.coverage.CoverageMap.visible_near`; 0 when there is
+        none, all obstacle around it)."""
         beacons = self.coverage.beacons      # the deficits change only with a beacon
         known = self._needs.get(index)
         if known is not None and known[0] == beacons:
@@ -531,8 +553,10 @@ class AdaptiveSweep:
         """Start the next densify run: from the open waypoint (passed over for a long detour,
         coverage still missing) the anchor reaches by the shortest way, along the spiral while
         the waypoints stay open; done when none is left."""
-        if self.densifying:
+        if self.densifying and self._runner is not self._retired:
+            # counted once: the run stays the runner when no other follows it
             self._recoveries += self._runner.recoveries
+            self._retired = self._runner
         self._judged = -1
         if self._cell >= 0:
             cell, self._cell, self._site = self._cell, -1, None

@@ -151,9 +151,40 @@ def test_need_is_the_mean_deficit_of_the_cells_a_waypoint_sees():
     assert 0.0 < ctl.need(i) <= 1.0
 
 
+def test_a_run_s_recoveries_count_once_when_the_sweep_ends_on_it():
+    """The last cell run's back-outs were added when the run ended and again while it stayed
+    the runner (nothing followed it): twice in info["recoveries"]."""
+    config = AOASSConfig(**OPEN)
+    field = ObstacleMap(60.0, 60.0)
+    planner = DetourPlanner(field, config.anchor_radius + 0.5)
+    start = np.array([30.0, 30.0])
+    follower = WaypointFollower.nominal(config, start[None, :], planner=planner, recovery=True)
+    sweep = AdaptiveSweep(follower, CoverageMap(field, config), planner, config,
+                          AdaptiveConfig(prune=False))
+    for _ in range(2):           # the one waypoint reached: the sweep heads for a cell
+        sweep.command(start, 0.0, config.dt)
+    assert sweep.densifying and sweep.cell >= 0
+    cell_run = sweep._runner
+    cell_run.recoveries = 2                     # it backed out twice on its way
+    sweep._dropped[:] = True                    # and nothing is left after that cell
+    sweep._dropped[sweep.cell] = False
+    sweep.command(sweep.coverage.centres[sweep.cell], 0.0, config.dt)
+    assert sweep.done and sweep._runner is cell_run
+    assert sweep.recoveries == 2
+
+
 def test_the_rule_config_is_validated_with_did_you_mean():
     with pytest.raises(ConfigError, match="skip_radius"):
         AdaptiveConfig(skip_radius=0.0)
+    # shorter than half a cell's diagonal, a waypoint's surroundings held no cell centre: need
+    # 0, and waypoints in unheard open field were passed over as covered
+    with pytest.raises(ConfigError, match=r"adaptive skip_radius=1 m must be at least half a "
+                                          r"coverage cell's diagonal, coverage_cell / sqrt 2 = "
+                                          r"1\.77 m \(coverage_cell=2\.5 m\)"):
+        AOASSEnv(**OPEN, action_type="adaptive", adaptive={"skip_radius": 1.0})
+    sim = Simulator(AOASSConfig(**OPEN), np.random.default_rng(0))
+    with pytest.raises(ConfigError, match="adaptive skip_radius=1 m"):
+        sim.adaptive_sweep(AdaptiveConfig(skip_radius=1.0))
     with pytest.raises(ConfigError, match="did you mean 'skip_need'"):
         AdaptiveConfig.from_kwargs(skip_needs=0.1)
     with pytest.raises(ConfigError, match=r"skip_radius=-1.0 must be a number in \(0.0, 1000.0\]"):
