@@ -91,8 +91,9 @@ __all__ = ["AdaptiveConfig", "AdaptiveSweep", "SweepKnobs", "check_rule", "cover
 DENSIFY_CANDIDATES = 5
 #: A cell to densify counts as visited within this many cell sides of its centre.
 CELL_CAPTURE_CELLS = 2.0
-#: Seconds a cell to densify gets beyond twice its straight travel time (and the follower's
-#: allowance for a detour) before it is given up.
+#: Seconds a cell to densify gets beyond twice its travel time at the nominal speed along the
+#: planner's way, weighted by its clearance cost (and the follower's allowance for a detour),
+#: before it is given up.
 CELL_STALL_TIME = 5.0
 #: Cells within this distance (m) of a cell the sweep gave up on the way to are given up too.
 GIVE_UP_RADIUS = 10.0

@@ -48,7 +48,7 @@ PARTIAL_CELL_SHARE = 0.3
 @njit
 def _sector_means(turned: np.ndarray, values: np.ndarray, cells: np.ndarray,
                   n_sectors: int) -> np.ndarray:
-    """(n_sectors,) mean of ``values[cells]`` by sector ``floor(turned / 2 pi n_sectors)`` (at
+    """(n_sectors,) mean of ``values[cells]`` by sector ``floor(turned / (2 pi) * n_sectors)`` (at
     most the last) of their bearings ``turned`` in [0, 2 pi], summed in order; 0 where
     empty."""
     total = np.zeros(n_sectors)
