@@ -265,10 +265,6 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     for stale in remove_stale_temporaries(out):
         report(f"removed {stale}, left by an interrupted write")
-    if others:                          # run.overwrite: another run's files, removed first
-        for name in others:
-            (out / name).unlink()
-        report(f"removed another run's files from {out} (overwrite): {', '.join(others)}")
 
     if run.resume is not None:
         # rebuilt from its run.yml (else this run's hyperparameters), nothing unpickled
@@ -287,6 +283,11 @@ def train_agent(run: TrainRun, report: Any = print) -> Path:
     else:
         model = cls(policy_name(hp, cls), env, action_noise=noise, tensorboard_log=tb,
                     seed=run.seed, device="cpu", verbose=0, **model_kwargs(hp))
+    if others:    # run.overwrite: another run's files, removed once the model (and the
+        # resumed one's replay buffer) loaded, so that a refused resume leaves them
+        for name in others:
+            (out / name).unlink()
+        report(f"removed another run's files from {out} (overwrite): {', '.join(others)}")
 
     n = run.n_envs
     checkpoint_every = max(int(hp.get("checkpoint_freq", 10_000)) // n, 1)

@@ -439,6 +439,14 @@ def test_a_folder_holds_one_run(tiny: Path, tmp_path: Path, capsys: pytest.Captu
         train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
                            "--resume", str(moved), "--no-tensorboard", "--no-progress"])
     assert _files(out) == before
+    # --overwrite with a resume that is refused (an unreadable model) leaves them: they are
+    # removed once the model loaded (they used to be gone, and nothing trained)
+    (tmp_path / "elsewhere" / "broken.zip").write_bytes(b"not a zip")
+    with pytest.raises(SystemExit):
+        train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
+                           "--resume", str(tmp_path / "elsewhere" / "broken.zip"),
+                           "--overwrite", "--no-tensorboard", "--no-progress"])
+    assert _files(out) == before
 
     train_script.main(["--config", str(tiny), "--timesteps", "60", "--out", str(out),
                        "--overwrite", "--eval-freq", "1000", "--no-tensorboard",
