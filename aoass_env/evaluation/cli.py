@@ -29,6 +29,7 @@ from aoass_env.evaluation.methods import (
     METHODS,
     RunOptions,
     select_methods,
+    zero_action_stack_digest,
 )
 from aoass_env.evaluation.report import (
     draw_figures,
@@ -229,14 +230,23 @@ def main(argv: list[str] | None = None) -> int:
                         spec.checkpoint, spec.checkpoint.with_name("run.yml"))
                     scope[f"{name} checkpoint"] = [name]
             scope["policy"] = [m for m in methods if METHODS[m].uses_policy]
-            if scope["policy"]:
+            if any(METHODS[m].stack == "policy" for m in methods):
                 record = _check_policy(policy, args.policy_run)
-                inputs["policy"] = file_digest(policy, record)
+                if scope["policy"]:
+                    inputs["policy"] = file_digest(policy, record)
             elif args.policy or args.policy_run:
-                users = [n for n, spec in METHODS.items() if spec.uses_policy]
+                users = [n for n, spec in METHODS.items() if spec.stack == "policy"]
                 raise EvaluationError(
-                    f"--policy and --policy-run are for the method(s) that run that policy "
-                    f"({', '.join(users)}); none of {', '.join(methods)} does")
+                    f"--policy and --policy-run are for the method(s) that run that policy or "
+                    f"play in its stack ({', '.join(users)}); none of {', '.join(methods)} "
+                    f"does")
+            stacked = RunOptions(policy=str(policy.resolve()),
+                                 policy_run=None if record is None else str(record.resolve()))
+            for name in methods:     # the zero-action ablations: the recorded stack they play in
+                spec = METHODS[name]
+                if spec.stack and not spec.uses_policy and spec.checkpoint is None:
+                    inputs[f"{name} stack"] = zero_action_stack_digest(name, stacked)
+                    scope[f"{name} stack"] = [name]
         if "olstm-dvhop" in localizers:
             inputs["olstm-dvhop"] = file_digest(DEFAULT_CHECKPOINT)
         backend = make_backend(args.backend, workers=args.workers, address=args.address)

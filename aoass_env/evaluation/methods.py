@@ -145,6 +145,9 @@ class MethodSpec:
     checkpoint: Path | None = None
     checkpoint_command: str = ""
     configs: tuple[type, ...] = PLAIN_CONFIGS
+    #: the recorded stack of the zero-action ablations: the ``--policy``'s ("policy") or the
+    #: shipped adaptive policy's ("adaptive"); "" for the others (:func:`zero_action_stack`)
+    stack: str = ""
 
     @property
     def defaults_digest(self) -> str:
@@ -185,6 +188,42 @@ def _recorded_stack(record: str, mtime_ns: int) -> dict[str, Any]:
     return {k: env[k] for k in POLICY_STACK_KEYS if k in env}
 
 
+#: The entries of a recorded stack that a zero-action run depends on: what filters and tracks
+#: the anchor, and what an action means (the decision period, the residual's scales and the
+#: observation's coverage sectors change nothing the zero action does).
+ZERO_ACTION_STACK_KEYS = ("tracker", "safety", "action_type")
+
+
+def _stack(options: RunOptions, *, learned: bool, adaptive: bool) -> dict[str, Any]:
+    """The :func:`~aoass_env.make_safe_env` keywords a stack method plays in (the policy's
+    recorded stack; the adaptive rule without the sweep rule its policy was trained on)."""
+    if not adaptive:
+        return policy_stack(options.policy, options.policy_run)
+    stack = {"action_type": "adaptive", **policy_stack(options.adaptive_policy)}
+    if not learned:   # the rule at AdaptiveConfig's defaults, not the one the policy knew
+        stack.pop("adaptive", None)
+    return stack
+
+
+def zero_action_stack(name: str, options: RunOptions) -> dict[str, Any]:
+    """What the episodes of zero-action method ``name`` (a :class:`MethodSpec` with a
+    ``stack``) take from the run record they play in: its :data:`ZERO_ACTION_STACK_KEYS`, so
+    that evaluate.py can tell rows made in another stack (another ``--policy-run``, a retrained
+    policy that sets ``safety``) from this one's."""
+    spec = METHODS[name]
+    if not spec.stack or spec.uses_policy or spec.checkpoint is not None:
+        raise ValueError(f"{name} is not a zero-action method of a recorded stack")
+    stack = _stack(options, learned=False, adaptive=spec.stack == "adaptive")
+    return {k: stack[k] for k in ZERO_ACTION_STACK_KEYS if k in stack}
+
+
+def zero_action_stack_digest(name: str, options: RunOptions) -> str:
+    """SHA-256 (hex) of :func:`zero_action_stack`: the input of evaluate.py's record that
+    ties that method's rows to the stack they were played in."""
+    text = json.dumps(zero_action_stack(name, options), sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
 def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
                       options: RunOptions, *, learned: bool, adaptive: bool = False
                       ) -> MethodRun:
@@ -194,12 +233,9 @@ def _run_safety_stack(config: AOASSConfig, obstacle_map: ObstacleMap, seed: int,
     the adaptive action type and its policy (``options.adaptive_policy``)."""
     if adaptive:
         path, algo, record = options.adaptive_policy, POLICY_ALGO, None
-        stack = {"action_type": "adaptive", **policy_stack(path)}
-        if not learned:   # the rule at AdaptiveConfig's defaults, not the one the policy knew
-            stack.pop("adaptive", None)
     else:
         path, algo, record = options.policy, options.algo, options.policy_run
-        stack = policy_stack(path, record)
+    stack = _stack(options, learned=learned, adaptive=adaptive)
     repeat = int(stack.get("action_repeat", 1)) if learned else 1
     config = config.replace(**{k: stack[k] for k in _ACTION_KEYS if k in stack})
     env = make_safe_env(config=config, tracker=stack.get("tracker"),
@@ -285,21 +321,21 @@ def _registry() -> dict[str, MethodSpec]:
     methods = {
         "aoass": MethodSpec("aoass", "AOASS", "aoass",
                             functools.partial(_run_safety_stack, learned=True), uses_policy=True,
-                            configs=STACK_CONFIGS),
+                            configs=STACK_CONFIGS, stack="policy"),
         "aoass-scripted": MethodSpec("aoass-scripted", "AOASS, zero action (ablation)",
                                      "ablation",
                                      functools.partial(_run_safety_stack, learned=False),
-                                     configs=STACK_CONFIGS),
+                                     configs=STACK_CONFIGS, stack="policy"),
         "aoass-rule": MethodSpec("aoass-rule", "AOASS, adaptive rule", "ablation",
                                  functools.partial(_run_safety_stack, learned=False,
                                                    adaptive=True),
-                                 configs=ADAPTIVE_CONFIGS),
+                                 configs=ADAPTIVE_CONFIGS, stack="adaptive"),
         "aoass-adaptive": MethodSpec("aoass-adaptive", "AOASS, adaptive policy", "aoass",
                                      functools.partial(_run_safety_stack, learned=True,
                                                        adaptive=True),
                                      checkpoint=ADAPTIVE_POLICY,
                                      checkpoint_command=ADAPTIVE_POLICY_COMMAND,
-                                     configs=ADAPTIVE_CONFIGS),
+                                     configs=ADAPTIVE_CONFIGS, stack="adaptive"),
         "spiral": MethodSpec("spiral", "Square spiral", "spiral", _run_spiral),
     }
     for kind, planned in (("classical", CLASSICAL_METHODS), ("baseline", BASELINE_METHODS)):

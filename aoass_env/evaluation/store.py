@@ -219,9 +219,12 @@ def config_input(method: str) -> str:
 
 def _input_phrase(name: str) -> str:
     """How an input of :func:`check_inputs` is named in its refusal: "another policy
-    checkpoint", "another aoass-adaptive checkpoint", "other config defaults of spiral"."""
+    checkpoint", "another aoass-adaptive checkpoint", "other config defaults of spiral",
+    "another aoass-rule stack"."""
     if name.startswith(CONFIG_DEFAULTS):
         return f"other {name}"
+    if name.endswith(" stack"):
+        return f"another {name} (the tracker, safety filter or action type of its run record)"
     return f"another {name.removesuffix(' checkpoint')} checkpoint"
 
 

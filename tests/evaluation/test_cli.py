@@ -1,6 +1,7 @@
 """evaluate.py end to end on the smoke preset, --logs mode, and its usage errors (exit 2)."""
 
 import csv
+import json
 import math
 import shutil
 import sys
@@ -8,6 +9,7 @@ import zipfile
 from dataclasses import replace
 
 import pytest
+import yaml
 
 from aoass_env.config import AOASSConfig
 from aoass_env.evaluation import cli, methods
@@ -113,6 +115,7 @@ def test_unknown_names_list_the_valid_ones(capsys, tmp_path, argv, valid):
 
 @pytest.mark.parametrize("argv", [
     ["--methods", "spiral", "aoass-adaptive", "--policy", "any.zip"],
+    ["--methods", "aoass-rule", "--policy", "any.zip"],
     ["--methods", "spiral", "--policy-run", "any.yml"],
     ["--logs", "any", "--policy", "any.zip"],
 ])
@@ -233,6 +236,48 @@ def test_resuming_with_other_config_defaults_is_refused_for_the_methods_built_on
     # the same episodes again (the tuned default never reached them)
     assert comparable_lines(tmp_path / "episodes.csv") == comparable_lines(out / "episodes.csv")
     assert (tmp_path / "episodes.csv").read_text() != before       # timings are new
+
+
+def test_the_zero_action_ablations_rows_are_tied_to_the_stack_they_played_in(capsys, tmp_path):
+    """aoass-scripted plays in the stack of --policy's run record, aoass-rule in the shipped
+    adaptive policy's: a record whose safety filter differs used to leave their old rows in
+    place (nothing recorded what they were played in), two stacks in one table; and --policy
+    with aoass-scripted alone was refused as if it did not read it."""
+    folder = tmp_path / "policy"
+    folder.mkdir()
+    shutil.copy(DEFAULT_POLICY, folder / "best.zip")
+    record = yaml.safe_load(DEFAULT_POLICY.with_name("run.yml").read_text())
+    (folder / "run.yml").write_text(yaml.safe_dump(record))
+    out = tmp_path / "out"
+    argv = ["--preset", "smoke", "--methods", "aoass-scripted", "--localizers", "none",
+            "--workers", "1", "--out", str(out), "--no-progress", "--policy",
+            str(folder / "best.zip")]
+    assert cli.main(argv) == 0
+    inputs = json.loads((out / "inputs.json").read_text())
+    assert "aoass-scripted stack" in inputs and "policy" not in inputs   # no weights read
+    before = (out / "episodes.csv").read_text()
+    record["hyperparameters"]["env"]["safety"] = {"margin": 1.5}
+    (folder / "run.yml").write_text(yaml.safe_dump(record))
+    err = _usage_error(capsys, argv)
+    assert ("episodes of aoass-scripted produced with another aoass-scripted stack (the "
+            "tracker, safety filter or action type of its run record)") in err
+    assert (out / "episodes.csv").read_text() == before
+    assert cli.main([*argv, "--discard-changed"]) == 0
+    assert json.loads((out / "inputs.json").read_text())["aoass-scripted stack"] != \
+        inputs["aoass-scripted stack"]
+    # the rule's stack is the adaptive policy's record, read the same way
+    shipped = methods.RunOptions()
+    assert methods.zero_action_stack("aoass-rule", shipped) == {"action_type": "adaptive"}
+    adaptive = tmp_path / "adaptive"
+    adaptive.mkdir()
+    shutil.copy(methods.ADAPTIVE_POLICY, adaptive / "best.zip")
+    other = yaml.safe_load(methods.ADAPTIVE_POLICY.with_name("run.yml").read_text())
+    other["hyperparameters"]["env"]["tracker"] = {"gate": 0.95}
+    (adaptive / "run.yml").write_text(yaml.safe_dump(other))
+    moved = replace(shipped, adaptive_policy=str(adaptive / "best.zip"))
+    assert methods.zero_action_stack("aoass-rule", moved)["tracker"] == {"gate": 0.95}
+    assert (methods.zero_action_stack_digest("aoass-rule", moved)
+            != methods.zero_action_stack_digest("aoass-rule", shipped))
 
 
 def test_unwritable_output_folder_fails_before_any_work(capsys, tmp_path):
