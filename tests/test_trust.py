@@ -192,6 +192,21 @@ def _log(tmp_path: Path, **changes) -> Path:
     return path
 
 
+def _extra(**changes) -> np.ndarray:
+    """The evaluation record of :func:`_log`'s episode (a valid key of its 10 nodes on a 40 m
+    field), with ``changes``."""
+    key = {"method": "spiral", "map": "gen", "field_size": 40.0, "n_nodes": 10,
+           "obstacle_density": 0.1, "seed": 0, "coverage": 0.5}
+    return np.array(json.dumps({**key, **changes}))
+
+
+def _extra_alone(tmp_path: Path) -> Path:
+    """A .npz holding a valid evaluation record and nothing of a beacon log."""
+    path = tmp_path / "alone.npz"
+    np.savez(path, evaluation_episode=_extra())
+    return path
+
+
 def _foreign_log(tmp_path: Path, **config) -> Path:
     """A log without the evaluation record whose config_json has ``config`` merged in."""
     with np.load(_log(tmp_path), allow_pickle=False) as data:
@@ -286,7 +301,25 @@ AUDIT = [
     ("evaluation record of objects", lambda t, s: lambda: __import__(
         "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
         _log(t, evaluation_episode=np.array([{}], dtype=object))), BeaconLogError,
-     "log.npz: beacon log key 'evaluation_episode': unreadable (Object arrays"),
+     "log.npz: beacon log key 'evaluation_episode': cannot read (ValueError: Object arrays"),
+    # the record's episode columns went into episodes.csv unchecked (a coverage of 750 %,
+    # a row the next run refused), its key was never compared with the log, and a file
+    # holding the record alone passed as a log
+    ("evaluation record's coverage 7.5", lambda t, s: lambda: __import__(
+        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
+        _log(t, evaluation_episode=_extra(coverage=7.5))), BeaconLogError,
+     "key 'evaluation_episode': coverage='7.5' must be a finite number in [0, 1]"),
+    ("evaluation record's beacons 'lots'", lambda t, s: lambda: __import__(
+        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
+        _log(t, evaluation_episode=_extra(beacons="lots"))), BeaconLogError,
+     "key 'evaluation_episode': invalid literal for int()"),
+    ("evaluation record of another N", lambda t, s: lambda: __import__(
+        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
+        _log(t, evaluation_episode=_extra(n_nodes=500))), BeaconLogError,
+     "its key is N = 500 on a 40 m field, but the log holds 10 nodes on a 40 m field"),
+    ("evaluation record alone", lambda t, s: lambda: __import__(
+        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(_extra_alone(t)),
+     BeaconLogError, "alone.npz: beacon log key"),
     ("foreign log's seed 'abc'", lambda t, s: lambda: __import__(
         "aoass_env.evaluation.episode", fromlist=["x"]).log_key(_foreign_log(t, seed="abc")),
      BeaconLogError, "'config_json': its seed must be an integer or null, got 'abc'"),

@@ -18,7 +18,6 @@ import json
 import math
 import re
 import time
-import zipfile
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -34,12 +33,13 @@ from aoass_env.evaluation.store import (
     NO_LOCALIZER,
     EpisodeKey,
     EvaluationError,
+    checked_row,
 )
 from aoass_env.localization import localize
 from aoass_env.maps import ObstacleMap, generate_map, load_map
 from aoass_env.metrics import localization_rmse
 from aoass_env.simulator import episode_summary
-from aoass_env.validators import one_line, parse_json
+from aoass_env.validators import parse_json
 
 __all__ = ["GENERATED_PREFIX", "ROBUSTNESS_MAP_SEED", "episode_map", "episode_metrics",
            "localization_row", "localize_log", "log_key", "log_name", "robustness_map",
@@ -168,7 +168,12 @@ def _saved_episode(text: Any, path: Path) -> dict[str, Any]:
         if isinstance(value, bool) or not isinstance(value, want):
             raise BeaconLogError(f"{name} must be a {kinds[name]}, got {value!r}",
                                  EPISODE_EXTRA, path)
-    return saved
+    episode = {name: saved.get(name) for name in (*KEY_FIELDS, *EPISODE_FIELDS)}
+    try:        # the values a row of episodes.csv may hold (it used to take any)
+        checked_row(episode)
+    except (TypeError, ValueError) as exc:
+        raise BeaconLogError(str(exc), EPISODE_EXTRA, path) from None
+    return episode
 
 
 def _config_key(log: BeaconLog, path: Path) -> EpisodeKey:
@@ -190,31 +195,34 @@ def _config_key(log: BeaconLog, path: Path) -> EpisodeKey:
 
 
 def log_key(path: Path) -> EpisodeKey:
-    """The episode key of a saved beacon log: from the extra written by :func:`run_episode`
-    (read alone, cheaply), else from the log's config.
+    """The episode key of a saved beacon log: from the extra written by :func:`run_episode`,
+    checked against the log, else from the log's config.
 
     Raises:
-        BeaconLogError: the file is not a valid beacon log.
+        BeaconLogError: the file is not a valid beacon log (the whole log is read: a file
+            holding the extra alone used to pass), or its extra does not fit it.
     """
-    if zipfile.is_zipfile(path):
-        text = None
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                if EPISODE_EXTRA in data.files:
-                    text = data[EPISODE_EXTRA]
-        except Exception as exc:  # an object array, a damaged member: numpy, zipfile, zlib...
-            raise BeaconLogError(f"unreadable ({one_line(exc)})", EPISODE_EXTRA, path) from None
-        if text is not None:
-            return _saved_key(_saved_episode(text, path))
-    return _config_key(BeaconLog.load(path), path)
+    return _log_episode(BeaconLog.load(path), path)[0]
+
+
+def _log_episode(log: BeaconLog, path: Path) -> tuple[EpisodeKey, dict[str, Any]]:
+    """(key, episode columns of the extra, empty without one) of a loaded log (:func:`log_key`)."""
+    if EPISODE_EXTRA not in log.extras:
+        return _config_key(log, path), {}
+    saved = _saved_episode(log.extras[EPISODE_EXTRA], path)
+    key = _saved_key(saved)
+    field = float(log.field[0])
+    if key.n_nodes != log.n_nodes or key.field_size != field:
+        raise BeaconLogError(f"its key is N = {key.n_nodes} on a {key.field_size:g} m field, "
+                             f"but the log holds {log.n_nodes} nodes on a {field:g} m field",
+                             EPISODE_EXTRA, path)
+    return key, saved
 
 
 def localize_log(path: Path, localizers: tuple[str, ...]) -> list[dict[str, Any]]:
     """``episodes.csv`` rows of a saved beacon log: its key, its episode metrics when the log
     holds them (logs of ``--save-logs``; else empty) and one localization per localizer."""
     log = BeaconLog.load(path)
-    saved = (_saved_episode(log.extras[EPISODE_EXTRA], path) if EPISODE_EXTRA in log.extras
-             else {})
-    key = _saved_key(saved) if saved else _config_key(log, path)
+    key, saved = _log_episode(log, path)
     episode = {**dict.fromkeys(EPISODE_FIELDS), **saved, **asdict(key)}
     return [{**episode, **localization_row(log, name)} for name in localizers]

@@ -31,8 +31,8 @@ except ImportError:       # Windows: no advisory locks
 
 __all__ = ["COLUMNS", "CONFIG_DEFAULTS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS",
            "LOCALIZATION_FIELDS", "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey", "EpisodeStore",
-           "EvaluationError", "check_inputs", "RUNS_FILE", "comparable_lines", "config_input",
-           "file_digest", "read_episodes", "read_runs", "record_run", "row_key"]
+           "EvaluationError", "check_inputs", "checked_row", "RUNS_FILE", "comparable_lines",
+           "config_input", "file_digest", "read_episodes", "read_runs", "record_run", "row_key"]
 
 
 class EvaluationError(ValueError):
@@ -76,11 +76,12 @@ _TEXT = ("method", "map", "localizer")
 _INTEGER = ("n_nodes", "seed", "beacons", "collisions", "collisions_static",
             "collisions_moving", "path_complete")
 #: What a value read back may be: (low, high), both included; a column not listed here is
-#: >= 0. Empty cells (NaN) pass; only ``e_norm`` and ``eer`` may be infinite (no beacons, no
-#: energy). A row outside them was not written by an episode (hand-edited, or another tool's).
+#: >= 0 (a seed may be -1: a log localized by ``--logs`` that recorded none). Empty cells
+#: (NaN) pass; only ``e_norm`` and ``eer`` may be infinite (no beacons, no energy). A row
+#: outside them was not written by an episode (hand-edited, or another tool's).
 _RANGES = {"field_size": (1e-9, math.inf), "n_nodes": (1, math.inf),
-           "obstacle_density": (0.0, 1.0), "localized": (0.0, 1.0), "coverage": (0.0, 1.0),
-           "path_complete": (0, 1)}
+           "seed": (-1, math.inf), "obstacle_density": (0.0, 1.0), "localized": (0.0, 1.0),
+           "coverage": (0.0, 1.0), "path_complete": (0, 1)}
 _INFINITE = ("e_norm", "eer")
 
 
@@ -112,6 +113,12 @@ def _parsed(row: dict[str, str]) -> dict[str, Any]:
     if not out["method"]:
         raise ValueError("method is empty")
     return out
+
+
+def checked_row(values: Mapping[str, Any]) -> dict[str, Any]:
+    """``values`` (column -> value; a missing column is empty) as episodes.csv would read them
+    back: typed and range-checked; ValueError naming the column otherwise."""
+    return _parsed({name: str(_cell(values.get(name))) for name in COLUMNS})
 
 
 def row_key(row: dict[str, Any]) -> tuple[EpisodeKey, str]:

@@ -89,7 +89,7 @@ def test_a_broken_row_inside_the_file_is_an_error(tmp_path):
     ({"energy_total": -784.0}, r"energy_total='-784.0' must be a finite number >= 0"),
     ({"coverage": 5.0}, r"coverage='5.0' must be a finite number in \[0, 1\]"),
     ({"localized": 1.5}, r"localized='1.5' must be a finite number in \[0, 1\]"),
-    ({"seed": -3}, r"seed='-3' must be a finite number >= 0"),
+    ({"seed": -3}, r"seed='-3' must be a finite number >= -1"),
     ({"n_nodes": 0}, r"n_nodes='0' must be a finite number >= 1"),
     ({"path_complete": 2}, r"path_complete='2' must be a finite number in \[0, 1\]"),
     ({"obstacle_density": 1.2}, r"obstacle_density='1.2' must be a finite number in \[0, 1\]"),

@@ -115,6 +115,25 @@ def test_log_jobs_read_the_key_of_each_saved_log(small_key, tmp_path):
         log_jobs(tmp_path / "empty", ("dvhop",))
 
 
+def test_an_unseeded_log_s_rows_read_back(tmp_path):
+    """A log recorded without a seed gets the key seed -1; its rows were refused when read
+    back (seed >= 0), so the folder could be neither resumed nor summarised again."""
+    from aoass_env.evaluation import cli
+    env = AOASSEnv(map="test/d0.10_f100_s500", n_nodes=20)
+    env.reset(seed=0)
+    env.reset()                              # unseeded: the log records no seed
+    for _ in range(30):
+        env.step(np.zeros(2))
+    (tmp_path / "logs").mkdir()
+    env.beacon_log.save(tmp_path / "logs" / "a.npz")
+    argv = ["--logs", str(tmp_path / "logs"), "--localizers", "dvhop", "--workers", "1",
+            "--out", str(tmp_path / "out"), "--no-progress"]
+    assert cli.main(argv) == 0
+    assert cli.main(argv) == 0               # resumed: the row is read back, nothing rerun
+    (row,) = read_episodes(tmp_path / "out" / "episodes.csv")
+    assert row["seed"] == -1 and row["localizer"] == "dvhop"
+
+
 def test_log_jobs_skip_copies_and_refuse_different_logs_with_one_key(tmp_path):
     """Logs recorded without a seed share the key seed -1: the second used to be left out
     with a warning, a different episode dropped from the table."""
