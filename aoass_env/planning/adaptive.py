@@ -68,7 +68,6 @@ sitting exactly on its bound. The zero knobs are the hand-written rule
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass, field
 from typing import ClassVar, NamedTuple
 
@@ -79,7 +78,7 @@ from aoass_env.network import Network
 from aoass_env.planning.coverage import CoverageMap
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.planning.follower import Skip, WaypointFollower
-from aoass_env.planning.pruning import PrunedPlan, cached_plan, plan_sites, prune_spiral
+from aoass_env.planning.pruning import PrunedPlan, plan_sites, prune_spiral
 from aoass_env.planning.square_spiral import config_spacing
 from aoass_env.radio import Radio
 from aoass_env.validators import ValidatedConfig, param
@@ -338,18 +337,19 @@ class AdaptiveSweep:
         """Prune the spiral ahead (:mod:`aoass_env.planning.pruning`); the sweep's follower then
         walks the plan's waypoints in the plan's order (its indices are the plan's)."""
         follower, cov, config, rule = self.follower, self.coverage, self.config, self.rule
-        key = (follower.waypoints.tobytes(), follower.blocked.tobytes(), follower.index,
+        # everything else the plan depends on (the raster's settings are the coverage map's)
+        key = ("plan", follower.waypoints.tobytes(), follower.blocked.tobytes(), follower.index,
                self.planner.radius, self.planner.res, config.beacon_interval,
                config.collinearity_tol, rule.prune_beacons, rule.prune_spread, rule.reorder,
                rule.prune_error, rule.sites, rule.site_need if rule.sites else None)
         margin = (rule.prune_beacons, rule.prune_spread)
         if rule.sites:
-            plan = cached_plan(cov.radio, key, lambda: plan_sites(
+            plan = cov.derived(key, lambda: plan_sites(
                 follower.waypoints, follower.blocked, follower.index, self.planner, cov.radio,
                 cov.n_cells, config.beacon_interval, config.collinearity_tol, margin,
                 need=rule.site_need, reorder=rule.reorder, error_limit=rule.prune_error or None))
         else:
-            plan = cached_plan(cov.radio, key, lambda: prune_spiral(
+            plan = cov.derived(key, lambda: prune_spiral(
                 follower.waypoints, follower.blocked, follower.index, self.planner, cov.radio,
                 cov.n_cells, config.beacon_interval, config.collinearity_tol, margin,
                 rule.reorder, error_limit=rule.prune_error or None))
@@ -712,24 +712,18 @@ class AdaptiveSweep:
         return float(np.hypot(*(target - position))) + self._detour_excess(position, target)
 
 
-#: Beacon-site radios of the last maps seen, per coverage-map radio (one per map and cell
-#: settings; maps are immutable).
-_SITES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
 
 def site_radio(planner: DetourPlanner, coverage: CoverageMap) -> Radio:
     """The lattice of points a beacon may be sent from (the planner's free cells of its main
     region, thinned to :data:`SITE_SPACING`) as the nodes of a radio with the cells' guaranteed
     range and line of sight: its receivers of a cell's virtual node are the points from which
-    a beacon reaches the cell (range and sight are symmetric). Built once per map."""
+    a beacon reaches the cell (range and sight are symmetric). Built once per map
+    (:meth:`CoverageMap.derived`)."""
     radio = coverage.radio
-    per_map = _SITES.setdefault(radio, {})
-    key = (planner.radius, planner.res)
-    if key not in per_map:
-        step = max(1, round(SITE_SPACING / planner.res))
-        per_map[key] = Radio(planner.main_cells(step), radio.obstacle_map, coverage.reach,
-                             line_of_sight=radio.line_of_sight)
-    return per_map[key]
+    step = max(1, round(SITE_SPACING / planner.res))
+    return coverage.derived(("sites", planner.radius, planner.res), lambda: Radio(
+        planner.main_cells(step), radio.obstacle_map, coverage.reach,
+        line_of_sight=radio.line_of_sight))
 
 
 def coverable(planner: DetourPlanner, coverage: CoverageMap, config: AOASSConfig) -> np.ndarray:
@@ -738,17 +732,15 @@ def coverable(planner: DetourPlanner, coverage: CoverageMap, config: AOASSConfig
     :class:`~aoass_env.network.Network` test, ``config.collinearity_tol``). More beacons never
     narrow a cell's spread, so a cell that all of them leave uncovered no sweep covers (up to the
     lattice's spacing). Built once per map."""
-    sites = site_radio(planner, coverage)
-    per_map = _SITES[coverage.radio]
-    key = ("coverable", planner.radius, planner.res, config.collinearity_tol)
-    if key not in per_map:
+    def build() -> np.ndarray:
         network = Network(max(coverage.n_cells, 1), config)
-        for point in sites.nodes:
+        for point in site_radio(planner, coverage).nodes:
             network.record_beacon(point, coverage.radio.receivers(point))
         able = network.covered[:coverage.n_cells].copy()
         able.flags.writeable = False
-        per_map[key] = able
-    return per_map[key]
+        return able
+    return coverage.derived(("coverable", planner.radius, planner.res,
+                             config.collinearity_tol), build)
 
 
 def _length(way: np.ndarray) -> float:

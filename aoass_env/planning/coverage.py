@@ -28,6 +28,8 @@ spread = 1 - min(1, residual / collinearity_tol); a cell that heard nothing has 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Hashable
+from typing import TypeVar
 
 import numpy as np
 import shapely
@@ -39,6 +41,8 @@ from aoass_env.network import Network, lambda_min, residual_after
 from aoass_env.radio import Radio, points_within
 
 __all__ = ["PARTIAL_CELL_SHARE", "CoverageMap"]
+
+_T = TypeVar("_T")
 
 #: A cell whose centre lies inside an obstacle is kept when at least this share of its area is
 #: free (its virtual node then lies in the free part).
@@ -134,6 +138,7 @@ class CoverageMap:
     def __init__(self, obstacle_map: ObstacleMap, config: AOASSConfig) -> None:
         self.cell = config.coverage_cell
         self.reach = config.cell_range
+        self._map = obstacle_map
         self.shape, self.index, self.centres, self._radio = _cells(
             obstacle_map, self.cell, self.reach, config.line_of_sight)
         self._network = Network(max(len(self.centres), 1), config)
@@ -141,6 +146,14 @@ class CoverageMap:
         self._deficit: np.ndarray | None = None      # of every free cell, until a beacon
         self._cx, self._cy = self.centres[:, 0].copy(), self.centres[:, 1].copy()
         self._every = np.ones(len(self.centres), dtype=bool)
+
+    def derived(self, key: Hashable, build: Callable[[], _T]) -> _T:
+        """A value derived from this raster (its map, cell, reach and line of sight) for the
+        hashable settings ``key``, built by ``build()`` once and kept with the map
+        (:meth:`~aoass_env.maps.ObstacleMap.derived`; the episodes on one map share it): the
+        adaptive sweep's plans, beacon sites and coverable cells."""
+        return self._map.derived(("coverage raster", self.cell, self.reach,
+                                  self._radio.line_of_sight, key), build)
 
     def listeners(self) -> tuple[Radio, np.ndarray]:
         """(radio, among) for :func:`~aoass_env.radio.receivers_at`: the cells' radio and the

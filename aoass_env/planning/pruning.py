@@ -60,8 +60,6 @@ from __future__ import annotations
 
 import heapq
 import math
-import weakref
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -73,7 +71,7 @@ from aoass_env.network import lambda_min
 from aoass_env.planning.detour import DetourPlanner
 from aoass_env.radio import Radio
 
-__all__ = ["MIN_GAIN", "PrunedPlan", "beacon_weight", "cached_plan", "class_error",
+__all__ = ["MIN_GAIN", "PrunedPlan", "beacon_weight", "class_error",
            "plan_sites", "prune_spiral"]
 
 #: A removal must shorten the plan by more than this (m).
@@ -812,17 +810,3 @@ def _split(pruner: _Pruner, cap: np.ndarray, cost: _Costs, listeners: Radio) -> 
             return
         pruner.insert(*pick)
 
-
-#: Plans of the last maps seen, per coverage-map radio (one per map and cell settings, shared
-#: by the episodes on the map; maps are immutable) and settings.
-_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def cached_plan(radio: Radio, key: tuple, make: Callable[[], PrunedPlan]) -> PrunedPlan:
-    """The plan on the map of the coverage map's ``radio`` for the hashable settings ``key``
-    (everything else the plan depends on: the spiral, its start, the planner's radius, the
-    beacon interval, Eq. 18's tolerance, the margin), made by ``make()`` on first use."""
-    per_map = _PLANS.setdefault(radio, {})
-    if key not in per_map:
-        per_map[key] = make()
-    return per_map[key]

@@ -460,3 +460,27 @@ def test_the_needs_kept_between_beacons_are_the_needs_computed_anew(rule, monkey
                      list(ctl.passed), sim.world.time))
     assert runs[0] == runs[1]
     assert runs[0][2]             # the online skips were taken: need() decided something
+
+
+def test_the_sites_and_plans_of_a_map_go_with_it():
+    """Beacon sites, coverable cells and plans are kept with their map: a cache weakly keyed
+    by the coverage radio, whose value held that radio's map, kept every map alive with
+    cell_sites on (and its planner grid, raster and plans)."""
+    import gc
+    import weakref
+
+    from aoass_env.maps import generate_map
+    from aoass_env.maps.generator import clear_cache
+
+    config = AOASSConfig(field_size=40.0, n_nodes=20, n_moving_obstacles=0)
+    field = generate_map(40.0, 0.2, np.random.default_rng([510210, 0]))
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=field)
+    sweep = sim.adaptive_sweep(AdaptiveConfig(cell_sites=True))
+    sites = site_radio(sweep.planner, sim.coverage_map)
+    assert site_radio(sweep.planner, sim.coverage_map) is sites          # built once
+    assert coverable(sweep.planner, sim.coverage_map, config).any()
+    gone = weakref.ref(field)
+    del field, sim, sweep, sites
+    clear_cache()                      # the generator's own few
+    gc.collect()
+    assert gone() is None

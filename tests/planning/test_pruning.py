@@ -19,7 +19,6 @@ from aoass_env.planning.pruning import (
     SNAP,
     _covered,
     beacon_weight,
-    cached_plan,
     class_error,
     plan_sites,
     prune_spiral,
@@ -229,10 +228,14 @@ def test_plans_are_cached_per_map_and_settings():
         made.append(1)
         return object()
 
-    first = cached_plan(sim.coverage_map.radio, ("k", 1), make)
-    assert cached_plan(again.coverage_map.radio, ("k", 1), make) is first and len(made) == 1
-    cached_plan(sim.coverage_map.radio, ("k", 2), make)
+    first = sim.coverage_map.derived(("k", 1), make)
+    assert again.coverage_map.derived(("k", 1), make) is first and len(made) == 1
+    sim.coverage_map.derived(("k", 2), make)
     assert len(made) == 2
+    # another raster of the same map (other cells) keeps its own
+    other = CoverageMap(BLOCKS, CONFIG.replace(coverage_cell=2 * CONFIG.coverage_cell))
+    other.derived(("k", 1), make)
+    assert len(made) == 3
 
 
 def _planning(density: float) -> tuple[Simulator, tuple]:
