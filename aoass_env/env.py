@@ -173,12 +173,16 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
                              f"{self.metadata['render_modes']} or None")
         self.render_mode = render_mode
         self._map = None
+        given = {*kwargs, *(config if isinstance(config, Mapping) else ())}
         if self.config.map is not None:     # a map keeps its own size, never rescaled
             self._map = _option_map(self.config.map, "map")
-            self.config = config_for_map(
-                self.config, self._map,
-                explicit="field_size" in kwargs
-                or (isinstance(config, Mapping) and "field_size" in config))
+            if "obstacle_density" in given:     # it would be ignored, yet logged as the episode's
+                raise ConfigError(
+                    f"obstacle_density={self.config.obstacle_density!r} sets the density of "
+                    f"generated maps; map={self.config.map!r} brings its own obstacles "
+                    f"(density {self._map.density:.2f}): give one of the two")
+            self.config = config_for_map(self.config, self._map,
+                                         explicit="field_size" in given)
         self.max_episode_steps = max_episode_steps(self.config)
         if isinstance(action_type, str):
             action_type = action_type_named(action_type).from_config(self.config)
@@ -220,12 +224,17 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: ['map']")
         config, limit = self.config, self._base_config
         if episode_map is not None:
+            # the episode's map as its config (and beacon log) names it: the option's name or
+            # path, None for a map object (it used to keep the constructor's map)
+            name = str(episode_map) if isinstance(episode_map, (str, os.PathLike)) else None
             episode_map = _option_map(episode_map)
             side = map_side(episode_map, "reset option 'map'")
             if not math.isclose(side, config.field_size, rel_tol=1e-9):   # its own size
                 config = limit = limit.replace(field_size=side, map=None)
                 if self._sweeps:
                     config = sweep_config(config, self.adaptive, side)
+            if config.map != name:
+                config = config.replace(map=name)
         self.episode_config = config
         self.max_episode_steps = max_episode_steps(limit)
         sim = Simulator(config, self.np_random,
@@ -464,6 +473,17 @@ class EndOnTruncation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         inner = env.env if type(env) is TimeLimit else None
         self._repeated = env if inner is not None and inner.spec is not None \
             and env._max_episode_steps == inner.spec.max_episode_steps else None
+        own = None if inner is None or inner.spec is None else inner.spec.max_episode_steps
+        if own is not None and env._max_episode_steps > own:
+            # the environment truncates itself at its own limit: the spec would report a
+            # limit no episode reaches
+            factor = env.unwrapped.config.time_limit_factor
+            raise ConfigError(
+                f"max_episode_steps={env._max_episode_steps} is above the environment's own "
+                f"limit of {own} agent steps (time_limit_factor={factor:g} x the ideal "
+                f"spiral's duration on this field), which would end every episode first; for "
+                f"longer episodes raise time_limit_factor (the limit grows in proportion to "
+                f"it), or give max_episode_steps <= {own}")
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
         out = self.env.reset(**kwargs)

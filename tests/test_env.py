@@ -353,3 +353,29 @@ def test_generated_maps_are_freed_after_their_episodes(env_id):
     gc.collect()
     assert first() is None
     env.close()
+
+
+def test_a_map_option_is_the_episodes_map_in_its_config_and_log():
+    """A map given at reset is the one the episode's config (and its beacon log) names: it
+    used to keep the constructor's map, so a log was keyed by a map it was not played on."""
+    from aoass_env.maps import load_map
+
+    env = gym.make("AOASS-v0", map="test/d0.10_f100_s500", n_nodes=20).unwrapped
+    env.reset(seed=0, options={"map": "test/d0.40_f100_s509"})
+    assert env.episode_config.map == "test/d0.40_f100_s509"
+    assert env.beacon_log.config["config"]["map"] == "test/d0.40_f100_s509"
+    env.reset(seed=0, options={"map": load_map("test/d0.40_f100_s509")})
+    assert env.episode_config.map is None                 # a map object: no name to give
+    env.reset(seed=0)
+    assert env.episode_config.map == "test/d0.10_f100_s500"
+
+
+def test_a_generated_maps_density_with_a_map_is_refused():
+    """obstacle_density shapes generated maps only: given with map= it was ignored, yet
+    recorded as the episode's."""
+    with pytest.raises(ConfigError, match=r"obstacle_density=0\.5 sets the density of generated "
+                                          r"maps; map='test/d0\.10_f100_s500' brings its own "
+                                          r"obstacles \(density 0\.10\): give one of the two"):
+        gym.make("AOASS-v0", map="test/d0.10_f100_s500", obstacle_density=0.5)
+    with pytest.raises(ConfigError, match="obstacle_density=0.3 sets the density"):
+        AOASSEnv(config={"map": "test/d0.10_f100_s500", "obstacle_density": 0.3})

@@ -108,6 +108,11 @@ def test_an_env_remade_from_its_spec_keeps_each_episodes_limit(env_id, repeat):
     user = gym.make(env_id, max_episode_steps=5, **small)
     user.reset(seed=510070, options={"map": bigger})
     assert user.spec.max_episode_steps == 5      # a limit of the user's own stays
+    # one above the environment's own was reported by the spec, and never reached (the
+    # environment truncated at its own)
+    with pytest.raises(ConfigError, match=rf"max_episode_steps={first + 1} is above the "
+                                          rf"environment's own limit of {first} agent steps"):
+        gym.make(env_id, max_episode_steps=first + 1, **small)
 
 
 def pickled(env: gym.Env) -> gym.Env:
