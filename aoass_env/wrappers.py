@@ -22,6 +22,7 @@ docs/safety.md describes every part and the measured safety record.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping, Sequence
 from copy import deepcopy
 from typing import Any
@@ -93,6 +94,17 @@ def _aoass(env: gym.Env, wrapper: str) -> AOASSEnv:
     return base
 
 
+def _own_size(obstacle_map: ObstacleMap, name: str | os.PathLike, field_size: float
+              ) -> ObstacleMap:
+    """``obstacle_map`` (map ``name`` read at its own size) as :class:`MapSampler` keeps it: a
+    map of the config's ``field_size`` read as the sampler always read it (scaled to that
+    side, which moves a vertex by a rounding error at most: the training runs' maps, bit for
+    bit), any other at its own size."""
+    if obstacle_map.width == obstacle_map.height == field_size:
+        return load_map(name, field_size=field_size)
+    return obstacle_map
+
+
 class MapSampler(_EntryPointWrapper):
     """A map drawn for every episode from a list (a seeded reset fixes the sequence of draws),
     or taken in turn (``cycle=True``, for evaluation; a seeded reset starts again from the
@@ -101,7 +113,9 @@ class MapSampler(_EntryPointWrapper):
     Args:
         env: an AOASS-v0 environment (possibly wrapped).
         maps: shipped map names (``"train/d0.10_f100_s000"``), paths or ``ObstacleMap`` objects;
-            loaded once here, so a bad name fails now.
+            loaded once here, so a bad name fails now, each at its own size (an episode on a
+            map of another size than the config's field takes the map's, as a map given at
+            reset does; it used to be rescaled to the config's field, its passages with it).
         cycle: take the maps in order instead of at random.
     """
 
@@ -117,7 +131,7 @@ class MapSampler(_EntryPointWrapper):
             raise ValueError(f"maps must be a non-empty list of maps, got {maps!r}")
         maps = given
         self.maps = [m if isinstance(m, ObstacleMap) else
-                     load_map(m, field_size=base.config.field_size) for m in maps]
+                     _own_size(load_map(m), m, base.config.field_size) for m in maps]
         if not isinstance(cycle, bool):
             raise ValueError(f"cycle must be a bool, got {cycle!r}")
         self.cycle = cycle

@@ -696,3 +696,20 @@ def test_safety_report_deviations_are_numpys_hypot(v):
         want = (float(np.hypot(sx - dx, sy - dy)), float(np.hypot(sx - px, sy - py)))
     got = wrappers._deviations(sx, sy, dx, dy, px, py)
     assert np.array(got).tobytes() == np.array(want).tobytes()
+
+
+def test_the_map_sampler_keeps_each_maps_own_size():
+    """A map of another size than the config's field is played at its own size, as a map
+    given at reset is: the sampler used to rescale it to the config's field (a 200 m map
+    shrunk to 100 m, its passages halved below the clearance it was certified for)."""
+    from aoass_env.maps import load_map
+
+    sampler = MapSampler(gym.make("AOASS-v0", n_nodes=10),
+                         ["test/d0.10_f200_s518", "test/d0.10_f100_s500"])
+    big, small = sampler.maps
+    assert (big.width, big.height) == (200.0, 200.0)
+    assert big.density == pytest.approx(load_map("test/d0.10_f200_s518").density, abs=1e-12)
+    # a map of the config's size is read as before (scaled to its side: the training maps)
+    assert small is load_map("test/d0.10_f100_s500", field_size=100.0)
+    sampler.reset(seed=0, options={"map": big})
+    assert sampler.unwrapped.obstacle_map.width == 200.0
