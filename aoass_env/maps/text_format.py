@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +87,10 @@ def _polygon(path: Path, kind: str, line: int, rows: _Rows, scale: float) -> np.
                                          f"({shapely.is_valid_reason(poly)})")
     if poly.area <= 0:
         raise MapFormatError(path, line, f"{kind} has zero area")
+    if not math.isfinite(poly.area):     # clipping it to the field would drop it unseen
+        what = "border" if kind == "[BORDER]" else "obstacle"
+        raise MapFormatError(path, line, f"the {what}'s extent overflows a float (coordinates "
+                                         f"too large)")
     return v
 
 
@@ -101,7 +106,12 @@ def read_map(path: str | os.PathLike, field_size: float | tuple[float, float] | 
     """
     path = Path(path)
     try:   # utf-8-sig: a byte-order mark some editors write is not part of the text
-        lines = path.read_text(encoding="utf-8-sig").splitlines()
+        # lines end at \n, \r\n or \r only: str.splitlines also breaks at a form feed,
+        # \x1c-\x1e, \x85 and U+2028/9, which read one line as two vertices and shifted the
+        # line numbers of every error after it
+        lines = re.split(r"\r\n|\r|\n", path.read_text(encoding="utf-8-sig"))
+        if lines and lines[-1] == "":
+            lines.pop()
     except UnicodeDecodeError as err:
         raise MapError(f"{path}: not a UTF-8 text map file ({err.reason})") from None
     except (IsADirectoryError, PermissionError) as err:

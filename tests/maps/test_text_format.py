@@ -119,6 +119,12 @@ MALFORMED = [
     (GOOD_HEAD + "[OBSTACLE]\n1 1\n3 3\n3 1\n1 3\n", 8, "not a simple polygon .*Self-inters"),
     (GOOD_HEAD + "[OBSTACLE]\n1 1\n2 2\n3 3\n", 8, "not a simple polygon|zero area"),
     ("[SCALE]\n1\n[BORDER]\n0 0\n1 0\n", 3, r"\[BORDER\] has 2 vertices"),
+    # a line ends at \n, \r\n or \r only: a form feed or U+2028 read one line as two vertices,
+    # and shifted the line numbers of the errors after it
+    (GOOD_HEAD + "[OBSTACLE]\n1 1\f2 1\n2 2\n", 9, r"in \[OBSTACLE\], got 4"),
+    (GOOD_HEAD + "[OBSTACLE]\n1 1\u20282 1\n2 2\n", 9, r"in \[OBSTACLE\], got 4"),
+    (GOOD_HEAD + "\f\n[OBSTACLE]\n1 1\nx 2\n", 11, "'x' is not a number"),
+    ("[SCALE]\r1\r[BORDER]\r0 0\r1 0\r", 3, r"\[BORDER\] has 2 vertices"),
 ]
 
 
@@ -189,6 +195,15 @@ def test_a_border_whose_extent_overflows_is_named_with_its_line(tmp_path):
     path = tmp_path / "huge.txt"
     path.write_text("[SCALE]\n1\n[BORDER]\n-1e308 0\n1e308 0\n1e308 1\n-1e308 1\n")
     with pytest.raises(MapFormatError, match=r"huge.txt:3: the border's extent overflows"):
+        read_map(path)
+
+
+def test_an_obstacle_whose_extent_overflows_is_named_with_its_line(tmp_path):
+    # its area was inf, and clipping it to the field dropped it: a map with one obstacle fewer
+    path = tmp_path / "huge.txt"
+    path.write_text("[SCALE]\n1\n[BORDER]\n0 0\n100 0\n100 100\n0 100\n"
+                    "[OBSTACLE]\n-1e308 10\n1e308 10\n1e308 20\n-1e308 20\n")
+    with pytest.raises(MapFormatError, match=r"huge.txt:8: the obstacle's extent overflows"):
         read_map(path)
 
 
