@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import difflib
 import os
+import re
 from collections import OrderedDict
 from pathlib import Path
 
@@ -46,14 +47,27 @@ def list_maps(split: str, *, field_size: float | None = None,
     names = []
     for p in sorted(folder.glob("*.txt")):
         if field_size is not None or densities is not None:
-            parts = dict((f[0], f[1:]) for f in p.stem.split("_") if f)
-            if field_size is not None and float(parts.get("f", "nan")) != field_size:
+            density, size, _ = _name_parts(p.stem, p)
+            if field_size is not None and size != field_size:
                 continue
             if densities is not None and not (
-                    densities[0] - 1e-9 <= float(parts.get("d", "nan")) <= densities[1] + 1e-9):
+                    densities[0] - 1e-9 <= density <= densities[1] + 1e-9):
                 continue
         names.append(f"{split}/{p.stem}")
     return names
+
+
+_NAME = re.compile(r"d(\d+(?:\.\d+)?)_f(\d+(?:\.\d+)?)_s(\d+)")
+
+
+def _name_parts(stem: str, where: object) -> tuple[float, float, int]:
+    """(density, field size (m), seed) of a shipped map's name ``d<density>_f<size>_s<seed>``;
+    a :class:`MapError` naming ``where`` for another name (a bare ValueError before)."""
+    match = _NAME.fullmatch(stem)
+    if match is None:
+        raise MapError(f"{where}: a shipped map's name must be d<density>_f<field size>_s<seed> "
+                       f"(e.g. d0.10_f100_s000) to be filtered or split by them")
+    return float(match[1]), float(match[2]), int(match[3])
 
 
 def validation_split(names: list[str]) -> tuple[list[str], list[str]]:
@@ -61,12 +75,11 @@ def validation_split(names: list[str]) -> tuple[list[str], list[str]]:
     highest seed of every (density, field size) group is held out for validation (1 in 5 of
     the shipped training maps), the others are for fitting; ``names`` as from
     :func:`list_maps`."""
-    groups: dict[tuple[str, str], list[str]] = {}
+    groups: dict[tuple[float, float], list[tuple[int, str]]] = {}
     for name in names:
-        parts = dict((f[0], f[1:]) for f in name.rsplit("/", 1)[-1].split("_") if f)
-        groups.setdefault((parts.get("d", ""), parts.get("f", "")), []).append(name)
-    held = {max(group, key=lambda n: int(n.rsplit("_s", 1)[-1])) for group in groups.values()
-            if len(group) > 1}
+        density, size, seed = _name_parts(name.rsplit("/", 1)[-1], name)
+        groups.setdefault((density, size), []).append((seed, name))
+    held = {max(group)[1] for group in groups.values() if len(group) > 1}
     return [n for n in names if n not in held], [n for n in names if n in held]
 
 

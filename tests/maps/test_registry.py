@@ -132,3 +132,26 @@ def test_load_map_reads_a_file_once_until_it_changes(tmp_path):
     again = load_map(path)
     assert again is not first
     assert_same_polygons(again, first)
+
+
+def test_a_map_name_that_filters_cannot_read_is_a_map_error(tmp_path, monkeypatch):
+    """A file of another name in a shipped folder gave a bare ValueError ("could not convert
+    string to float") when maps were filtered or split by their names."""
+    import shutil
+
+    from aoass_env.maps import registry
+
+    (tmp_path / "train").mkdir()
+    for name in ("d0.10_f100_s000", "d0.10_f100_s001"):
+        shutil.copy(registry.MAPS_DIR / "train" / f"{name}.txt", tmp_path / "train")
+    shutil.copy(registry.MAPS_DIR / "train" / "d0.10_f100_s000.txt",
+                tmp_path / "train" / "my_field.txt")
+    monkeypatch.setattr(registry, "MAPS_DIR", tmp_path)
+    assert len(registry.list_maps("train")) == 3             # unfiltered: listed as it is
+    with pytest.raises(MapError, match=r"my_field.txt: a shipped map's name must be "
+                                       r"d<density>_f<field size>_s<seed>"):
+        registry.list_maps("train", field_size=100)
+    with pytest.raises(MapError, match=r"train/my_field: a shipped map's name must be"):
+        registry.validation_split(registry.list_maps("train"))
+    assert registry.validation_split(["train/d0.10_f100_s000", "train/d0.10_f100_s001"]) == (
+        ["train/d0.10_f100_s000"], ["train/d0.10_f100_s001"])
