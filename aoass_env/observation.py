@@ -192,7 +192,7 @@ class Observer:
         slots = np.zeros((c.obs_moving_obstacles, len(MOVING_FIELDS)))
         self.detections = np.zeros((0, 4))
         n = c.n_moving_obstacles
-        if n == 0 or c.obs_moving_obstacles == 0:
+        if n == 0:      # (with no slot, obs_moving_obstacles 0, the tracker still reads them)
             return slots
         position = world.position
         px, py = position.tolist()

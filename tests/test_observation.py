@@ -64,6 +64,23 @@ def test_moving_obstacles_exact_without_noise_nearest_first():
     assert np.all(slots[:m, 4] == 1) and np.all(slots[m:] == 0)
 
 
+def test_no_observed_slot_still_records_the_detections_the_tracker_reads():
+    """obs_moving_obstacles=0 left the detections empty too: the Kalman tracker never made a
+    track and the safety stack avoided no moving obstacle. The detections do not depend on
+    how many slots the observation holds."""
+    sims = [_sim(obs_moving_obstacles=m) for m in (0, 3)]
+    observers = [Observer(sim.config, sim.spiral, np.random.default_rng(0)) for sim in sims]
+    seen = 0
+    for _ in range(60):
+        slots = [obs.moving(sim.world) for obs, sim in zip(observers, sims, strict=True)]
+        assert slots[0].shape == (0, 5)
+        np.testing.assert_array_equal(observers[0].detections, observers[1].detections)
+        seen += len(observers[0].detections)
+        for sim in sims:
+            sim.step(1.0, 0.3)
+    assert seen > 0
+
+
 def test_measurement_noise_has_the_configured_spread():
     cfg = AOASSConfig(field_size=30.0, n_nodes=5, obstacle_density=0.0, sensing_range=100.0,
                       n_moving_obstacles=1, obs_moving_obstacles=1, obs_position_noise=0.5,
