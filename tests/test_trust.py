@@ -192,6 +192,12 @@ def _log(tmp_path: Path, **changes) -> Path:
     return path
 
 
+def _log_key(path: Path) -> object:
+    """``aoass_env.evaluation.episode.log_key(path)``, imported when the case runs."""
+    from aoass_env.evaluation.episode import log_key
+    return log_key(path)
+
+
 def _extra(**changes) -> np.ndarray:
     """The evaluation record of :func:`_log`'s episode (a valid key of its 10 nodes on a 40 m
     field), with ``changes``."""
@@ -294,37 +300,29 @@ AUDIT = [
      SystemExit, "--n-train-logs"),
     ("localizer --learning-rate nan", lambda t, s: _train(s, "localizer", "--learning-rate", "nan"),
      SystemExit, "--learning-rate"),
-    ("malformed evaluation record", lambda t, s: lambda: __import__(
-        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
+    ("malformed evaluation record", lambda t, s: lambda: _log_key(
         _log(t, evaluation_episode=np.array("{not json"))), BeaconLogError,
      "evaluation_episode"),
-    ("evaluation record of objects", lambda t, s: lambda: __import__(
-        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
+    ("evaluation record of objects", lambda t, s: lambda: _log_key(
         _log(t, evaluation_episode=np.array([{}], dtype=object))), BeaconLogError,
      "log.npz: beacon log key 'evaluation_episode': cannot read (ValueError: Object arrays"),
     # the record's episode columns went into episodes.csv unchecked (a coverage of 750 %,
     # a row the next run refused), its key was never compared with the log, and a file
     # holding the record alone passed as a log
-    ("evaluation record's coverage 7.5", lambda t, s: lambda: __import__(
-        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
+    ("evaluation record's coverage 7.5", lambda t, s: lambda: _log_key(
         _log(t, evaluation_episode=_extra(coverage=7.5))), BeaconLogError,
      "key 'evaluation_episode': coverage='7.5' must be a finite number in [0, 1]"),
-    ("evaluation record's beacons 'lots'", lambda t, s: lambda: __import__(
-        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
+    ("evaluation record's beacons 'lots'", lambda t, s: lambda: _log_key(
         _log(t, evaluation_episode=_extra(beacons="lots"))), BeaconLogError,
      "key 'evaluation_episode': invalid literal for int()"),
-    ("evaluation record of another N", lambda t, s: lambda: __import__(
-        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(
+    ("evaluation record of another N", lambda t, s: lambda: _log_key(
         _log(t, evaluation_episode=_extra(n_nodes=500))), BeaconLogError,
      "its key is N = 500 on a 40 m field, but the log holds 10 nodes on a 40 m field"),
-    ("evaluation record alone", lambda t, s: lambda: __import__(
-        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(_extra_alone(t)),
+    ("evaluation record alone", lambda t, s: lambda: _log_key(_extra_alone(t)),
      BeaconLogError, "alone.npz: beacon log key"),
-    ("foreign log's seed 'abc'", lambda t, s: lambda: __import__(
-        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(_foreign_log(t, seed="abc")),
+    ("foreign log's seed 'abc'", lambda t, s: lambda: _log_key(_foreign_log(t, seed="abc")),
      BeaconLogError, "'config_json': its seed must be an integer or null, got 'abc'"),
-    ("foreign log's seed 1.5", lambda t, s: lambda: __import__(
-        "aoass_env.evaluation.episode", fromlist=["x"]).log_key(_foreign_log(t, seed=1.5)),
+    ("foreign log's seed 1.5", lambda t, s: lambda: _log_key(_foreign_log(t, seed=1.5)),
      BeaconLogError, "its seed must be an integer or null, got 1.5"),
     ("foreign log's config [1]", lambda t, s: lambda: __import__(
         "aoass_env.evaluation.episode", fromlist=["x"]).localize_log(
