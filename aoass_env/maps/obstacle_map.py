@@ -52,7 +52,7 @@ def _as_ccw(vertices: np.ndarray) -> np.ndarray:
 def _convex_decomposition(closed: list[tuple[float, float]]) -> list[list[Any]]:
     """``pymunk.autogeometry.convex_decomposition(closed, 0.0)``: the same Chipmunk call and
     the same pieces, with the polyline set Chipmunk returns freed (pymunk 7 never frees it:
-    about 1 KB leaked per concave obstacle of every freshly generated map)."""
+    about 0.6 KB leaked per concave obstacle of every freshly generated map)."""
     line = autogeometry._to_chipmunk(closed)
     pieces = autogeometry.lib.cpPolylineConvexDecomposition(line, 0.0)
     try:
