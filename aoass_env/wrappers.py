@@ -187,7 +187,8 @@ class KalmanObstacleTracker(_EntryPointWrapper, gym.ObservationWrapper):
             c.dt, position_noise=max(c.obs_position_noise, NOISE_FLOOR),
             velocity_noise=max(c.obs_velocity_noise, NOISE_FLOOR),
             process_noise=config.process_noise, gate=config.gate,
-            birth_hits=config.birth_hits, max_misses=config.max_misses)
+            birth_hits=config.birth_hits, max_misses=config.max_misses,
+            maneuver_speed=config.maneuver_speed)
         layout = dict(base.obs_layout)
         self._moving = layout["moving_obstacles"]
         self._slots = c.obs_moving_obstacles

@@ -41,6 +41,10 @@ class TrackerConfig(ValidatedConfig):
                             kind="int")
     max_misses: int = param(3, "consecutive misses that delete a track", low=1, high=100,
                             kind="int")
+    maneuver_speed: float = param(
+        2.0, "std of a track's sudden velocity change in the maneuver stage (2 m/s: a U-turn at "
+        "the default top obstacle speed of 1 m/s; about twice the top speed for faster "
+        "obstacles)", unit="m/s", low=0.0, high=100.0, low_open=True)
 
 
 @dataclass(frozen=True)

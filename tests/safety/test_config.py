@@ -23,6 +23,8 @@ def test_docs_tables_match_the_dataclasses(cls):
     (TrackerConfig, {"gate": 1.0}, "gate=1.0"),
     (TrackerConfig, {"birth_hits": 1.5}, "birth_hits=1.5 must be an integer"),
     (TrackerConfig, {"max_misses": True}, "max_misses=True"),
+    (TrackerConfig, {"maneuver_speed": 0.0}, r"maneuver_speed=0.0 must be a number in "
+                                             r"\(0.0, 100.0\] m/s"),
     (SafetyConfig, {"margin": -0.1}, "margin=-0.1"),
     (SafetyConfig, {"time_horizon": "4"}, "time_horizon='4'"),
     (SafetyConfig, {"moving_margin": float("inf")}, "moving_margin=inf"),
@@ -62,3 +64,15 @@ def test_gym_make_takes_the_dataclasses_or_their_keywords():
     assert filt.config.field_size == 40.0
     with pytest.raises(ConfigError, match="unknown tracker keyword 'horizen'"):
         gym.make("AOASS-Safe-v0", tracker={"horizen": 1.0})
+
+
+def test_the_stack_s_tracker_takes_the_maneuver_speed():
+    """The tracker's maneuver model was fixed at 2 m/s whatever the obstacles' speed: faster
+    obstacles lost their tracks at bounces with nothing to set."""
+    from aoass_env.wrappers import make_safe_env
+
+    default = make_safe_env(field_size=30.0, n_nodes=5)
+    assert default.env.tracker.maneuver_speed == 2.0 == TrackerConfig().maneuver_speed
+    fast = make_safe_env(field_size=30.0, n_nodes=5, moving_obstacle_speed=(2.0, 4.0),
+                         tracker={"maneuver_speed": 8.0})
+    assert fast.env.tracker.maneuver_speed == 8.0
