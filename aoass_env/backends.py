@@ -7,8 +7,9 @@ process) consumes the results and stays the only writer of its output files; onl
 moves. ``evaluate.py`` runs its episodes through a backend, ``train.py --seeds`` its training
 runs (docs/cluster.md).
 
-* :class:`LocalBackend`: ``workers`` processes of a :class:`multiprocessing.Pool`, or this
-  process alone when ``workers`` is 1.
+* :class:`LocalBackend`: ``workers`` processes of a
+  :class:`concurrent.futures.ProcessPoolExecutor`, or this process alone when ``workers`` is 1;
+  a worker that dies fails the items not yet done (reported, so a sweep ends and resumes).
 * :class:`RayBackend`: one Ray task per item on a cluster (``address``) or on a local Ray
   instance started here. A task that raises, or whose worker dies, is retried ``retries``
   times by Ray; then its failure is yielded like any other.
@@ -22,13 +23,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
-import multiprocessing
 import os
 import re
 import signal
 import threading
 import traceback
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from types import FrameType
 from typing import Any, Protocol, TypeVar
@@ -78,6 +80,11 @@ def set_threads(threads: int) -> None:
     torch.set_num_threads(threads)
 
 
+#: What an item of a local worker process that died is reported with.
+_DEAD_WORKER = ("a local worker process died (killed, out of memory, or a crash in native code) "
+                "while this item ran or waited; run it again")
+
+
 def _attempt(fn: Callable[[T], R], item: T) -> tuple[T, R | None, str | None]:
     """``(item, fn(item), None)``, or ``(item, None, traceback)`` when ``fn`` raised."""
     try:
@@ -106,17 +113,30 @@ class LocalBackend:
 
     def run(self, fn: Callable[[T], R], items: Sequence[T]
             ) -> Iterator[tuple[T, R | None, str | None]]:
+        """Each item's result in completion order. A worker process that dies (killed, out of
+        memory, a crash in native code) fails the items it held and those not yet done, each
+        reported with that reason (``multiprocessing.Pool`` lost the item it held and waited
+        for it forever)."""
         guarded = functools.partial(_attempt, fn)
         if self.workers == 1 or len(items) <= 1:
             yield from map(guarded, items)
             return
-        pool = multiprocessing.Pool(min(self.workers, len(items)), initializer=set_threads,
-                                    initargs=(self.threads,))
+        pool = ProcessPoolExecutor(min(self.workers, len(items)), initializer=set_threads,
+                                   initargs=(self.threads,))
         try:
-            yield from pool.imap_unordered(guarded, items)
+            futures = {pool.submit(guarded, item): item for item in items}
+            for future in as_completed(futures):
+                try:
+                    yield future.result()
+                except BrokenProcessPool:
+                    yield futures[future], None, _DEAD_WORKER
         finally:
-            pool.terminate()
-            pool.join()
+            processes = list(getattr(pool, "_processes", {}).values())
+            pool.shutdown(wait=False, cancel_futures=True)
+            for process in processes:      # stop the outstanding work now, as Pool.terminate
+                process.terminate()
+            for process in processes:
+                process.join()
 
 
 def require_ray() -> Any:
