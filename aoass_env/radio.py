@@ -45,6 +45,7 @@ __all__ = ["LineOfSight", "Radio", "doi_pattern", "points_within", "range_factor
 #: Relative slack of kd-tree queries; candidates are then filtered with the exact criterion.
 _QUERY_SLACK = 1e-9
 
+
 def _points(value: object, name: str, *, single: bool = False) -> np.ndarray:
     """Finite float64 points: (M, 2), or (2,) when ``single``; errors name ``name``."""
     try:

@@ -289,7 +289,6 @@ def test_a_failed_reset_leaves_no_episode_to_step_on():
             env.step(np.zeros(2))
 
 
-
 def test_bad_render_mode_map_and_reset_option():
     with pytest.raises(ValueError, match="render_mode"):
         AOASSEnv(render_mode="ascii")

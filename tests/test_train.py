@@ -34,10 +34,6 @@ TINY = {
 }
 
 
-
-
-
-
 @pytest.fixture
 def tiny(tmp_path: Path) -> Path:
     path = tmp_path / "tiny.yml"

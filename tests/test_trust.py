@@ -89,8 +89,6 @@ def test_evaluate_policy_runs_no_code_from_a_crafted_zip(tmp_path, monkeypatch):
     assert loaded[0].num_timesteps == 27500 and not marker.exists()
 
 
-
-
 def test_train_resume_runs_no_code_from_a_crafted_zip(tmp_path, capsys, train_script):
     marker = tmp_path / "pwned"
     policy = _crafted_policy(tmp_path / "p", marker)

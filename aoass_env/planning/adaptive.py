@@ -712,7 +712,6 @@ class AdaptiveSweep:
         return float(np.hypot(*(target - position))) + self._detour_excess(position, target)
 
 
-
 def site_radio(planner: DetourPlanner, coverage: CoverageMap) -> Radio:
     """The lattice of points a beacon may be sent from (the planner's free cells of its main
     region, thinned to :data:`SITE_SPACING`) as the nodes of a radio with the cells' guaranteed

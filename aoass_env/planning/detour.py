@@ -52,6 +52,7 @@ DETOUR_MARGIN = 0.3
 #: (:meth:`DetourPlanner.leads_out`).
 LEAD_OUT = 10.0
 
+
 class DetourPlanner:
     """Collision-free paths for a disc among the static obstacles of a map.
 

@@ -809,4 +809,3 @@ def _split(pruner: _Pruner, cap: np.ndarray, cost: _Costs, listeners: Radio) -> 
         if pick is None or best < SPLIT_MIN_RATE:
             return
         pruner.insert(*pick)
-
