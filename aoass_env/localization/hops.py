@@ -1,15 +1,18 @@
 """Hop counts between virtual anchors (beacon positions) and nodes over the radio graph.
 
-With a single mobile anchor every beacon position is a *virtual anchor*. The radio graph has one
-vertex per node and one per beacon: a beacon is linked to the nodes that received it (one hop)
-and nodes are linked to the nodes they hear (``node_links``). Hop counts are breadth-first
-distances in this graph, computed for all beacons at once with :func:`scipy.sparse.csgraph.
-dijkstra` on unit weights, stopped at a flooding limit: a beacon's hop-count flood travels at
-most ``flood_limit`` hops, farther vertices count as unreachable (``inf``).
+With a single mobile anchor every beacon position is a *virtual anchor*. A beacon starts a
+hop-count flood: the nodes that received it are one hop from it, and nodes pass the flood on to
+the nodes they hear (``node_links``). Only nodes pass a flood on: a virtual anchor is the
+anchor at another time, which broadcasts its own beacon and relays no other. The radio graph is
+therefore directed, with two vertices per beacon: a source with an edge to each node that
+received it, and a sink with an edge from each such node; nodes are linked both ways. Hop
+counts are breadth-first distances from each source, computed for all beacons at once with
+:func:`scipy.sparse.csgraph.dijkstra` on unit weights, stopped at a flooding limit: a beacon's
+flood travels at most ``flood_limit`` hops, farther vertices count as unreachable (``inf``).
 
-Beacon-to-beacon hop counts (Eq. 11) come out of the same search: two beacons heard by one node
-are two hops apart (beacon -> node -> beacon); :func:`hop_size` turns them into each beacon's
-HopSize (Eq. 11).
+Beacon-to-beacon hop counts (Eq. 11) come out of the same search, at the sinks: two beacons
+heard by one node are two hops apart (beacon -> node -> beacon); :func:`hop_size` turns them
+into each beacon's HopSize (Eq. 11).
 """
 
 from __future__ import annotations
@@ -55,15 +58,16 @@ def require_beacons(log: BeaconLog) -> None:
 
 
 def radio_graph(log: BeaconLog) -> sp.csr_matrix:
-    """Undirected radio graph as an (N + B) square CSR matrix: nodes first, then beacons.
-
-    Entries are 1 for a reception (beacon, node) and for a node link.
-    """
+    """Directed radio graph as an (N + 2B) square CSR matrix: the N nodes, then each beacon's
+    source, then each beacon's sink. Entries are 1: source -> node and node -> sink for a
+    reception (beacon, node), node -> node both ways for a node link. No edge leaves a sink, so
+    no path passes through another beacon."""
     n, b = log.n_nodes, log.n_beacons
     rec, links = log.receptions, log.node_links
-    rows = np.concatenate([rec[:, 0] + n, links[:, 0]])
-    cols = np.concatenate([rec[:, 1], links[:, 1]])
-    graph = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n + b, n + b)).tocsr()
+    rows = np.concatenate([rec[:, 0] + n, rec[:, 1], links[:, 0], links[:, 1]])
+    cols = np.concatenate([rec[:, 1], rec[:, 0] + n + b, links[:, 1], links[:, 0]])
+    graph = sp.coo_matrix((np.ones(len(rows)), (rows, cols)),
+                          shape=(n + 2 * b, n + 2 * b)).tocsr()
     graph.data[:] = 1.0  # duplicate receptions must not add up to a longer edge
     return graph
 
@@ -85,11 +89,12 @@ def hop_counts(log: BeaconLog, flood_limit: int = DEFAULT_FLOOD_LIMIT) -> HopCou
     """
     require_beacons(log)
     check_flood_limit(flood_limit)
-    n = log.n_nodes
-    dist = csgraph.dijkstra(radio_graph(log), directed=False, unweighted=True,
-                            indices=np.arange(n, n + log.n_beacons), limit=float(flood_limit))
+    n, b = log.n_nodes, log.n_beacons
+    dist = csgraph.dijkstra(radio_graph(log), directed=True, unweighted=True,
+                            indices=np.arange(n, n + b), limit=float(flood_limit))
     beacon_node = np.ascontiguousarray(dist[:, :n], dtype=np.float32)
-    beacon_beacon = np.ascontiguousarray(dist[:, n:], dtype=np.float32)
+    beacon_beacon = np.ascontiguousarray(dist[:, n + b:], dtype=np.float32)
+    np.fill_diagonal(beacon_beacon, 0.0)     # a beacon is 0 hops from itself, not 2
     beacon_node.flags.writeable = False
     beacon_beacon.flags.writeable = False
     return HopCounts(beacon_node, beacon_beacon, int(flood_limit))

@@ -1,12 +1,13 @@
 """Eq. 13: coordinates from distances to anchors, for many nodes at once.
 
-Each node k minimises ``sum_i w_ik (d_ik - |a_ik - p_k|)^2`` over its position ``p_k``. All nodes
-are solved together by a vectorised Levenberg-Marquardt iteration: per node, the 2x2 normal
-equations of the Gauss-Newton step are damped by ``lambda * diag`` and solved in closed form; a
-step is kept where it lowers that node's cost (then lambda shrinks), else lambda grows. Every
-iterate is clipped to the field, so estimates respect its bounds. Anchor lists are padded to one
-length; padded entries carry weight 0.
-"""
+Each node k minimises ``sum_i w_ik (d_ik - |a_ik - p_k|)^2`` over its position ``p_k``. All
+nodes are solved together by a vectorised Levenberg-Marquardt iteration: per node, the 2x2
+normal equations of the Gauss-Newton step are damped by ``lambda * diag`` and solved in closed
+form; a step is kept where it lowers that node's cost (then lambda shrinks), else lambda grows.
+Every iterate is clipped to the field, so estimates respect its bounds; a coordinate on a bound
+whose descent leads out of the field is held there and the node steps along the bound (projected
+Levenberg-Marquardt), so a node whose unbounded minimum lies outside reaches the bounded one.
+Anchor lists are padded to one length; padded entries carry weight 0. """
 
 from __future__ import annotations
 
@@ -84,6 +85,15 @@ def multilaterate(anchors: np.ndarray, distances: np.ndarray, weights: np.ndarra
         ayy = np.einsum("sm,sm,sm->s", q, dy, dy) * (1 + lam) + 1e-12
         det = axx * ayy - hxy * hxy
         step = np.stack([-(ayy * gx - hxy * gy) / det, -(axx * gy - hxy * gx) / det], axis=1)
+        # a coordinate on a bound whose descent leads out of the field is held there (an
+        # active bound) and the step taken along the other alone; clipping the full step
+        # instead would cancel it and only grow the damping, far from the bounded minimum
+        held_x = ((p[:, 0] <= 0.0) & (gx > 0)) | ((p[:, 0] >= hi[0]) & (gx < 0))
+        held_y = ((p[:, 1] <= 0.0) & (gy > 0)) | ((p[:, 1] >= hi[1]) & (gy < 0))
+        step[held_x | held_y] = 0.0
+        only_y, only_x = held_x & ~held_y, held_y & ~held_x
+        step[only_y, 1] = -gy[only_y] / ayy[only_y]
+        step[only_x, 0] = -gx[only_x] / axx[only_x]
         trial = np.clip(p + step, 0.0, hi)
         tdx, tdy, tr, tcost = _offsets(trial, a, d, w)
         better = tcost < cost
@@ -94,7 +104,9 @@ def multilaterate(anchors: np.ndarray, distances: np.ndarray, weights: np.ndarra
         dx, dy, r = np.where(keep, tdx, dx), np.where(keep, tdy, dy), np.where(keep, tr, r)
         lam = np.where(better, lam * _LAMBDA_DOWN, lam * _LAMBDA_UP)
         out[act] = p
-        going = ~((better & (moved <= tol)) | (lam > _LAMBDA_MAX))
+        # a node at a corner whose descent leads out of the field on both axes is at its
+        # bounded minimum
+        going = ~((better & (moved <= tol)) | (lam > _LAMBDA_MAX) | (held_x & held_y))
         if not going.any():
             break
         if not going.all():

@@ -3,9 +3,11 @@
 The nominal follower steers straight at the next spiral waypoint. When an obstacle stands in the
 way, :class:`DetourPlanner` finds a collision-free path for a disc of the anchor's radius: the
 field is rasterised, scipy's Euclidean distance transform gives each cell its clearance, cells
-with too little clearance are removed, and Dijkstra (scipy.sparse.csgraph) on the 8-connected
-grid, with a cost that prefers open space, finds the path. The path is then shortened by string
-pulling (keep only the points needed for straight, obstacle-free legs).
+with too little clearance are removed (and those whose centre lies, exactly, within the radius
+of an obstacle: a wall or a spike thinner than a cell holds no cell centre), and Dijkstra
+(scipy.sparse.csgraph) on the 8-connected grid, with a cost that prefers open space, finds the
+path. The path is then shortened by string pulling (keep only the points needed for straight,
+obstacle-free legs).
 
 **Same paths from smaller searches.** Dijkstra's distances do not depend on how far it searches
 or how its heap breaks ties: in floats, a cell's distance is the least left-to-right sum over the
@@ -79,7 +81,16 @@ class DetourPlanner:
         clearance = ndimage.distance_transform_edt(padded)[1:-1, 1:-1] * resolution
         clearance = np.minimum(clearance, np.minimum(np.minimum(gx, obstacle_map.width - gx),
                                                      np.minimum(gy, obstacle_map.height - gy)))
+        self._obstacles = obstacle_map.union if obstacle_map.polygons else shapely.Polygon()
+        self._blocker = shapely.buffer(self._obstacles, radius)
+        shapely.prepare(self._blocker)
+        # a cell is free when its centre is clear of the grid's occupied centres by radius plus
+        # half a cell and, exactly, of the obstacles grown by the radius: an obstacle part
+        # thinner than a cell (a wall, a union's spike) holds no cell centre, and the grid
+        # alone would plan through it
         self.free = clearance > radius + 0.5 * resolution
+        fx, fy = self.centres[self.free.ravel()].T
+        self.free[self.free] = ~shapely.intersects_xy(self._blocker, fx, fy)
         if not self.free.any():
             raise MapError(f"no cell of the {resolution:g} m grid leaves a disc of radius "
                            f"{radius:g} m clear of the obstacles and the border: nowhere to plan")
@@ -95,9 +106,6 @@ class DetourPlanner:
         labels, count = ndimage.label(self.free, structure=np.ones((3, 3), dtype=bool))
         sizes = np.bincount(labels.ravel(), minlength=count + 1)[1:]
         self._main = (labels == 1 + int(np.argmax(sizes))).ravel() if count else self.free.ravel()
-        self._obstacles = obstacle_map.union if obstacle_map.polygons else shapely.Polygon()
-        self._blocker = shapely.buffer(self._obstacles, radius)
-        shapely.prepare(self._blocker)
         self._blocker_edges = EdgeGrid(_ring_edges(self._blocker))
         self._last_inside = (math.nan, math.nan, False)   # (x, y, answer) of _inside
         # (start cell, limit) of the kept shortest-path tree, and its (dist, pred) arrays once a

@@ -14,12 +14,16 @@ from aoass_env.localization.hops import hop_counts
 from tests.localization.conftest import make_log
 
 
-def _bfs(adj: list[set[int]], source: int, limit: int) -> np.ndarray:
+def _bfs(adj: list[set[int]], source: int, limit: int, n_nodes: int) -> np.ndarray:
+    """Breadth-first distances from ``source`` in which only nodes (vertices < ``n_nodes``)
+    and the source itself pass the flood on: another beacon is reached, never crossed."""
     dist = np.full(len(adj), np.inf)
     dist[source] = 0
     queue = deque([source])
     while queue:
         u = queue.popleft()
+        if u >= n_nodes and u != source:
+            continue
         for v in adj[u]:
             if dist[v] == np.inf and dist[u] + 1 <= limit:
                 dist[v] = dist[u] + 1
@@ -54,10 +58,22 @@ def test_hop_counts_match_bfs(graph: tuple, limit: int) -> None:
     hops = hop_counts(log, limit)
     assert hops.flood_limit == limit
     for beacon in range(b):
-        expected = _bfs(adj, n + beacon, limit)
+        expected = _bfs(adj, n + beacon, limit, n)
         np.testing.assert_array_equal(hops.beacon_node[beacon], expected[:n])
         np.testing.assert_array_equal(hops.beacon_beacon[beacon], expected[n:])
 
+
+
+def test_a_beacon_passes_no_other_beacons_flood_on() -> None:
+    """Nodes 0 and 1 do not hear each other; beacon 0 is heard by node 0, beacon 1 by both. A
+    virtual anchor is the anchor at another time and relays no flood: node 1 is out of beacon
+    0's reach (a search through beacon 1's vertex gave it 3 hops), and the two beacons are 2
+    hops apart, through node 0."""
+    nodes = np.array([[10.0, 0.0], [50.0, 0.0]])
+    log = make_log(nodes, np.array([[0.0, 0.0], [30.0, 0.0]]), [[0, 0], [1, 0], [1, 1]], [])
+    hops = hop_counts(log)
+    np.testing.assert_array_equal(hops.beacon_node, [[1, np.inf], [1, 1]])
+    np.testing.assert_array_equal(hops.beacon_beacon, [[0, 2], [2, 0]])
 
 def test_direct_reception_is_one_hop(small_log) -> None:
     hops = hop_counts(small_log)

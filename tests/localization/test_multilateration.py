@@ -104,6 +104,43 @@ def test_noisy_weighted_fit_is_the_least_squares_minimum(seed: int) -> None:
         np.testing.assert_allclose(est[k], fit.x, atol=1e-3)
 
 
+
+@pytest.mark.parametrize("seed", [551040, 551041, 551042])
+def test_a_minimum_outside_the_field_gives_the_bounded_least_squares_minimum(seed: int) -> None:
+    """Nodes near the field's edges whose distances put the unbounded minimum outside it (the
+    DV-Hop distances of edge nodes): each estimate is the bounded minimum scipy's least squares
+    (trf, with the field's bounds) finds, on the edge, not a point the damping stopped short
+    of it (clipping every trial step cancelled the step along the edge; up to 7 m off)."""
+    from scipy.optimize import least_squares
+
+    rng = np.random.default_rng(seed)
+    s, m, size = 24, 6, 100.0
+    # unbounded minima 1-6 m beyond a random edge or corner, anchors inside the field within
+    # 30 m of them, noisy distances (the bounded minimum unique)
+    truth = rng.uniform(10, 90, (s, 2))
+    side = rng.integers(0, 3, s)      # 0: x edge, 1: y edge, 2: corner
+    beyond = -rng.uniform(1, 6, (s, 2))
+    truth[side != 1, 0] = beyond[side != 1, 0]
+    truth[side != 0, 1] = beyond[side != 0, 1]
+    flip = rng.random((s, 2)) < 0.5   # the low or the high edge
+    truth = np.where(flip & (truth < 0), size - truth, truth)
+    lo, hi = np.clip(truth - 30, 1, size - 1), np.clip(truth + 30, 1, size - 1)
+    anchors = rng.uniform(lo[:, None], hi[:, None], (s, m, 2))
+    dist = np.abs(np.hypot(*(anchors - truth[:, None]).transpose(2, 0, 1))
+                  + rng.normal(0, 0.5, (s, m)))
+    weights = rng.uniform(0.2, 1.0, (s, m))
+    init = np.clip(truth + rng.normal(0, 5, truth.shape), 0, size)
+    est = multilaterate(anchors, dist, weights, init, (size, size))
+    on_edge = 0
+    for k in range(s):
+        def residuals(p: np.ndarray, k: int = k) -> np.ndarray:
+            return np.sqrt(weights[k]) * (np.hypot(*(p - anchors[k]).T) - dist[k])
+        fit = least_squares(residuals, init[k], bounds=([0, 0], [size, size]), method="trf",
+                            xtol=1e-14, ftol=1e-14, gtol=1e-14)
+        np.testing.assert_allclose(est[k], fit.x, atol=1e-3)
+        on_edge += bool(np.any((fit.x <= 1e-6) | (fit.x >= size - 1e-6)))
+    assert on_edge >= s // 2      # the bounds are active for most nodes
+
 def test_estimates_reach_the_field_edges() -> None:
     """Nodes within a metre of the field's lower edges are found where they are (the bounds
     are [0, w] x [0, h], not narrower), from starting points outside the field too."""

@@ -37,6 +37,37 @@ def test_path_goes_around_wall_and_keeps_clearance():
     assert len(path) <= 6
 
 
+
+def test_a_wall_thinner_than_a_cell_is_gone_round_not_crossed():
+    """A 0.4 m wall holds no centre of the 0.5 m grid: the grid alone read it as open floor
+    and planned straight through it (and M-ANCHORO and OTPP with it)."""
+    wall = [(50.3, 10.0), (50.7, 10.0), (50.7, 90.0), (50.3, 90.0)]
+    planner = DetourPlanner(ObstacleMap(100, 100, [wall]), radius=0.8)
+    start, goal = np.array([30.0, 50.0]), np.array([70.0, 50.0])
+    assert not planner.visible(start, goal)
+    path = planner.path(start, goal)
+    assert path is not None
+    line = shapely.LineString(path)
+    assert not line.intersects(shapely.Polygon(wall))
+    assert line.distance(shapely.Polygon(wall)) >= 0.8 - 1e-9
+    assert line.length > 2 * math.hypot(20, 40) - 1
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), density=st.sampled_from([0.2, 0.4, 0.6]))
+def test_free_cells_leave_the_disc_clear_of_every_obstacle(seed, density):
+    """Every free cell's centre is at least the radius from the obstacles, by exact distance,
+    up to the chords of shapely's buffer (8 segments per quarter circle: r cos(pi / 32)): the
+    spikes a union of generated shapes leaves (thinner than a cell, reaching past the occupied
+    cells) are kept clear of too. Legs between neighbouring free cells then pass farther than
+    the anchor's own radius from them."""
+    obstacle_map = generate_map(60.0, density, np.random.default_rng(seed))
+    planner = DetourPlanner(obstacle_map, 0.8)
+    centres = planner.centres[planner.free.ravel()]
+    if obstacle_map.polygons:
+        distance = shapely.distance(obstacle_map.union, shapely.points(centres))
+        assert distance.min() >= 0.8 * math.cos(math.pi / 32) - 1e-9
+
 def test_unreachable_goal_gives_none():
     m = ObstacleMap(100, 100, [C_SHAPE])
     p = DetourPlanner(m, radius=0.5)
