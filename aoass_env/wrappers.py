@@ -48,7 +48,7 @@ from aoass_env.safety.filter_period import (
     fused,
     orca_lines_of,
 )
-from aoass_env.safety.fuzzy import FuzzyController
+from aoass_env.safety.fuzzy import FULL_TURN, FuzzyController
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.lookahead import (
     Escape,
@@ -560,7 +560,9 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         heading = anchor.heading
         turn, slow = self.controller(anchor.obstacle_gap, wrap_angle(heading_des - heading))
         max_turn = c.anchor_max_turn_rate * c.dt
-        heading_pref = heading + float(turn) * max_turn
+        # the controller's turn is a fraction of FULL_TURN at most: the same floats wherever
+        # the anchor turns no farther per period (the defaults turn exactly FULL_TURN)
+        heading_pref = heading + float(turn) * min(max_turn, FULL_TURN)
         speed_pref = float(slow) * speed_des
         pref = (speed_pref * math.cos(heading_pref), speed_pref * math.sin(heading_pref))
 

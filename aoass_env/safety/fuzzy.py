@@ -40,7 +40,14 @@ from numpy.typing import ArrayLike
 from aoass_env.jit import njit
 from aoass_env.validators import number_array
 
-__all__ = ["FuzzyController", "FuzzyVariable", "membership"]
+__all__ = ["FULL_TURN", "FuzzyController", "FuzzyVariable", "membership"]
+
+#: Heading change (rad) per control period that the controller's full turn (1) stands for: its
+#: heading terms make the turn grow about linearly to a full turn at an error of pi/4, so a turn
+#: of u closes about u pi/4 (the default limits, pi/2 rad/s over 0.5 s, turn exactly this far).
+#: A faster anchor still turns at most this far on the controller's word, else a turn sized for
+#: pi/4 overshoots the error and the heading zig-zags from period to period.
+FULL_TURN = math.pi / 4
 
 _TWO_PI = 2.0 * math.pi
 #: the scalar inputs of the controller's fast path (booleans excepted)
@@ -268,7 +275,8 @@ class FuzzyController:
     Attributes:
         distance: input variable, gap to the nearest obstacle (m).
         heading: input variable, heading error (rad); its universe should be [-pi, pi].
-        turn: output variable, fraction of the maximum turn rate, universe inside [-1, 1].
+        turn: output variable, fraction of the turn per period, universe inside [-1, 1]: of
+            the anchor's largest, but no more than :data:`FULL_TURN`.
         speed: output variable, fraction of the desired speed, universe inside [0, 1].
         rules: complete table ``(distance term, heading term) -> (turn term, speed term)``,
             one entry for every pair of input terms (so every input fires some rule).

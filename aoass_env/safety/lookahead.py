@@ -549,6 +549,19 @@ class Escape:
     chosen_shortfall: float
 
 
+@njit
+def _reach(radius: float | np.ndarray, speed: float | np.ndarray, worst_std: float | np.ndarray,
+           clearance: float, max_speed: float, maneuver: float, last: float,
+           sigma: float) -> float | np.ndarray:
+    """How far (m) an obstacle's centre may be from the anchor and still come within its grown
+    radius plus ``clearance`` of the anchor's rollout by ``last`` (s), the rollout's last time:
+    each closes at most at its top speed, the obstacle grows by ``maneuver`` x its ``speed``
+    per second and by ``sigma`` x its position std, at most ``worst_std`` (m) over the rollout
+    (no fewer than 3 std, the reach the look-ahead always had). Farther obstacles add nothing
+    to any shortfall, and are left out."""
+    return (radius + clearance + (max_speed + speed * (1.0 + maneuver)) * last
+            + sigma * np.maximum(worst_std, 3.0))
+
 def _base_arrays(own: float, wanted: float, position: np.ndarray, heading: float, speed: float,
                  obstacles: np.ndarray, covariances: np.ndarray, max_speed: float,
                  max_accel: float, max_turn_rate: float, horizon: float, step: float,
@@ -562,11 +575,13 @@ def _base_arrays(own: float, wanted: float, position: np.ndarray, heading: float
     moving-obstacle cost, a contact counting CONTACT_WEIGHT times a shortfall; whether it falls
     short within the first ``soon`` steps or meets a bare disc), on NumPy's arrays (compiled:
     :func:`_base_compiled`)."""
-    # only the obstacles that could come within reach of the anchor within the horizon
+    # only the obstacles that could come within reach of the anchor within the rollout
+    # (:func:`_reach`)
     rel = obstacles[:, :2] - position
     obstacle_speed = np.hypot(obstacles[:, 2], obstacles[:, 3])
-    reach = (obstacles[:, 4] + clearance + (max_speed + obstacle_speed * (1.0 + maneuver))
-             * horizon + sigma * 3.0)
+    std_all = position_std(covariances, times)
+    reach = _reach(obstacles[:, 4], obstacle_speed, std_all.max(axis=1, initial=0.0),
+                   clearance, max_speed, maneuver, max(horizon, float(times[-1])), sigma)
     near = np.hypot(rel[:, 0], rel[:, 1]) <= reach
     empty = np.zeros((0, n_steps))
     if not near.any():
@@ -578,8 +593,8 @@ def _base_arrays(own: float, wanted: float, position: np.ndarray, heading: float
     else:
         centres = predict_obstacles(obs[:, :4], step, n_steps, starts, ends,
                                     np.full(len(obs), obstacle_radius))
-    std = position_std(covariances[near], times)
-    radii = obstacle_radii(obs[:, 4], obstacle_speed[near], std, times, sigma, maneuver)
+    radii = obstacle_radii(obs[:, 4], obstacle_speed[near], std_all[near], times, sigma,
+                           maneuver)
     bare = np.repeat(obs[:, 4:5] + 0.0, n_steps, axis=1)       # (m, S): each radius + 0.0
     paths = rollout(position, heading, speed, np.array([own]), np.array([wanted]),
                     max_turn_rate, max_accel, step, n_steps, starts, ends, radius)
@@ -606,24 +621,29 @@ def _base_compiled(own: float, wanted: float, px: float, py: float, heading: flo
     m_all = obstacles.shape[0]
     near = np.empty(m_all, np.bool_)
     speeds = np.empty(m_all)
+    std_all = _position_std(covariances, times)
+    last = times[-1] if times[-1] > horizon else horizon
     count = 0
     for i in range(m_all):
         speeds[i] = np.hypot(obstacles[i, 2], obstacles[i, 3])
-        reach = (obstacles[i, 4] + clearance + (max_speed + speeds[i] * (1.0 + maneuver))
-                 * horizon + sigma * 3.0)
+        worst = 0.0
+        for j in range(len(times)):
+            worst = max(worst, std_all[i, j])
+        reach = _reach(obstacles[i, 4], speeds[i], worst, clearance, max_speed, maneuver, last,
+                       sigma)
         near[i] = np.hypot(obstacles[i, 0] - px, obstacles[i, 1] - py) <= reach
         count += near[i]
     states = np.empty((count, 4))
     own_radii = np.empty(count)
     own_speeds = np.empty(count)
-    p = np.empty((count, 4, 4))
+    std = np.empty((count, len(times)))
     k = 0
     for i in range(m_all):          # element by element: a row assignment would make numba
         if near[i]:                 # compile its shape-error formatting (seconds)
             for c in range(4):
                 states[k, c] = obstacles[i, c]
-                for d in range(4):
-                    p[k, c, d] = covariances[i, c, d]
+            for j in range(len(times)):
+                std[k, j] = std_all[i, j]
             own_radii[k] = obstacles[i, 4]
             own_speeds[k] = speeds[i]
             k += 1
@@ -641,7 +661,6 @@ def _base_compiled(own: float, wanted: float, px: float, py: float, heading: flo
     else:
         centres = _predict_all(states, np.full(count, obstacle_radius), step, n_steps, sx, sy,
                                ex, ey, ee)
-    std = _position_std(p, times)
     for i in range(count):
         grow = maneuver * own_speeds[i]
         for j in range(n_steps):

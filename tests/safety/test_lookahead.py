@@ -386,6 +386,49 @@ def test_the_compiled_base_verdict_is_the_array_code_bit_for_bit():
     assert min(kinds.values()) > 30, kinds
 
 
+
+@pytest.mark.parametrize("std, sigma, horizon, distances", [
+    (5.0, 2.0, 4.5, (16.0, 16.9, 17.0, 18.0)),     # a position std above 3 m
+    (10.0, 2.0, 4.5, (16.0, 17.0, 30.0)),
+    (0.0, 0.0, 4.6, (17.9, 18.0)),                 # a rollout (19 steps) past the horizon
+])
+def test_an_obstacle_that_reaches_the_rollout_is_never_left_out(std, sigma, horizon,
+                                                                 distances):
+    """The obstacles left out before the rollout are those that cannot reach it: the given
+    velocity's shortfall is the one of its rollout against every obstacle's grown disc
+    (rollout and violation, independently), whatever the tracks' position std (the filter
+    assumed at most 3 m: a standing obstacle 17 m ahead with a 5 m std counted 0) and to the
+    rollout's last step (ceil(horizon / step) steps, past the horizon)."""
+    step, maneuver, clearance = 0.25, 0.5, 0.2
+    n_steps = math.ceil(horizon / step - 1e-9)
+    times = step * np.arange(1, n_steps + 1)
+    covariances = np.diag([std * std, std * std, 0.04, 0.04])[None]
+    no_edges = np.zeros((0, 2))
+    counted = 0
+    for distance in distances:
+        obstacles = np.array([[distance, 0.0, -1.0 if std == 0.0 else 0.0, 0.0, 1.5]])
+        escape = escape_velocity(np.array([2.0, 0.0]), np.array([2.0, 0.0]), np.zeros(2), 0.0,
+                                 2.0, obstacles, covariances, **LIMITS, horizon=horizon,
+                                 step=step, starts=no_edges, ends=no_edges, radius=0.7,
+                                 sigma=sigma, maneuver=maneuver, clearance=clearance,
+                                 react=None)
+        path = rollout(np.zeros(2), 0.0, 2.0, np.array([0.0]), np.array([2.0]),
+                       LIMITS["max_turn_rate"], LIMITS["max_accel"], step, n_steps, no_edges,
+                       no_edges, 0.7)
+        centres = obstacles[:, None, :2] + times[None, :, None] * obstacles[:, None, 2:4]
+        speeds = np.hypot(obstacles[:, 2], obstacles[:, 3])
+        radii = obstacle_radii(obstacles[:, 4], speeds, position_std(covariances, times),
+                               times, sigma, maneuver)
+        want = float(violation(path, centres, radii, clearance)[0])
+        assert escape.shortfall == pytest.approx(want, abs=1e-9), distance
+        base = lookahead._base_arrays(0.0, 2.0, np.zeros(2), 0.0, 2.0, obstacles, covariances,
+                                      2.0, 1.0, math.pi / 2, horizon, step, n_steps, times,
+                                      no_edges, no_edges, 0.7, sigma, maneuver, clearance,
+                                      None, 0)
+        assert base[5] == pytest.approx(want, abs=1e-9), distance
+        counted += want > 0.0
+    assert counted >= 2
+
 def test_segment_tables_are_the_array_code_bit_for_bit():
     """The compiled tables of _Segments: the starts' coordinates, e = end - start and
     max(|e|^2, 1e-300) as NumPy computes them, for edges of zero, tiny and large lengths."""
