@@ -11,7 +11,10 @@ on a fresh planner of this tree and on one of ``--against`` (its
 ``aoass_env/planning/detour.py`` read with ``git show``; the rest is this tree's), in one
 process, alternating which goes first. Prints the milliseconds per call of both, their ratio,
 the steps' share, and whether every answer is the same to the bit (the planner's state, its
-kept search tree, carries from call to call as in the episode).
+kept search tree, carries from call to call as in the episode). The earlier planner searches
+this tree's grid (its free cells, their graph and main region, built before the clock starts):
+the free cells are exact since 2026-11-30 (cells a thin wall or spike blocks), and what is
+compared is the searches.
 """
 
 from __future__ import annotations
@@ -92,6 +95,19 @@ def replay(planner_class: type, arguments: tuple, calls: list[tuple]) -> tuple[f
     return time.perf_counter() - start, answers
 
 
+def on_this_grid(planner_class: type) -> Any:
+    """A builder of ``planner_class`` planners (an earlier commit's) that search this tree's
+    grid: the free cells, the nearest free cell of each cell, the graph and the main region of
+    a planner of this tree on the same arguments replace its own."""
+    def build(*arguments: Any) -> Any:
+        planner, now = planner_class(*arguments), detour.DetourPlanner(*arguments)
+        for name in ("free", "_nearest", "_graph", "_main"):
+            setattr(planner, name, getattr(now, name))
+        planner._degree = int(np.diff(now._graph.indptr).max(initial=0))
+        return planner
+    return build
+
+
 def same(a: list, b: list) -> bool:
     """Whether two lists of answers (arrays or None) are equal to the bit."""
     return len(a) == len(b) and all(
@@ -133,7 +149,7 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--steps {args.steps}: the episodes (seeds {args.seeds}) made no detour "
                      f"planner call to replay; give more steps (default 20000)"
                      + (" or a --density above 0" if args.density == 0 else ""))
-    classes = {args.against: old.DetourPlanner, "now": detour.DetourPlanner}
+    classes = {args.against: on_this_grid(old.DetourPlanner), "now": detour.DetourPlanner}
     if recorded:                          # first-use costs (compilation, caches)
         for cls in classes.values():
             replay(cls, *recorded[0])

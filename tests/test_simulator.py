@@ -171,10 +171,12 @@ def test_the_anchor_starts_where_the_field_is_reachable(method, map_name):
 
 def test_the_anchor_does_not_start_in_a_nook_whose_exit_only_the_planners_grid_sees_open():
     """Regression (a fresh robustness map, seed 760045): the spiral's first free waypoint that
-    reaches the main region lies in a nook whose exit passes 0.59 m from the obstacle (the grid
-    misses the obstacle's thin part there), below the planner's 0.8 m; inside the safety stack
-    the anchor never left it (coverage 0). The anchor now starts on a waypoint that leads out
-    by exact clearance, and the stack sweeps from there."""
+    reached the main region lay in a nook whose exit passes 0.59 m from the obstacle (the grid
+    missed the obstacle's thin part there), below the planner's 0.8 m; inside the safety stack
+    the anchor never left it (coverage 0). The start then skipped it by exact clearance
+    (``leads_out``); since the planner's free cells are exact too, its grid sees the nook shut:
+    the first waypoint that reaches the main region leads out, the anchor starts on it, and
+    the stack sweeps from there."""
     from aoass_env.maps import generate_map
     from aoass_env.wrappers import make_safe_env
     nook_map = generate_map(100.0, 0.5, np.random.default_rng([20261117, 50, 45]),
@@ -182,12 +184,14 @@ def test_the_anchor_does_not_start_in_a_nook_whose_exit_only_the_planners_grid_s
     config = AOASSConfig()
     sim = Simulator(config, np.random.default_rng(760045), obstacle_map=nook_map, seed=760045)
     nook = np.array([66.16666667, 66.0])
+    nook_index = int(np.flatnonzero(np.hypot(*(sim.path.waypoints - nook).T) < 1e-6)[0])
+    assert not sim.path.blocked[nook_index]
+    assert not sim.planner.can_start(nook, config.anchor_radius)
     reaching = [i for i in np.flatnonzero(~sim.path.blocked)
                 if sim.planner.can_start(sim.path.waypoints[i], config.anchor_radius)]
-    first = sim.path.waypoints[reaching[0]]
-    np.testing.assert_allclose(first, nook, atol=1e-6)
-    assert not sim.planner.leads_out(first)
-    assert sim.start_index != reaching[0] and sim.start_index in reaching
+    assert reaching[0] > nook_index
+    assert sim.planner.leads_out(sim.path.waypoints[reaching[0]])
+    assert sim.start_index == reaching[0]
     assert sim.planner.leads_out(sim.world.position)
     env = make_safe_env(config=config, action_type="adaptive")
     env.reset(seed=760045, options={"map": nook_map})

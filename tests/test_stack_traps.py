@@ -38,8 +38,13 @@ TRAPS = {
     # a 4 m passage along the first leg; a moving obstacle parks in its middle
     "parked": [_wall((24, 17.0), (32, 17.0), 2.0), _wall((24, 23.0), (32, 23.0), 2.0)],
 }
-#: Scenarios that hold the stack until the time limit when the watchdog is off.
-REAL_TRAPS = ("v_wedge", "dead_end", "parked")
+#: Scenarios that hold the stack until the time limit when the watchdog is off. The V and the
+#: dead end did until the detour planner's free cells became exact (2026-11-30): its grid had
+#: read the V's thin walls as open and snapped an anchor in the corridor to a cell behind its
+#: wall; it now routes round both, and the stack sweeps them without a recovery.
+REAL_TRAPS = ("parked",)
+#: Scenarios the planner now routes round by itself (no recovery needed).
+ROUTED = ("v_wedge", "dead_end")
 
 
 def _sweep(trap: str, watchdog_time: float = 8.0, safety=None) -> tuple[bool, dict]:
@@ -71,6 +76,8 @@ def test_stack_ends_the_sweep_by_itself_in_a_trap(trap):
     assert info["static_contacts"] == 0 and info["wall_contacts"] == 0
     if trap in REAL_TRAPS:
         assert info["recoveries"] >= 1
+    if trap in ROUTED:
+        assert info["recoveries"] == 0
 
 
 @pytest.mark.parametrize("trap", REAL_TRAPS)

@@ -496,7 +496,7 @@ def test_tracker_slots_compiled_are_the_array_codes():
         want = _array_track_slots(tracker, obs, states, anchor)
         assert got.dtype == np.float32 and got.tobytes() == want.tobytes(), trial
     # in the wrapper: the compiled path for the inner float32 observation, with tracks
-    env.reset(seed=2)
+    env.reset(seed=4)
     seen = 0
     for _ in range(400):
         env.step(rng.uniform(-1.0, 1.0, 2).astype(np.float32))

@@ -7,7 +7,8 @@ with too little clearance are removed (and those whose centre lies, exactly, wit
 of an obstacle: a wall or a spike thinner than a cell holds no cell centre), and Dijkstra
 (scipy.sparse.csgraph) on the 8-connected grid, with a cost that prefers open space, finds the
 path. The path is then shortened by string pulling (keep only the points needed for straight,
-obstacle-free legs).
+obstacle-free legs). A start or goal off the free cells snaps to the nearest free cell it
+reaches straight without crossing an obstacle.
 
 **Same paths from smaller searches.** Dijkstra's distances do not depend on how far it searches
 or how its heap breaks ties: in floats, a cell's distance is the least left-to-right sum over the
@@ -147,7 +148,48 @@ class DetourPlanner:
         return i * self.shape[1] + j
 
     def _cell(self, point: np.ndarray) -> int:
-        return int(self._nearest[self._index(point)])
+        """The free cell ``point`` (m) snaps to: its own when free, else the nearest free cell
+        whose centre it reaches straight without crossing an obstacle (the nearest alone may
+        lie behind a wall thinner than the planner's radius: an anchor in a corridor narrower
+        than the planner's disc planned its first leg through the wall); the nearest free cell
+        when no free cell is reached so."""
+        index = self._index(point)
+        cell = int(self._nearest[index])
+        if cell == index or self._reaches(point, cell):
+            return cell
+        return self._reached_cell(point, index, cell)
+
+    def _reaches(self, point: np.ndarray, cell: int) -> bool:
+        """Whether the segment from ``point`` (m) to the centre of ``cell`` meets no obstacle."""
+        return self._obstacles.is_empty or not shapely.intersects(
+            self._obstacles, shapely.linestrings([point, self.centres[cell]]))
+
+    def _reached_cell(self, point: np.ndarray, index: int, nearest: int) -> int:
+        """The nearest free cell (ties: the lower flat index) whose centre ``point`` (m, in cell
+        ``index``) reaches (:meth:`_reaches`), searched in squares of cells around ``index``
+        that double until one holds it within the radius the square surely covers; ``nearest``
+        when none does."""
+        nx, ny = self.shape
+        i, j = divmod(index, ny)
+        free = self.free.ravel()
+        k = 4
+        while True:
+            rows = np.arange(max(0, i - k), min(nx, i + k + 1))
+            cols = np.arange(max(0, j - k), min(ny, j + k + 1))
+            block = (rows[:, None] * ny + cols[None, :]).ravel()
+            block = block[free[block]]
+            dist = np.hypot(*(self.centres[block] - point).T)
+            whole = len(rows) == nx and len(cols) == ny
+            sure = math.inf if whole else k * self.res      # every cell nearer is in the square
+            for c, d in zip(block[np.argsort(dist, kind="stable")].tolist(),
+                            np.sort(dist, kind="stable").tolist(), strict=True):
+                if d > sure:
+                    break
+                if self._reaches(point, c):
+                    return c
+            if whole:
+                return nearest
+            k *= 2
 
     def costs(self, start: np.ndarray, goals: np.ndarray) -> np.ndarray:
         """(K,) cost of the planner's way (m, weighted as its searches: length x (1 + 1 /

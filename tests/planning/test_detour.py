@@ -53,6 +53,27 @@ def test_a_wall_thinner_than_a_cell_is_gone_round_not_crossed():
     assert line.length > 2 * math.hypot(20, 40) - 1
 
 
+
+def test_a_point_in_a_corridor_narrower_than_the_disc_snaps_to_a_cell_it_reaches():
+    """A 1.9 m corridor between 1 m walls holds no free cell for a 0.8 m disc; an anchor (0.5
+    m) inside it snapped to the nearest free cell, behind a wall, and the path's first leg went
+    through the wall (the stack shuttled in the corridor until the time limit). It now snaps to
+    the nearest free cell it reaches straight, out of the corridor's mouth, and the path's legs
+    cross no wall."""
+    walls = [np.array([(23.0, 18.05), (34.0, 18.05), (34.0, 19.05), (23.0, 19.05)]),
+             np.array([(23.0, 20.95), (34.0, 20.95), (34.0, 21.95), (23.0, 21.95)]),
+             np.array([(34.0, 18.0), (35.0, 18.0), (35.0, 22.0), (34.0, 22.0)])]
+    obstacle_map = ObstacleMap(40, 40, walls)
+    planner = DetourPlanner(obstacle_map, radius=0.8)
+    inside = np.array([29.27, 20.04])
+    assert not planner.free.ravel()[planner._index(inside)]
+    path = planner.path(inside, np.array([20.0, 20.0]))
+    assert path is not None
+    assert not shapely.LineString(path).intersects(obstacle_map.union)
+    assert path[1][0] < 23.0                   # out through the mouth, not across a wall
+    snapped = planner.centres[planner._cell(inside)]
+    assert not shapely.LineString([inside, snapped]).intersects(obstacle_map.union)
+
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), density=st.sampled_from([0.2, 0.4, 0.6]))
 def test_free_cells_leave_the_disc_clear_of_every_obstacle(seed, density):

@@ -34,8 +34,8 @@ REPORT_KEYS = ("intervention", "orca_correction", "flc_turn", "flc_speed", "spee
                "look_ahead_shortfall", "yielding")
 
 EXPECTED: dict[str, dict[str, str]] = {
-    'f50_moving12': {'observation': 'ddea2dd01b7f2f22', 'reward': '1a41306b61de5672',
-                     'safety': '020db3407d8015d4', 'world': 'f8765b87abd9da66'},
+    'f50_moving12': {'observation': 'dc573368ec3fd3f0', 'reward': '2d2a29a6c9a08ade',
+                     'safety': 'a1c953131189fdbc', 'world': '20a90fee54125064'},
     'f70_d0.2_moving8': {'observation': 'ad9d2a50eae0b7eb', 'reward': '0b62b2223a00d0db',
                          'safety': 'f04402ad948acd9f', 'world': '965b48eac69fc49d'},
 }
@@ -44,8 +44,8 @@ EXPECTED: dict[str, dict[str, str]] = {
 #: to the clearance first (issue 24, third round): the old behaviour stays reachable
 ONE_COST = SafetyConfig(shortfall_tolerance=None, yield_shortfall_tolerance=None)
 EXPECTED_ONE_COST: dict[str, dict[str, str]] = {
-    'f50_moving12': {'observation': 'ada9debca1e9c14c', 'reward': '46e4738850f15bfe',
-                     'safety': 'c054a23da6bf4b3a', 'world': 'cae8d559ee5bd6d3'},
+    'f50_moving12': {'observation': 'e28085af07cdfd04', 'reward': '8164d07538e173fe',
+                     'safety': 'd73c004386d71d89', 'world': '4abd3190d75f796b'},
     'f70_d0.2_moving8': {'observation': '672bb70049685343', 'reward': '3c4183e47d9d24c7',
                          'safety': '28f785b0848f2390', 'world': 'bde015e0e0b3e696'},
 }
