@@ -420,10 +420,22 @@ class SafeLoading:
     @classmethod
     def load(cls: type[SelfSafe], path: str | os.PathLike[str], env: Any = None,
              device: str = "cpu", *, record: str | os.PathLike[str] | None = None,
+             custom_objects: Mapping[str, Any] | None = None, force_reset: bool = True,
              **kwargs: Any) -> SelfSafe:
-        """The model saved at ``path`` (see :func:`load_model`)."""
+        """The model saved at ``path`` (see :func:`load_model`). SB3's ``custom_objects``
+        (values that replace the saved ones, e.g. ``learning_rate``) are changes as ``kwargs``
+        are (a keyword given both ways is refused); ``force_reset=False`` is refused: the last
+        observation is not saved, so a loaded model always starts with a reset."""
+        if not force_reset:
+            raise ValueError("force_reset=False is not supported: the model file keeps no last "
+                             "observation, so learning always starts by resetting the env")
+        custom = dict(custom_objects or {})
+        twice = sorted(set(custom) & set(kwargs))
+        if twice:
+            raise ValueError(f"{', '.join(twice)} given both in custom_objects and as a keyword: "
+                             f"give each change once")
         return load_model(cls, path, env=env, record=record,
-                          device="cpu" if device == "auto" else device, **kwargs)
+                          device="cpu" if device == "auto" else device, **custom, **kwargs)
 
     def save_replay_buffer(self, path: str | os.PathLike[str] | io.IOBase) -> None:
         """Write the replay buffer as an ``.npz`` (see :func:`save_replay_buffer`)."""
@@ -436,7 +448,25 @@ class SafeLoading:
 
 
 class TD3(SafeLoading, _SB3TD3):
-    """SB3's feedforward TD3 (the ``--algo td3`` ablation) with :class:`SafeLoading`."""
+    """SB3's feedforward TD3 (the ``--algo td3`` ablation) with :class:`SafeLoading`. A
+    ``learn`` that resets the env (a resumed run, or ``reset_num_timesteps``) ends the episodes
+    the replay buffer holds as truncated, so that no n-step return joins them to the new ones
+    (as :class:`~agents.recurrent_td3.RecurrentTD3` starts new episodes in its buffer)."""
 
     algo_name = "td3"
     default_policy = "MlpPolicy"
+
+    def _setup_learn(self, total_timesteps: int, callback: Any = None,
+                     reset_num_timesteps: bool = True, tb_log_name: str = "run",
+                     progress_bar: bool = False) -> tuple[int, Any]:
+        resets_env = reset_num_timesteps or self._last_obs is None
+        out = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name,
+                                   progress_bar)
+        buffer = self.replay_buffer
+        if resets_env and buffer is not None and (buffer.full or buffer.pos > 0):
+            # the last stored step of each env did not end its episode, and its successor in
+            # the buffer will be another episode's first: a time-limit cut (the step keeps its
+            # own next observation to bootstrap from; an n-step sum stops there)
+            last = (buffer.pos - 1) % buffer.buffer_size
+            buffer.timeouts[last] = np.where(buffer.dones[last] > 0, buffer.timeouts[last], 1.0)
+        return out

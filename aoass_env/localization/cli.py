@@ -61,8 +61,12 @@ def main(argv: list[str] | None = None) -> int:
     for path in paths:
         try:
             episode = prepare(BeaconLog.load(path))
-        except BeaconLogError as exc:
-            parser.error(str(exc))
+        except FileNotFoundError:
+            parser.error(f"{path}: no such file (a broken link, or removed while the folder "
+                         f"was read)")
+        except BeaconLogError as exc:      # prepare()'s errors name no file: named here
+            parser.error(str(exc) if exc.path is not None
+                         else str(BeaconLogError(exc.reason, exc.key, path)))
         est = localize(episode, args.method, checkpoint=model) if model is not None \
             else localize(episode, args.method)
         rmse, frac = localization_rmse(episode.log.nodes, est)

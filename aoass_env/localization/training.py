@@ -264,8 +264,9 @@ def _load_cached(path: Path) -> tuple[Episode, np.ndarray | None]:
     hint = "delete it and its pair to simulate them again"
     try:
         episode = prepare(BeaconLog.load(path))
-    except BeaconLogError as exc:
-        raise CachedLogError(f"{one_line(exc)}; {hint}") from None
+    except BeaconLogError as exc:         # prepare()'s errors name no file: named here
+        named = exc if exc.path is not None else BeaconLogError(exc.reason, exc.key, path)
+        raise CachedLogError(f"{one_line(named)}; {hint}") from None
     if episode.config.doi <= 0:
         return episode, None
     file = pattern_path(path)

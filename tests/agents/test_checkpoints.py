@@ -10,12 +10,13 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import torch as th
 from stable_baselines3.common.env_util import make_vec_env
 
 from agents import RecurrentTD3
-from agents.checkpoints import PolicyFileError
+from agents.checkpoints import TD3, PolicyFileError
 
 TINY = dict(batch_size=8, burn_in=2, train_length=4, buffer_size=200,
             policy_kwargs=dict(lstm_hidden_size=4, net_arch=[4]))
@@ -202,3 +203,42 @@ def test_a_member_that_inflates_past_the_limit_is_refused_unread(saved: Path, tm
     monkeypatch.setattr(checkpoints, "MAX_MEMBER_BYTES", data_size)  # now the policy's turn
     assert "policy.pth: " in _refusal(saved)
     assert f"bytes once inflated, more than MAX_MEMBER_BYTES={data_size}" in _refusal(saved)
+
+
+def test_a_resumed_td3_run_ends_the_stored_episodes_before_the_new_ones(tmp_path):
+    """A resume resets the env: the last stored step of the saved run did not end its episode,
+    and the next stored step starts another. Its n-step return (n_steps = 3) summed on into
+    the new episode and bootstrapped from its observation; the step is now a time-limit cut."""
+    hp = dict(n_steps=3, buffer_size=1000, learning_starts=10, batch_size=8,
+              policy_kwargs=dict(net_arch=[8]))
+    model = TD3("MlpPolicy", _env(), seed=0, device="cpu", **hp)
+    model.learn(30)                         # the second episode is 10 steps in
+    model.save(tmp_path / "td3.zip")
+    model.save_replay_buffer(tmp_path / "td3_buffer.npz")
+    resumed = TD3.load(tmp_path / "td3.zip", env=_env(),
+                       record={"algo": "td3", "hyperparameters": hp})
+    resumed.load_replay_buffer(tmp_path / "td3_buffer.npz")
+    resumed.learn(10, reset_num_timesteps=False)
+    buffer = resumed.replay_buffer
+    assert buffer.dones[29, 0] == 0 and buffer.timeouts[29, 0] == 1
+    assert not np.allclose(buffer.observations[30, 0], buffer.next_observations[29, 0])
+    sample = buffer._get_samples(np.array([28]), env=None)
+    np.testing.assert_allclose(sample.next_observations[0].numpy(),
+                               buffer.next_observations[29, 0])
+    np.testing.assert_allclose(float(sample.rewards[0]),
+                               buffer.rewards[28, 0] + resumed.gamma * buffer.rewards[29, 0],
+                               rtol=1e-6)
+
+
+def test_load_applies_custom_objects_and_refuses_what_it_cannot_honour(saved):
+    """SB3's ``custom_objects`` replace saved values (they were set as an attribute named
+    custom_objects and the recorded learning rate kept); ``force_reset=False`` cannot be
+    honoured (no last observation is saved) and was ignored."""
+    model = RecurrentTD3.load(saved, env=_env(), record=RECORD,
+                              custom_objects={"learning_rate": 0.0})
+    assert model.learning_rate == 0.0 and not hasattr(model, "custom_objects")
+    with pytest.raises(ValueError, match="force_reset=False is not supported"):
+        RecurrentTD3.load(saved, env=_env(), record=RECORD, force_reset=False)
+    with pytest.raises(ValueError, match="learning_rate given both"):
+        RecurrentTD3.load(saved, env=_env(), record=RECORD, learning_rate=0.1,
+                          custom_objects={"learning_rate": 0.0})

@@ -8,6 +8,7 @@ import torch
 
 from aoass_env.localization.cli import main
 from aoass_env.localization.olstm import OLSTM, save_checkpoint
+from tests.localization.conftest import make_log
 
 
 def test_cli_on_a_folder(tmp_path, small_log, capsys) -> None:
@@ -71,3 +72,20 @@ def test_a_logdir_that_is_no_folder_is_named_in_one_line(tmp_path, capsys) -> No
         assert exit_.value.code == 2
         last = capsys.readouterr().err.strip().splitlines()[-1]
         assert last.endswith(f"LOGDIR {logdir}: {why}")
+
+
+def test_a_broken_link_and_a_log_without_beacons_are_named_in_one_line(tmp_path, small_log,
+                                                                       capsys) -> None:
+    """A log whose content prepare() refuses (no beacons) was reported without its file; a
+    broken link (or a log removed while the folder was read) ended in a traceback."""
+    small_log.save(tmp_path / "a.npz")
+    empty = make_log(np.zeros((2, 2)), np.zeros((0, 2)), [], [])
+    empty.save(tmp_path / "b.npz")
+    assert _error_line([str(tmp_path), "--method", "dvhop"], capsys).endswith(
+        f"error: {tmp_path / 'b.npz'}: beacon log key 'beacons': the log holds no beacons: "
+        f"nothing to localize from")
+    (tmp_path / "b.npz").unlink()
+    (tmp_path / "b.npz").symlink_to(tmp_path / "gone.npz")
+    assert _error_line([str(tmp_path), "--method", "dvhop"], capsys).endswith(
+        f"error: {tmp_path / 'b.npz'}: no such file (a broken link, or removed while the "
+        f"folder was read)")

@@ -27,6 +27,7 @@ from aoass_env.localization.training import (
     pattern_path,
 )
 from aoass_env.maps import list_maps, validation_split
+from tests.localization.conftest import make_log
 
 
 def test_specs_use_training_maps_and_hold_out_validation_maps() -> None:
@@ -219,3 +220,13 @@ def test_a_diverged_training_is_one_line_and_writes_nothing(doi_sim, tmp_path, t
         "train.py localizer: error: --learning-rate 0.5: training diverged: the validation NLL "
         "was not finite in any of 2 epoch(s) (learning_rate=0.5); nothing was written")
     assert not (tmp_path / "m.pt").exists()
+
+
+def test_a_cached_log_without_beacons_is_named(tmp_path) -> None:
+    """The cached log's own errors (no beacons, a config this version cannot read) named no
+    file, yet told the user to delete "it"."""
+    log = tmp_path / "a.npz"
+    make_log(np.zeros((2, 2)), np.zeros((0, 2)), [], []).save(log)
+    with pytest.raises(CachedLogError, match=rf"^{log}: beacon log key 'beacons': the log "
+                                             rf"holds no beacons"):
+        _examples([log])
