@@ -7,7 +7,8 @@ form; a step is kept where it lowers that node's cost (then lambda shrinks), els
 Every iterate is clipped to the field, so estimates respect its bounds; a coordinate on a bound
 whose descent leads out of the field is held there and the node steps along the bound (projected
 Levenberg-Marquardt), so a node whose unbounded minimum lies outside reaches the bounded one.
-Anchor lists are padded to one length; padded entries carry weight 0. """
+Anchor lists are padded to one length; padded entries carry weight 0.
+"""
 
 from __future__ import annotations
 

@@ -74,6 +74,7 @@ class DetourPlanner:
         self.shape = (nx, ny)
         self._size = (float(obstacle_map.width), float(obstacle_map.height))
         self._leads: dict[tuple[float, float, float], bool] = {}   # shared by copies
+        self._snaps: dict[tuple[float, float], int] = {}     # _cell's searches, shared too
         xs, ys = (np.arange(nx) + 0.5) * resolution, (np.arange(ny) + 0.5) * resolution
         gx, gy = np.meshgrid(xs, ys, indexing="ij")
         self.centres = np.stack([gx.ravel(), gy.ravel()], axis=1)
@@ -83,6 +84,7 @@ class DetourPlanner:
         clearance = np.minimum(clearance, np.minimum(np.minimum(gx, obstacle_map.width - gx),
                                                      np.minimum(gy, obstacle_map.height - gy)))
         self._obstacles = obstacle_map.union if obstacle_map.polygons else shapely.Polygon()
+        shapely.prepare(self._obstacles)       # the map's own union: prepared once for all
         self._blocker = shapely.buffer(self._obstacles, radius)
         shapely.prepare(self._blocker)
         # a cell is free when its centre is clear of the grid's occupied centres by radius plus
@@ -157,7 +159,10 @@ class DetourPlanner:
         cell = int(self._nearest[index])
         if cell == index or self._reaches(point, cell):
             return cell
-        return self._reached_cell(point, index, cell)
+        key = (float(point[0]), float(point[1]))
+        if key not in self._snaps:            # the map is immutable: once per point
+            self._snaps[key] = self._reached_cell(point, index, cell)
+        return self._snaps[key]
 
     def _reaches(self, point: np.ndarray, cell: int) -> bool:
         """Whether the segment from ``point`` (m) to the centre of ``cell`` meets no obstacle."""
@@ -181,12 +186,13 @@ class DetourPlanner:
             dist = np.hypot(*(self.centres[block] - point).T)
             whole = len(rows) == nx and len(cols) == ny
             sure = math.inf if whole else k * self.res      # every cell nearer is in the square
-            for c, d in zip(block[np.argsort(dist, kind="stable")].tolist(),
-                            np.sort(dist, kind="stable").tolist(), strict=True):
-                if d > sure:
-                    break
-                if self._reaches(point, c):
-                    return c
+            inside = np.flatnonzero(dist <= sure)
+            if len(inside):
+                legs = np.empty((len(inside), 2, 2))
+                legs[:, 0], legs[:, 1] = point, self.centres[block[inside]]
+                reached = inside[~shapely.intersects(self._obstacles, shapely.linestrings(legs))]
+                if len(reached):          # the nearest; ties: the first, the lower flat index
+                    return int(block[reached[np.argmin(dist[reached])]])
             if whole:
                 return nearest
             k *= 2
