@@ -54,6 +54,9 @@ DETOUR_MARGIN = 0.3
 #: How far (m) a start must lead out, through cells of exact clearance, to count as open
 #: (:meth:`DetourPlanner.leads_out`).
 LEAD_OUT = 10.0
+#: Most snaps of points off the free cells a map's planners remember (:meth:`DetourPlanner.
+#: _cell`); the memory is emptied when full, so a long training run on one map stays bounded.
+SNAPS_KEPT = 4096
 
 
 class DetourPlanner:
@@ -161,6 +164,8 @@ class DetourPlanner:
             return cell
         key = (float(point[0]), float(point[1]))
         if key not in self._snaps:            # the map is immutable: once per point
+            if len(self._snaps) >= SNAPS_KEPT:   # an anchor's positions never repeat for long
+                self._snaps.clear()
             self._snaps[key] = self._reached_cell(point, index, cell)
         return self._snaps[key]
 
