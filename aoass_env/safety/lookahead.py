@@ -562,6 +562,7 @@ def _reach(radius: float | np.ndarray, speed: float | np.ndarray, worst_std: flo
     return (radius + clearance + (max_speed + speed * (1.0 + maneuver)) * last
             + sigma * np.maximum(worst_std, 3.0))
 
+
 def _base_arrays(own: float, wanted: float, position: np.ndarray, heading: float, speed: float,
                  obstacles: np.ndarray, covariances: np.ndarray, max_speed: float,
                  max_accel: float, max_turn_rate: float, horizon: float, step: float,
