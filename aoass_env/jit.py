@@ -15,7 +15,8 @@ module and of every module of the package the module imports, transitively. numb
 cache entry whose stamp differs, so a change in any of them recompiles the kernel on its next
 load, and a change elsewhere (the evaluation, the agent) does not. Where the cache lives is
 numba's choice as before (``__pycache__`` beside the source, else the user-wide cache, or
-``NUMBA_CACHE_DIR``); only the stamp changes.
+``NUMBA_CACHE_DIR``); the stamp changes, and the file names carry numba's version, so that two
+environments with different numba versions sharing a checkout never read each other's files.
 """
 
 from __future__ import annotations
@@ -153,7 +154,13 @@ class _ClosureStampLocator(_CacheLocator):
         return self._inner.get_cache_path()
 
     def get_disambiguator(self) -> str:
-        return self._inner.get_disambiguator()
+        # numba's version in the file names: numba writes a kernel's index before its data file,
+        # and numbers data files from 1 whatever the index's version, so a process reading the
+        # index another process has just written loaded the data file that a different numba
+        # left under the same name (two environments sharing a checkout: "LLVM bitcode parsing
+        # error ... Producer: 'LLVM22.1.0' Reader: 'LLVM 14.0.6'")
+        version = re.sub(r"\W", "_", numba.__version__)
+        return f"{self._inner.get_disambiguator()}-numba{version}"
 
     def get_source_stamp(self) -> Any:
         return ("closure", self._inner.get_source_stamp(), source_stamp(self._module))

@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import ast
 import os
+import re
 import subprocess
 import sys
 import textwrap
 from pathlib import Path
 
+import numba
 import pytest
 
 import aoass_env
@@ -111,12 +113,15 @@ print(o.f(1.0), sum(o.f.stats.cache_hits.values()))
 """
 
 
-def _run(root: Path) -> tuple[float, int]:
+def _run(root: Path, numba_version: str | None = None) -> tuple[float, int]:
+    """The probe's answer and cache hits in a fresh process; ``numba_version`` stands in for
+    another numba installed in another environment sharing the checkout."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
     env.update(PYTHONPATH=os.pathsep.join([str(root), str(PACKAGE.parent)]),
                PYTHONDONTWRITEBYTECODE="1")
-    out = subprocess.run([sys.executable, "-c", _RUN], cwd=root, env=env, capture_output=True,
-                         text=True, timeout=300, check=True).stdout.split()
+    fake = "" if numba_version is None else f"import numba; numba.__version__ = {numba_version!r}\n"
+    out = subprocess.run([sys.executable, "-c", fake + _RUN], cwd=root, env=env,
+                         capture_output=True, text=True, timeout=300, check=True).stdout.split()
     return float(out[0]), int(out[1])
 
 
@@ -134,6 +139,26 @@ def test_a_kernel_recompiles_when_a_module_it_imports_changes(tmp_path):
     assert _run(tmp_path) == (9.0, 0)            # the constant's module changed
     (pkg / "other.py").write_text("UNRELATED = 2\n", encoding="utf-8")
     assert _run(tmp_path) == (9.0, 1)            # not imported by outer: the cache stays
+
+
+def test_two_numba_versions_sharing_a_checkout_keep_their_own_files(tmp_path):
+    # numba writes a kernel's index before its data file and numbers data files from 1 whatever
+    # version wrote them: with shared names, a process could read a fresh index pointing at the
+    # other version's data (CI's lowest-versions venv hit LLVM's "bitcode parsing error" so),
+    # and each version's run overwrote the other's index
+    pkg = tmp_path / "jitprobe"
+    pkg.mkdir()
+    for name, text in _PROBE.items():
+        (pkg / name).write_text(textwrap.dedent(text), encoding="utf-8")
+    other = "0.0.1"
+    assert _run(tmp_path, other) == (4.0, 0)
+    assert _run(tmp_path) == (4.0, 0)
+    assert _run(tmp_path, other) == (4.0, 1)     # the other version's index was left alone
+    assert _run(tmp_path) == (4.0, 1)
+    files = [p.name for p in (pkg / "__pycache__").iterdir() if p.suffix in (".nbi", ".nbc")]
+    ours = "numba" + re.sub(r"\W", "_", numba.__version__)
+    assert files and all(("numba0_0_1" in f) != (ours in f) for f in files), files
+    assert {"numba0_0_1" in f for f in files} == {True, False}
 
 
 def test_a_reload_keeps_one_closure_locator_in_front():
