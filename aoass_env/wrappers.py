@@ -53,9 +53,11 @@ from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.lookahead import (
     Escape,
     EscapeBudget,
+    bounce_reach,
     escape_velocity,
     look_ahead_horizon,
     position_std,
+    rollout_reach,
 )
 from aoass_env.safety.orca import (
     OrcaAgent,
@@ -519,20 +521,26 @@ class FuzzyORCASafety(_EntryPointWrapper, gym.ActionWrapper):
         tracks = self._tracker.tracked_obstacles
         tracks[:, 4] += c.anchor_radius
         radius = c.anchor_radius + cfg.margin
+        step = 0.5 * c.dt
         starts, ends = static.segments_near(
-            anchor.position, c.anchor_max_speed * horizon + radius)
+            anchor.position, rollout_reach(c.anchor_max_speed, horizon, step, radius))
+        # the tracks' own reach: an obstacle out of the anchor's reach still bounces off the
+        # walls near it, back into the anchor's way
+        bounce_starts, bounce_ends = static.segments_near_any(
+            tracks[:, :2], bounce_reach(tracks, horizon, step, c.moving_obstacle_radius))
         react = cfg.look_ahead_react or c.dt + c.anchor_max_speed / c.anchor_max_accel
         yielding = self.escape_budget.yielding
         return escape_velocity(
             v_star, v_pref, anchor.position, anchor.heading, anchor.speed, tracks,
             self._tracker.tracked_covariances, max_speed=c.anchor_max_speed,
             max_accel=c.anchor_max_accel, max_turn_rate=c.anchor_max_turn_rate,
-            horizon=horizon, step=0.5 * c.dt, starts=starts, ends=ends, radius=radius,
+            horizon=horizon, step=step, starts=starts, ends=ends, radius=radius,
             sigma=cfg.covariance_sigma, maneuver=0.0 if yielding else cfg.maneuver_share,
             clearance=cfg.look_ahead_clearance, obstacle_radius=c.moving_obstacle_radius,
             react=None if self._escaping else react,
             progress_weight=cfg.yield_progress_weight if yielding else cfg.progress_weight,
-            tolerance=cfg.yield_shortfall_tolerance if yielding else cfg.shortfall_tolerance)
+            tolerance=cfg.yield_shortfall_tolerance if yielding else cfg.shortfall_tolerance,
+            bounce_starts=bounce_starts, bounce_ends=bounce_ends)
 
     def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         executed, report = self._filter(action)

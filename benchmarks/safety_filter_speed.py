@@ -13,7 +13,8 @@ and the speed-up (reference / current) of each round.
 
 The reference must take today's calls (``lookahead_speed.replayable``): the fifth round's
 ``ee9ff79`` no longer does (``escape_velocity`` has taken a ``tolerance`` since ``f61c563``), so
-the default is ``lookahead_speed.REFERENCE``.
+the default is ``lookahead_speed.REFERENCE``; a reference from before the obstacles' own edges
+takes them among the anchor's (``lookahead_speed.reference_calls``).
 
 Run: ``python3 benchmarks/safety_filter_speed.py [--ref f04fd57] [--steps 3000] [--rounds 3]``.
 """
@@ -36,6 +37,7 @@ try:
         EPISODES,
         REFERENCE,
         random_steps,
+        reference_calls,
         reference_module,
         replay_arguments,
         replayable,
@@ -48,6 +50,7 @@ except ImportError:         # run as a script from benchmarks/
         EPISODES,
         REFERENCE,
         random_steps,
+        reference_calls,
         reference_module,
         replay_arguments,
         replayable,
@@ -112,7 +115,7 @@ def main() -> None:
           f"{len(encodes)} ResidualAction.action calls in {steps} AOASS-Safe-v0 steps; "
           f"reference {args.ref}")
     parts = (("escape_velocity", old_lookahead.escape_velocity, lookahead.escape_velocity,
-              escapes, escapes, same_escape),
+              reference_calls(old_lookahead.escape_velocity, escapes), escapes, same_escape),
              ("checked_action", old_action.checked_action, action_module.checked_action,
               checks, checks, lambda a, b: bits(a) == bits(b)),
              ("ResidualAction.action", old_action.ResidualAction.action,

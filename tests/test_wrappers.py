@@ -265,6 +265,44 @@ def test_the_look_ahead_takes_the_yielding_tolerance_and_headway_price_while_yie
     assert seen == [(1.0, 2.0, 0.5), (3.0, 10.0, 0.0)]
 
 
+def test_the_look_ahead_predicts_the_tracks_off_every_wall_they_can_reach(monkeypatch):
+    """The look-ahead's obstacles bounce off the walls within their own reach, not only off
+    those within the anchor's (an obstacle out of the anchor's reach ran through walls in its
+    prediction, and out of the anchor's way): on every call of an episode with many moving
+    obstacles, their predicted paths with the edges the wrapper passes are the paths with all
+    the map's edges, where the anchor's edges alone give other paths on some calls."""
+    import aoass_env.wrappers as wrappers
+    from aoass_env.safety.lookahead import predict_obstacles
+
+    calls = []
+    real = wrappers.escape_velocity
+
+    def spy(*args, **kwargs):
+        calls.append((args[5].copy(), kwargs))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(wrappers, "escape_velocity", spy)
+    env = make_safe_env(field_size=40.0, n_nodes=30, obstacle_density=0.3,
+                        n_moving_obstacles=8, moving_obstacle_speed=(0.5, 1.5))
+    run(env, 5, 600)
+    static = env._static_obstacles()
+    every = (static.point, static.point[static.next])
+    assert len(calls) > 50
+    differ = 0
+    for tracks, kw in calls:
+        n_steps = math.ceil(kw["horizon"] / kw["step"] - 1e-9)
+        radius = np.full(len(tracks), kw["obstacle_radius"])
+
+        def paths(starts, ends, tracks=tracks, kw=kw, n_steps=n_steps, radius=radius):
+            return predict_obstacles(tracks[:, :4], kw["step"], n_steps, starts, ends, radius)
+
+        want = paths(*every)
+        given = (kw.get("bounce_starts", kw["starts"]), kw.get("bounce_ends", kw["ends"]))
+        assert paths(*given).tobytes() == want.tobytes()
+        differ += paths(kw["starts"], kw["ends"]).tobytes() != want.tobytes()
+    assert differ > 0
+
+
 # --- map sampling ---------------------------------------------------------------------------
 def test_map_sampler_draws_reproducibly_and_cycles_in_order():
     maps = ["test/d0.10_f100_s500", "test/d0.20_f100_s503", "test/d0.30_f100_s506"]

@@ -51,9 +51,9 @@ from aoass_env.safety.checks import all_finite
 from aoass_env.trig import SCALAR_TRIG, compiled_trig
 from aoass_env.validators import integer, positive, real, vec2
 
-__all__ = ["Escape", "EscapeBudget", "candidate_commands", "escape_velocity", "look_ahead_horizon",
-           "obstacle_radii", "position_std", "predict_obstacles", "rollout",
-           "segment_distances", "violation"]
+__all__ = ["Escape", "EscapeBudget", "bounce_reach", "candidate_commands", "escape_velocity",
+           "look_ahead_horizon", "obstacle_radii", "position_std", "predict_obstacles",
+           "rollout", "rollout_reach", "segment_distances", "violation"]
 
 
 #: Weight of a predicted contact with an obstacle's bare disc (m x steps of overlap) against a
@@ -75,6 +75,37 @@ def look_ahead_horizon(max_speed: float, max_accel: float, max_turn_rate: float,
     period ``dt`` (s), a full stop from ``max_speed`` (m/s) at ``max_accel`` (m/s^2) and a half
     turn at ``max_turn_rate`` (rad/s): 0.5 + 2 + 2 = 4.5 s with the env's defaults."""
     return dt + max_speed / max_accel + math.pi / max_turn_rate
+
+
+#: Slack (m) added to the edge reaches below, for the rounding of the rollouts' sums.
+_REACH_SLACK = 1e-6
+
+
+def _rollout_time(horizon: float, step: float) -> float:
+    """The rollouts' last time (s): ``step`` x their steps, ceil(``horizon`` / ``step``)."""
+    return step * max(int(math.ceil(horizon / step - 1e-9)), 1)
+
+
+def rollout_reach(max_speed: float, horizon: float, step: float, radius: float) -> float:
+    """How far (m) from the anchor a static edge may lie and still matter to
+    :func:`escape_velocity`'s rollouts (its ``starts`` and ``ends``): ``max_speed`` (m/s) x the
+    rollouts' last time (ceil(``horizon`` / ``step``) steps of ``step``, s), plus the larger of
+    the anchor's ``radius`` (m, an edge it stops at) and :data:`OPEN_SPACE` (a wall that prices
+    a rollout's end)."""
+    return (max_speed * _rollout_time(horizon, step) + max(radius, OPEN_SPACE)
+            + _REACH_SLACK)
+
+
+def bounce_reach(obstacles: np.ndarray, horizon: float, step: float,
+                 obstacle_radius: float) -> np.ndarray:
+    """(m,) how far (m) from each of ``obstacles`` (m, >= 4): x, y (m), vx, vy (m/s) a static
+    edge may lie and still turn its predicted path (:func:`predict_obstacles`) within
+    :func:`escape_velocity`'s rollouts: its speed x the rollouts' last time (ceil(``horizon``
+    / ``step``) steps of ``step``, s) plus ``obstacle_radius`` (m). The edges within it are
+    ``escape_velocity``'s ``bounce_starts`` and ``bounce_ends``."""
+    obstacles = np.asarray(obstacles, dtype=np.float64)
+    speed = np.hypot(obstacles[:, 2], obstacles[:, 3])
+    return speed * _rollout_time(horizon, step) + obstacle_radius + _REACH_SLACK
 
 
 def position_std(covariances: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -568,7 +599,8 @@ def _base_arrays(own: float, wanted: float, position: np.ndarray, heading: float
                  max_accel: float, max_turn_rate: float, horizon: float, step: float,
                  n_steps: int, times: np.ndarray, starts: np.ndarray, ends: np.ndarray,
                  radius: float, sigma: float, maneuver: float, clearance: float,
-                 obstacle_radius: float | None, soon: int
+                 obstacle_radius: float | None, soon: int, bounce_starts: np.ndarray,
+                 bounce_ends: np.ndarray
                  ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, bool]:
     """What :func:`escape_velocity` reads before a contest of candidates: (whether an obstacle
     is near; the near obstacles' predicted centres (m, S, 2), grown radii and bare radii
@@ -592,7 +624,7 @@ def _base_arrays(own: float, wanted: float, position: np.ndarray, heading: float
     if obstacle_radius is None:
         centres = obs[:, None, :2] + times[None, :, None] * obs[:, None, 2:4]
     else:
-        centres = predict_obstacles(obs[:, :4], step, n_steps, starts, ends,
+        centres = predict_obstacles(obs[:, :4], step, n_steps, bounce_starts, bounce_ends,
                                     np.full(len(obs), obstacle_radius))
     radii = obstacle_radii(obs[:, 4], obstacle_speed[near], std_all[near], times, sigma,
                            maneuver)
@@ -614,11 +646,12 @@ def _base_compiled(own: float, wanted: float, px: float, py: float, heading: flo
                    step: float, n_steps: int, times: np.ndarray, sx: np.ndarray,
                    sy: np.ndarray, ex: np.ndarray, ey: np.ndarray, ee: np.ndarray,
                    radius: float, sigma: float, maneuver: float, clearance: float,
-                   obstacle_radius: float, soon: int
+                   obstacle_radius: float, soon: int, bsx: np.ndarray, bsy: np.ndarray,
+                   bex: np.ndarray, bey: np.ndarray, bee: np.ndarray
                    ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, bool]:
     """:func:`_base_arrays`, compiled with its operations in its order (``obstacle_radius`` < 0:
-    straight through the edges; ``np.hypot`` is the C library's, as numba's; the rollout's
-    cos and sin must be compiled_trig's)."""
+    straight through the edges; the obstacles bounce off the ``b*`` segment tables; ``np.hypot``
+    is the C library's, as numba's; the rollout's cos and sin must be compiled_trig's)."""
     m_all = obstacles.shape[0]
     near = np.empty(m_all, np.bool_)
     speeds = np.empty(m_all)
@@ -660,8 +693,8 @@ def _base_compiled(own: float, wanted: float, px: float, py: float, heading: flo
                 centres[i, j, 0] = states[i, 0] + times[j] * states[i, 2]
                 centres[i, j, 1] = states[i, 1] + times[j] * states[i, 3]
     else:
-        centres = _predict_all(states, np.full(count, obstacle_radius), step, n_steps, sx, sy,
-                               ex, ey, ee)
+        centres = _predict_all(states, np.full(count, obstacle_radius), step, n_steps, bsx,
+                               bsy, bex, bey, bee)
     for i in range(count):
         grow = maneuver * own_speeds[i]
         for j in range(n_steps):
@@ -697,7 +730,8 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
                     clearance: float, obstacle_radius: float | None = None,
                     n_headings: int = 16, react: float | None = None,
                     progress_weight: float = 0.0,
-                    tolerance: float | None = None) -> Escape:
+                    tolerance: float | None = None, bounce_starts: np.ndarray | None = None,
+                    bounce_ends: np.ndarray | None = None) -> Escape:
     """The velocity (m/s) to steer for among moving obstacles (see the module docstring).
 
     Args:
@@ -710,13 +744,19 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         covariances: (m, 4, 4) their state covariances (m^2, m^2/s, m^2/s^2).
         max_speed, max_accel, max_turn_rate: the anchor's limits (m/s, m/s^2, rad/s).
         horizon, step: the look-ahead (s) and the rollout's step (s).
-        starts, ends: (e, 2) the static edges near the anchor (m).
+        starts, ends: (e, 2) the static edges the anchor's rollouts may meet (m): every edge
+            within ``max_speed`` x the rollout's time plus ``max(radius, OPEN_SPACE)`` of
+            ``position`` (the walls its ends are priced by included).
         radius: the anchor's radius plus its static margin (m), for the edges.
         sigma: position standard deviations added to an obstacle's radius.
         maneuver: fraction of an obstacle's speed by which its radius grows per second.
         clearance: gap (m) to keep between the anchor's centre and the grown discs.
         obstacle_radius: the obstacles' own radius (m) for their bounces off the static
             edges; None predicts them straight through the edges.
+        bounce_starts, bounce_ends: (b, 2) the static edges the obstacles bounce off (m):
+            every edge within each obstacle's speed x the rollout's time plus
+            ``obstacle_radius`` of it (:func:`bounce_reach`); None: ``starts`` and ``ends``
+            (an obstacle farther out than the anchor's reach then passes through walls).
         n_headings: evenly spaced candidate headings.
         react: seconds (s) within which a shortfall of ``velocity``'s rollout from the grown
             discs makes an escape (a predicted contact with a bare disc does at any time of
@@ -744,6 +784,13 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
         raise ValueError("obstacles and covariances (the tracks) must be finite")
     _check_motion(heading, speed, max_turn_rate, max_accel, step, starts, ends, radius,
                   max_speed=max_speed, horizon=horizon)
+    if (bounce_starts is None) != (bounce_ends is None):
+        raise ValueError("bounce_starts and bounce_ends must be given together (or neither)")
+    if bounce_starts is None:
+        bounce_starts, bounce_ends = starts, ends
+    elif not all_finite(np.asarray(bounce_starts, dtype=np.float64),
+                        np.asarray(bounce_ends, dtype=np.float64)):
+        raise ValueError("bounce_starts and bounce_ends (the static edges, m) must be finite")
     for name, value, unit in (("sigma", sigma, ""), ("maneuver", maneuver, "per s"),
                               ("clearance", clearance, "m"), ("progress_weight", progress_weight,
                                                               ""),
@@ -766,18 +813,21 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     soon = 0 if react is None else min(max(int(math.ceil(react / step - 1e-9)), 1), n_steps)
     if SCALAR_TRIG and compiled_trig():
         segments = _Segments(starts, ends)
+        bounces = (segments if bounce_starts is starts and bounce_ends is ends
+                   else _Segments(bounce_starts, bounce_ends))
         px, py = position.tolist()
         found, centres, radii, bare, base_paths, base, imminent = _base_compiled(
             own, wanted, px, py, float(heading), float(speed), obstacles, covariances,
             float(max_speed), float(max_accel), float(max_turn_rate), float(horizon),
             float(step), n_steps, times, segments.sx, segments.sy, segments.ex, segments.ey,
             segments.ee, float(radius), float(sigma), float(maneuver), float(clearance),
-            -1.0 if obstacle_radius is None else float(obstacle_radius), soon)
+            -1.0 if obstacle_radius is None else float(obstacle_radius), soon, bounces.sx,
+            bounces.sy, bounces.ex, bounces.ey, bounces.ee)
     else:
         found, centres, radii, bare, base_paths, base, imminent = _base_arrays(
             own, wanted, position, heading, speed, obstacles, covariances, max_speed,
             max_accel, max_turn_rate, horizon, step, n_steps, times, starts, ends, radius,
-            sigma, maneuver, clearance, obstacle_radius, soon)
+            sigma, maneuver, clearance, obstacle_radius, soon, bounce_starts, bounce_ends)
     if not found or base <= 0.0:
         return Escape(velocity, False, 0.0, 0.0)
     if soon and not imminent:

@@ -397,8 +397,26 @@ class StaticObstacles:
         The anchor finds the same few edges period after period: the two arrays are built
         once per list of edges (the last 4096 lists) and shared, read-only.
         """
+        return self._segments(tuple(self._near(position, reach)))
+
+    def segments_near_any(self, positions: ArrayLike, reaches: ArrayLike
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """(starts, ends) (m), (m, 2) each, of the edges closer than ``reaches[k]`` (m) to
+        ``positions[k]`` (m) for some k, in index order: the union of :meth:`segments_near`'s
+        edges over the (k, 2) ``positions`` and (k,) ``reaches`` (none for k = 0)."""
+        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+        reaches = np.asarray(reaches, dtype=np.float64).reshape(-1)
+        if len(reaches) != len(positions):
+            raise ValueError(f"reaches must hold one distance per position: {len(positions)} "
+                             f"positions, {len(reaches)} reaches")
+        union: set[int] = set()
+        for position, reach in zip(positions, reaches.tolist(), strict=True):
+            union.update(self._near(position, reach))
+        return self._segments(tuple(sorted(union)))
+
+    def _segments(self, near: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """The shared read-only (starts, ends) of the edges ``near`` (indices, in order)."""
         cache = self._cache
-        near = tuple(self._near(position, reach))
         pair = cache.segments.get(near)
         if pair is None:
             index = np.array(near, dtype=np.int64)

@@ -10,7 +10,9 @@ import pytest
 from aoass_env.safety import lookahead
 from aoass_env.safety.kalman import MultiTargetTracker
 from aoass_env.safety.lookahead import (
+    OPEN_SPACE,
     EscapeBudget,
+    bounce_reach,
     candidate_commands,
     escape_velocity,
     look_ahead_horizon,
@@ -18,9 +20,11 @@ from aoass_env.safety.lookahead import (
     position_std,
     predict_obstacles,
     rollout,
+    rollout_reach,
     segment_distances,
     violation,
 )
+from aoass_env.safety.orca import StaticObstacles
 
 LIMITS = {"max_speed": 2.0, "max_accel": 1.0, "max_turn_rate": math.pi / 2}
 
@@ -83,6 +87,80 @@ def test_obstacles_go_straight_and_bounce_off_edges():
     path = predict_obstacles(np.array([[0.0, 0.0, 1.0, 0.0]]), 0.5, 8, *wall, np.array([1.0]))
     assert path[0, :, 0].max() <= 2.0 + 1e-9
     assert path[0, -1, 0] < path[0, 3, 0]                       # it came back
+
+
+def test_an_obstacle_beyond_the_anchors_reach_bounces_back_into_its_way():
+    """An obstacle 6 m ahead runs away from the anchor toward a wall 10.5 m ahead, beyond the
+    edges the anchor's own rollouts read (9 m of travel plus its radius): the look-ahead took
+    only those, so the obstacle was predicted through the wall and out of the anchor's way.
+    With its own edges (within :func:`bounce_reach`) it bounces back into the anchor's path."""
+    border = StaticObstacles.from_loops([np.array([[-10.5, -20.0], [-10.5, 20.0], [20.0, 20.0],
+                                                   [20.0, -20.0]])])     # clockwise: inside free
+    anchor, horizon, step = np.zeros(2), 4.5, 0.25
+    obstacles = np.array([[-6.0, 0.0, -1.8, 0.0, 1.5]])
+    old = border.segments_near(anchor, 2.0 * horizon + 0.7)            # the old reach: none
+    starts, ends = border.segments_near(anchor, rollout_reach(2.0, horizon, step, 0.7))
+    bounce = border.segments_near_any(obstacles[:, :2],
+                                      bounce_reach(obstacles, horizon, step, 0.5))
+    assert len(old[0]) == 0 and len(bounce[0]) == 1
+    v = np.array([-2.0, 0.0])
+
+    def escape(starts, ends, **kw):
+        return escape_velocity(v, v, anchor, math.pi, 2.0, obstacles,
+                               np.diag([0.04, 0.04, 0.01, 0.01])[None], **LIMITS,
+                               horizon=horizon, step=step, starts=starts, ends=ends,
+                               radius=0.7, sigma=2.0, maneuver=0.25, clearance=0.5,
+                               obstacle_radius=0.5, **kw)
+
+    through = escape(*old)                      # the old edges: the obstacle leaves the field
+    bounced = escape(starts, ends, bounce_starts=bounce[0], bounce_ends=bounce[1])
+    assert through.shortfall == 0.0 and not through.escaping
+    assert bounced.shortfall > 0.0 and bounced.escaping
+    with pytest.raises(ValueError, match="bounce_starts and bounce_ends must be given together"):
+        escape(starts, ends, bounce_starts=bounce[0])
+    with pytest.raises(ValueError, match="bounce_starts and bounce_ends .* must be finite"):
+        escape(starts, ends, bounce_starts=np.array([[math.nan, 0.0]]),
+               bounce_ends=np.array([[1.0, 0.0]]))
+
+
+def test_the_edge_reaches_hold_every_edge_the_look_ahead_reads():
+    """Among the edges of a generated map, those within :func:`rollout_reach` of the anchor give
+    its rollouts and their ends' wall prices (distances up to OPEN_SPACE) as all the map's
+    edges do, and those within :func:`bounce_reach` of the obstacles give their predicted
+    paths, bit for bit, from random anchors, headings, speeds and obstacles."""
+    from aoass_env.maps import generate_map
+
+    so = StaticObstacles.from_loops(generate_map(60.0, 0.4, np.random.default_rng(41))
+                                    .free_space_loops)
+    every = (so.point, so.point[so.next])
+    rng = np.random.default_rng(42)
+    horizon, step = 4.5, 0.25
+    n_steps = math.ceil(horizon / step - 1e-9)
+    bounced = fewer = 0
+    for _ in range(300):
+        position = rng.uniform(0.0, 60.0, 2)
+        radius = float(rng.choice([0.7, 1.2, 2.5]))
+        starts, ends = so.segments_near(position, rollout_reach(2.0, horizon, step, radius))
+        headings, speeds = rng.uniform(-4.0, 4.0, 6), rng.uniform(0.0, 2.0, 6)
+        args = (position, float(rng.uniform(-4.0, 4.0)), float(rng.uniform(0.0, 2.0)),
+                headings, speeds, math.pi / 2, 1.0, step, n_steps)
+        paths = rollout(*args, starts, ends, radius)
+        assert paths.tobytes() == rollout(*args, *every, radius).tobytes()
+        clip = np.minimum(segment_distances(paths[:, -1], starts, ends), OPEN_SPACE)
+        assert np.array_equal(clip, np.minimum(segment_distances(paths[:, -1], *every),
+                                               OPEN_SPACE))
+        obstacles = np.column_stack([position + rng.uniform(-15.0, 15.0, (4, 2)),
+                                     rng.uniform(-1.5, 1.5, (4, 2))])
+        near = so.segments_near_any(obstacles[:, :2],
+                                    bounce_reach(obstacles, horizon, step, 0.5))
+        got = predict_obstacles(obstacles, step, n_steps, *near, np.full(4, 0.5))
+        want = predict_obstacles(obstacles, step, n_steps, *every, np.full(4, 0.5))
+        assert got.tobytes() == want.tobytes()
+        straight = obstacles[:, None, :2] + (step * np.arange(1, n_steps + 1))[None, :, None] \
+            * obstacles[:, None, 2:]
+        bounced += int((np.abs(want - straight) > 1e-6).any(axis=(1, 2)).sum())
+        fewer += len(near[0]) < len(so.point)
+    assert bounced > 50 and fewer == 300
 
 
 def test_rollout_follows_the_unicycle_and_stops_at_walls():
@@ -356,6 +434,13 @@ def test_the_compiled_base_verdict_is_the_array_code_bit_for_bit():
         e = int(rng.integers(0, 6))
         starts = position + rng.uniform(-4.0, 4.0, (e, 2))
         ends = starts + rng.uniform(-6.0, 6.0, (e, 2))
+        # the obstacles' own edges: the anchor's, or others farther out
+        if case % 3:
+            b = int(rng.integers(0, 6))
+            bounce_starts = position + rng.uniform(-16.0, 16.0, (b, 2))
+            bounce_ends = bounce_starts + rng.uniform(-6.0, 6.0, (b, 2))
+        else:
+            bounce_starts, bounce_ends = starts, ends
         velocity = np.zeros(2) if case % 9 == 0 else rng.uniform(-2.0, 2.0, 2)
         wanted = float(np.hypot(*velocity))
         heading = float(rng.uniform(-4.0, 4.0))
@@ -369,13 +454,15 @@ def test_the_compiled_base_verdict_is_the_array_code_bit_for_bit():
         want = lookahead._base_arrays(own, wanted, position, heading, speed, obstacles,
                                       covariances, 2.0, 1.0, math.pi / 2, 4.5, step, n_steps,
                                       times, starts, ends, 0.7, sigma, maneuver, 0.3,
-                                      obstacle_radius, soon)
+                                      obstacle_radius, soon, bounce_starts, bounce_ends)
         segments = lookahead._Segments(starts, ends)
+        bounces = lookahead._Segments(bounce_starts, bounce_ends)
         got = lookahead._base_compiled(
             own, wanted, *position.tolist(), heading, speed, obstacles, covariances, 2.0, 1.0,
             math.pi / 2, 4.5, step, n_steps, times, segments.sx, segments.sy, segments.ex,
             segments.ey, segments.ee, 0.7, sigma, maneuver, 0.3,
-            -1.0 if obstacle_radius is None else obstacle_radius, soon)
+            -1.0 if obstacle_radius is None else obstacle_radius, soon, bounces.sx, bounces.sy,
+            bounces.ex, bounces.ey, bounces.ee)
         assert got[0] == want[0] and got[6] == want[6], case
         if want[0]:
             assert all(np.asarray(g).tobytes() == np.asarray(w).tobytes()
@@ -424,7 +511,7 @@ def test_an_obstacle_that_reaches_the_rollout_is_never_left_out(std, sigma, hori
         base = lookahead._base_arrays(0.0, 2.0, np.zeros(2), 0.0, 2.0, obstacles, covariances,
                                       2.0, 1.0, math.pi / 2, horizon, step, n_steps, times,
                                       no_edges, no_edges, 0.7, sigma, maneuver, clearance,
-                                      None, 0)
+                                      None, 0, no_edges, no_edges)
         assert base[5] == pytest.approx(want, abs=1e-9), distance
         counted += want > 0.0
     assert counted >= 2

@@ -315,6 +315,29 @@ def test_static_obstacles_declare_their_caches_and_rebuild_them():
             so.edges_near(p, 1.5).tolist() != []
         assert moved.edges_near(p, 1.5).tolist() == []
 
+def test_segments_near_any_are_the_union_of_the_discs_edges():
+    """segments_near_any gives the edges within reach of any of the points, each once, in
+    index order, as the union of edges_near over the points; none for no points."""
+    from aoass_env.maps import generate_map
+
+    so = StaticObstacles.from_loops(generate_map(60.0, 0.3, np.random.default_rng(7))
+                                    .free_space_loops)
+    rng = np.random.default_rng(8)
+    for k in (0, 1, 2, 5):
+        for _ in range(40):
+            points, reaches = rng.uniform(-5.0, 65.0, (k, 2)), rng.uniform(0.0, 12.0, k)
+            union = sorted({int(i) for p, r in zip(points, reaches, strict=True)
+                            for i in so.edges_near(p, float(r))})
+            starts, ends = so.segments_near_any(points, reaches)
+            assert starts.tobytes() == so.point[union].tobytes()
+            assert ends.tobytes() == so.point[so.next[union]].tobytes()
+            assert starts.shape == ends.shape == (len(union), 2)
+    with pytest.raises(ValueError, match="reaches must hold one distance per position"):
+        so.segments_near_any(np.zeros((2, 2)), [1.0])
+    with pytest.raises(ValueError, match="reach"):
+        so.segments_near_any(np.zeros((1, 2)), [-1.0])
+
+
 def test_edges_near_sorted_by_distance():
     so = StaticObstacles.from_loops([BOX])
     # from (1, -1): bottom edge 1 m, the two sides sqrt(2) m (their nearest vertices), top 3 m

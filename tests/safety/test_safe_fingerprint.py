@@ -35,7 +35,7 @@ REPORT_KEYS = ("intervention", "orca_correction", "flc_turn", "flc_speed", "spee
 
 EXPECTED: dict[str, dict[str, str]] = {
     'f50_moving12': {'observation': 'dc573368ec3fd3f0', 'reward': '2d2a29a6c9a08ade',
-                     'safety': 'a1c953131189fdbc', 'world': '20a90fee54125064'},
+                     'safety': '205354a2e3531b88', 'world': '20a90fee54125064'},
     'f70_d0.2_moving8': {'observation': 'ad9d2a50eae0b7eb', 'reward': '0b62b2223a00d0db',
                          'safety': 'f04402ad948acd9f', 'world': '965b48eac69fc49d'},
 }
@@ -45,7 +45,7 @@ EXPECTED: dict[str, dict[str, str]] = {
 ONE_COST = SafetyConfig(shortfall_tolerance=None, yield_shortfall_tolerance=None)
 EXPECTED_ONE_COST: dict[str, dict[str, str]] = {
     'f50_moving12': {'observation': 'e28085af07cdfd04', 'reward': '8164d07538e173fe',
-                     'safety': 'd73c004386d71d89', 'world': '4abd3190d75f796b'},
+                     'safety': 'df939c8a1862d405', 'world': '4abd3190d75f796b'},
     'f70_d0.2_moving8': {'observation': '672bb70049685343', 'reward': '3c4183e47d9d24c7',
                          'safety': '28f785b0848f2390', 'world': 'bde015e0e0b3e696'},
 }
@@ -93,8 +93,9 @@ def test_one_cost_episodes_are_the_first_defaults_bit_for_bit(name):
 
 
 if __name__ == "__main__":
-    print("EXPECTED: dict[str, dict[str, str]] = {")
-    for case in sorted(CASES):
-        digests, escapes = fingerprint(case)
-        print(f"    {case!r}: {digests!r},  # {escapes} escapes")
-    print("}")
+    for table, safety in (("EXPECTED", None), ("EXPECTED_ONE_COST", ONE_COST)):
+        print(f"{table}: dict[str, dict[str, str]] = {{")
+        for case in sorted(CASES):
+            digests, escapes = fingerprint(case, safety)
+            print(f"    {case!r}: {digests!r},  # {escapes} escapes")
+        print("}")
