@@ -144,6 +144,9 @@ def reference_calls(function: Any, calls: list[tuple[tuple, dict]]
         return calls
     adapted = []
     for args, kwargs in calls:
+        if "bounce_starts" not in kwargs:
+            adapted.append((args, kwargs))
+            continue
         kwargs = dict(kwargs)
         bounce_starts, bounce_ends = kwargs.pop("bounce_starts"), kwargs.pop("bounce_ends")
         edges = np.concatenate([np.hstack([kwargs["starts"], kwargs["ends"]]),

@@ -30,6 +30,40 @@ def test_a_reference_without_a_recorded_keyword_is_refused_in_one_line():
     assert "'tolerance'" in message and bench.REFERENCE in message
 
 
+def test_a_reference_without_the_obstacles_edges_gets_them_among_the_anchors():
+    """reference_calls joins the obstacles' edges to the anchor's for a reference that predates
+    them, and the answers stay the same: today's escape_velocity answers the joined call (its
+    obstacles then bounce off the joined edges) as it answers the recorded one, on escapes of
+    a random-action AOASS-Safe-v0 episode with many moving obstacles."""
+    import numpy as np
+
+    from aoass_env.safety.lookahead import escape_velocity
+
+    bench = load_benchmark("lookahead_speed")
+
+    def before_bounces(velocity, preferred, *, starts, ends, horizon):
+        return velocity
+
+    calls = []
+    real = bench.wrappers.escape_velocity
+    try:
+        bench.wrappers.escape_velocity = lambda *a, **k: calls.append((a, k)) or real(*a, **k)
+        bench.random_steps("AOASS-Safe-v0", dict(bench.EPISODES[1][0]), 3, 300)
+    finally:
+        bench.wrappers.escape_velocity = real
+    joined = bench.reference_calls(before_bounces, calls)
+    assert bench.reference_calls(escape_velocity, calls) is calls
+    assert len(joined) == len(calls) > 20
+    grew = 0
+    for (args, kwargs), (_, kw) in zip(calls, joined, strict=True):
+        assert "bounce_starts" not in kw and len(kw["starts"]) >= len(kwargs["starts"])
+        grew += len(kw["starts"]) > len(kwargs["starts"])
+        assert bench.same_escape(escape_velocity(*args, **kwargs), escape_velocity(*args, **kw))
+        assert np.array_equal(kw["starts"][:len(kwargs["starts"])], kwargs["starts"])
+    assert grew > 0
+    assert bench.reference_calls(before_bounces, CALLS) == CALLS      # no edges to join
+
+
 def test_the_warm_up_replays_every_call_of_each_function_once():
     bench = load_benchmark("lookahead_speed")
     seen = []
