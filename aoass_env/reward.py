@@ -34,31 +34,40 @@ REWARD_TERMS = ("coverage", "energy_balance", "localization", "collision")
 
 def energy_imbalance(node_energy: np.ndarray) -> float:
     """max_i E_i / E_avg - 1 (>= 0) of the nodes' spent energy (J); 0 while all are zero.
+    ValueError unless every E_i is finite and >= 0 (a NaN read as balanced, 0, and a negative
+    energy gave a number).
 
-    A contiguous 1-D float64 array (the env's) has its mean and maximum taken in one compiled
-    pass with NumPy's floats (:func:`_mean_and_max`)."""
+    A contiguous 1-D float64 array (the env's) has its mean, maximum and minimum taken in one
+    compiled pass with NumPy's floats (:func:`_mean_max_min`)."""
     e = np.asarray(node_energy, dtype=np.float64)
-    if e.ndim == 1 and e.size and e.flags.c_contiguous:
-        mean, top = _mean_and_max(e)
-        return max(top / mean - 1.0, 0.0) if mean > 0.0 else 0.0
-    mean = float(e.mean()) if e.size else 0.0
+    if not e.size:
+        return 0.0
+    if e.ndim == 1 and e.flags.c_contiguous:
+        mean, top, low = _mean_max_min(e)
+    else:
+        mean, top, low = float(e.mean()), float(e.max()), float(e.min())
+    if not (low >= 0.0 and top < math.inf):
+        raise ValueError(f"node_energy must be finite and >= 0 (J), got values from {low} to "
+                         f"{top}")
     # max(0, .): the mean of equal values can round above their max
-    return max(float(e.max()) / mean - 1.0, 0.0) if mean > 0.0 else 0.0
+    return max(top / mean - 1.0, 0.0) if mean > 0.0 else 0.0
 
 
 @njit
-def _mean_and_max(e: np.ndarray) -> tuple[float, float]:
-    """``(e.mean(), e.max())`` of a non-empty contiguous float64 array, bit for bit: the sum
-    in NumPy's order (:func:`~aoass_env.pairwise.pairwise_sum`) over the count, and a maximum
-    that NaN takes over as ``np.max`` lets it."""
-    top = e[0]
+def _mean_max_min(e: np.ndarray) -> tuple[float, float, float]:
+    """``(e.mean(), e.max(), e.min())`` of a non-empty contiguous float64 array, bit for bit:
+    the sum in NumPy's order (:func:`~aoass_env.pairwise.pairwise_sum`) over the count, and
+    extremes that NaN takes over as ``np.max`` lets it (the minimum then unread)."""
+    top = low = e[0]
     for i in range(1, len(e)):
         v = e[i]
         if v > top or v != v:
             top = v
+        if v < low:
+            low = v
         if top != top:
             break
-    return pairwise_sum(e, 0, len(e)) / len(e), top
+    return pairwise_sum(e, 0, len(e)) / len(e), top, low
 
 
 def online_rmse(true_xy: np.ndarray, estimate_xy: np.ndarray, localized: np.ndarray) -> float:

@@ -32,24 +32,33 @@ def test_energy_imbalance_is_max_over_mean_minus_one(e):
               elements=st.floats(allow_nan=True, allow_infinity=True, width=64)
               | st.sampled_from([0.0, -0.0, 1e-300, 2.5e-5])))
 def test_energy_imbalance_of_an_array_is_numpys_formula_to_the_bit(e):
-    """The compiled mean and maximum (contiguous float64 arrays) against NumPy's, NaN, inf,
-    signed zeros and runs longer than NumPy's pairwise block included; a strided view takes
-    NumPy's own path to the same answer."""
+    """The compiled mean and maximum (contiguous float64 arrays) against NumPy's, signed zeros
+    and runs longer than NumPy's pairwise block included; a strided view takes NumPy's own
+    path to the same answer. An array with a NaN, an infinity or a negative value is refused
+    on both paths (a NaN read as balanced, 0; a negative energy gave a number)."""
     def reference(x):
         mean = float(x.mean())
         return max(float(x.max()) / mean - 1.0, 0.0) if mean > 0.0 else 0.0
 
+    valid = bool(np.isfinite(e).all() and (e >= 0.0).all())
     with np.errstate(all="ignore"):
-        want = reference(e)
-        for got in (energy_imbalance(e), energy_imbalance(np.repeat(e, 2)[::2])):
-            assert np.float64(got).tobytes() == np.float64(want).tobytes() or (
-                math.isnan(got) and math.isnan(want))
+        for x in (e, np.repeat(e, 2)[::2]):
+            if valid:
+                assert np.float64(energy_imbalance(x)).tobytes() == \
+                    np.float64(reference(e)).tobytes()
+            else:
+                with pytest.raises(ValueError, match=r"node_energy must be finite and >= 0"):
+                    energy_imbalance(x)
 
 
 def test_energy_imbalance_by_hand():
     assert energy_imbalance(np.array([1.0, 1.0, 1.0])) == 0.0
     assert energy_imbalance(np.array([3.0, 1.0, 2.0])) == pytest.approx(0.5)
     assert energy_imbalance(np.zeros(4)) == 0.0
+    assert energy_imbalance(np.zeros(0)) == 0.0
+    for bad in ([1.0, math.nan, 2.0], [math.nan, 1.0], [3.0, -1.0, 2.0], [1.0, math.inf]):
+        with pytest.raises(ValueError, match=r"node_energy must be finite and >= 0 \(J\)"):
+            energy_imbalance(np.array(bad))
 
 
 def test_online_rmse_uses_only_localized_nodes():

@@ -394,12 +394,23 @@ class EpisodeStore:
         self.done = {row_key(r) for r in self.rows}
 
     def append(self, rows: list[dict[str, Any]]) -> None:
-        """Append one episode's rows (one write, flushed and synced to disk)."""
+        """Append one episode's rows (one write, flushed and synced to disk). Each row must read
+        back as :func:`checked_row` reads it and hold an (episode, localizer) pair not stored
+        yet; else a ValueError naming the column or the pair, and nothing is written (a row
+        the file could not read back made the whole file unreadable, the sweep unresumable)."""
+        keys = []
+        for row in rows:
+            key = row_key(checked_row(row))
+            if key in self.done or key in keys:
+                episode, localizer = key
+                raise ValueError(f"EpisodeStore.append: {self.path} holds the episode {episode} "
+                                 f"with localizer {localizer!r} already (or the rows repeat it)")
+            keys.append(key)
         self._file.write(_csv_text(rows, header=False))
         self._file.flush()
         os.fsync(self._file.fileno())
         self.rows.extend({k: math.nan if r[k] is None else r[k] for k in COLUMNS} for r in rows)
-        self.done.update(row_key(r) for r in rows)
+        self.done.update(keys)
 
     def close(self) -> None:
         self._file.close()

@@ -85,7 +85,7 @@ def test_a_broken_row_inside_the_file_is_an_error(tmp_path):
         EpisodeStore(path)
 
 
-@pytest.mark.parametrize(("values", "message"), [
+BROKEN_VALUES = [
     ({"energy_total": -784.0}, r"energy_total='-784.0' must be a finite number >= 0"),
     ({"coverage": 5.0}, r"coverage='5.0' must be a finite number in \[0, 1\]"),
     ({"localized": 1.5}, r"localized='1.5' must be a finite number in \[0, 1\]"),
@@ -97,7 +97,10 @@ def test_a_broken_row_inside_the_file_is_an_error(tmp_path):
     ({"rmse": "nan"}, r"rmse='nan' must be a finite number >= 0"),
     ({"e_norm": -1.0}, r"e_norm='-1.0' must be a number >= 0"),
     ({"method": ""}, "method is empty"),
-])
+]
+
+
+@pytest.mark.parametrize(("values", "message"), BROKEN_VALUES)
 def test_a_value_no_episode_writes_is_a_broken_row(tmp_path, values, message):
     """A row outside its column's range (hand-edited or another tool's) used to reach the
     tables: a negative energy was averaged in, a coverage of 5 printed as 500 %."""
@@ -110,6 +113,35 @@ def test_a_value_no_episode_writes_is_a_broken_row(tmp_path, values, message):
         "" if cells[name] is None else str(cells[name]) for name in COLUMNS) + "\n")
     with pytest.raises(EvaluationError, match=rf"line 2: broken row \({message}\)"):
         read_episodes(bad)
+
+
+@pytest.mark.parametrize(("values", "message"), BROKEN_VALUES)
+def test_a_row_the_file_could_not_read_back_is_not_appended(tmp_path, values, message):
+    """append wrote any row: one outside its column's range made the whole file unreadable
+    (every later read and resume failed on its line). It is refused, naming the column, and
+    nothing of the episode is written."""
+    path = tmp_path / "episodes.csv"
+    with EpisodeStore(path) as store:
+        store.append([row(seed=0)])
+        before = path.read_text()
+        with pytest.raises(ValueError, match=message):
+            store.append([row(seed=1, localizer="consensus"), {**row(seed=1), **values}])
+        assert path.read_text() == before and len(store.rows) == 1
+    assert len(read_episodes(path)) == 1
+
+
+def test_an_episode_stored_already_is_not_appended_again(tmp_path):
+    """A second row of one (episode, localizer) made the file unreadable ("repeats the
+    episode"); append refuses it, in the file or within the rows given, and writes nothing."""
+    path = tmp_path / "episodes.csv"
+    with EpisodeStore(path) as store:
+        store.append([row(seed=0)])
+        for rows in ([row(seed=0)], [row(seed=1), row(seed=1)]):
+            with pytest.raises(ValueError, match="holds the episode .* with localizer 'dvhop' "
+                                                 "already"):
+                store.append(rows)
+        store.append([row(seed=1), row(seed=1, localizer="consensus")])
+    assert len(read_episodes(path)) == 3
 
 
 def test_infinite_energy_ratios_and_empty_cells_read_back(tmp_path):
