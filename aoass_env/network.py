@@ -185,8 +185,9 @@ class Network:
 
     @property
     def scatter(self) -> np.ndarray:
-        """(N, 3) Sxx, Sxy, Syy [m^2] of each node's heard beacons about their mean (read-only;
-        frozen once the node is covered)."""
+        """(N, 3) Sxx, Sxy, Syy [m^2] of each node's heard beacons about their mean (read-only):
+        of every beacon heard, growing after the node is covered (a node stays covered; the
+        anchor's coverage map freezes its cells because covered cells stop listening)."""
         return _read_only(self._scatter)
 
     @property

@@ -285,9 +285,10 @@ def _signed(stat: tuple[int, float, float, float], spec: str, scale: float = 1.0
     """'+mean ± CI' of a :func:`paired_stats` tuple, times ``scale`` ('–' without a pair);
     ``bounds`` (scaled) as :func:`_fmt`."""
     n, mean, _, ci = stat
-    if n == 0 or not math.isfinite(mean):
+    if n == 0 or not math.isfinite(scale * mean):
         return "–"
-    ci_text = "" if not math.isfinite(ci) else f" ± {format(scale * ci, spec.lstrip('+'))}"
+    ci_text = ("" if not math.isfinite(scale * ci)
+               else f" ± {format(scale * ci, spec.lstrip('+'))}")
     return f"{_fmt(scale * mean, spec, bounds)}{ci_text}"
 
 
@@ -500,9 +501,10 @@ def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any
         values[f"fig2_{key}_dvhop"] = _fmt(method_stats(rows["fig2"], "rmse", "dvhop").get(
             method, (0, math.nan))[1], ".1f")
     sizes = sorted({r["field_size"] for r in rows["fig3"]})
+    # a method without a finite RMSE (NaN compares false) would win max() by coming first
     worst = max(((stat[1], method, size) for size in sizes for method, stat in method_stats(
-        [r for r in rows["fig3"] if r["field_size"] == size], "rmse").items()),
-        default=(math.nan, "–", math.nan))
+        [r for r in rows["fig3"] if r["field_size"] == size], "rmse").items()
+        if math.isfinite(stat[1])), default=(math.nan, "–", math.nan))
     values["fig3_worst_rmse"] = (f"{label(worst[1])}, {_fmt(worst[0], '.2f')} m on the "
                                  f"{worst[2]:g} m field")
     fig4 = Numbers(rows["fig4"])
@@ -607,8 +609,10 @@ def page_text(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any]]
 def preset_rows(folder: Path, name: str, n: int) -> Rows:
     """The rows of ``folder``'s episodes.csv that are episodes of preset ``name`` at ``n`` seeds
     (map, field, N, density and seed of one of its jobs; another preset's rows in the same
-    folder are left out); exits naming the file when it cannot be read or when a grid point
-    of the preset has no row (an incomplete grid would be reported as the whole)."""
+    folder are left out); exits naming the file when it cannot be read, when a grid point
+    of the preset has no row, or when a method of the rows lacks a grid point or a localizer
+    of the rows at one (an incomplete grid would be reported as the whole, and the methods
+    compared over different episodes)."""
     path = folder / "episodes.csv"
     try:
         every = read_episodes(path)
@@ -626,6 +630,16 @@ def preset_rows(folder: Path, name: str, n: int) -> Rows:
         sys.exit(f"{path}: {len(missing)} of the {len(grid)} grid points of preset {name} "
                  f"({n} seeds) have no episode, e.g. map {missing[0][0]}, N = {missing[0][2]}, "
                  f"seed {missing[0][4]}: run this script without --skip-runs")
+    localizers = sorted({r["localizer"] for r in rows})
+    have = {(r["method"], point(r), r["localizer"]) for r in rows}
+    lacking = [(m, p, loc) for m in dict.fromkeys(r["method"] for r in rows)
+               for p in sorted(grid) for loc in localizers if (m, p, loc) not in have]
+    if lacking:
+        method, (map_, _, nodes, _, seed), localizer = lacking[0]
+        sys.exit(f"{path}: {len(lacking)} episode rows of preset {name} ({n} seeds) are missing "
+                 f"where other methods or localizers have theirs, e.g. method {method}, map "
+                 f"{map_}, N = {nodes}, seed {seed}, localizer {localizer}: run this script "
+                 f"without --skip-runs")
     return rows
 
 

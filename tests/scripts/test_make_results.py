@@ -331,6 +331,63 @@ def test_a_preset_takes_its_grid_alone_and_stops_on_a_missing_point(tmp_path):
         make_results.preset_rows(tmp_path / "short", "fig4", 2)
 
 
+def test_a_method_or_localizer_missing_at_some_points_stops_the_page(tmp_path):
+    """Rows of every grid point, but one method lacking some of them (an interrupted sweep
+    rebuilt with --skip-runs), or one localizer at one point: the page used to be built, the
+    methods' means over different episodes (helper-44's reproduction: the adaptive policy over
+    40 fig4 sweeps against 60 for the others)."""
+    from aoass_env.evaluation.store import EpisodeStore
+
+    full = []
+    for job in episode_jobs(PRESETS["fig4"], ["spiral", "fdpp"], (), 2):
+        for localizer in ("dvhop", "olstm-dvhop"):
+            row = dict.fromkeys(COLUMNS, 1.0)
+            row.update(vars(job.key), localizer=localizer, path_complete=1, beacons=5,
+                       collisions=0, collisions_static=0, collisions_moving=0,
+                       safety_intervention=math.nan)
+            full.append(row)
+    with EpisodeStore(tmp_path / "whole" / "episodes.csv") as store:
+        store.append(full)
+    assert len(make_results.preset_rows(tmp_path / "whole", "fig4", 2)) == len(full)
+    short_method = [r for r in full if not (r["method"] == "fdpp" and r["seed"] == 1)]
+    short_localizer = full[:-1]                      # the last point's last localizer row
+    for folder, rows, named in (("method", short_method, "method fdpp,"),
+                                ("localizer", short_localizer, "method fdpp, .* localizer "
+                                                               "olstm-dvhop")):
+        with EpisodeStore(tmp_path / folder / "episodes.csv") as store:
+            store.append(rows)
+        with pytest.raises(SystemExit, match=rf"episode rows of preset fig4 \(2 seeds\) are "
+                                             rf"missing .* e\.g\. {named}"):
+            make_results.preset_rows(tmp_path / folder, "fig4", 2)
+
+
+def test_the_largest_fig3_rmse_skips_a_method_without_one(values):
+    """A method with no finite RMSE (NaN) listed first used to win max() (NaN compares
+    false): the page named it, with '– m', as the largest mean RMSE."""
+    rows = {name: preset_rows("fig2" if name == "quick" else name, ENERGY, RMSE)
+            for name in make_results.FIGURE}
+    first = rows["fig3"][0]["method"]                   # the first method max() sees
+    for r in rows["fig3"]:
+        if r["method"] == first:
+            r["rmse"] = math.nan
+    rows["robustness"] = robustness_rows(2)
+    runs = {name: [{"finished": 10, "wall_seconds": 30.0, "backend": "2 local processes"}]
+            for name in make_results.SEEDS}
+    figures = {name: f"figures/results_{name}.png" for name in make_results.FIGURE}
+    seeds = {"quick": 1, "fig2": 2, "fig3": 2, "fig4": 2, "robustness": 2}
+    got = make_results.page_values(rows, runs, seeds, figures)["fig3_worst_rmse"]
+    assert got.startswith(make_results.label("fdpp")) and "–" not in got, got
+    assert values["fig3_worst_rmse"].startswith(make_results.label("fdpp"))
+
+
+def test_a_paired_cell_without_a_scale_prints_no_number():
+    """Fresh maps of mixed node counts leave the nodes-per-sweep scale NaN: the cell printed
+    '– ± nan'."""
+    assert make_results._signed((2, 0.025, 0.035, 0.318), "+.2f", math.nan,
+                                bounds=(0.0,)) == "–"
+    assert make_results._signed((2, 0.025, 0.035, 0.318), "+.2f", 100.0) == "+2.50 ± 31.80"
+
+
 def test_the_committed_page_is_what_its_committed_episodes_give():
     """docs/results.md is the template filled from the episodes committed beside it
     (docs/results-data): no number on the page was typed or edited by hand, and the template
