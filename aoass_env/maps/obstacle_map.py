@@ -98,7 +98,9 @@ class ObstacleMap:
                                f"vertices (m), got shape {shape}")
             v = _as_ccw(p)
             if len(v) < 3 or not np.all(np.isfinite(v)):
-                raise MapError(f"obstacle {i}: a polygon needs >= 3 finite vertices, got {p!r}")
+                raise MapError(f"obstacle {i}: a polygon needs >= 3 distinct finite vertices, "
+                               f"got {len(v)} of its {shape[0]}"
+                               + ("" if np.all(np.isfinite(v)) else ", some not finite"))
             poly = shapely.Polygon(v)
             if not poly.is_valid or poly.area <= 0:
                 reason = shapely.is_valid_reason(poly)

@@ -13,7 +13,7 @@ from collections import OrderedDict
 from pathlib import Path
 
 from aoass_env.data import shipped_dir
-from aoass_env.maps.obstacle_map import MapError, ObstacleMap
+from aoass_env.maps.obstacle_map import MapError, ObstacleMap, _field_dims
 from aoass_env.maps.text_format import read_map
 from aoass_env.validators import positive, vec2
 
@@ -93,12 +93,9 @@ _LOADED_MAX = 8
 def _read_cached(path: Path, field_size: float | tuple[float, float] | None) -> ObstacleMap:
     """:func:`read_map` of ``path``, from :data:`_LOADED` while the file is unchanged."""
     stat = path.stat()
-    size = tuple(field_size) if isinstance(field_size, (tuple, list)) else field_size
+    # checked before the key: True == 1 as a key, and a valid 1 m map was found for True
+    size = None if field_size is None else _field_dims(field_size)
     key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size, size)
-    try:
-        hash(key)
-    except TypeError:          # an unhashable field_size: read_map reports it
-        return read_map(path, field_size)
     found = _LOADED.get(key)
     if found is None:
         found = _LOADED[key] = read_map(path, field_size)

@@ -59,10 +59,12 @@ def _parse_sections(path: Path, lines: list[str]) -> list[tuple[str, int, _Rows]
         kind, _, rows = sections[-1]
         values = []
         for token in text.split():
-            try:
-                value = float(token)
-            except ValueError:
-                raise MapFormatError(path, number, f"{token!r} is not a number") from None
+            # float() also reads Python's spellings ('1_5' is 15, Arabic-Indic digits, 'nan'):
+            # a decimal number of ASCII digits only
+            if not _NUMBER.fullmatch(token):
+                raise MapFormatError(path, number, f"{token!r} is not a number (decimal "
+                                                   f"digits, e.g. 12, -0.5, 1.5e3)")
+            value = float(token)
             if not math.isfinite(value):
                 raise MapFormatError(path, number, f"{token!r} is not a finite number")
             values.append(value)
@@ -74,6 +76,11 @@ def _parse_sections(path: Path, lines: list[str]) -> list[tuple[str, int, _Rows]
             raise MapFormatError(path, number, "[SCALE] holds a single number")
         rows.append((number, values))
     return sections
+
+
+#: A number of a map file: an optional sign, ASCII digits with an optional point, an optional
+#: exponent.
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 
 
 def _polygon(path: Path, kind: str, line: int, rows: _Rows, scale: float) -> np.ndarray:
@@ -101,7 +108,8 @@ def read_map(path: str | os.PathLike, field_size: float | tuple[float, float] | 
     Coordinates are scaled to metres (value x scale) and the border's bounding box is moved to
     the origin; it becomes the field. With ``field_size`` (m, side or (width, height)) the map
     is stretched per axis to that size. Parts of the bounding box outside a non-rectangular
-    border become obstacles; obstacles are clipped to the field. Malformed files raise
+    border become obstacles; obstacles are clipped to the field (one with no area inside it is
+    an error: a typo or a wrong scale would drop it unseen). Malformed files raise
     :class:`MapFormatError` naming the file and line.
     """
     path = Path(path)
@@ -129,6 +137,7 @@ def read_map(path: str | os.PathLike, field_size: float | tuple[float, float] | 
     if scale <= 0:
         raise MapFormatError(path, value_line, f"scale {scale!r} must be positive")
     border = _polygon(path, "[BORDER]", *found["[BORDER]"], scale)
+    obstacle_lines = [line for kind, line, _ in sections if kind == "[OBSTACLE]"]
     obstacles = [_polygon(path, kind, line, rows, scale)
                  for kind, line, rows in sections if kind == "[OBSTACLE]"]
 
@@ -149,17 +158,25 @@ def read_map(path: str | os.PathLike, field_size: float | tuple[float, float] | 
     width, height = float(size[0]), float(size[1])
     field_box = shapely.box(0.0, 0.0, width, height)
     polygons = []
-    for v in obstacles:
+    for v, line in zip(obstacles, obstacle_lines, strict=True):
         if np.all(v >= 0) and np.all(v <= size):
             polygons.append(v)
             continue
         clipped = shapely.intersection(shapely.Polygon(v), field_box)
-        polygons += [shapely.get_coordinates(p.exterior)[:-1]
-                     for p in shapely.get_parts(clipped) if p.area > 0]
+        inside = [shapely.get_coordinates(p.exterior)[:-1]
+                  for p in shapely.get_parts(clipped) if p.area > 0]
+        if not inside:
+            raise MapFormatError(path, line, f"the obstacle lies outside the field (the border's "
+                                             f"bounding box, {width:g} x {height:g} m after "
+                                             f"scaling)")
+        polygons += inside
     outside = shapely.difference(field_box, shapely.Polygon(border))
     polygons += [shapely.get_coordinates(p.exterior)[:-1]
                  for p in shapely.get_parts(outside) if p.area > 0]
-    return ObstacleMap(width, height, tuple(polygons), path.stem)
+    try:
+        return ObstacleMap(width, height, tuple(polygons), path.stem)
+    except MapError as err:     # e.g. a sliver that the stretch to field_size made degenerate
+        raise MapError(f"{path}: {err}") from None
 
 
 def write_map(obstacle_map: ObstacleMap, path: str | os.PathLike) -> None:

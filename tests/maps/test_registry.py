@@ -155,3 +155,14 @@ def test_a_map_name_that_filters_cannot_read_is_a_map_error(tmp_path, monkeypatc
         registry.validation_split(registry.list_maps("train"))
     assert registry.validation_split(["train/d0.10_f100_s000", "train/d0.10_f100_s001"]) == (
         ["train/d0.10_f100_s000"], ["train/d0.10_f100_s001"])
+
+
+def test_a_field_size_true_is_refused_after_a_1_m_map_was_loaded():
+    """The loaded maps' cache keyed the size as given: True == 1, so after a 1 m load the same
+    call with field_size=True returned that map instead of the error it gives alone."""
+    name = list_maps("test")[0]
+    with pytest.raises(MapError, match=r"field_size=True must be a number"):
+        load_map(name, field_size=True)
+    assert load_map(name, field_size=1).width == 1.0
+    with pytest.raises(MapError, match=r"field_size=True must be a number"):
+        load_map(name, field_size=True)

@@ -42,13 +42,39 @@ def test_read_rescales_each_axis(tmp_path):
 def test_read_clips_obstacles_and_blocks_outside_a_non_rectangular_border(tmp_path):
     text = """[SCALE]\n1\n[BORDER]\n0 0\n10 0\n10 5\n5 5\n5 10\n0 10
 [OBSTACLE]\n-2 -2\n2 -2\n2 2\n-2 2
-[OBSTACLE]\n20 20\n21 20\n21 21
 """
     m = read_map(write(tmp_path, text))
     assert (m.width, m.height) == (10.0, 10.0)
     assert len(m.polygons) == 2  # the clipped corner square and the outside quarter
     assert m.density == pytest.approx((4 + 25) / 100)
     assert np.concatenate(m.polygons).min() >= 0 and np.concatenate(m.polygons).max() <= 10
+    # an obstacle wholly outside the field was dropped without a word (a typo, a wrong scale)
+    with pytest.raises(MapFormatError, match=r"outside\.txt:15: the obstacle lies outside the "
+                                             r"field \(the border's bounding box, 10 x 10 m"):
+        read_map(write(tmp_path, text + "[OBSTACLE]\n20 20\n21 20\n21 21\n", "outside.txt"))
+
+
+@pytest.mark.parametrize("token", ["1_5", "\u0661", "nan", "inf", "0x10", "1e", ".", "+-1"])
+def test_a_number_in_pythons_spelling_only_is_refused(tmp_path, token):
+    """float() read '1_5' as 15 and Arabic-Indic digits as digits: an obstacle's vertex moved
+    without a word (and was clipped to the field). A map number is ASCII decimal."""
+    text = GOOD_HEAD + f"[OBSTACLE]\n1 1\n2 1\n{token} 2\n"
+    with pytest.raises(MapFormatError, match=rf":11: {re.escape(repr(token))} is not a number "
+                                             rf"\(decimal digits"):
+        read_map(write(tmp_path, text))
+
+
+def test_a_polygon_the_stretch_degenerates_is_one_line_naming_the_file(tmp_path):
+    """A sliver valid at the file's own size collapses when stretched to field_size: the error
+    printed the vertex array over several lines, without the file."""
+    text = ("[SCALE]\n1\n[BORDER]\n0 0\n10 0\n10 10\n0 10\n[OBSTACLE]\n1 1\n"
+            "1.0000000000000002 1\n1 1.0000000000000002\n")
+    path = write(tmp_path, text, "sliver.txt")
+    with pytest.raises(MapError) as err:
+        read_map(path, field_size=3)
+    message = str(err.value)
+    assert "\n" not in message and message.startswith(f"{path}: obstacle 0: a polygon needs "
+                                                       f">= 3 distinct finite vertices")
 
 
 def test_write_read_round_trip_is_exact(tmp_path, dense_map):
@@ -104,7 +130,8 @@ MALFORMED = [
     (GOOD_HEAD + "[OBSTACLE]\n1 1\n2 x\n", 10, "'x' is not a number"),
     (GOOD_HEAD + "[OBSTACLE]\n1 1 1\n", 9, r"expected two numbers 'x y' in \[OBSTACLE\], got 3"),
     (GOOD_HEAD + "[OBSTACLE]\n1\n", 9, "got 1"),
-    (GOOD_HEAD + "[OBSTACLE]\n1 nan\n", 9, "'nan' is not a finite number"),
+    (GOOD_HEAD + "[OBSTACLE]\n1 nan\n", 9, "'nan' is not a number"),
+    (GOOD_HEAD + "[OBSTACLE]\n1 1e5000\n", 9, "'1e5000' is not a finite number"),
     ("[SCALE]\n1 2\n", 2, r"expected one number in \[SCALE\], got 2"),
     ("[SCALE]\n1\n2\n", 3, "single number"),
     ("[SCALE]\n[BORDER]\n0 0\n1 0\n1 1\n", 1, r"\[SCALE\] has no value"),
