@@ -174,6 +174,9 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         self.render_mode = render_mode
         self._map = None
         given = {*kwargs, *(config if isinstance(config, Mapping) else ())}
+        if isinstance(config, AOASSConfig) and config.obstacle_density != \
+                AOASSConfig.__dataclass_fields__["obstacle_density"].default:
+            given.add("obstacle_density")       # a config object's own: as good as given
         if self.config.map is not None:     # a map keeps its own size, never rescaled
             self._map = _option_map(self.config.map, "map")
             if "obstacle_density" in given:     # it would be ignored, yet logged as the episode's

@@ -386,7 +386,11 @@ class ValidatedConfig:
             return cls()
         if isinstance(value, cls):
             return value
-        if isinstance(value, dict):
+        if isinstance(value, Mapping):
+            keys = [k for k in value if not isinstance(k, str)]
+            if keys:        # ** raised a bare "keywords must be strings", naming nothing
+                raise ConfigError(f"{name}: keys must be {cls.__name__}'s keyword names "
+                                  f"(strings), got {keys[0]!r}")
             return cls.from_kwargs(**value)
         raise ConfigError(f"{name} must be a {cls.__name__} or a mapping of its keywords, got "
                           f"{type(value).__name__}")

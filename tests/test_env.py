@@ -378,3 +378,22 @@ def test_a_generated_maps_density_with_a_map_is_refused():
         gym.make("AOASS-v0", map="test/d0.10_f100_s500", obstacle_density=0.5)
     with pytest.raises(ConfigError, match="obstacle_density=0.3 sets the density"):
         AOASSEnv(config={"map": "test/d0.10_f100_s500", "obstacle_density": 0.3})
+    # a config object's own density was accepted and ignored (helper-46), in both envs
+    both = AOASSConfig(map="test/d0.10_f100_s500", obstacle_density=0.5)
+    for env_id in ("AOASS-v0", "AOASS-Safe-v0"):
+        with pytest.raises(ConfigError, match="obstacle_density=0.5 sets the density"):
+            gym.make(env_id, config=both)
+    assert gym.make("AOASS-v0", config=both.replace(
+        obstacle_density=AOASSConfig().obstacle_density)).unwrapped.config.map is not None
+
+
+def test_a_config_mapping_with_a_key_that_is_no_name_is_refused_in_one_line():
+    """coerce passed the mapping on as keywords: a non-string key raised a bare TypeError
+    naming nothing, and a read-only mapping (MappingProxyType) was refused as 'not a
+    mapping'."""
+    from types import MappingProxyType
+
+    with pytest.raises(ConfigError, match=r"config: keys must be AOASSConfig's keyword names "
+                                          r"\(strings\), got 1"):
+        AOASSConfig.coerce({1: 2}, "config")
+    assert AOASSConfig.coerce(MappingProxyType({"n_nodes": 30}), "config").n_nodes == 30
