@@ -182,9 +182,16 @@ def read_map(path: str | os.PathLike, field_size: float | tuple[float, float] | 
 def write_map(obstacle_map: ObstacleMap, path: str | os.PathLike) -> None:
     """Write ``obstacle_map`` as an IMR-CIIRC text file (SCALE 1, metres), atomically.
 
-    Floats are written exactly (``repr``), so ``read_map`` gives back the same polygons.
+    Floats are written exactly (``repr``), so ``read_map`` gives back the same polygons; a map
+    with a polygon outside the field (an ``ObstacleMap`` may hold one, the world clips it) is
+    refused with a :class:`MapError`, since ``read_map`` clips obstacles to the field.
     """
     w, h = obstacle_map.width, obstacle_map.height
+    for i, p in enumerate(obstacle_map.polygons):
+        if not (np.all(p >= 0.0) and np.all(p <= (w, h))):
+            raise MapError(f"write_map: obstacle {i} of {obstacle_map.name or 'the map'} reaches "
+                           f"outside the {w:g} x {h:g} m field; the file would read back "
+                           f"clipped (clip it to the field first)")
     out = ["[SCALE]", "1", "", "[BORDER]", "0 0", f"{w!r} 0", f"{w!r} {h!r}", f"0 {h!r}"]
     for p in obstacle_map.polygons:
         out += ["", "[OBSTACLE]"]

@@ -77,6 +77,17 @@ def test_a_polygon_the_stretch_degenerates_is_one_line_naming_the_file(tmp_path)
                                                        f">= 3 distinct finite vertices")
 
 
+def test_a_map_that_would_not_read_back_the_same_is_not_written(tmp_path):
+    """An ObstacleMap may hold a polygon outside its field; written, it read back clipped (or
+    gone, wholly outside) although write_map promises the same polygons (helper-46)."""
+    for polygon in ([(8, 8), (12, 8), (12, 12), (8, 12)], [(20, 20), (22, 20), (22, 22)]):
+        m = ObstacleMap(10.0, 10.0, (np.array(polygon, float),), "outside")
+        with pytest.raises(MapError, match=r"write_map: obstacle 0 of outside reaches outside "
+                                           r"the 10 x 10 m field"):
+            write_map(m, tmp_path / "outside.txt")
+        assert not (tmp_path / "outside.txt").exists()
+
+
 def test_write_read_round_trip_is_exact(tmp_path, dense_map):
     path = tmp_path / "dense.txt"
     write_map(dense_map, path)
