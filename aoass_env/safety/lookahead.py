@@ -81,9 +81,10 @@ def look_ahead_horizon(max_speed: float, max_accel: float, max_turn_rate: float,
 _REACH_SLACK = 1e-6
 
 
-def _rollout_time(horizon: float, step: float) -> float:
-    """The rollouts' last time (s): ``step`` x their steps, ceil(``horizon`` / ``step``)."""
-    return step * max(int(math.ceil(horizon / step - 1e-9)), 1)
+def _rollout_steps(horizon: float, step: float) -> int:
+    """The rollouts' steps: ceil(``horizon`` / ``step``), at least 1 (their last time is
+    ``step`` x that)."""
+    return max(int(math.ceil(horizon / step - 1e-9)), 1)
 
 
 def rollout_reach(max_speed: float, horizon: float, step: float, radius: float) -> float:
@@ -92,7 +93,7 @@ def rollout_reach(max_speed: float, horizon: float, step: float, radius: float) 
     rollouts' last time (ceil(``horizon`` / ``step``) steps of ``step``, s), plus the larger of
     the anchor's ``radius`` (m, an edge it stops at) and :data:`OPEN_SPACE` (a wall that prices
     a rollout's end)."""
-    return (max_speed * _rollout_time(horizon, step) + max(radius, OPEN_SPACE)
+    return (max_speed * (step * _rollout_steps(horizon, step)) + max(radius, OPEN_SPACE)
             + _REACH_SLACK)
 
 
@@ -105,7 +106,7 @@ def bounce_reach(obstacles: np.ndarray, horizon: float, step: float,
     ``escape_velocity``'s ``bounce_starts`` and ``bounce_ends``."""
     obstacles = np.asarray(obstacles, dtype=np.float64)
     speed = np.hypot(obstacles[:, 2], obstacles[:, 3])
-    return speed * _rollout_time(horizon, step) + obstacle_radius + _REACH_SLACK
+    return speed * (step * _rollout_steps(horizon, step)) + obstacle_radius + _REACH_SLACK
 
 
 def position_std(covariances: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -801,7 +802,7 @@ def escape_velocity(velocity: np.ndarray, preferred: np.ndarray, position: np.nd
     if type(n_headings) is not int or n_headings < 1:
         integer("n_headings", n_headings, "headings", low=1)
     position = np.asarray(position, dtype=np.float64)
-    n_steps = max(int(math.ceil(horizon / step - 1e-9)), 1)
+    n_steps = _rollout_steps(horizon, step)
     times = _times(float(step), n_steps)
     vx, vy = velocity.tolist()
     wanted = float(np.hypot(vx, vy))        # NumPy's hypot of the floats, as np.hypot(*velocity)
