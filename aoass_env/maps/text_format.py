@@ -87,7 +87,11 @@ def _polygon(path: Path, kind: str, line: int, rows: _Rows, scale: float) -> np.
     """Validated (k, 2) vertices (m) of a [BORDER] or [OBSTACLE] section."""
     if len(rows) < 3:
         raise MapFormatError(path, line, f"{kind} has {len(rows)} vertices; a polygon needs >= 3")
-    v = np.array([values for _, values in rows]) * scale
+    with np.errstate(over="ignore"):   # an overflow is reported below, in one line
+        v = np.array([values for _, values in rows]) * scale
+    if not np.isfinite(v).all():
+        raise MapFormatError(path, line, f"{kind}'s coordinates times the scale overflow a float "
+                                         f"(coordinates or scale too large)")
     poly = shapely.Polygon(v)
     if not poly.is_valid:
         raise MapFormatError(path, line, f"{kind} is not a simple polygon "

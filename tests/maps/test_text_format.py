@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import pickle
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -243,6 +244,21 @@ def test_an_obstacle_whose_extent_overflows_is_named_with_its_line(tmp_path):
                     "[OBSTACLE]\n-1e308 10\n1e308 10\n1e308 20\n-1e308 20\n")
     with pytest.raises(MapFormatError, match=r"huge.txt:8: the obstacle's extent overflows"):
         read_map(path)
+
+
+@pytest.mark.parametrize(("scale", "vertex", "line"), [("1e308", "100 0", 3), ("10", "1e308 0", 3),
+                                                     ("1e300", "1e10 0", 3)])
+def test_coordinates_that_overflow_with_the_scale_are_one_error_without_warnings(
+        tmp_path, scale, vertex, line):
+    # numpy warned "overflow encountered in multiply" and shapely then called the border "not
+    # a simple polygon (Invalid Coordinate[inf 0])"
+    path = tmp_path / "huge.txt"
+    path.write_text(f"[SCALE]\n{scale}\n[BORDER]\n0 0\n{vertex}\n100 100\n0 100\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(MapFormatError, match=rf"huge.txt:{line}: \[BORDER\]'s coordinates "
+                                                 r"times the scale overflow a float"):
+            read_map(path)
 
 
 def test_a_stretched_non_rectangular_border_blocks_the_stretched_outside(tmp_path):
