@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
+from copy import deepcopy
 from typing import Any, NamedTuple
 
 import gymnasium as gym
@@ -35,7 +36,7 @@ from aoass_env.validators import keyword_names
 from aoass_env.world import wrap_angle
 
 __all__ = ["COST_KEYS", "AOASSEnv", "AnchorState", "EndOnTruncation", "EpisodeTimeLimit",
-           "make_env", "max_episode_steps"]
+           "agent_step_limit", "make_env", "max_episode_steps"]
 
 
 #: The per-step safe-RL cost keys of ``info``: the step's new contacts, all, with static
@@ -135,7 +136,8 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
     * Termination: the follower has reached or skipped every spiral waypoint (path complete).
     * Truncation: ``max_episode_steps`` control periods, ``time_limit_factor`` (5) times the
       ideal spiral's duration at nominal speed (7760 steps for the default config);
-      ``gymnasium.make`` reports the same limit in ``env.spec.max_episode_steps``.
+      ``gymnasium.make`` reports the same limit in ``env.spec.max_episode_steps`` (the limit
+      of the env as made; a map given as a reset option brings its episode's own).
 
     Every step's ``info`` holds coverage, collisions, path length, beacons sent, energy, the
     online RMSE, the reward terms, and the follower's ``recoveries`` (back-outs after its
@@ -437,12 +439,48 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
 
 class EpisodeTimeLimit(TimeLimit):
     """A ``TimeLimit`` that takes each episode's own limit at ``reset``: a map given with
-    ``reset(options={"map": ...})`` brings its own field size and so its own limit."""
+    ``reset(options={"map": ...})`` brings its own field size and so its own limit.
+
+    Its ``spec`` keeps the limit of the environment as made (the recipe ``gymnasium.make(
+    env.spec)`` rebuilds it from; a reset option is not part of it); the episode's own limit is
+    ``env.unwrapped.max_episode_steps``."""
+
+    def __init__(self, env: gym.Env, max_episode_steps: int) -> None:
+        super().__init__(env, max_episode_steps)
+        self._made_limit = max_episode_steps
 
     def reset(self, **kwargs: Any) -> Any:
         out = super().reset(**kwargs)
         self._max_episode_steps = self.env.unwrapped.max_episode_steps
         return out
+
+    @property
+    def spec(self) -> gym.envs.registration.EnvSpec | None:
+        spec = self.env.spec
+        if spec is None:
+            return None
+        spec = deepcopy(spec)
+        spec.max_episode_steps = self._made_limit
+        return spec
+
+
+def agent_step_limit(env: gym.Env) -> int:
+    """The current episode's step limit (steps of ``env``): the environment's own limit
+    (:attr:`AOASSEnv.max_episode_steps`), rounded up over the control periods each step of a
+    wrapper in between holds (its ``periods_per_step``, :class:`~aoass_env.wrappers.
+    ActionRepeat`'s ``repeat``), innermost first."""
+    holds = []
+    layer = env
+    while isinstance(layer, gym.Wrapper):
+        holds.append(getattr(layer, "periods_per_step", 1))
+        layer = layer.env
+    if not isinstance(layer, AOASSEnv):
+        raise TypeError(f"agent_step_limit reads an AOASS-v0 environment, got "
+                        f"{type(layer).__name__}")
+    limit = layer.max_episode_steps
+    for periods in reversed(holds):
+        limit = math.ceil(limit / periods)
+    return limit
 
 
 def make_env(**kwargs: Any) -> gym.Env:
@@ -461,11 +499,13 @@ class EndOnTruncation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     (:meth:`AOASSEnv.end_episode <aoass_env.env.AOASSEnv.end_episode>`) and adds
     ``info["episode_metrics"]``.
 
-    At every reset it also drops the wrappers' cached specs, so that ``env.spec`` reports the
-    episode's own limit (a map given as a reset option brings its own), and an outer
-    ``TimeLimit`` of exactly the limit the spec reported when the env was made -- what
-    ``gymnasium.make(env.spec)`` adds, repeating that limit -- follows each episode's limit
-    too (it used to cut a bigger map's episode at the first episode's limit)."""
+    ``env.spec`` keeps the limit of the environment as made, whatever map a reset option
+    brings (the spec is the recipe ``gymnasium.make(env.spec)`` rebuilds the environment from;
+    it used to report the last episode's limit, so that an env remade after a reset on a
+    smaller map cut every episode at that map's limit, and after a bigger one was refused). An
+    outer ``TimeLimit`` of exactly that limit -- what ``gymnasium.make(env.spec)`` adds --
+    follows each episode's own limit (:func:`agent_step_limit`), as the environment's own
+    does; any other limit of yours stays fixed."""
 
     def __init__(self, env: gym.Env) -> None:
         gym.utils.RecordConstructorArgs.__init__(self)
@@ -476,6 +516,8 @@ class EndOnTruncation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         inner = env.env if type(env) is TimeLimit else None
         self._repeated = env if inner is not None and inner.spec is not None \
             and env._max_episode_steps == inner.spec.max_episode_steps else None
+        if self._repeated is not None:
+            self._repeated.spec    # noqa: B018  (cached now: the limit as made, not an episode's)
         own = None if inner is None or inner.spec is None else inner.spec.max_episode_steps
         if own is not None and env._max_episode_steps > own:
             # the environment truncates itself at its own limit: the spec would report a
@@ -490,12 +532,8 @@ class EndOnTruncation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
         out = self.env.reset(**kwargs)
-        layer: gym.Env = self
-        while isinstance(layer, gym.Wrapper):
-            layer._cached_spec = None
-            layer = layer.env
         if self._repeated is not None:
-            self._repeated._max_episode_steps = self._repeated.env.spec.max_episode_steps
+            self._repeated._max_episode_steps = agent_step_limit(self._repeated.env)
         return out
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:

@@ -694,6 +694,12 @@ class ActionRepeat(_EntryPointWrapper):
                 self._source = tracker or layer
 
     @property
+    def periods_per_step(self) -> int:
+        """Control periods one step of this wrapper holds (:func:`~aoass_env.env.agent_step_limit`
+        counts the episode's limit in these steps)."""
+        return self.repeat
+
+    @property
     def spec(self) -> EnvSpec | None:
         """The inner spec with ``max_episode_steps`` in agent steps: ⌈inner limit / repeat⌉."""
         spec = self.env.spec

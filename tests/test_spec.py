@@ -96,8 +96,8 @@ def test_an_env_remade_from_its_spec_keeps_each_episodes_limit(env_id, repeat):
         first = e.spec.max_episode_steps
         e.reset(seed=510070, options={"map": bigger})
         own = math.ceil(e.unwrapped.max_episode_steps / repeat)
-        # the spec used to keep the first episode's limit
-        assert e.spec.max_episode_steps == own > first
+        # the spec is the recipe: the limit of the env as made, whatever map a reset brings
+        assert e.spec.max_episode_steps == first < own
         steps, truncated = 0, False
         while not truncated:
             *_, terminated, truncated, info = e.step(stop)
@@ -113,6 +113,31 @@ def test_an_env_remade_from_its_spec_keeps_each_episodes_limit(env_id, repeat):
     with pytest.raises(ConfigError, match=rf"max_episode_steps={first + 1} is above the "
                                           rf"environment's own limit of {first} agent steps"):
         gym.make(env_id, max_episode_steps=first + 1, **small)
+
+
+@pytest.mark.parametrize("env_id, repeat", [(ENV_IDS[0], 1), (SAFE_ENV_ID, 4)])
+@pytest.mark.parametrize("side", [15.0, 30.0], ids=["smaller", "bigger"])
+def test_an_env_remade_from_its_spec_after_a_reset_on_another_map_is_the_same_env(
+        env_id, repeat, side):
+    """The spec used to report the last episode's limit: remade after a reset on a smaller map,
+    the env cut every episode at that map's limit; after a bigger one, gym.make refused it."""
+    from aoass_env.maps import ObstacleMap
+    small = dict(field_size=20.0, n_nodes=10, time_limit_factor=1.0,
+                 **({"action_repeat": repeat} if repeat > 1 else {}))
+    stop = np.array([-1.0, 0.0], np.float32)     # speed 0: only the time limit ends it
+    env = gym.make(env_id, **small)
+    made = env.spec.max_episode_steps
+    env.reset(seed=510071, options={"map": ObstacleMap(side, side, name=f"empty{side:g}")})
+    remade = gym.make(env.spec)
+    assert remade.spec.max_episode_steps == made
+    remade.reset(seed=510071)                    # the recipe's own field again
+    steps, truncated = 0, False
+    while not truncated:
+        *_, terminated, truncated, info = remade.step(stop)
+        steps += 1
+        assert not terminated
+    assert steps == made == math.ceil(remade.unwrapped.max_episode_steps / repeat)
+    assert "episode_metrics" in info
 
 
 def pickled(env: gym.Env) -> gym.Env:
