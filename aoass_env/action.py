@@ -70,6 +70,9 @@ def checked_action(action: Any, names: tuple[str, ...] = ("dv", "dtheta")) -> li
     try:
         if np.iscomplexobj(action) or np.asarray(action).dtype.kind in "SUMmVbO":
             raise TypeError("not real numbers")
+        if isinstance(action, (list, tuple)) and any(
+                isinstance(x, (bool, np.bool_)) for x in action):
+            raise TypeError("a boolean entry")   # numpy read [True, 0.5] as [1.0, 0.5]
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"action must be {len(names)} numbers {layout}, got {action!r}") from exc

@@ -36,7 +36,7 @@ from aoass_env.validators import keyword_names
 from aoass_env.world import wrap_angle
 
 __all__ = ["COST_KEYS", "AOASSEnv", "AnchorState", "EndOnTruncation", "EpisodeTimeLimit",
-           "agent_step_limit", "make_env", "max_episode_steps"]
+           "agent_step_limit", "make_env", "max_episode_steps", "reset_options"]
 
 
 #: The per-step safe-RL cost keys of ``info``: the step's new contacts, all, with static
@@ -223,7 +223,7 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         self.sim = None         # a reset that fails leaves no episode to step on
-        options = dict(options or {})
+        options = reset_options(options)
         episode_map = options.pop("map", None)
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: ['map']")
@@ -435,6 +435,18 @@ class AOASSEnv(gym.Env[np.ndarray, np.ndarray]):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+def reset_options(options: Any) -> dict[str, Any]:
+    """A copy of ``reset(options=...)`` as a dict (None: no option); ValueError naming
+    ``options`` for anything but a mapping with string keys (a string or a list of pairs was
+    read as pairs, or failed deep in ``dict()``)."""
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping) or not all(isinstance(k, str) for k in options):
+        raise ValueError(f"reset options must be a dict like {{'map': 'test/d0.10_f100_s500'}} "
+                         f"or None, got {type(options).__name__} {options!r:.80}")
+    return dict(options)
 
 
 class EpisodeTimeLimit(TimeLimit):

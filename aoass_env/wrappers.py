@@ -35,7 +35,7 @@ from gymnasium.utils import seeding
 
 from aoass_env.action import ResidualAction, action_type_named
 from aoass_env.config import AOASSConfig, ConfigError, check_keywords, config_with
-from aoass_env.env import COST_KEYS, AnchorState, AOASSEnv, make_env
+from aoass_env.env import COST_KEYS, AnchorState, AOASSEnv, make_env, reset_options
 from aoass_env.jit import njit
 from aoass_env.maps import ObstacleMap, list_maps, load_map, validation_split
 from aoass_env.observation import MOVING_FIELDS, clip_like_numpy, velocity_scale
@@ -142,7 +142,7 @@ class MapSampler(_EntryPointWrapper):
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
-        options = dict(options or {})
+        options = reset_options(options)
         if seed is not None:
             seeding.np_random(seed)      # Gymnasium's one-line refusal of a bad seed, first
         if seed is not None or self._rng is None:
@@ -150,7 +150,7 @@ class MapSampler(_EntryPointWrapper):
             self._rng = np.random.default_rng(None if seed is None else [seed, 0x4D4150])
         if seed is not None:
             self._next = 0
-        if "map" not in options:
+        if options.get("map") is None:   # {"map": None} is no map given, as AOASS-v0 reads it
             if self.cycle:
                 options["map"] = self.maps[self._next % len(self.maps)]
                 self._next += 1

@@ -81,7 +81,8 @@ def test_malformed_actions_name_the_action(bad):
 
 
 @pytest.mark.parametrize("bad", [[0.1, None], np.array([True, False]), [True, False],
-                                 np.array([0.1, 0.2], dtype=object)])
+                                 np.array([0.1, 0.2], dtype=object),
+                                 [True, 0.5], (0.5, np.True_)])   # numpy made these floats
 def test_booleans_and_objects_are_not_numbers_of_an_action(bad):
     """[0.1, None] used to read as [0.1, nan] ("NaN or infinite"), booleans as 1 and 0."""
     with pytest.raises(ValueError, match=r"action must be 2 numbers \[dv, dtheta\], got "):

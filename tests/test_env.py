@@ -11,6 +11,7 @@ import pytest
 import aoass_env  # noqa: F401  (registers AOASS-v0)
 from aoass_env import AOASSConfig, AOASSEnv, ConfigError, Simulator
 from aoass_env.env import max_episode_steps
+from aoass_env.registration import TRAIN_ENV_ID
 from aoass_env.reward import REWARD_TERMS
 
 SMALL = dict(field_size=40.0, n_nodes=30, obstacle_density=0.1, n_moving_obstacles=2)
@@ -297,6 +298,15 @@ def test_bad_render_mode_map_and_reset_option():
     env = AOASSEnv(**SMALL)
     with pytest.raises(ValueError, match="reset option"):
         env.reset(seed=0, options={"mpa": "x"})
+
+
+@pytest.mark.parametrize("options", ["x", 5, [("map", None)], {1: "x"}])
+def test_reset_options_that_are_not_a_dict_are_refused_naming_them(options):
+    # "x" failed deep in dict() ("dictionary update sequence element #0 ..."), 5 with "'int'
+    # object is not iterable", and a list of pairs was taken as a dict
+    for env in (AOASSEnv(**SMALL), gym.make(TRAIN_ENV_ID, n_nodes=10)):
+        with pytest.raises(ValueError, match=r"^reset options must be a dict like "):
+            env.reset(seed=0, options=options)
 
 
 def test_config_object_and_keywords_combine():

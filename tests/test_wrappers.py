@@ -327,6 +327,11 @@ def test_map_sampler_draws_reproducibly_and_cycles_in_order():
     # the next map, so evaluations reseeded alike played other maps)
     obs, _ = cyc.reset(seed=0)
     assert cyc.unwrapped.sim.map.name == names[0]
+    # {"map": None} is no map given: the sampler draws (it used to pass None on, and the
+    # episode ran on a freshly generated map)
+    for sampler in (env, cyc):
+        sampler.reset(seed=5, options={"map": None})
+        assert sampler.unwrapped.sim.map.name in {m.split("/")[1] for m in maps}
     cyc.reset()
     again, _ = cyc.reset(seed=0)
     np.testing.assert_array_equal(obs, again)
