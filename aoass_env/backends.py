@@ -272,7 +272,9 @@ def make_backend(name: str, *, workers: int | None = None, address: str | None =
     if name == "local":
         if address is not None:
             raise BackendError("--address names a Ray cluster; it needs --backend ray")
-        return LocalBackend(workers or os.cpu_count() or 1, threads=threads)
+        # 0 is refused by LocalBackend (it read as "not given": every core)
+        return LocalBackend((os.cpu_count() or 1) if workers is None else workers,
+                            threads=threads)
     if workers is not None and (address or os.environ.get("RAY_ADDRESS")):
         raise BackendError("--workers sets the CPUs of a local Ray instance; a cluster "
                            "(--address or $RAY_ADDRESS) runs one task per CPU it has")
@@ -311,29 +313,66 @@ def _in_callback(frame: FrameType | None) -> bool:
     return False
 
 
-def _handler(signum: int, frame: FrameType | None) -> None:
-    if _in_callback(frame):          # raised here, cffi would swallow it: try again shortly
-        signal.setitimer(signal.ITIMER_REAL, RETRY_SECONDS)
-        return
-    signal.setitimer(signal.ITIMER_REAL, 0)
-    raise KeyboardInterrupt
+class _HeldInterrupt:
+    """The state of :func:`deliver_interrupts`: whether a Ctrl-C is held, the caller's SIGALRM
+    handler and the caller's real-time timer it set aside to retry it."""
+
+    def __init__(self, caller_alarm: Any) -> None:
+        self.held = False
+        self.caller_alarm = caller_alarm
+        self.caller_timer = (0.0, 0.0)
+
+    def hold(self) -> None:
+        """Hold the Ctrl-C and retry it in :data:`RETRY_SECONDS` on the real-time timer,
+        setting the caller's timer aside (once) until then."""
+        timer = signal.setitimer(signal.ITIMER_REAL, RETRY_SECONDS)
+        if not self.held:
+            self.held, self.caller_timer = True, timer
+
+    def release(self) -> None:
+        """Forget the held Ctrl-C; the caller's timer runs on from where it was set aside."""
+        if self.held:
+            self.held = False
+            signal.setitimer(signal.ITIMER_REAL, *self.caller_timer)
+
+    def on_interrupt(self, signum: int, frame: FrameType | None) -> None:
+        if _in_callback(frame):      # raised here, cffi would swallow it: try again shortly
+            self.hold()
+            return
+        self.release()
+        raise KeyboardInterrupt
+
+    def on_alarm(self, signum: int, frame: FrameType | None) -> None:
+        if self.held:
+            self.on_interrupt(signum, frame)
+            return
+        # the caller's own alarm: its handler, as without deliver_interrupts
+        caller = self.caller_alarm
+        if callable(caller):
+            caller(signum, frame)
+        elif caller == signal.SIG_DFL:
+            signal.signal(signal.SIGALRM, signal.SIG_DFL)
+            signal.raise_signal(signal.SIGALRM)
 
 
 @contextlib.contextmanager
 def deliver_interrupts() -> Iterator[None]:
     """Within: the first Ctrl-C raises ``KeyboardInterrupt`` in the main thread even when it
-    arrives inside a pymunk callback (it is then raised a few milliseconds later, outside it).
-    Does nothing outside the main thread or when SIGINT is not Python's default handler (e.g.
-    ignored)."""
+    arrives inside a pymunk callback (it is then raised a few milliseconds later, outside it,
+    on the real-time timer; a timer of the caller's is set aside meanwhile and its SIGALRM
+    goes to the caller's handler otherwise). Does nothing outside the main thread or when
+    SIGINT is not Python's default handler (e.g. ignored)."""
     if (threading.current_thread() is not threading.main_thread()
             or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
         yield
         return
-    old_alarm = signal.signal(signal.SIGALRM, _handler)
-    signal.signal(signal.SIGINT, _handler)
+    state = _HeldInterrupt(signal.getsignal(signal.SIGALRM))
+    signal.signal(signal.SIGALRM, state.on_alarm)
+    signal.signal(signal.SIGINT, state.on_interrupt)
     try:
         yield
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGINT, signal.default_int_handler)
-        signal.signal(signal.SIGALRM, old_alarm)
+        state.release()
+        caller = state.caller_alarm       # None: a handler not set from Python
+        signal.signal(signal.SIGALRM, signal.SIG_DFL if caller is None else caller)

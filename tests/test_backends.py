@@ -5,7 +5,9 @@ from __future__ import annotations
 import os
 import signal
 
-from aoass_env.backends import LocalBackend
+import pytest
+
+from aoass_env.backends import BackendError, LocalBackend, make_backend
 
 
 def _work(x: int) -> int:
@@ -40,3 +42,15 @@ def test_a_dead_worker_fails_its_items_instead_of_hanging_the_run():
     assert [(item, value) for item, value, _ in results] == [(0, 0), (2, 20), (5, None),
                                                             (6, 60)]
     assert "ValueError: item 5 fails" in results[2][2]
+
+
+@pytest.mark.parametrize("workers", [0, False, -1, 1.5])
+def test_make_backend_refuses_a_worker_count_below_one_naming_it(workers):
+    # 0 (and False) read as "not given" and ran on every core
+    with pytest.raises(BackendError, match="workers"):
+        make_backend("local", workers=workers)
+
+
+def test_make_backend_takes_every_core_only_when_no_count_is_given():
+    assert make_backend("local").workers == (os.cpu_count() or 1)
+    assert make_backend("local", workers=1).workers == 1

@@ -454,14 +454,48 @@ def test_the_first_ctrl_c_stops_even_inside_a_pymunk_callback():
     # Python's own Ctrl-C handler, as in a terminal: a test run started in the background by a
     # non-interactive shell inherits SIGINT ignored, where deliver_interrupts does nothing
     before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    before_alarm = signal.signal(signal.SIGALRM, lambda *_: None)
     try:
+        signal.setitimer(signal.ITIMER_REAL, 30.0)   # a timer of the caller's, set aside
         with pytest.raises(KeyboardInterrupt), deliver_interrupts():
             for _ in range(10_000):
                 space.step(0.1)
                 time.sleep(0.001)
+        remaining, _ = signal.getitimer(signal.ITIMER_REAL)
+        assert 20.0 < remaining <= 30.0              # and running again after the Ctrl-C
     finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, before_alarm)
         signal.signal(signal.SIGINT, before)
     assert len(steps) < 10_000
+
+
+def test_deliver_interrupts_leaves_the_callers_alarm_and_timer_alone():
+    """An alarm of the caller's (pytest-timeout's signal method, say) became a
+    KeyboardInterrupt within deliver_interrupts, and leaving it cancelled the caller's timer."""
+    import signal
+    import time
+
+    from aoass_env.backends import deliver_interrupts
+    rang: list[int] = []
+    before_int = signal.signal(signal.SIGINT, signal.default_int_handler)
+    before_alarm = signal.signal(signal.SIGALRM, lambda *_: rang.append(1))
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.05)
+        with deliver_interrupts():
+            time.sleep(0.2)              # the caller's alarm goes to the caller's handler
+        assert rang == [1]
+        signal.setitimer(signal.ITIMER_REAL, 0.3)
+        with deliver_interrupts():
+            time.sleep(0.01)
+        remaining, _ = signal.getitimer(signal.ITIMER_REAL)
+        assert 0.0 < remaining <= 0.3    # still running after the context
+        time.sleep(remaining + 0.1)
+        assert rang == [1, 1]
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, before_alarm)
+        signal.signal(signal.SIGINT, before_int)
 
 
 def test_evaluate_refuses_a_nan_localizer_checkpoint_before_any_episode(tmp_path, capsys,
