@@ -146,12 +146,14 @@ def _agent_parser() -> argparse.ArgumentParser:
                    help="parallel environments, subprocesses when > 1 (default: 1)")
     p.add_argument("--config", type=_path, default=DEFAULT_CONFIG,
                    help="hyperparameter YAML (default: configs/aoass.yml)")
+    # "extend": a flag given twice adds its pairs (the default "store" dropped the first
+    # flag's pairs unseen); a key given twice is refused by _overrides
     p.add_argument("--hyperparams", type=_key_value("--hyperparams"), nargs="+", default=[],
-                   metavar="KEY:VALUE",
+                   action="extend", metavar="KEY:VALUE",
                    help="replace keys of the config's section, values as YAML (e.g. "
                         "learning_rate:0.0003 'policy_kwargs:{net_arch: [32, 32]}')")
     p.add_argument("--env-kwargs", type=_key_value("--env-kwargs"), nargs="+", default=[],
-                   metavar="KEY:VALUE",
+                   action="extend", metavar="KEY:VALUE",
                    help="replace keys of the section's env (e.g. n_nodes:50 "
                         "'densities:[0.2, 0.3]')")
     p.add_argument("--eval-freq", type=argparse_number(int, 1), default=None,

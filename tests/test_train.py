@@ -381,6 +381,11 @@ def test_overrides_and_frequencies_from_the_command_line(tiny: Path, tmp_path: P
     (["--hyperparams", "batch_size:4", "batch_size:8"],
      "--hyperparams batch_size: given twice (4, then 8)"),
     (["--env-kwargs", "n_nodes:30", "n_nodes:40"], "--env-kwargs n_nodes: given twice"),
+    # ... also across two of the flag (the second flag used to drop the first's pairs unseen)
+    (["--hyperparams", "batch_size:4", "--hyperparams", "batch_size:8"],
+     "--hyperparams batch_size: given twice (4, then 8)"),
+    (["--env-kwargs", "n_nodes:30", "--env-kwargs", "action_repeat:2", "n_nodes:40"],
+     "--env-kwargs n_nodes: given twice (30, then 40)"),
     # SB3 asserted this in learn(), a traceback after run.yml was written (a blocked --out)
     (["--n-envs", "2", "--hyperparams", "train_freq:[1, episode]"],
      "train_freq: [1, 'episode'] counts episodes, which SB3 does with one environment only, "
