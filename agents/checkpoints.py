@@ -344,6 +344,10 @@ def load_model(cls: type[SelfSafe], path: str | os.PathLike[str], *, env: Any = 
     return model
 
 
+#: The most bytes a member's ``.npy`` header takes (numpy pads headers to 64 or 4096 bytes).
+_NPY_HEADER_BYTES = 4096
+
+
 def save_replay_buffer(model: Any, path: str | os.PathLike[str] | io.IOBase) -> None:
     """Write ``model``'s replay buffer as an ``.npz`` of its arrays (no pickles), tagged with the
     model's step count. A path is written atomically, with ``.npz`` appended where it lacks it
@@ -379,7 +383,22 @@ def load_replay_buffer(model: Any, path: str | os.PathLike[str]) -> None:
                               f"structure)")
     try:
         with np.load(path, allow_pickle=False) as data:
+            # names and sizes before any member is read: an unknown member, or one larger than
+            # the model's array it stands for, was inflated whole first (a 1 MB file holding
+            # 1 GB of zeros)
+            for key in data.files:
+                if key not in own and key not in _BUFFER_META:
+                    raise PolicyFileError(f"{path}: {key}: not an array of the model's replay "
+                                          f"buffer (it holds {', '.join(own)} and "
+                                          f"{', '.join(_BUFFER_META)})")
+                size = data.zip.getinfo(f"{key}.npy").file_size
+                most = (own[key].nbytes if key in own else 0) + _NPY_HEADER_BYTES
+                if size > most:
+                    raise PolicyFileError(f"{path}: {key}: {size} bytes, more than the model's "
+                                          f"buffer holds ({most} with the header)")
             arrays = {k: data[k] for k in data.files}
+    except PolicyFileError:
+        raise
     except Exception as exc:  # zipfile, zlib and numpy raise many types for a damaged file
         raise PolicyFileError(f"{path}: not a replay buffer .npz of arrays "
                               f"({one_line(exc)})") from None

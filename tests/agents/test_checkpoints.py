@@ -191,6 +191,38 @@ def test_a_replay_buffer_with_bad_tags_or_values_is_named(saved: Path, tmp_path:
     assert model.replay_buffer.pos == int(arrays["pos"])
 
 
+def test_a_replay_buffer_with_an_unknown_or_oversized_member_is_refused_unread(
+        saved: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every member was inflated before any check: a 1 MB file with 1 GB of zeros in an extra
+    member took 1 GB, and the member was then ignored."""
+    import numpy as np
+    model = RecurrentTD3.load(saved, env=_env(), record=RECORD)
+    good = tmp_path / "good.npz"
+    model.save_replay_buffer(good)
+    with np.load(good, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    read: list[str] = []
+    getitem = np.lib.npyio.NpzFile.__getitem__
+    monkeypatch.setattr(np.lib.npyio.NpzFile, "__getitem__",
+                        lambda self, key: read.append(key) or getitem(self, key))
+    obs = arrays["observations"]
+    cases = {
+        "junk": ({**arrays, "junk": np.zeros(10_000)},
+                 r"junk: not an array of the model's replay buffer \(it holds "),
+        "observations": ({**arrays, "observations": np.zeros((20 * len(obs), *obs.shape[1:]),
+                                                              obs.dtype)},
+                         rf"observations: {20 * obs.nbytes + 128} bytes, more than the model's "
+                         rf"buffer holds \({obs.nbytes + 4096} with the header\)"),
+    }
+    for name, (members, message) in cases.items():
+        path = tmp_path / f"{name}.npz"
+        np.savez_compressed(path, **members)
+        with pytest.raises(PolicyFileError, match=rf"^{path}: {message}"):
+            model.load_replay_buffer(path)
+        assert read == [], name
+    model.load_replay_buffer(good)
+
+
 def test_a_member_that_inflates_past_the_limit_is_refused_unread(saved: Path, tmp_path: Path,
                                                                 monkeypatch: pytest.MonkeyPatch
                                                                 ) -> None:
