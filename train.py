@@ -150,8 +150,10 @@ def _agent_parser() -> argparse.ArgumentParser:
     # flag's pairs unseen); a key given twice is refused by _overrides
     p.add_argument("--hyperparams", type=_key_value("--hyperparams"), nargs="+", default=[],
                    action="extend", metavar="KEY:VALUE",
-                   help="replace keys of the config's section, values as YAML (e.g. "
-                        "learning_rate:0.0003 'policy_kwargs:{net_arch: [32, 32]}')")
+                   help="replace keys of the config's section, values as YAML; a mapping "
+                        "replaces the whole mapping, as in RL Zoo (e.g. learning_rate:0.0003 "
+                        "'policy_kwargs:{lstm_hidden_size: 64, net_arch: [32, 32], "
+                        "actor_final_init: 0.003}')")
     p.add_argument("--env-kwargs", type=_key_value("--env-kwargs"), nargs="+", default=[],
                    action="extend", metavar="KEY:VALUE",
                    help="replace keys of the section's env (e.g. n_nodes:50 "

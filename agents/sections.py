@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import math
+import re
 from collections.abc import Hashable, Mapping
 from pathlib import Path
 from typing import Any
@@ -111,6 +112,13 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+# YAML 1.2's exponent floats without a point (1e-4, 3E5): YAML 1.1, PyYAML's, reads them as
+# strings, and "learning_rate: 1e-4" was refused as "'1e-4' must be a number"
+_UniqueKeyLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$"),
+    list("-+0123456789"))
+
+
 def read_yaml(path: str | Path, what: str = "hyperparameter file") -> Any:
     """The YAML document at ``path``, read safely (no Python objects; a key given twice is an
     error); :class:`HyperparameterError` naming the file for a missing, unreadable or invalid
@@ -147,8 +155,8 @@ def key_value(text: str, flag: str) -> tuple[str, Any]:
     key, sep, value = text.partition(":")
     if not sep or not key.isidentifier():
         raise HyperparameterError(f"{flag}: must be key:value, got {text!r}")
-    try:
-        return key, yaml.safe_load(value)
+    try:     # the files' loader: no Python objects, no key given twice, 1e-4 a float
+        return key, yaml.load(value, Loader=_UniqueKeyLoader)
     except yaml.YAMLError as exc:
         raise HyperparameterError(f"{flag} {text!r}: the value is not valid YAML "
                                   f"({yaml_problem(exc)})") from None
@@ -292,6 +300,9 @@ def _check_stack(where: str, cls: type, policy: str, hp: Mapping[str, Any]) -> N
         check_net_arch(policy_kwargs.get("net_arch"), f"{where}.policy_kwargs.net_arch")
     except ValueError as exc:
         raise HyperparameterError(str(exc)) from None
+    if "n_critics" in policy_kwargs:    # SB3's TD3 policy said only "an empty parameter list"
+        integer(f"{where}.policy_kwargs.n_critics", policy_kwargs["n_critics"], "critics",
+                low=1, error=HyperparameterError)
     try:
         env = make_training_env(split="validation", **env_kwargs)
     except (ValueError, TypeError) as exc:

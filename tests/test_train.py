@@ -390,6 +390,9 @@ def test_overrides_and_frequencies_from_the_command_line(tiny: Path, tmp_path: P
     (["--n-envs", "2", "--hyperparams", "train_freq:[1, episode]"],
      "train_freq: [1, 'episode'] counts episodes, which SB3 does with one environment only, "
      "not --n-envs 2; give train_freq in steps, or --n-envs 1"),
+    # SB3's TD3 policy said "optimizer got an empty parameter list"
+    (["--algo", "td3", "--hyperparams", "policy_kwargs:{n_critics: 0}"],
+     "td3.policy_kwargs.n_critics=0 must be"),
 ])
 def test_bad_overrides_are_one_line_errors_naming_the_flag(tiny: Path, tmp_path: Path,
                                                            capsys: pytest.CaptureFixture,

@@ -134,3 +134,21 @@ def test_good_sections_are_unchanged(tmp_path: Path) -> None:
     path.write_text(yaml.safe_dump({"td3-lstm": {**_TINY, **keys}}), encoding="utf-8")
     hp = load_hyperparams(path, "td3-lstm")
     assert hp == {**_TINY, **keys}
+
+
+@pytest.mark.parametrize("text, value", [("1e-4", 1e-4), ("3E5", 3e5), ("-2e+3", -2e3),
+                                         ("1.5e-3", 1.5e-3), ("1e3x", "1e3x"), ("e5", "e5")])
+def test_exponent_floats_without_a_point_read_as_numbers(tmp_path: Path, text: str,
+                                                         value: object) -> None:
+    """YAML 1.1 (PyYAML) read 1e-4 as a string: learning_rate:1e-4 was refused as
+    "'1e-4' must be a number"; the command line and the files read it alike now."""
+    assert key_value(f"learning_rate:{text}", "--hyperparams") == ("learning_rate", value)
+    path = tmp_path / "c.yml"
+    path.write_text(f"learning_rate: {text}\n", encoding="utf-8")
+    assert read_yaml(path) == {"learning_rate": value}
+    assert yaml.safe_load("1e-4") == "1e-4"     # PyYAML's own loader is left as it was
+
+
+def test_a_key_given_twice_in_a_command_line_mapping_is_refused() -> None:
+    with pytest.raises(HyperparameterError, match=r"key 'a' is given twice"):
+        key_value("policy_kwargs:{a: 1, a: 2}", "--hyperparams")
