@@ -98,6 +98,8 @@ def _parsed(row: dict[str, str]) -> dict[str, Any]:
     for name in COLUMNS:
         text = row[name]
         if name in _TEXT:
+            if "\n" in text or "\r" in text:   # the file is read line by line
+                raise ValueError(f"{name}={text!r} holds a line break")
             out[name] = text
         elif text == "":
             out[name] = math.nan
@@ -138,7 +140,12 @@ def _csv_text(rows: list[dict[str, Any]], header: bool) -> str:
 def _split_complete(path: Path, text: str) -> tuple[list[dict[str, Any]], str]:
     """Typed rows of ``text`` and the text of its complete lines; a half-written trailing line
     is dropped with a warning. Raises EvaluationError for another schema or a broken row."""
-    lines = text.splitlines(keepends=True)
+    # lines end at "\n" only: str.splitlines also breaks at \x0c, \x1c-\x1e, \x85 and
+    # U+2028/9, which the writer leaves unquoted in a map name (the row then read as broken)
+    lines = [line + "\n" for line in text.split("\n")]
+    lines[-1] = lines[-1][:-1]
+    if not lines[-1]:
+        lines.pop()
     if not lines or not lines[0].endswith("\n"):
         return [], ""            # nothing, or a crash while writing the header
     header = next(csv.reader([lines[0]]))

@@ -337,3 +337,29 @@ def test_a_file_that_is_not_utf8_is_named(tmp_path):
         with pytest.raises(EvaluationError, match=r"episodes.csv is not an episodes.csv of this "
                                                   r"evaluation \(not UTF-8 text"):
             open_it(path)
+
+
+@pytest.mark.parametrize("odd", ["\u2028", "\x0c", "\x1c", "\x85", "\u2029"])
+def test_a_text_cell_with_a_character_str_splitlines_breaks_at_reads_back(tmp_path, odd):
+    """The reader split the file with str.splitlines, which also breaks at these (the csv
+    writer leaves them unquoted): a map named with one was written, and every later read and
+    resume of the folder failed on its "broken row"."""
+    path = tmp_path / "episodes.csv"
+    with EpisodeStore(path) as store:
+        store.append([row(seed=0, map=f"test/d0.10_f100_s500{odd}copy"), row(seed=1)])
+    back = read_episodes(path)
+    assert [r["map"] for r in back] == [f"test/d0.10_f100_s500{odd}copy", "test/d0.10_f100_s500"]
+    with EpisodeStore(path) as again:                   # a resume reads it too
+        assert len(again.rows) == 2
+
+
+@pytest.mark.parametrize(("values", "message"), [
+    ({"map": "a\nb"}, r"map='a\\nb' holds a line break"),
+    ({"method": "spiral\r"}, r"method='spiral\\r' holds a line break")])
+def test_a_text_cell_with_a_line_break_is_not_appended(tmp_path, values, message):
+    # the writer quoted it, and the line-by-line reader then broke the row in two
+    path = tmp_path / "episodes.csv"
+    with EpisodeStore(path) as store:
+        with pytest.raises(ValueError, match=message):
+            store.append([{**row(seed=1), **values}])
+    assert read_episodes(path) == []
