@@ -50,7 +50,13 @@ from aoass_env.evaluation.report import (
     paired_stats,
     robustness_markdown,
 )
-from aoass_env.evaluation.store import EpisodeStore, EvaluationError, read_episodes, read_runs
+from aoass_env.evaluation.store import (
+    EpisodeStore,
+    EvaluationError,
+    in_key_order,
+    read_episodes,
+    read_runs,
+)
 from aoass_env.evaluation.sweep import PRESETS, ROBUSTNESS_EPISODE_SEED_BASE, episode_jobs
 from aoass_env.validators import argparse_number
 
@@ -615,7 +621,7 @@ def preset_rows(folder: Path, name: str, n: int) -> Rows:
     compared over different episodes)."""
     path = folder / "episodes.csv"
     try:
-        every = read_episodes(path)
+        every = in_key_order(read_episodes(path))
     except EvaluationError as exc:
         sys.exit(str(exc))
 

@@ -46,6 +46,7 @@ from aoass_env.evaluation.store import (
     check_inputs,
     config_input,
     file_digest,
+    in_key_order,
     record_run,
 )
 from aoass_env.evaluation.sweep import (
@@ -288,7 +289,7 @@ def main(argv: list[str] | None = None) -> int:
             return 130
         record_run(store, {**run, "finished": report.finished, "skipped": report.skipped,
                            "failed": len(report.failed), "wall_seconds": report.wall_seconds})
-    rows = store.rows
+    rows = in_key_order(store.rows)     # the tables and figures whatever order rows came in
     timing = seconds_per_episode(rows)
     notes = ("" if args.logs else f"{preset.description}. ") + (
         f"This run: {report.finished} episode(s) finished, {report.skipped} already in "

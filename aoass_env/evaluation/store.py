@@ -32,7 +32,8 @@ except ImportError:       # Windows: no advisory locks
 __all__ = ["COLUMNS", "CONFIG_DEFAULTS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS",
            "LOCALIZATION_FIELDS", "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey", "EpisodeStore",
            "EvaluationError", "check_inputs", "checked_row", "RUNS_FILE", "comparable_lines",
-           "config_input", "file_digest", "read_episodes", "read_runs", "record_run", "row_key"]
+           "config_input", "file_digest", "in_key_order", "read_episodes", "read_runs",
+           "record_run", "row_key"]
 
 
 class EvaluationError(ValueError):
@@ -126,6 +127,13 @@ def checked_row(values: Mapping[str, Any]) -> dict[str, Any]:
 def row_key(row: dict[str, Any]) -> tuple[EpisodeKey, str]:
     """(episode key, localizer) of a typed row."""
     return EpisodeKey(**{k: row[k] for k in KEY_FIELDS}), row["localizer"]
+
+
+def in_key_order(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """``rows`` sorted by (episode key, localizer): the order the tables and figures read
+    them in, so that they do not depend on the order the episodes finished in (workers, a
+    resume): their means are sums in row order, their bootstrap resamples rows by position."""
+    return sorted(rows, key=row_key)
 
 
 def _csv_text(rows: list[dict[str, Any]], header: bool) -> str:

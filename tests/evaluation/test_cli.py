@@ -8,6 +8,7 @@ import sys
 import zipfile
 from dataclasses import replace
 
+import numpy as np
 import pytest
 import yaml
 
@@ -17,6 +18,7 @@ from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, POLICY_COMMAND
 from aoass_env.evaluation.store import (
     COLUMNS,
     NO_LOCALIZER,
+    EpisodeStore,
     comparable_lines,
     read_episodes,
     read_runs,
@@ -87,6 +89,32 @@ def test_save_logs_refuses_finished_episodes_without_their_logs(smoke_run, tmp_p
     assert (f"--save-logs: 1 episode(s) are already in {bare / 'episodes.csv'} without a saved "
             f"log (e.g. {bare / 'logs' / 'spiral'}") in err
     assert not (bare / "logs").exists()
+
+
+def test_the_tables_do_not_depend_on_the_order_episodes_finished_in(smoke_run, tmp_path):
+    """The summaries and figures read the rows in file order, which is the order the episodes
+    finished in (workers, resumes): their means are sums in that order and the bootstrap
+    resamples rows by position, so --workers 2 printed other last digits and other figures."""
+    out, _ = smoke_run
+    base = read_episodes(out / "episodes.csv")[0]
+    # RMSEs whose mean in file order depends on the order (checked here, so that the test
+    # has teeth): summed forward and backward they round differently
+    rng = np.random.default_rng(551060)
+    while True:
+        values = np.round(rng.uniform(0.1, 3.0, 4), 2).tolist()
+        if (np.mean([base["rmse"], *values]) != np.mean([base["rmse"], *values[::-1]])):
+            break
+    extra = [{**base, "seed": 101 + k, "rmse": v} for k, v in enumerate(values)]
+    outputs = []
+    for order in (extra, extra[::-1]):
+        folder = tmp_path / f"order{len(outputs)}"
+        shutil.copytree(out, folder, ignore=shutil.ignore_patterns("logs"))
+        with EpisodeStore(folder / "episodes.csv") as store:
+            store.append(order)
+        assert cli.main(["--preset", "smoke", "--methods", "spiral", "--localizers", "dvhop",
+                         "--workers", "1", "--out", str(folder), "--no-progress"]) == 0
+        outputs.append([(folder / name).read_bytes() for name in ("summary.csv", "summary.md")])
+    assert outputs[0] == outputs[1]
 
 
 def test_logs_mode_localizes_saved_logs(smoke_run, tmp_path):
