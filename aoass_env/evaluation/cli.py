@@ -12,7 +12,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import torch
 
@@ -43,11 +45,13 @@ from aoass_env.evaluation.store import (
     NO_LOCALIZER,
     EpisodeStore,
     EvaluationError,
-    check_inputs,
+    apply_inputs,
     config_input,
     file_digest,
     in_key_order,
     record_run,
+    row_key,
+    stale_rows,
 )
 from aoass_env.evaluation.sweep import (
     PRESETS,
@@ -95,8 +99,22 @@ def _check_policy(policy: Path, run: Path | None) -> Path:
     try:
         load_policy(str(policy.resolve()), record=str(record.resolve()))
     except PolicyFileError as exc:
-        raise EvaluationError(f"--policy: {exc}") from None
+        # the flag that gave the file at fault: the run record's own, when it is the record
+        flag = "--policy-run" if run is not None and str(record.resolve()) in str(exc) \
+            else "--policy"
+        raise EvaluationError(f"{flag}: {exc}") from None
     return record
+
+
+def _check_checkpoint(method: str, checkpoint: Path) -> None:
+    """Load ``method``'s own policy checkpoint once before any episode (every episode failed
+    on its own traceback otherwise); an error naming the method and the file."""
+    from agents.checkpoints import PolicyFileError
+    from aoass_env.evaluation.methods import load_policy
+    try:
+        load_policy(str(checkpoint))     # as the episodes load it (run.yml beside it)
+    except PolicyFileError as exc:
+        raise EvaluationError(f"method {method}: its checkpoint: {exc}") from None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -109,7 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=f"presets:\n{presets}\n\nmethods: {', '.join(METHODS)}\n"
                f"localizers: {', '.join(LOCALIZERS)}, or {NO_LOCALIZER} (no localization)"
                f"\n\nSee docs/evaluation.md.")
-    parser.add_argument("--preset", choices=list(PRESETS), default="quick",
+    parser.add_argument("--preset", choices=list(PRESETS), default=None,
                         help="episode grid (default: quick)")
     parser.add_argument("--methods", nargs="+", metavar="M",
                         help="methods to run (default: all)")
@@ -177,11 +195,14 @@ def _maps_note(preset: Preset | None) -> str:
             "seed (seed s: map s mod k), the episode's random generator seeded with s.")
 
 
-def _check_saved_logs(jobs: list[Job], store: EpisodeStore, logs: Path) -> None:
+def _check_saved_logs(jobs: list[Job], store: EpisodeStore, logs: Path,
+                      stale: Callable[[dict[str, Any]], bool] | None) -> None:
     """:class:`EvaluationError` when ``--save-logs`` would leave logs out: episodes already in
-    ``store`` are not played again, so those without a saved log would never get one."""
+    ``store`` are not played again (but its ``stale`` rows, which are to be dropped), so those
+    without a saved log would never get one."""
+    done = {row_key(r) for r in store.rows if stale is None or not stale(r)}
     missing = [job.key for job in jobs
-               if all((job.key, name) in store.done for name in job.localizers)
+               if all((job.key, name) in done for name in job.localizers)
                and not (logs / log_name(job.key)).is_file()]
     if missing:
         raise EvaluationError(
@@ -199,16 +220,17 @@ def main(argv: list[str] | None = None) -> int:
             raise EvaluationError(f"--seeds must be in [1, {MAX_SEEDS}], got {args.seeds}")
         if args.workers is not None and args.workers < 1:
             raise EvaluationError(f"--workers must be at least 1, got {args.workers}")
-        preset = PRESETS[args.preset]
+        preset = PRESETS[args.preset or "quick"]
         policy = args.policy or DEFAULT_POLICY
         localizers = _check_localizers(
             _names(args.localizers, "--localizers"),
             DEFAULT_LOCALIZERS if preset.localize or args.logs else (NO_LOCALIZER,))
         if args.logs is not None:
-            if args.methods or args.seeds or args.save_logs or args.policy or args.policy_run:
-                raise EvaluationError("--logs localizes every log in its folder; --methods, "
-                                      "--seeds, --save-logs, --policy and --policy-run do not "
-                                      "apply")
+            if (args.preset or args.methods or args.seeds or args.save_logs or args.policy
+                    or args.policy_run):
+                raise EvaluationError("--logs localizes every log in its folder; --preset, "
+                                      "--methods, --seeds, --save-logs, --policy and "
+                                      "--policy-run do not apply")
             out = args.out or Path("out") / "localized"
             jobs = log_jobs(args.logs.resolve(), localizers)
             title = f"AOASS evaluation: beacon logs of {args.logs}"
@@ -227,6 +249,7 @@ def main(argv: list[str] | None = None) -> int:
                 inputs[config_input(name)] = spec.defaults_digest
                 scope[config_input(name)] = [name]
                 if spec.checkpoint:
+                    _check_checkpoint(name, spec.checkpoint)
                     inputs[f"{name} checkpoint"] = file_digest(
                         spec.checkpoint, spec.checkpoint.with_name("run.yml"))
                     scope[f"{name} checkpoint"] = [name]
@@ -255,10 +278,11 @@ def main(argv: list[str] | None = None) -> int:
         for folder in (out, *sorted(p for p in (out / "logs").glob("*") if p.is_dir())):
             for stale in remove_stale_temporaries(folder):
                 print(f"removed {stale}, left by an interrupted write", file=sys.stderr)
-        check_inputs(store, inputs, scope, discard=args.discard_changed,
-                     localizers={"olstm-dvhop": "olstm-dvhop"})
-        if args.save_logs:
-            _check_saved_logs(jobs, store, out / "logs")
+        stale = stale_rows(store, inputs, scope, discard=args.discard_changed,
+                           localizers={"olstm-dvhop": "olstm-dvhop"})
+        if args.save_logs:     # before any row is dropped: a refused run changes nothing
+            _check_saved_logs(jobs, store, out / "logs", stale)
+        apply_inputs(store, inputs, stale)
     except (EvaluationError, BackendError) as exc:
         if store is not None:
             store.close()       # its lock on the folder (main may run again in one process)

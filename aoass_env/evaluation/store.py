@@ -31,9 +31,9 @@ except ImportError:       # Windows: no advisory locks
 
 __all__ = ["COLUMNS", "CONFIG_DEFAULTS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS",
            "LOCALIZATION_FIELDS", "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey", "EpisodeStore",
-           "EvaluationError", "check_inputs", "checked_row", "RUNS_FILE", "comparable_lines",
-           "config_input", "file_digest", "in_key_order", "read_episodes", "read_runs",
-           "record_run", "row_key"]
+           "EvaluationError", "apply_inputs", "check_inputs", "checked_row", "RUNS_FILE",
+           "comparable_lines", "config_input", "file_digest", "in_key_order", "read_episodes",
+           "read_runs", "record_run", "row_key", "stale_rows"]
 
 
 class EvaluationError(ValueError):
@@ -254,7 +254,18 @@ def check_inputs(store: EpisodeStore, inputs: dict[str, str],
                  scope: Mapping[str, Collection[str]] | None = None,
                  discard: bool = False, localizers: Mapping[str, str] | None = None) -> None:
     """Refuse to resume ``store`` with other checkpoints or config defaults than its rows were
-    produced with, or with ``discard`` drop those rows (the episodes then run again).
+    produced with, or with ``discard`` drop those rows (the episodes then run again):
+    :func:`stale_rows`, then :func:`apply_inputs`."""
+    apply_inputs(store, inputs, stale_rows(store, inputs, scope, discard, localizers))
+
+
+def stale_rows(store: EpisodeStore, inputs: dict[str, str],
+               scope: Mapping[str, Collection[str]] | None = None,
+               discard: bool = False, localizers: Mapping[str, str] | None = None
+               ) -> Callable[[dict[str, Any]], bool] | None:
+    """Which rows of ``store`` were produced with other inputs than this run's: a predicate
+    of the rows :func:`apply_inputs` drops (None: none); nothing is changed yet, so that
+    other checks may refuse the run first.
 
     ``inputs`` maps a name (``"policy"``, ``"olstm-dvhop"``, :func:`config_input` of a
     method) to the digest (:func:`file_digest`, or :func:`~aoass_env.evaluation.methods.
@@ -262,23 +273,18 @@ def check_inputs(store: EpisodeStore, inputs: dict[str, str],
     methods whose rows depend on it (a name not in it: every row), and ``localizers`` a name
     to the one localizer whose rows alone depend on it (a localizer's checkpoint: the other
     rows of its episodes stay). An input changed for the
-    rows in its scope when the record gives another digest, or none while such rows exist
-    (they were made by an older evaluate.py that did not record it). The inputs are recorded
-    in :data:`INPUTS_FILE` beside the CSV (written atomically, merged with earlier records;
-    while no row depends on a name, a new digest simply replaces the recorded one).
+    rows in its scope when the record (:data:`INPUTS_FILE` beside the CSV) gives another
+    digest, or none while such rows exist (they were made by an older evaluate.py that did
+    not record it).
 
     Raises:
         EvaluationError: without ``discard``, an input changed for some rows, i.e. resuming
-            would mix episodes of two checkpoints or two sets of defaults in one table.
+            would mix episodes of two checkpoints or two sets of defaults in one table; an
+            unreadable record.
     """
     record_path = store.path.with_name(INPUTS_FILE)
-    recorded: dict[str, str] = {}
-    if record_path.is_file():
-        try:
-            recorded = dict(json.loads(record_path.read_text(encoding="utf-8")))
-        except (OSError, TypeError, ValueError) as exc:
-            raise EvaluationError(f"{record_path} is unreadable ({exc}); delete it and "
-                                  f"{store.path}, or choose another --out folder") from None
+    recorded = _recorded_inputs(store)
+
     def depends(name: str, row: dict[str, Any]) -> bool:
         """Does ``row`` depend on the input ``name``?"""
         only = (localizers or {}).get(name)
@@ -299,13 +305,36 @@ def check_inputs(store: EpisodeStore, inputs: dict[str, str],
             f"({record_path} records their SHA-256); resuming would mix the two in one "
             f"table. Run again with --discard-changed to drop those episodes and run them "
             f"anew, delete {store.path} (or the folder), or choose another --out folder")
-    if changed:
-        store.discard(lambda row: any(depends(name, row) for name in changed))
+    if not changed:
+        return None
+    return lambda row: any(depends(name, row) for name in changed)
+
+
+def apply_inputs(store: EpisodeStore, inputs: dict[str, str],
+                 stale: Callable[[dict[str, Any]], bool] | None) -> None:
+    """Drop the ``stale`` rows (:func:`stale_rows`) and record ``inputs`` in
+    :data:`INPUTS_FILE` (written atomically, merged with earlier records; while no row
+    depends on a name, a new digest simply replaces the recorded one)."""
+    if stale is not None:
+        store.discard(stale)
+    record_path = store.path.with_name(INPUTS_FILE)
     try:
-        write_text_atomic(record_path, json.dumps(recorded | inputs, indent=1,
+        write_text_atomic(record_path, json.dumps(_recorded_inputs(store) | inputs, indent=1,
                                                   sort_keys=True) + "\n")
     except OSError as exc:
         raise EvaluationError(f"cannot write {record_path}: {exc.strerror or exc}") from None
+
+
+def _recorded_inputs(store: EpisodeStore) -> dict[str, str]:
+    """The inputs recorded beside ``store``'s CSV ({} without a record)."""
+    record_path = store.path.with_name(INPUTS_FILE)
+    if not record_path.is_file():
+        return {}
+    try:
+        return dict(json.loads(record_path.read_text(encoding="utf-8")))
+    except (OSError, TypeError, ValueError) as exc:
+        raise EvaluationError(f"{record_path} is unreadable ({exc}); delete it and "
+                              f"{store.path}, or choose another --out folder") from None
 
 
 #: The file beside ``episodes.csv`` with one JSON line per run of evaluate.py on the folder:

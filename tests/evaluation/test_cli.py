@@ -20,6 +20,7 @@ from aoass_env.evaluation.store import (
     NO_LOCALIZER,
     EpisodeStore,
     comparable_lines,
+    config_input,
     read_episodes,
     read_runs,
 )
@@ -162,6 +163,53 @@ def test_missing_policy_checkpoint_names_file_and_command(capsys, tmp_path):
                                 "--out", str(tmp_path / "out")])
     assert str(missing) in err and POLICY_COMMAND in err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_bad_run_record_is_named_by_its_own_flag(capsys, tmp_path):
+    # "--policy: .../bad.yml: ..." named the flag of the policy, not of the record at fault
+    bad = tmp_path / "bad.yml"
+    bad.write_text("a: 1\n")
+    err = _usage_error(capsys, ["--methods", "aoass", "--policy-run", str(bad),
+                                "--out", str(tmp_path / "out")])
+    assert err.strip().splitlines()[-1].startswith(f"evaluate.py: error: --policy-run: {bad}")
+
+
+def test_a_methods_own_checkpoint_is_loaded_before_any_episode(capsys, tmp_path, monkeypatch):
+    """The adaptive policy's checkpoint was first read by each episode: a damaged one failed
+    every episode with its own traceback (exit 1) instead of one error before any work."""
+    junk = tmp_path / "adaptive" / "best.zip"
+    junk.parent.mkdir()
+    junk.write_bytes(b"not a zip")
+    shutil.copy(methods.ADAPTIVE_POLICY.with_name("run.yml"), junk.with_name("run.yml"))
+    monkeypatch.setitem(methods.METHODS, "aoass-adaptive",
+                        replace(methods.METHODS["aoass-adaptive"], checkpoint=junk))
+    err = _usage_error(capsys, ["--preset", "smoke", "--methods", "aoass-adaptive",
+                                "--out", str(tmp_path / "out")])
+    assert err.strip().splitlines()[-1].startswith(
+        f"evaluate.py: error: method aoass-adaptive: its checkpoint: {junk}")
+    assert not (tmp_path / "out" / "episodes.csv").exists()
+
+
+def test_a_refused_save_logs_run_drops_no_row(smoke_run, capsys, tmp_path):
+    """--save-logs --discard-changed refused the run (finished episodes without logs) after it
+    had dropped the changed method's rows and rewritten inputs.json."""
+    out, _ = smoke_run
+    folder = tmp_path / "sl"
+    shutil.copytree(out, folder, ignore=shutil.ignore_patterns("logs"))
+    base = read_episodes(folder / "episodes.csv")[0]
+    with EpisodeStore(folder / "episodes.csv") as store:
+        store.append([{**base, "method": "scan"}])
+    inputs = folder / "inputs.json"
+    record = json.loads(inputs.read_text())
+    record[config_input("spiral")] = "0" * 64                     # spiral's defaults changed
+    record[config_input("scan")] = METHODS["scan"].defaults_digest  # scan's as they are
+    inputs.write_text(json.dumps(record))
+    before = [(folder / name).read_bytes() for name in ("episodes.csv", "inputs.json")]
+    err = _usage_error(capsys, ["--preset", "smoke", "--methods", "spiral", "scan",
+                                "--localizers", "dvhop", "--save-logs", "--discard-changed",
+                                "--out", str(folder), "--no-progress"])
+    assert "--save-logs: 1 episode(s) are already in" in err
+    assert [(folder / name).read_bytes() for name in ("episodes.csv", "inputs.json")] == before
 
 
 def _policy_copy(folder, *, stored: bool = False):
@@ -320,6 +368,8 @@ def test_unwritable_output_folder_fails_before_any_work(capsys, tmp_path):
     (["--workers", "0"], "--workers must be at least 1"),
     (["--logs", "/nonexistent-folder"], "no such folder"),
     (["--logs", ".", "--seeds", "2"], "do not apply"),
+    (["--logs", ".", "--preset", "robustness"],                  # it was ignored, exit 0
+     "--logs localizes every log in its folder; --preset, --methods"),
     (["--address", "auto"], "--address names a Ray cluster; it needs --backend ray"),
 ])
 def test_bad_values_are_usage_errors(capsys, tmp_path, argv, message):
