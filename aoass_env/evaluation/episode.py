@@ -187,11 +187,17 @@ def _config_key(log: BeaconLog, path: Path) -> EpisodeKey:
     if not isinstance(config, dict):
         raise BeaconLogError(f"its config must be a JSON object, got {config!r}",
                              "config_json", path)
-    return EpisodeKey(method=str(cfg.get("method")),
-                      map=str(config.get("map") or path.name.removesuffix(".npz")),
-                      field_size=float(log.field[0]), n_nodes=log.n_nodes,
-                      obstacle_density=round(log.obstacle_map.density, 2),
-                      seed=-1 if seed is None else int(seed))
+    key = EpisodeKey(method=str(cfg.get("method")),
+                     map=str(config.get("map") or path.name.removesuffix(".npz")),
+                     field_size=float(log.field[0]), n_nodes=log.n_nodes,
+                     obstacle_density=round(log.obstacle_map.density, 2),
+                     seed=-1 if seed is None else int(seed))
+    try:        # a key episodes.csv could not hold failed after the localization, in a traceback
+        checked_row(asdict(key))
+    except ValueError as exc:
+        raise BeaconLogError(f"its episode key does not fit episodes.csv ({exc})",
+                             "config_json", path) from None
+    return key
 
 
 def log_key(path: Path) -> EpisodeKey:

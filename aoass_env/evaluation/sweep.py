@@ -233,7 +233,11 @@ def run_jobs(jobs: list[Job], store: EpisodeStore, *, workers: int = 1,
         with contextlib.closing(backend.run(work, todo)) as results:
             for job, rows, error in results:
                 if rows is not None:
-                    store.append(rows)
+                    try:     # rows the file could not read back: the episode failed (no row)
+                        store.append(rows)
+                    except ValueError as exc:
+                        rows, error = None, f"its rows do not fit episodes.csv: {exc}"
+                if rows is not None:
                     report.finished += 1
                 else:
                     report.failed.append((job.key, error or ""))

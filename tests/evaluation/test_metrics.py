@@ -71,3 +71,15 @@ def test_a_log_from_elsewhere_takes_its_key_from_its_config(monkeypatch, tmp_pat
                                 "seed")} == key.__dict__
     assert math.isnan(row["rmse"]) and row["localized"] == 0.0       # nobody localized
     assert row["coverage"] is None and row["eta_traj"] is None       # not in such a log
+
+
+def test_a_log_whose_key_episodes_csv_cannot_hold_is_refused_before_localizing(tmp_path: Path):
+    """A seed of -5 (or a method name with a line break) passed log_key and failed only when
+    the row was appended, after the localization, in a traceback (exit 1)."""
+    from aoass_env.beacon_log import BeaconLogError
+    from aoass_env.evaluation.episode import log_key
+    path = tmp_path / "odd.npz"
+    hand_log(seed=-5).save(path)
+    with pytest.raises(BeaconLogError, match=r"its episode key does not fit episodes.csv "
+                                             r"\(seed='-5' must be"):
+        log_key(path)

@@ -96,6 +96,25 @@ def test_a_failed_episode_is_reported_and_the_others_written(small_key, tmp_path
     assert [r["method"] for r in store.rows] == ["scan"]
 
 
+def test_rows_the_file_cannot_hold_fail_their_episode_only(small_key, tmp_path, monkeypatch):
+    # a ValueError of store.append ended the whole run in a traceback
+    from aoass_env.evaluation import sweep
+    real = sweep.job_rows
+
+    def odd_rows(job, **kwargs):
+        rows = real(job, **kwargs)
+        return [{**r, "coverage": 5.0} for r in rows] if job.key.method == "spiral" else rows
+
+    monkeypatch.setattr(sweep, "job_rows", odd_rows)
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        report = run_jobs([Job(small_key("spiral"), ("dvhop",)), Job(small_key("scan"),
+                                                                     ("dvhop",))],
+                          store, options=OPTIONS, progress=False)
+    assert report.finished == 1 and [k for k, _ in report.failed] == [small_key("spiral")]
+    assert "its rows do not fit episodes.csv: coverage='5.0'" in report.failed[0][1]
+    assert [r["method"] for r in store.rows] == ["scan"]
+
+
 def test_worker_pool_gives_the_rows_of_one_process(small_key, tmp_path):
     jobs = [Job(small_key(m), ("dvhop",)) for m in ("spiral", "aoass-scripted")]
     with EpisodeStore(tmp_path / "pool" / "episodes.csv") as store:
