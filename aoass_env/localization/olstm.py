@@ -137,6 +137,10 @@ def load_checkpoint(path: str | os.PathLike[str] = DEFAULT_CHECKPOINT) -> OLSTM:
     if got != (hidden, N_FEATURES):  # before the model is built: a huge hidden allocates
         raise CheckpointError(f"{path}: state_dict: embed.0.weight must be a tensor of shape "
                               f"(hidden={hidden}, {N_FEATURES}), got {got}")
+    for name, tensor in state.items():   # load_state_dict casts ints, bools and complex
+        if isinstance(tensor, torch.Tensor) and not tensor.is_floating_point():
+            raise CheckpointError(f"{path}: state_dict: {name} must hold floating-point "
+                                  f"weights, got {tensor.dtype}")
     model = OLSTM(hidden, width)
     try:
         model.load_state_dict(state)

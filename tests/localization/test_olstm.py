@@ -163,3 +163,16 @@ def test_a_first_pass_of_other_nodes_is_refused(model, doi_sim) -> None:
     first = node_consensus(episode, np.flatnonzero(episode.covered)[:3])
     with pytest.raises(ValueError, match="covered nodes"):
         olstm_dvhop(episode, model, first)
+
+
+@pytest.mark.parametrize("dtype", [torch.int64, torch.bool, torch.complex64])
+def test_weights_that_are_not_floats_are_refused(tmp_path, model, dtype) -> None:
+    # load_state_dict cast them (a complex weight lost its imaginary part) and the CLI exited 0
+    path = tmp_path / "m.pt"
+    save_checkpoint(model, path, {})
+    payload = torch.load(path, weights_only=True)
+    payload["state_dict"]["head.2.bias"] = payload["state_dict"]["head.2.bias"].to(dtype)
+    torch.save(payload, path)
+    with pytest.raises(CheckpointError, match=rf"head.2.bias must hold floating-point weights, "
+                                              rf"got {dtype}"):
+        load_checkpoint(path)
