@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from aoass_env.atomic import write_text_atomic
+from aoass_env.localization import METHODS as LOCALIZATION_METHODS
 
 try:
     import fcntl
@@ -65,6 +66,8 @@ LOCALIZATION_FIELDS = ("localizer", "rmse", "localized", "localize_seconds")
 #: The ``localizer`` of an episode's single row when it is not localized (``--localizers
 #: none``): its localization cells are empty, its episode columns filled as usual.
 NO_LOCALIZER = "none"
+#: The localizer column's values: a localization method, or none.
+_LOCALIZER_NAMES = (*LOCALIZATION_METHODS, NO_LOCALIZER)
 #: Columns of the episode, the same on each of its localizer rows (units in docs/evaluation.md).
 EPISODE_FIELDS = ("coverage", "beacons", "path_length", "ideal_length", "travel_time",
                   "ideal_time", "eta_traj", "collisions", "collisions_static",
@@ -115,6 +118,10 @@ def _parsed(row: dict[str, str]) -> dict[str, Any]:
             out[name] = value
     if not out["method"]:
         raise ValueError("method is empty")
+    # a hand-edited "dvhopX" made a column of its own ("": the episode part alone, checked_row)
+    if out["localizer"] and out["localizer"] not in _LOCALIZER_NAMES:
+        raise ValueError(f"localizer={out['localizer']!r} is not one of "
+                         f"{', '.join(_LOCALIZER_NAMES)}")
     return out
 
 
