@@ -325,6 +325,13 @@ class AdaptiveSweep:
 
     def __post_init__(self) -> None:
         check_rule(self.config, self.rule)
+        if sweep_config(self.config, self.rule, self.config.field_size) != self.config:
+            # the rule's beacon interval and wide passes live in the simulator's config: a
+            # sweep on any other config ignored them, silently
+            raise ConfigError(
+                f"the adaptive rule's beacon_interval={self.rule.beacon_interval} / wide_passes="
+                f"{self.rule.wide_passes} are not in the simulator's config; build the "
+                f"Simulator with sweep_config(config, rule, field side) (AOASS-v0 does)")
         if self.rule.prune:
             self.plan = self._prune()
             if not self.rule.skip_localizing:

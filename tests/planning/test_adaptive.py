@@ -484,3 +484,21 @@ def test_the_sites_and_plans_of_a_map_go_with_it():
     clear_cache()                      # the generator's own few
     gc.collect()
     assert gone() is None
+
+
+@pytest.mark.parametrize("rule", [AdaptiveConfig(beacon_interval=6.0, prune=False),
+                                  AdaptiveConfig(wide_passes=True, prune=False)])
+def test_a_sweep_on_a_config_without_the_rules_interval_or_passes_is_refused(rule):
+    """Simulator.adaptive_sweep(rule) on a simulator built without sweep_config ran with the
+    environment's beacon interval and Eq. 5's passes: the rule's were ignored, silently."""
+    from aoass_env.planning.adaptive import sweep_config
+    config = AOASSConfig(field_size=60.0, obstacle_density=0.0, n_nodes=50)
+    field = ObstacleMap(60.0, 60.0)
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=field)
+    with pytest.raises(ConfigError, match=r"not in the simulator's config; build the Simulator "
+                                          r"with sweep_config"):
+        sim.adaptive_sweep(rule)
+    fitted = Simulator(sweep_config(config, rule, 60.0), np.random.default_rng(0),
+                       obstacle_map=field)
+    sweep = fitted.adaptive_sweep(rule)
+    assert sweep.config.beacon_interval == (rule.beacon_interval or config.beacon_interval)
