@@ -12,9 +12,11 @@ from aoass_env.simulator import Simulator
 from aoass_env.trajectory import beacons_along
 
 
-@pytest.mark.parametrize("size", [100.0, 200.0])
+@pytest.mark.parametrize("size", [100.0, 200.0, 49.75, 96.25, 143.5, 190.0, 237.0])
 def test_default_spiral_covers_every_node_of_an_empty_field(size):
-    """Eq. 18 coverage of 100 % along the ideal spiral at the default spacing."""
+    """Eq. 18 coverage of 100 % along the ideal spiral at the default spacing. (The sizes after
+    the defaults fitted a spacing within decimetres of the passes' bound, sqrt(R^2 - Δs^2) -
+    margin, and the corner where the spiral stops heard only its border pass.)"""
     config = AOASSConfig(field_size=size, n_nodes=3000)
     empty = ObstacleMap(size, size)
     rng = np.random.default_rng(7)

@@ -19,13 +19,22 @@ least three non-collinear beacons (Eq. 18):
   least two beacons. The farther pass thus contributes >= 2 beacons when
   ``s <= sqrt(R^2 - Δs^2)``, and the nearer pass contributes many more, off that line.
 * A point on the field border lies ``margin`` beyond the outermost (clipped) pass, so the bound on
-  the gap between the two outermost passes is ``s_max = sqrt(R^2 - Δs^2) - margin``.
+  the gap between the two outermost passes is ``sqrt(R^2 - Δs^2) - margin``.
+* The corner where the spiral stops binds harder: the path breaks after the leg that completes
+  the fourth border pass, so the pass along the other border there starts ``s`` short of the
+  corner, at ``sqrt(margin^2 + (margin + s)^2)`` from it, and its first beacon may lie up to
+  ``Δs`` farther along the path. The corner hears an off-line beacon (beside the border pass's
+  collinear ones) when that distance plus ``Δs`` is at most R:
+  ``s_max = sqrt((R - Δs)^2 - margin^2) - margin``, below the passes' bound for every
+  ``Δs < R`` (``(R - Δs)^2 < R^2 - Δs^2``). (With the passes' bound alone, fields whose fitted
+  spacing came within a few decimetres of it left that corner uncovered: 143.5, 190, 237 m.)
 * The spacing is then fitted to the field so that the outermost ring lands exactly on the clipped
   border instead of leaving a thin redundant strip: with ``h`` the largest distance from the origin
   to a clipped border, ``k = ceil(h / s_max)`` rings and ``s = h / k <= s_max``.
 
-For R = 25 m, Δs = 2 m and a 1.5 m margin, s_max = 23.42 m; a 100 m field centred spiral gets
-k = 3 and s = 16.17 m, a 200 m field k = 5 and s = 19.70 m.
+For R = 25 m, Δs = 2 m and a 1.5 m margin, s_max = 21.45 m (the passes' bound alone: 23.42 m);
+a 100 m field centred spiral gets k = 3 and s = 16.17 m, a 200 m field k = 5 and s = 19.70 m
+(the same with either bound).
 """
 
 from __future__ import annotations
@@ -59,7 +68,8 @@ def max_spacing(radio_range: float, beacon_interval: float, margin: float = 0.0)
     """Largest spacing (m) between passes that keeps every point covered (module docstring)."""
     range_and_interval(radio_range, beacon_interval)
     real("margin", margin, "m", low=0.0)
-    s = math.sqrt(radio_range**2 - beacon_interval**2) - margin
+    reach = radio_range - beacon_interval          # the corner's bound (module docstring)
+    s = math.sqrt(reach**2 - margin**2) - margin if margin < reach else -math.inf
     if s <= 0:
         raise ValueError(f"margin={margin} m leaves no valid spacing for radio_range="
                          f"{radio_range} m")

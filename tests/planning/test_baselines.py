@@ -73,6 +73,36 @@ def test_ohm_sweep_vertices_spacing_and_errors():
         ohm.sweep_vertices(40.0, 40.0, 5.0, 25.0)
 
 
+@pytest.mark.parametrize("side", [120.0, 190.0])
+def test_ohm_on_an_empty_field_covers_its_whole_border(side):
+    """With the spiral's passes' bound the lines came 23.4 m apart on these fields and the
+    corners where a line starts or ends without a link heard only that line (Eq. 18 needs an
+    off-line beacon): the bound of those corners keeps them covered."""
+    from aoass_env.network import Network
+    from aoass_env.planning.baselines import OHM
+    config = AOASSConfig(field_size=side, obstacle_density=0.0, n_moving_obstacles=0,
+                         n_nodes=10)
+    field = ObstacleMap(side, side)
+    sim = Simulator(config, np.random.default_rng(0), obstacle_map=field, method="ohm",
+                    path=OHM.plan(field, config))
+    controller = OHM.controller(sim)
+    beacons = [sim.world.position.copy()]
+    for _ in range(sim.step_limit()):
+        speed, heading = controller.command(sim.world.position, sim.world.heading, config.dt)
+        if controller.done:
+            break
+        beacons += [b[1:] for b in sim.step(speed, heading).beacons]
+    edge = np.linspace(0.0, side, int(side * 2) + 1)
+    zero, far = np.zeros_like(edge), np.full_like(edge, side)
+    border = np.concatenate([np.c_[edge, zero], np.c_[edge, far], np.c_[zero, edge],
+                             np.c_[far, edge]])
+    net = Network(len(border), config)
+    for b in beacons:
+        d = border - b
+        net.record_beacon(b, np.flatnonzero(d[:, 0]**2 + d[:, 1]**2 <= config.radio_range**2))
+    assert controller.done and net.covered.all(), border[~net.covered][:4]
+
+
 def test_ohm_boundary_route_rejoins_the_line():
     region = free_region(SQUARE, 1.0, 1.0)
     base = shapely.LineString([(1.5, 10.0), (38.5, 10.0), (38.5, 30.0), (1.5, 30.0)])

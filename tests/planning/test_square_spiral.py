@@ -65,7 +65,8 @@ def test_an_off_centre_spiral_keeps_its_passes_spacing_apart(origin):
 
 def test_default_spacing_derivation():
     s_max = max_spacing(25.0, 2.0, 1.5)
-    assert s_max == pytest.approx(math.sqrt(25**2 - 2**2) - 1.5)
+    assert s_max == pytest.approx(math.sqrt(23**2 - 1.5**2) - 1.5)     # the corner's bound
+    assert s_max < math.sqrt(25**2 - 2**2) - 1.5                       # below the passes'
     s100 = default_spacing(100, 100, 25.0, 2.0, 1.5)
     assert s100 <= s_max and s100 == pytest.approx(48.5 / 3)
     assert default_spacing(200, 200, 25.0, 2.0, 1.5) == pytest.approx(98.5 / 5)
@@ -124,35 +125,39 @@ def test_spacing_functions_name_a_bad_argument():
 
 
 def test_max_spacing_by_hand():
-    """sqrt(R^2 - Δs^2) - margin: 25 and 7 m give exactly 24 m (no margin by default); an
-    interval other than 2 m tells Δs^2 from 2 Δs."""
-    assert max_spacing(25.0, 7.0) == 24.0
-    assert max_spacing(25.0, 7.0, 1.5) == 22.5
-    assert max_spacing(5.0, 3.0) == 4.0
+    """sqrt((R - Δs)^2 - margin^2) - margin, the bound of the corner where the spiral stops:
+    25 and 7 m give exactly 18 m (no margin by default; the passes' bound sqrt(R^2 - Δs^2)
+    would give 24 m), 8, 3 and a 3 m margin sqrt(25 - 9) - 3 = 1 m."""
+    assert max_spacing(25.0, 7.0) == 18.0
+    assert max_spacing(8.0, 3.0, 3.0) == 1.0
+    assert max_spacing(5.0, 3.0) == 2.0
+    with pytest.raises(ValueError, match="margin=4.0 m leaves no valid spacing"):
+        max_spacing(8.0, 3.0, 4.0)
 
 
 def test_default_spacing_by_hand():
     """h / ceil(h / s_max) with h the farthest clipped border from the origin: centred on a
-    100 m field with R = 25, Δs = 7 (s_max = 24), h = 50, 3 rings of 50/3 m; off centre at
-    x = 20 with a 1.5 m margin, h = 78.5 and s_max = 22.5: 4 rings of 19.625 m."""
+    100 m field with R = 25, Δs = 7 (s_max = 18), h = 50, 3 rings of 50/3 m; off centre at
+    x = 20 with a 1.5 m margin, h = 78.5 and s_max = sqrt(18^2 - 1.5^2) - 1.5 = 16.44: 5 rings
+    of 15.7 m."""
     assert default_spacing(100.0, 100.0, 25.0, 7.0) == pytest.approx(50 / 3)
-    assert default_spacing(100.0, 100.0, 25.0, 7.0, 1.5, (20.0, 50.0)) == pytest.approx(19.625)
-    assert default_spacing(100.0, 100.0, 25.0, 7.0, 1.5, (50.0, 80.0)) == pytest.approx(19.625)
+    assert default_spacing(100.0, 100.0, 25.0, 7.0, 1.5, (20.0, 50.0)) == pytest.approx(15.7)
+    assert default_spacing(100.0, 100.0, 25.0, 7.0, 1.5, (50.0, 80.0)) == pytest.approx(15.7)
     # wide: the most rings at s_max or more, at least one
     assert default_spacing(100.0, 100.0, 25.0, 7.0, wide=True) == pytest.approx(25.0)
     assert default_spacing(100.0, 100.0, 25.0, 7.0, 1.5, (20.0, 50.0), wide=True) == \
-        pytest.approx(78.5 / 3)
+        pytest.approx(78.5 / 4)
     assert default_spacing(30.0, 30.0, 25.0, 7.0, wide=True) == pytest.approx(15.0)
 
 
 def test_config_spacing_is_the_configs_or_the_fitted_one():
     """A config's spiral_spacing when set, else the fitted (not wide) spacing of its radio
-    range, beacon interval and edge margin: 48.5 / ceil(48.5 / (sqrt(25^2 - 2^2) - 1.5))."""
+    range, beacon interval and edge margin: 48.5 / ceil(48.5 / (sqrt(23^2 - 1.5^2) - 1.5))."""
     from aoass_env.config import AOASSConfig
     from aoass_env.planning.square_spiral import config_spacing
 
     config = AOASSConfig(radio_range=25.0, beacon_interval=2.0, edge_margin=1.5)
-    fitted = 48.5 / math.ceil(48.5 / (math.sqrt(25**2 - 2**2) - 1.5))
+    fitted = 48.5 / math.ceil(48.5 / (math.sqrt(23**2 - 1.5**2) - 1.5))
     assert config_spacing(config, 100.0, 100.0) == pytest.approx(fitted)
     assert config_spacing(config, 100.0, 100.0, wide=True) == pytest.approx(48.5 / 2)
     fixed = AOASSConfig(radio_range=25.0, beacon_interval=2.0, edge_margin=1.5,
@@ -211,7 +216,7 @@ def test_the_spiral_stops_once_all_four_borders_are_run_along(width, height, ori
 
 
 def test_a_field_of_whole_rings_at_max_spacing_gets_max_spacing():
-    """h = 48 m from the centre of a 96 m field and s_max = sqrt(25^2 - 7^2) = 24 m: exactly 2
-    rings of 24 m, fitted or wide (not 3 rings of 16 m, nor 1 of 48 m)."""
-    assert default_spacing(96.0, 96.0, 25.0, 7.0) == 24.0
-    assert default_spacing(96.0, 96.0, 25.0, 7.0, wide=True) == 24.0
+    """h = 36 m from the centre of a 72 m field and s_max = 25 - 7 = 18 m: exactly 2 rings of
+    18 m, fitted or wide (not 3 rings of 12 m, nor 1 of 36 m)."""
+    assert default_spacing(72.0, 72.0, 25.0, 7.0) == 18.0
+    assert default_spacing(72.0, 72.0, 25.0, 7.0, wide=True) == 18.0

@@ -55,8 +55,9 @@ _MIN_PROGRESS = 0.05
 def sweep_spacing(obstacle_map: ObstacleMap, config: AOASSConfig) -> float:
     """Line spacing (m): ``config.spiral_spacing``, else the square spiral's rule
     (:func:`~aoass_env.planning.square_spiral.default_spacing`) with the origin in a corner,
-    which fits whole gaps of at most ``sqrt(R^2 - beacon_interval^2) - edge_margin`` between
-    the lines at ``edge_margin`` and ``height - edge_margin``."""
+    which fits whole gaps of at most :func:`~aoass_env.planning.square_spiral.max_spacing`
+    between the lines at ``edge_margin`` and ``height - edge_margin`` (the bound of a corner
+    beside a line's unlinked end, as at the spiral's last corner)."""
     m = config.edge_margin
     return config.spiral_spacing or default_spacing(
         obstacle_map.width, obstacle_map.height, config.radio_range, config.beacon_interval,
