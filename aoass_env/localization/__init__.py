@@ -58,7 +58,7 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
         checkpoint: OLSTM checkpoint path (default: the shipped one,
             :data:`~aoass_env.localization.olstm.DEFAULT_CHECKPOINT`), or a loaded model
             (``"olstm-dvhop"`` only).
-        flood_limit: hop-count flooding limit [hops]; default
+        flood_limit: hop-count flooding limit [hops] (``"dvhop"`` only); default
             :data:`~aoass_env.localization.hops.DEFAULT_FLOOD_LIMIT`, or a prepared episode's
             own (another value is refused for a prepared episode: it floods only once).
 
@@ -66,8 +66,9 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
         (N, 2) estimates [m]; NaN rows for nodes not covered under Eq. 18.
 
     Raises:
-        ValueError: unknown method, a ``checkpoint`` for a method that reads none, or a bad
-            ``flood_limit``.
+        ValueError: unknown method, a ``checkpoint`` for a method that reads none, a
+            ``flood_limit`` for a method other than DV-Hop (only its hop counts flood), or a
+            bad ``flood_limit``.
         TypeError: ``checkpoint`` is neither a path nor an :class:`OLSTM`.
         BeaconLogError: the log holds no beacons or is otherwise invalid.
         CheckpointError: the checkpoint is missing or does not match this code.
@@ -76,6 +77,8 @@ def localize(log: BeaconLog | Episode, method: str = "olstm-dvhop", *,
         raise ValueError(f"method={method!r} must be one of {METHODS}")
     if checkpoint is not None and method != "olstm-dvhop":
         raise ValueError(f"checkpoint is read by method='olstm-dvhop' only, not {method!r}")
+    if flood_limit is not None and method != "dvhop":   # the others flood nothing: it was ignored
+        raise ValueError(f"flood_limit is read by method='dvhop' only, not {method!r}")
     if isinstance(log, Episode):
         if flood_limit is not None:
             check_flood_limit(flood_limit)

@@ -261,8 +261,11 @@ def _stencil_geometry(episode: Episode, cell: float, bins: int,
     cy = ((origin[:, 1, None] + offs + 0.5) * cell - xy[:, 1, None]).astype(np.float32)
     dx, dy = cx[:, :, None], cy[:, None, :]
     inside = _inside_cells(episode.log.obstacle_map.polygons, shape, cell)
-    # cells off the field or inside an obstacle are never in sight
-    pad = half + 1
+    # cells off the field or inside an obstacle are never in sight; the ring of excluded cells
+    # also holds the stencils of points off the field (a log may place a beacon up to 1 % of
+    # its side outside: such a stencil ran past the ring, a broadcast or index error)
+    beyond = max(0.0, float(-xy.min(initial=0.0)), float((xy - (w, h)).max(initial=0.0)))
+    pad = half + 1 + int(np.ceil(beyond / cell))
     excluded = np.ones((shape[0] + 2 * pad, shape[1] + 2 * pad), dtype=bool)
     excluded[pad:-pad, pad:-pad] = inside
     gx, gy = (origin[:, 0, None] + pad + offs)[:, :, None], (origin[:, 1, None] + pad + offs)
@@ -509,7 +512,10 @@ def node_consensus(episode: Episode, nodes: np.ndarray | None = None, *,
     if len(nodes) and n_heard.min() == 0:
         raise ValueError(f"node {nodes[np.argmin(n_heard)]} heard no beacon")
     reach = episode.log.radio_range * (1 + episode.config.doi) + beacon_raster.cell / np.sqrt(2)
-    result = Consensus(nodes=nodes, estimate=episode.heard_centroid[nodes].copy(),
+    # the fallback of a node whose discs do not overlap: its heard beacons' centroid, on the
+    # field (beacons a log places just off it put it off the field too)
+    result = Consensus(nodes=nodes, estimate=np.clip(episode.heard_centroid[nodes], 0.0,
+                                                     np.asarray(episode.field, dtype=float)),
                        spread=np.full(len(nodes), np.nan), violations=np.full(len(nodes), np.nan))
     fields = (result.estimate, result.spread, result.violations)
     every = np.arange(len(nodes))

@@ -63,7 +63,8 @@ class PairRecord:
 def pair_statistics(episode: Episode, nodes: np.ndarray, estimates: np.ndarray) -> PairRecord:
     """The pairs of ``nodes`` (S,) at ``estimates`` (S, 2) [m] with every beacon whose z is in
     [-Z_RANGE, Z_RANGE]: all heard ones, and the unheard ones in sight of the estimate (exact
-    line of sight). Needs ``DOI > 0``."""
+    line of sight; every unheard one when the episode's radio ignores obstacles,
+    ``line_of_sight`` false). Needs ``DOI > 0``."""
     log, doi = episode.log, episode.config.doi
     if doi <= 0:
         raise ValueError("pair statistics need radio irregularity (DOI > 0)")
@@ -86,7 +87,9 @@ def pair_statistics(episode: Episode, nodes: np.ndarray, estimates: np.ndarray) 
     heard = heard_keys[pos] == keys if len(heard_keys) else np.zeros(len(keys), dtype=bool)
     unheard = np.flatnonzero(~heard)
     sight = np.ones(len(keys), dtype=bool)
-    sight[unheard] = ~episode.line_of_sight.blocked(estimates[row[unheard]], xy[beacon[unheard]])
+    if episode.config.line_of_sight:    # else an obstacle blocks nothing (it used to drop them)
+        sight[unheard] = ~episode.line_of_sight.blocked(estimates[row[unheard]],
+                                                        xy[beacon[unheard]])
     degree = np.rint(np.degrees(np.arctan2(off[:, 1], off[:, 0]))).astype(np.int64) % 360
     z = (dist / radius - 1) / doi
     return PairRecord(degree[sight], z[sight], heard[sight], node[sight], float(doi))

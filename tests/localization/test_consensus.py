@@ -290,3 +290,30 @@ def test_neighbour_stages_reuse_the_beacon_scores_exactly(doi_sim, monkeypatch) 
     again = node_consensus(episode)
     for name in ("estimate", "spread", "violations"):
         np.testing.assert_array_equal(getattr(kept, name), getattr(again, name))
+
+
+@pytest.mark.parametrize("method", ["consensus", "olstm-dvhop"])
+@pytest.mark.parametrize("x", [-0.6, -1.0, 100.6, 101.0])
+def test_a_beacon_a_log_places_just_off_the_field_is_localized(method, x) -> None:
+    """A log may place a beacon up to 1 % of its side off the field; the consensus raster's
+    ring of off-field cells held only about one cell, and such a beacon's stencil ran past
+    it: a broadcast error or an IndexError, in a traceback."""
+    log = make_log(np.array([[5.0 if x < 50 else 95.0, 50.0]]),
+                   np.array([[x, 50.0], [10.0 if x < 50 else 90.0, 40.0],
+                             [10.0 if x < 50 else 90.0, 60.0]]),
+                   np.array([[0, 0], [1, 0], [2, 0]]), np.zeros((0, 2)))
+    est = localize(log, method)
+    assert np.isfinite(est).all() and (0.0 <= est).all() and (est <= 100.0).all()
+
+
+def test_the_fallback_centroid_of_beacons_off_the_field_stays_on_it() -> None:
+    """A covered node whose heard discs do not overlap keeps its heard beacons' centroid, which
+    beacons just off the field put off it (x = -0.225 m)."""
+    ys = np.r_[np.linspace(0, 10, 12), np.linspace(90, 100, 12)]
+    beacons = np.column_stack([np.where(np.arange(24) % 2, -0.45, 0.0), ys])
+    log = make_log(np.array([[0.5, 50.0]]), beacons, np.array([[i, 0] for i in range(24)]),
+                   np.zeros((0, 2)))
+    assert prepare(log).heard_centroid[0, 0] < 0.0
+    for method in ("consensus", "olstm-dvhop"):
+        est = localize(log, method)
+        assert est[0, 0] == 0.0 and est[0, 1] == 50.0

@@ -85,6 +85,14 @@ def test_a_checkpoint_for_a_method_that_reads_none_is_refused(small_log, method)
             localize(small_log, method, checkpoint=checkpoint)
 
 
+@pytest.mark.parametrize("method", ["consensus", "olstm-dvhop"])
+def test_a_flood_limit_for_a_method_that_floods_nothing_is_refused(small_log, method) -> None:
+    # it was ignored: localize(log, "consensus", flood_limit=999999) gave the default's answer
+    with pytest.raises(ValueError, match=rf"flood_limit is read by method='dvhop' only, not "
+                                         rf"'{method}'"):
+        localize(small_log, method, flood_limit=999999)
+
+
 @pytest.mark.parametrize("checkpoint", [3, b"m.pt", ["m.pt"]])
 def test_a_checkpoint_of_the_wrong_type_is_named(small_log, checkpoint) -> None:
     with pytest.raises(TypeError) as info:
