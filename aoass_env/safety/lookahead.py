@@ -34,7 +34,10 @@ look-ahead yields (no room for turns, headway priced higher) until half of it is
 horizon (:func:`look_ahead_horizon`) is one control period, a full stop from top speed and a
 half turn: 4.5 s with the defaults.
 
-All functions are pure (NumPy in, NumPy out); lengths in m, times in s, angles in rad.
+All functions are pure (NumPy in, NumPy out); lengths in m, times in s, angles in rad. The
+public ones (``__all__``) check their input; the steps of a rollout (``candidate_commands``,
+``predict_obstacles``, ``position_std``, ``segment_distances``, ``violation``) read what
+:func:`escape_velocity` and :func:`rollout` have checked, and are not part of the API.
 """
 
 from __future__ import annotations
@@ -51,9 +54,8 @@ from aoass_env.safety.checks import all_finite
 from aoass_env.trig import SCALAR_TRIG, compiled_trig
 from aoass_env.validators import integer, positive, real, vec2
 
-__all__ = ["Escape", "EscapeBudget", "bounce_reach", "candidate_commands", "escape_velocity",
-           "look_ahead_horizon", "obstacle_radii", "position_std", "predict_obstacles",
-           "rollout", "rollout_reach", "segment_distances", "violation"]
+__all__ = ["Escape", "EscapeBudget", "bounce_reach", "escape_velocity", "look_ahead_horizon",
+           "obstacle_radii", "rollout", "rollout_reach"]
 
 
 #: Weight of a predicted contact with an obstacle's bare disc (m x steps of overlap) against a
@@ -74,6 +76,10 @@ def look_ahead_horizon(max_speed: float, max_accel: float, max_turn_rate: float,
     """Seconds (s) the anchor needs to react to a threat and get away from it: one control
     period ``dt`` (s), a full stop from ``max_speed`` (m/s) at ``max_accel`` (m/s^2) and a half
     turn at ``max_turn_rate`` (rad/s): 0.5 + 2 + 2 = 4.5 s with the env's defaults."""
+    max_speed = real("max_speed", max_speed, "m/s", low=0.0)
+    max_accel = positive("max_accel", max_accel, "m/s^2")
+    max_turn_rate = positive("max_turn_rate", max_turn_rate, "rad/s")
+    dt = positive("dt", dt, "s")
     return dt + max_speed / max_accel + math.pi / max_turn_rate
 
 
@@ -911,6 +917,8 @@ class EscapeBudget:
 
     def update(self, escaping: bool, dt: float) -> None:
         """Account one period of ``dt`` (s) in which the look-ahead did (not) escape."""
+        if not (type(dt) is float and 0.0 <= dt < math.inf):   # a NaN spent it for good
+            dt = real("dt", dt, "s", low=0.0)
         if escaping:
             self.spent += dt
         else:

@@ -246,6 +246,11 @@ class _EdgeCache:
                               reach).tolist()
 
 
+#: How far from unit length (or from its edge's unit vector) a given direction may be
+#: (round-off of a normalisation; far below any geometric meaning).
+_UNIT_TOLERANCE = 1e-9
+
+
 @dataclass(frozen=True, eq=False)
 class StaticObstacles:
     """RVO2-style obstacle vertices. Each loop is a closed polygon chain; free space lies to the
@@ -293,6 +298,17 @@ class StaticObstacles:
             links[name] = index.astype(np.int64)
         if v and (links["next"][links["prev"]] != np.arange(v)).any():
             raise ValueError("StaticObstacles.next and .prev must be inverse permutations")
+        if v:
+            # the solver reads direction as the edge's unit vector: any other vector (a
+            # hand-built one) gave another velocity, silently
+            edge = point[links["next"]] - point
+            length = np.hypot(edge[:, 0], edge[:, 1])
+            if (length == 0.0).any():
+                raise ValueError("StaticObstacles.point repeats a vertex (a zero-length edge)")
+            if np.abs(direction - edge / length[:, None]).max() > _UNIT_TOLERANCE:
+                raise ValueError("StaticObstacles.direction must be the unit vector of each "
+                                 "edge, (point[next] - point) / its length (from_loops "
+                                 "builds it)")
         convex = np.asarray(self.convex)
         if convex.shape != (v,):
             raise ValueError(f"StaticObstacles.convex must be a ({v},) bool array, got shape "
@@ -761,6 +777,9 @@ def _table(lines: OrcaLines) -> np.ndarray:
                          f"{point.shape} and {direction.shape}")
     if n and not (np.isfinite(point).all() and np.isfinite(direction).all()):
         raise ValueError("lines must be finite (NaN or inf found)")
+    if n and np.abs(np.hypot(direction[:, 0], direction[:, 1]) - 1.0).max() > _UNIT_TOLERANCE:
+        # the solver assumes unit directions: a longer one gave a velocity off its half-plane
+        raise ValueError("lines.direction must hold unit vectors")
     n_static = lines.n_static
     if isinstance(n_static, bool) or not isinstance(n_static, (int, np.integer)) \
             or not 0 <= n_static <= n:

@@ -34,8 +34,9 @@ from aoass_env.safety.checks import all_finite, finite
 from aoass_env.trig import SCALAR_TRIG, compiled_polar, compiled_trig, hypot
 from aoass_env.validators import finite_array, positive, real, vec2
 
-__all__ = ["BrakingEnvelope", "braking_speed", "clearance", "free_travel", "speed_bounds",
-           "turn_headings", "unicycle_command"]
+# the steps of a command (braking_speed, clearance, free_travel, speed_bounds, turn_headings)
+# read what unicycle_command and BrakingEnvelope have checked: not part of the API
+__all__ = ["BrakingEnvelope", "unicycle_command"]
 
 #: Below this speed (m/s) ORCA's velocity has no usable direction.
 _STILL = 1e-9

@@ -266,6 +266,14 @@ def test_matches_scikit_fuzzy():
         omega, v = FLC(d, h)
         assert omega == pytest.approx(sim.output["turn"], abs=5e-4), (d, h)
         assert v == pytest.approx(sim.output["speed"], abs=5e-4), (d, h)
+    # the largest difference found (a review's dense search): a clipped output term whose kink
+    # falls between the output grid's points, the O(h^2) of the centroid (docs/safety.md)
+    for h in (0.76794, -0.76794):
+        sim.input["distance"], sim.input["heading"] = 0.5, h
+        sim.compute()
+        omega, v = FLC(0.5, h)
+        assert 5e-4 < abs(omega - sim.output["turn"]) < 1e-3
+        assert v == pytest.approx(sim.output["speed"], abs=5e-4)
 
 
 def _old_fuzzify_scalar(x: float, table: tuple) -> list[float]:

@@ -778,3 +778,19 @@ def test_rollout_refuses_nonfinite_or_bad_inputs(kw, match):
     with pytest.raises(ValueError, match=match):
         rollout(**dict(args, **kw))
     assert rollout(**dict(args, n_steps=4.0)).shape == (1, 4, 2)     # a whole float is a count
+
+
+def test_the_horizon_and_the_budget_refuse_bad_input_naming_it():
+    """look_ahead_horizon divided by zero (a traceback) and took a negative speed; a NaN period
+    spent the escape budget for good (spent NaN: it could never yield again)."""
+    from aoass_env.safety.lookahead import EscapeBudget, look_ahead_horizon
+    assert look_ahead_horizon(2.0, 1.0, 1.0, 0.5) == pytest.approx(0.5 + 2.0 + math.pi)
+    for args, name in (((2.0, 0.0, 1.0, 0.5), "max_accel"), ((-1.0, 1.0, 1.0, 0.5), "max_speed"),
+                       ((2.0, 1.0, 0.0, 0.5), "max_turn_rate"), ((2.0, 1.0, 1.0, math.nan), "dt")):
+        with pytest.raises(ValueError, match=rf"^{name}="):
+            look_ahead_horizon(*args)
+    budget = EscapeBudget(budget=5.0, refill=0.5)
+    for dt in (math.nan, -0.5, math.inf):
+        with pytest.raises(ValueError, match=r"^dt="):
+            budget.update(True, dt)
+    assert budget.spent == 0.0

@@ -455,6 +455,24 @@ def test_bad_lines_and_reach_name_the_parameter():
         StaticObstacles.from_loops([BOX]).edges_near((0, 0), -1.0)
 
 
+def test_hand_built_directions_that_are_not_unit_edge_vectors_are_refused():
+    """The solver reads directions as unit vectors (of each edge): a wall built with [0, 5]
+    instead of [0, 1] gave v* = [-0.06, -1.0] instead of [0.25, 0], and an ORCA line with
+    direction [10, 0] a velocity off its own half-plane; both were taken silently."""
+    wall = StaticObstacles.from_loops([np.array([[1.0, -5.0], [1.0, 5.0]])])
+    with pytest.raises(ValueError, match=r"StaticObstacles.direction must be the unit vector "
+                                         r"of each edge"):
+        StaticObstacles(wall.point, 5.0 * wall.direction, wall.next, wall.prev, wall.convex)
+    again = StaticObstacles(wall.point, wall.direction, wall.next, wall.prev, wall.convex)
+    np.testing.assert_array_equal(again.direction, wall.direction)
+    with pytest.raises(ValueError, match=r"lines.direction must hold unit vectors"):
+        solve_velocity(OrcaLines(np.array([[0.0, 0.5]]), np.array([[10.0, 0.0]]), 0),
+                       (1.0, 0.0), 1.0)
+    v = solve_velocity(OrcaLines(np.array([[0.0, 0.5]]), np.array([[1.0, 0.0]]), 0),
+                       (1.0, 0.0), 1.0)
+    assert v[1] >= 0.5 - 1e-12                     # on its half-plane, left of the line
+
+
 # --------------------------------------------------------------------------------------------
 # properties
 # --------------------------------------------------------------------------------------------
