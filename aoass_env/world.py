@@ -90,8 +90,9 @@ def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
 def _obstacle_ids(obstacle_map: ObstacleMap) -> np.ndarray:
     """Obstacle index of every convex part: parts of one connected obstacle share an index.
 
-    Obstacles are the connected components of the obstacle union inside the field (overlapping
-    or touching polygons form one obstacle); a part wholly outside the field gets its own index.
+    Obstacles are the polygons of the obstacle union inside the field (overlapping polygons, or
+    polygons sharing a stretch of edge, form one obstacle; two that meet at a single point stay
+    two, as shapely's union leaves them); a part wholly outside the field gets its own index.
     """
     parts = obstacle_map.convex_parts
     if not parts:
@@ -205,6 +206,15 @@ class World:
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
         self._bind_chipmunk()
+        # pymunk does not pickle the space's arbiters: every contact in progress begins again
+        # at the copy's next substep. Counted as touching, it never separated in the copy (the
+        # obstacle's later contacts went uncounted); as a fresh begin it would count twice. So
+        # the copy starts untouched with those obstacles let go now: the begin is not a new
+        # contact, and a contact that ends instead leaves the state the original reaches.
+        for key, touching in self._touching.items():
+            if touching:
+                self._touching[key] = 0
+                self._released_at[key] = self._substeps_done
 
     def _bind_chipmunk(self) -> None:
         """The Chipmunk handles of the space, the anchor and the moving obstacles, and fresh

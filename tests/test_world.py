@@ -448,6 +448,35 @@ def test_a_copied_world_runs_on_like_the_original(clone):
     assert w.contacts == twin.contacts
 
 
+@pytest.mark.parametrize("clone", [lambda w: pickle.loads(pickle.dumps(w)), copy.deepcopy],
+                         ids=["pickle", "deepcopy"])
+def test_a_world_copied_while_a_moving_obstacle_touches_the_anchor_counts_alike(clone):
+    """pymunk does not copy the space's arbiters: the copy kept the contact in progress as
+    touching, never saw it separate, and left that obstacle's later contacts uncounted (7
+    moving contacts against the original's 8)."""
+    from aoass_env.config import AOASSConfig
+    from aoass_env.maps import ObstacleMap
+    from aoass_env.world import World
+    config = AOASSConfig(field_size=30.0, n_moving_obstacles=1, moving_obstacle_speed=(1.0, 1.0),
+                         moving_obstacle_turn_rate=0.0)
+    w = World(config, ObstacleMap(30.0, 30.0, ()), np.random.default_rng(0), (15.0, 15.0))
+    w._mpos[0] = (12.0, 15.0)
+    w._mbodies[0].position = (12.0, 15.0)
+    w._mvel[0] = (1.0, 0.0)
+    while not w._touching.get(("moving", 0)):
+        w.advance(0.0, 0.0)
+    twin = clone(w)
+    for world in (w, twin):
+        for _ in range(4):
+            world.advance(0.0, 0.0)              # the disc bounces off
+        world._mvel[0] = (1.0, 0.0)              # and is sent back: a second contact
+        for _ in range(12):
+            world.advance(0.0, 0.0)
+    assert tuple(w.position) == tuple(twin.position) and w.moving_xy == twin.moving_xy
+    assert (w.moving_contacts, w._touching) == (twin.moving_contacts, twin._touching)
+    assert w.moving_contacts >= 2
+
+
 def test_the_velocity_function_in_c_sets_the_gravity_like_the_python_callback(monkeypatch):
     """The anchor's velocity phase: Chipmunk's cpBodySetVelocity called as the velocity function
     (when its probe passes, the form used) moves the anchor as a Python callback making the same
