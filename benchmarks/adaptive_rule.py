@@ -53,6 +53,7 @@ from aoass_env.network import Network
 from aoass_env.planning import AdaptiveConfig
 from aoass_env.planning.adaptive import AdaptiveSweep, coverable, site_radio, sweep_config
 from aoass_env.simulator import Simulator
+from aoass_env.validators import argparse_number
 
 
 @dataclass(frozen=True)
@@ -223,12 +224,13 @@ def main(argv: Sequence[str] | None = None) -> dict[str, list[Outcome]]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--split", choices=("fit", "validation"),
                         help="which maps/train split (default fit; never maps/test)")
-    parser.add_argument("--field", type=float, default=100.0, help="field size of the maps (m)")
+    parser.add_argument("--field", type=argparse_number(float, 0.0, low_open=True),
+                        default=100.0, help="field size of the maps (m)")
     parser.add_argument("--densities", type=float, nargs="+", default=[0.1, 0.2, 0.3, 0.4])
     parser.add_argument("--seeds", type=int, default=2, help="seeds (nodes, obstacles) per map")
     parser.add_argument("--nodes", type=int, default=300, help="N")
     parser.add_argument("--limit", type=int, help="only the first LIMIT maps of the split")
-    parser.add_argument("--fresh", type=int, metavar="SEED",
+    parser.add_argument("--fresh", type=argparse_number(int, 0), metavar="SEED",
                         help="freshly generated maps from SEED instead of maps/train")
     parser.add_argument("--maps", type=int,
                         help="with --fresh, generated maps per density (default 4)")

@@ -45,7 +45,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from aoass_env.atomic import write_text_atomic  # noqa: E402
+from aoass_env.atomic import folder_problem, write_text_atomic  # noqa: E402
 from aoass_env.beacon_log import BeaconLog, BeaconLogError  # noqa: E402
 from aoass_env.config import AOASSConfig, ConfigError  # noqa: E402
 from aoass_env.localization import localize, prepare  # noqa: E402
@@ -385,6 +385,10 @@ def main() -> None:
     dois = tuple(args.dois)
     specs = accuracy_specs(args.seeds, dois, tuple(args.densities))
     logs = args.out / "logs" if args.logs is None else args.logs
+    for flag, folder in (("--out", args.out), ("--logs", logs)):
+        problem = folder_problem(folder)     # refused now, not in a traceback after the work
+        if problem is not None:
+            parser.error(f"{flag} {folder}: {problem}")
     if args.cached_only:
         specs = [s for s in specs if (logs / s.file_name).is_file()]
         if not specs:

@@ -122,7 +122,10 @@ REFERENCE = "f04fd57"
 
 def replayable(function: Any, calls: list[tuple[tuple, dict]], ref: str, name: str) -> None:
     """Exit with one line when ``function`` (``name`` as of commit ``ref``) cannot take the
-    arguments of the recorded ``calls`` (a parameter added since ``ref``)."""
+    arguments of the recorded ``calls`` (a parameter added since ``ref``), or when no call was
+    recorded (too few --steps: the per-call times divided by zero)."""
+    if not calls:
+        raise SystemExit(f"no {name} call was recorded in the replayed steps; give more --steps")
     signature = inspect.signature(function)
     for args, kwargs in calls:
         try:

@@ -28,7 +28,8 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--steps", type=argparse_number(int, 1), default=3000)
     parser.add_argument("--density", type=argparse_number(float, 0.0), default=0.2)
-    parser.add_argument("--seed", type=int, default=881000, help="the map's and world's seed")
+    parser.add_argument("--seed", type=argparse_number(int, 0), default=881000,
+                        help="the map's and world's seed")
     args = parser.parse_args(argv)
     if args.density > 0.6:
         parser.error(f"--density must be at most 0.6, got {args.density}")

@@ -36,6 +36,7 @@ from safety import DENSITIES, STACKS  # noqa: E402  (benchmarks/safety.py)
 from aoass_env.atomic import folder_problem, write_text_atomic  # noqa: E402
 from aoass_env.config import AOASSConfig  # noqa: E402
 from aoass_env.safety.lookahead import position_std  # noqa: E402
+from aoass_env.validators import argparse_number  # noqa: E402
 from aoass_env.wrappers import make_safe_env  # noqa: E402
 
 #: control periods logged before each contact
@@ -147,7 +148,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--stack", default="stack", choices=[k for k in STACKS if k != "bare"])
     parser.add_argument("--policy", default="random", choices=["random", "zero"])
     parser.add_argument("--episodes", type=int, default=150)
-    parser.add_argument("--first-seed", type=int, default=61_000)
+    parser.add_argument("--first-seed", type=argparse_number(int, 0), default=61_000)
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("out/safety_contacts.jsonl"))
     parser.add_argument("--set", nargs="+", default=[], metavar="FIELD=JSON",

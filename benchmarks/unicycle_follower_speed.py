@@ -188,6 +188,8 @@ def main() -> None:
     old_follower = reference_module(args.ref, "aoass_env/planning/follower.py", "follower_ref")
 
     calls = record_unicycle(args.steps)
+    if not calls:       # the per-call times would divide by zero
+        raise SystemExit("no unicycle_command call was recorded; give more --steps")
     old_calls = [(a[:8] + ((None if a[8] is None else old_unicycle.BrakingEnvelope(
         a[8].starts, a[8].ends, a[8].position, a[8].radius, a[8].max_accel, a[8].dt)),), k)
         for a, k in calls]

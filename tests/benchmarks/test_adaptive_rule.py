@@ -172,3 +172,17 @@ def test_variants_print_their_paired_differences_to_the_rule(bench, capsys):
     gap = table["no plan"][0].path - table["rule"][0].path
     assert f"| no plan | {100 * (table['no plan'][0].coverage - table['rule'][0].coverage):+.2f}" \
         f" ± nan | {gap:+.0f} ± nan |" in out
+
+
+@pytest.mark.parametrize("value", ["nan", "0", "-5"])
+def test_a_field_size_that_is_no_size_is_refused(bench, capsys, value):
+    # it was a MapError traceback from list_maps or generate_map
+    with pytest.raises(SystemExit):
+        bench.main(["--field", value])
+    assert f"argument --field: must be a finite number > 0, got '{value}'" in capsys.readouterr().err
+
+
+def test_a_negative_fresh_seed_is_refused(bench, capsys):
+    with pytest.raises(SystemExit):
+        bench.main(["--fresh", "-1"])
+    assert "argument --fresh: must be an integer >= 0, got '-1'" in capsys.readouterr().err

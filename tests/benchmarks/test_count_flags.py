@@ -33,7 +33,8 @@ CASES = [
     ("safety_speedup", "--rounds", "0", 1),
     ("vector_envs", "--steps", "0", 1), ("vector_envs", "--envs", "0", 1),
     ("vector_envs", "--warm-up", "0", 1), ("vector_envs", "--seed", "-1", 0),
-    ("rays", "--steps", "0", 1),
+    ("rays", "--steps", "0", 1), ("rays", "--seed", "-1", 0),
+    ("safety_contacts", "--first-seed", "-5", 0),
 ]
 
 #: one interpreter runs every case (some scripts set thread variables when imported): each

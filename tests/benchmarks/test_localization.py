@@ -89,3 +89,18 @@ def test_bad_flags_are_one_line_before_any_log(monkeypatch, capsys, tmp_path, ar
     line = capsys.readouterr().err.strip().splitlines()[-1]
     assert line.startswith(f"localization.py: error: {message}")
     assert not list(tmp_path.iterdir())
+
+
+def test_an_output_folder_that_is_a_file_is_one_line_before_any_log(monkeypatch, capsys,
+                                                                    tmp_path):
+    # it was a NotADirectoryError traceback when the first log was written
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    bench = load_benchmark("localization")
+    monkeypatch.setattr("sys.argv", ["localization.py", "--out", str(afile), "--seeds", "1",
+                                     "--dois", "0", "--densities", "0.1", "--logs-only"])
+    with pytest.raises(SystemExit) as exit_:
+        bench.main()
+    assert exit_.value.code == 2
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert line == f"localization.py: error: --out {afile}: {afile} is a file, not a folder"
