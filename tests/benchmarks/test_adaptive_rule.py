@@ -179,7 +179,8 @@ def test_a_field_size_that_is_no_size_is_refused(bench, capsys, value):
     # it was a MapError traceback from list_maps or generate_map
     with pytest.raises(SystemExit):
         bench.main(["--field", value])
-    assert f"argument --field: must be a finite number > 0, got '{value}'" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"argument --field: must be a finite number > 0, got '{value}'" in err
 
 
 def test_a_negative_fresh_seed_is_refused(bench, capsys):
