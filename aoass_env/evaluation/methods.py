@@ -74,8 +74,8 @@ POLICY_ALGO = "td3-lstm"
 _ACTION_KEYS = ("action_speed_scale", "action_heading_scale", "obs_coverage_sectors")
 #: The shipped adaptive policy (``aoass-adaptive``) and the command that produces it.
 ADAPTIVE_POLICY = shipped_dir("checkpoints") / "aoass_adaptive" / "best.zip"
-ADAPTIVE_POLICY_COMMAND = ("python3 train.py --config configs/aoass_adaptive.yml --seed 3 "
-                           "--out checkpoints/aoass_adaptive --overwrite")
+ADAPTIVE_POLICY_COMMAND = ("python3 train.py --config configs/aoass_adaptive.yml --seed 4 "
+                           "--threads 1 --out checkpoints/aoass_adaptive --overwrite")
 #: The command that produces :data:`DEFAULT_POLICY` (``--overwrite``: the folder keeps the
 #: shipped run's other files).
 POLICY_COMMAND = ("python3 train.py --algo td3-lstm --out checkpoints/aoass_td3_lstm "

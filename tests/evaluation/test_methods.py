@@ -225,3 +225,17 @@ def test_a_constant_action_replaces_the_policy_in_its_stack(monkeypatch, tmp_pat
         run((0.0, math.nan))
     with pytest.raises(ValueError, match="must lie in"):
         run((1.5, 0.0))
+
+
+def test_the_adaptive_policys_command_is_the_one_its_run_record_names():
+    """The command printed for a missing adaptive checkpoint said --seed 3 (an earlier
+    policy's) while the shipped one was trained with --seed 4 --threads 1."""
+    import yaml
+
+    from aoass_env.evaluation.methods import ADAPTIVE_POLICY
+    record = yaml.safe_load(ADAPTIVE_POLICY.with_name("run.yml").read_text())
+    args = ADAPTIVE_POLICY_COMMAND.split()
+    flags = {a: b for a, b in zip(args, args[1:], strict=False) if a.startswith("--")}
+    assert (int(flags["--seed"]), flags["--config"], int(flags["--threads"])) == (
+        record["seed"], "configs/aoass_adaptive.yml", 1)
+    assert f"--seed {record['seed']} --threads 1" in record["command"]
