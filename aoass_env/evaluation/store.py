@@ -32,7 +32,7 @@ except ImportError:       # Windows: no advisory locks
 
 __all__ = ["COLUMNS", "CONFIG_DEFAULTS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS",
            "LOCALIZATION_FIELDS", "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey", "EpisodeStore",
-           "EvaluationError", "apply_inputs", "check_inputs", "checked_row", "RUNS_FILE",
+           "EvaluationError", "apply_inputs", "checked_row", "RUNS_FILE",
            "comparable_lines", "config_input", "file_digest", "in_key_order", "read_episodes",
            "read_runs", "record_run", "row_key", "stale_rows"]
 
@@ -234,7 +234,7 @@ def file_digest(*paths: str | os.PathLike[str]) -> str:
     return digest.hexdigest()
 
 
-#: The input names (:func:`check_inputs`) of the config defaults a method is built from start
+#: The input names (:func:`stale_rows`) of the config defaults a method is built from start
 #: with this (:func:`config_input`); a record of an older evaluate.py holds it alone, for the
 #: defaults of every method's configs.
 CONFIG_DEFAULTS = "config defaults"
@@ -247,7 +247,7 @@ def config_input(method: str) -> str:
 
 
 def _input_phrase(name: str) -> str:
-    """How an input of :func:`check_inputs` is named in its refusal: "another policy
+    """How an input of :func:`stale_rows` is named in its refusal: "another policy
     checkpoint", "another aoass-adaptive checkpoint", "other config defaults of spiral",
     "another aoass-rule stack"."""
     if name.startswith(CONFIG_DEFAULTS):
@@ -255,15 +255,6 @@ def _input_phrase(name: str) -> str:
     if name.endswith(" stack"):
         return f"another {name} (the tracker, safety filter or action type of its run record)"
     return f"another {name.removesuffix(' checkpoint')} checkpoint"
-
-
-def check_inputs(store: EpisodeStore, inputs: dict[str, str],
-                 scope: Mapping[str, Collection[str]] | None = None,
-                 discard: bool = False, localizers: Mapping[str, str] | None = None) -> None:
-    """Refuse to resume ``store`` with other checkpoints or config defaults than its rows were
-    produced with, or with ``discard`` drop those rows (the episodes then run again):
-    :func:`stale_rows`, then :func:`apply_inputs`."""
-    apply_inputs(store, inputs, stale_rows(store, inputs, scope, discard, localizers))
 
 
 def stale_rows(store: EpisodeStore, inputs: dict[str, str],

@@ -14,14 +14,21 @@ from aoass_env.evaluation.store import (
     EpisodeKey,
     EpisodeStore,
     EvaluationError,
-    check_inputs,
+    apply_inputs,
     comparable_lines,
     config_input,
     file_digest,
     read_episodes,
     read_runs,
     record_run,
+    stale_rows,
 )
+
+
+def check_inputs(store, inputs, scope=None, discard=False, localizers=None):
+    """What evaluate.py does with a folder's inputs: decide the stale rows (refusing without
+    ``discard``), then drop them and record the inputs."""
+    apply_inputs(store, inputs, stale_rows(store, inputs, scope, discard, localizers))
 
 
 def row(seed: int = 0, localizer: str = "dvhop", **values) -> dict:
