@@ -75,6 +75,7 @@ _VELOCITY_FROM_GRAVITY = _velocity_from_gravity()
 
 _SLOP_FRACTION = 0.01   # allowed anchor overlap (pymunk collision_slop) / anchor radius
 _APPROACH_TOL = 1e-6    # a touched shape stops a disc moving into it faster than this * speed
+_TOUCH_TOL = 1e-9      # a swept disc starting this near (m) a shape touches it (_shape_hit)
 _MAX_BOUNCES = 4        # reflections of one moving obstacle within one physics substep
 _SPAWN_TRIES = 1000     # random candidates per moving obstacle before giving up
 _SKIP_MARGIN = MARGIN   # slack (m) of the proofs that a skipped query would have missed
@@ -350,9 +351,13 @@ class World:
         shape = arbiter.shapes[1]
         (ax, ay), (mx, my) = self._anchor.position, shape.body.position
         norm = math.hypot(mx - ax, my - ay)
+        i = self._owner[shape][1]
         if norm > 0.0:
-            i = self._owner[shape][1]
             self._mvel[i] = _reflect(self._mvel[i], ((mx - ax) / norm, (my - ay) / norm))
+        # the solver reads the disc's body velocity, which still holds this substep's approach
+        # (its move into the anchor over sdt): it handed that to the anchor, knocking it. The
+        # disc's own velocity (reflected, moving off) leaves the anchor to its command.
+        _cp.cpBodySetVelocity(self._c_moving[i], self._mvel[i])
 
     # --- stepping -------------------------------------------------------------------------
     def step(self, speed_cmd: float, heading_cmd: float) -> np.ndarray:
@@ -473,7 +478,7 @@ class World:
                     break
                 alpha = hit[0]
                 x, y = x + (ex - x) * alpha, y + (ey - y) * alpha
-                vx, vy = _reflect((vx, vy), hit[1:])
+                vx, vy = _reflect((vx, vy), hit[1:3])
                 rest *= 1.0 - alpha
             self._mvel[i] = (vx, vy)
             set_velocity(body, ((x - x0) / sdt, (y - y0) / sdt))
@@ -481,18 +486,28 @@ class World:
     def _shape_hit(self, shape: Any, start: tuple[float, float], end: tuple[float, float],
                    radius: float) -> tuple[float, float, float] | None:
         """(alpha, normal x, normal y) where a disc of ``radius`` (m) swept from ``start`` to
-        ``end`` (m) first touches the Chipmunk ``shape``, or None."""
+        ``end`` (m) first touches the Chipmunk ``shape``, or None.
+
+        A disc starting within ``_TOUCH_TOL`` of the shape touches it at alpha 0 (normal: the
+        distance's gradient): Chipmunk's sweep misses a face the disc starts on (1e-15 m off
+        it, where a bounce leaves it), which let a disc turning back into it pass through.
+        """
         info = self._seg_info
-        if not _cp.cpShapeSegmentQuery(shape, start, end, radius, info):
-            return None
-        normal = info.normal
-        return info.alpha, normal.x, normal.y
+        if _cp.cpShapeSegmentQuery(shape, start, end, radius, info):
+            normal = info.normal
+            return info.alpha, normal.x, normal.y
+        near = self._point_info
+        if _cp.cpShapePointQuery(shape, start, near) < radius + _TOUCH_TOL:
+            gradient = near.gradient
+            return 0.0, gradient.x, gradient.y
+        return None
 
     def _first_hit(self, start: tuple[float, float], end: tuple[float, float], radius: float,
                    v: tuple[float, float], shape_filter: pymunk.ShapeFilter,
-                   ) -> tuple[float, float, float] | None:
-        """(alpha, normal x, normal y) of the first shape that blocks a disc of ``radius`` (m)
-        swept from ``start`` to ``end`` with velocity ``v`` (see :func:`_blocks`), or None.
+                   ) -> tuple[float, float, float, Any] | None:
+        """(alpha, normal x, normal y, Chipmunk shape) of the first shape that blocks a disc of
+        ``radius`` (m) swept from ``start`` to ``end`` with velocity ``v`` (see
+        :func:`_blocks`), or None.
 
         The broadphase of Space.segment_query ignores the radius (Chipmunk2D issue #138), so
         the candidates come from a box query of the swept disc and each is tested exactly.
@@ -505,7 +520,7 @@ class World:
         for shape in self._space.bb_query(box, shape_filter):
             hit = self._shape_hit(shape._shape, start, end, radius)
             if _blocks(hit, vx, vy) and (best is None or hit[0] < best[0]):
-                best = hit
+                best = (*hit, shape._shape)
         return best
 
     def _limit_anchor_move(self, x: float, y: float) -> tuple[float, float]:
@@ -516,9 +531,11 @@ class World:
         through, an obstacle it reaches mid-substep; the move is shortened to end ``skin`` inside
         that shape, and pymunk's solver takes over from the contact. A shape already touched
         stops the anchor only if the solved velocity still points into it (pymunk cannot always
-        satisfy a contact with a kinematic moving obstacle and a static one at once). The sweep
-        is skipped when the clearance certificates and the moving obstacles' distances prove it
-        free.
+        satisfy a contact with a kinematic moving obstacle and a static one at once, nor two
+        static ones in a wedge); then the move is at most what is left of ``skin`` past the
+        anchor's overlap with that shape (none once the overlap is ``skin`` or more), so its own
+        moves never take it deeper than ``skin``. The sweep is skipped when the clearance
+        certificates and the moving obstacles' distances prove it free.
         """
         v = _cp.cpBodyGetVelocity(self._c_anchor)
         vx, vy = v.x, v.y
@@ -538,7 +555,12 @@ class World:
         end = (x + vx * self._sdt, y + vy * self._sdt)
         hit = self._first_hit((x, y), end, r, (vx, vy), _SENSED)
         if hit is not None:
-            allowed = hit[0] * length + self._skin
+            alpha, shape = hit[0], hit[3]
+            if alpha > 0.0:
+                allowed = alpha * length + self._skin
+            else:       # touching: the overlap is r minus the centre's distance to the shape
+                overlap = r - _cp.cpShapePointQuery(shape, (x, y), self._point_info)
+                allowed = max(self._skin - overlap, 0.0)
             if allowed < length:
                 vx, vy = vx * allowed / length, vy * allowed / length
                 _cp.cpBodySetVelocity(self._c_anchor, (vx, vy))
