@@ -9,6 +9,7 @@ model (dynamics, moving obstacles, sensing, contact semantics) in full.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -478,7 +479,7 @@ class World:
                     break
                 alpha = hit[0]
                 x, y = x + (ex - x) * alpha, y + (ey - y) * alpha
-                vx, vy = _reflect((vx, vy), hit[1:3])
+                vx, vy = _reflect((vx, vy), hit[1:])
                 rest *= 1.0 - alpha
             self._mvel[i] = (vx, vy)
             set_velocity(body, ((x - x0) / sdt, (y - y0) / sdt))
@@ -488,26 +489,29 @@ class World:
         """(alpha, normal x, normal y) where a disc of ``radius`` (m) swept from ``start`` to
         ``end`` (m) first touches the Chipmunk ``shape``, or None.
 
-        A disc starting within ``_TOUCH_TOL`` of the shape touches it at alpha 0 (normal: the
-        distance's gradient): Chipmunk's sweep misses a face the disc starts on (1e-15 m off
-        it, where a bounce leaves it), which let a disc turning back into it pass through.
+        A disc starting within ``_TOUCH_TOL`` of the shape (or inside it) touches it at alpha 0,
+        the normal pointing out of the shape (the distance's gradient); only a disc clear of it
+        is swept. Chipmunk's sweep misses a face the disc starts on (1e-15 m off it, where a
+        bounce leaves it) and may return a later face or vertex of the same shape, which let a
+        disc turning back into the face pass through it; from inside a shape its normal points
+        inward.
         """
-        info = self._seg_info
-        if _cp.cpShapeSegmentQuery(shape, start, end, radius, info):
-            normal = info.normal
-            return info.alpha, normal.x, normal.y
         near = self._point_info
         if _cp.cpShapePointQuery(shape, start, near) < radius + _TOUCH_TOL:
             gradient = near.gradient
             return 0.0, gradient.x, gradient.y
+        info = self._seg_info
+        if _cp.cpShapeSegmentQuery(shape, start, end, radius, info):
+            normal = info.normal
+            return info.alpha, normal.x, normal.y
         return None
 
-    def _first_hit(self, start: tuple[float, float], end: tuple[float, float], radius: float,
-                   v: tuple[float, float], shape_filter: pymunk.ShapeFilter,
-                   ) -> tuple[float, float, float, Any] | None:
-        """(alpha, normal x, normal y, Chipmunk shape) of the first shape that blocks a disc of
-        ``radius`` (m) swept from ``start`` to ``end`` with velocity ``v`` (see
-        :func:`_blocks`), or None.
+    def _blocking_hits(self, start: tuple[float, float], end: tuple[float, float],
+                       radius: float, v: tuple[float, float], shape_filter: pymunk.ShapeFilter,
+                       ) -> Iterator[tuple[tuple[float, float, float], Any]]:
+        """Each shape that blocks a disc of ``radius`` (m) swept from ``start`` to ``end`` with
+        velocity ``v`` (see :func:`_blocks`): its hit (alpha, normal x, normal y) and the
+        Chipmunk shape.
 
         The broadphase of Space.segment_query ignores the radius (Chipmunk2D issue #138), so
         the candidates come from a box query of the swept disc and each is tested exactly.
@@ -515,12 +519,21 @@ class World:
         (x0, y0), (x1, y1) = start, end
         box = pymunk.BB(min(x0, x1) - radius, min(y0, y1) - radius,
                         max(x0, x1) + radius, max(y0, y1) + radius)
-        best = None
         vx, vy = v
         for shape in self._space.bb_query(box, shape_filter):
-            hit = self._shape_hit(shape._shape, start, end, radius)
-            if _blocks(hit, vx, vy) and (best is None or hit[0] < best[0]):
-                best = (*hit, shape._shape)
+            c_shape = shape._shape
+            hit = self._shape_hit(c_shape, start, end, radius)
+            if _blocks(hit, vx, vy):
+                yield hit, c_shape
+
+    def _first_hit(self, start: tuple[float, float], end: tuple[float, float], radius: float,
+                   v: tuple[float, float], shape_filter: pymunk.ShapeFilter,
+                   ) -> tuple[float, float, float] | None:
+        """(alpha, normal x, normal y) of the first of :meth:`_blocking_hits`, or None."""
+        best = None
+        for hit, _ in self._blocking_hits(start, end, radius, v, shape_filter):
+            if best is None or hit[0] < best[0]:
+                best = hit
         return best
 
     def _limit_anchor_move(self, x: float, y: float) -> tuple[float, float]:
@@ -533,16 +546,17 @@ class World:
         stops the anchor only if the solved velocity still points into it (pymunk cannot always
         satisfy a contact with a kinematic moving obstacle and a static one at once, nor two
         static ones in a wedge); then the move is at most what is left of ``skin`` past the
-        anchor's overlap with that shape (none once the overlap is ``skin`` or more), so its own
-        moves never take it deeper than ``skin``. The sweep is skipped when the clearance
-        certificates and the moving obstacles' distances prove it free.
+        anchor's overlap with that shape (none once the overlap is ``skin`` or more). The
+        shortest of these over every blocking shape is taken, so its own moves never take it
+        deeper than ``skin`` into any. The sweep is skipped when the clearance certificates and
+        the moving obstacles' distances prove it free.
         """
         v = _cp.cpBodyGetVelocity(self._c_anchor)
         vx, vy = v.x, v.y
         length = math.hypot(vx, vy) * self._sdt
         if length == 0.0:
             return vx, vy
-        r = self.config.anchor_radius
+        r, skin = self.config.anchor_radius, self._skin
         reach = length + r + self._r_moving + _SKIP_MARGIN
         if self._clearance.clear(0, x, y, length + r):
             reach2 = reach * reach
@@ -553,17 +567,16 @@ class World:
             else:
                 return vx, vy
         end = (x + vx * self._sdt, y + vy * self._sdt)
-        hit = self._first_hit((x, y), end, r, (vx, vy), _SENSED)
-        if hit is not None:
-            alpha, shape = hit[0], hit[3]
+        allowed = length
+        for (alpha, _, _), shape in self._blocking_hits((x, y), end, r, (vx, vy), _SENSED):
             if alpha > 0.0:
-                allowed = alpha * length + self._skin
+                allowed = min(allowed, alpha * length + skin)
             else:       # touching: the overlap is r minus the centre's distance to the shape
                 overlap = r - _cp.cpShapePointQuery(shape, (x, y), self._point_info)
-                allowed = max(self._skin - overlap, 0.0)
-            if allowed < length:
-                vx, vy = vx * allowed / length, vy * allowed / length
-                _cp.cpBodySetVelocity(self._c_anchor, (vx, vy))
+                allowed = min(allowed, max(skin - overlap, 0.0))
+        if allowed < length:
+            vx, vy = vx * allowed / length, vy * allowed / length
+            _cp.cpBodySetVelocity(self._c_anchor, (vx, vy))
         return vx, vy
 
     def _static_distance(self, x: float, y: float) -> float:

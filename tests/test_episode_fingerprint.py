@@ -92,10 +92,10 @@ EXPECTED: dict[str, dict[str, str]] = {
         'reset': '049d6561aa7f5582',
         'reward': 'b25d41f7af6ee956',
         'sensing': '5ca81a72806d61ab',
-        'world': '68ff959e509af2ad',
+        'world': 'ea0e1492ada0d67f',
     },
     'nominal_sweep': {
-        'sweep': '667afb2d93467b42',
+        'sweep': '398cfe863cdd4d3c',
     },
 }
 

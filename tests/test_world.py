@@ -353,16 +353,20 @@ def test_random_driving_among_wedges_never_sinks_past_the_skin(density, top_spee
     deepest = 0.0
     for _ in range(300):
         traj = w.step(rng.uniform(0.0, w.config.anchor_max_speed), rng.uniform(-math.pi, math.pi))
-        deepest = max(deepest, r - shapely.distance(m.union, shapely.points(traj[1:, 1:])).min())
+        xy = traj[1:, 1:]
+        clearance = np.minimum(shapely.distance(m.union, shapely.points(xy)),
+                               np.minimum(xy, 60.0 - xy).min(axis=1))    # the walls too
+        deepest = max(deepest, r - clearance.min())
     assert w.static_contacts > 10
     assert deepest <= skin + 1e-9
 
 
-def test_fast_discs_turning_at_a_face_do_not_pass_into_it():
+@pytest.mark.parametrize("seed", [33, 292])
+def test_fast_discs_turning_at_a_face_do_not_pass_into_it(seed):
     """A disc a bounce left on a static face (1e-15 m off it) that turns back into it: Chipmunk's
-    sweep from there missed the face, and the disc passed into the obstacle (a disc of 0.5 m
-    overlapping it by 0.46 m at step 31 here)."""
-    m, rng, start = generated_field(0.3, seed=33)
+    sweep from there missed the face (seed 33: a disc of 0.5 m overlapping the obstacle by
+    0.46 m), or hit a later face of the same obstacle (seed 292: the centre inside it)."""
+    m, rng, start = generated_field(0.3, seed=seed)
     w = World(AOASSConfig(field_size=60.0, obstacle_density=0.3, n_moving_obstacles=30,
                           moving_obstacle_speed=(5.0, 10.0), dt=2.0,
                           moving_obstacle_turn_rate=1.0), m, rng, start)
@@ -370,6 +374,39 @@ def test_fast_discs_turning_at_a_face_do_not_pass_into_it():
     for _ in range(40):
         w.step(rng.uniform(0.0, w.config.anchor_max_speed), rng.uniform(-math.pi, math.pi))
         assert shapely.distance(m.union, shapely.points(w.moving_positions)).min() >= r - 1e-9
+
+
+@pytest.mark.parametrize("order", ["floor first", "wall first"])
+def test_an_anchor_touching_two_shapes_goes_no_deeper_into_either(order):
+    """Touching a floor (no overlap) and a wall (overlapped by the skin), moving into both: the
+    move was limited by the first touched shape the box query gave alone: the anchor went
+    4.56 mm into the wall, past the 2.5 mm skin."""
+    floor = [(5, 5), (15, 5), (15, 6), (5, 6)]                  # top face y = 6
+    wall = [(10, 6.2), (11, 6.2), (11, 9), (10, 9)]             # left face x = 10
+    w = make((3.0, 15.0), obstacle_map=ObstacleMap(
+        20.0, 20.0, [floor, wall] if order == "floor first" else [wall, floor]))
+    r, skin = w.config.anchor_radius, 0.5 * slop(w)
+    x, y = 10.0 - r + skin, 6.0 + r
+    w._anchor.position = (x, y)
+    world_module._cp.cpBodySetVelocity(w._c_anchor, (math.cos(-0.6), math.sin(-0.6)))
+    vx, vy = w._limit_anchor_move(x, y)
+    x, y = x + vx * w.config.substep_dt, y + vy * w.config.substep_dt
+    assert r - (10.0 - x) <= skin + 1e-12 and r - (y - 6.0) <= skin + 1e-12
+
+
+@pytest.mark.parametrize("way", ["out", "in"])
+def test_a_disc_centred_inside_a_shape_is_free_to_leave_it_only(way):
+    """From a start inside a shape Chipmunk's sweep gives a normal pointing into it: the way out
+    was blocked (and the disc reflected inward), the way in free."""
+    w = make((2.0, 15.0), obstacle_map=ObstacleMap(20.0, 20.0, [[(5, 5), (15, 5), (15, 6),
+                                                                   (5, 6)]]))
+    vy = 5.0 if way == "out" else -5.0
+    hit = w._first_hit((10.0, 5.8), (10.0, 5.8 + 0.1 * vy), 1.0, (0.0, vy),
+                       world_module._STATIC_ONLY)
+    if way == "out":
+        assert hit is None
+    else:
+        assert hit[0] == 0.0 and hit[1:] == pytest.approx((0.0, 1.0))
 
 
 def test_no_room_for_moving_obstacles():
