@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from aoass_env.config import AOASSConfig
 from aoass_env.maps import load_map
 from aoass_env.planning.square_spiral import episode_spiral
@@ -32,6 +34,19 @@ def test_measured_row_names_the_map_and_the_planned_length():
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert cells[:3] == ["FDPP", "d0.10_f100_s500", "776"]     # its plan is the 776 m spiral
     assert len(cells) == 7
+
+
+def test_the_committed_measured_table_has_the_scripts_row():
+    """docs/baselines.md's table is typed in from the script's output: one of its rows, run
+    again, must read the same but for the wall seconds (the table had gone stale unseen:
+    M-ANCHORO's plan there was 1093 m, the script's 1097 m)."""
+    script = load("baselines_table")
+    (row,) = script.measured_rows(["m-anchoro"], (0.1,))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    page = (Path(__file__).parents[2] / "docs" / "baselines.md").read_text(encoding="utf-8")
+    (committed,) = [line for line in page.splitlines()
+                    if line.startswith(f"| {cells[0]} | {cells[1]} |")]
+    assert [c.strip() for c in committed.strip("|").split("|")][:6] == cells[:6]
 
 
 def test_an_unknown_table_is_refused_in_one_line(capsys, monkeypatch):
