@@ -19,7 +19,10 @@ density 0.1-0.6, 100 m and 200 m, the sub-squares whose ``reg`` is not empty (Le
 ``otpp.served_sub_squares``) out of those with free samples, and the wall seconds of OTPP's plan
 (``otpp.plan``) and of its beacon points alone (``otpp.beacon_points``; the rest is the links).
 
-Wall seconds depend on the machine and its load; every other number is the same on every run.
+Wall seconds depend on the machine and its load; every other number is the same on every run
+with the same OpenBLAS kernels. FDPP's budget episodes (with moving obstacles) depend on them
+(docs/evaluation.md): docs/baselines.md's table is run as ``OPENBLAS_CORETYPE=Haswell python3
+scripts/baselines_table.py --table fdpp-budget``, the kernels the tests pin.
 """
 
 from __future__ import annotations

@@ -42,10 +42,12 @@ from aoass_env.evaluation.report import (
     write_summary_csv,
 )
 from aoass_env.evaluation.store import (
+    BLAS_KERNELS,
     NO_LOCALIZER,
     EpisodeStore,
     EvaluationError,
     apply_inputs,
+    blas_kernels,
     config_input,
     file_digest,
     in_key_order,
@@ -273,6 +275,8 @@ def main(argv: list[str] | None = None) -> int:
                     scope[f"{name} stack"] = [name]
         if "olstm-dvhop" in localizers:
             inputs["olstm-dvhop"] = file_digest(DEFAULT_CHECKPOINT)
+        # this machine's BLAS kernels: a resume elsewhere must not mix last-bit differences
+        inputs[BLAS_KERNELS] = blas_kernels()
         backend = make_backend(args.backend, workers=args.workers, address=args.address)
         store = EpisodeStore(out / "episodes.csv")
         for folder in (out, *sorted(p for p in (out / "logs").glob("*") if p.is_dir())):

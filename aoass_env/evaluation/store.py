@@ -30,11 +30,11 @@ try:
 except ImportError:       # Windows: no advisory locks
     fcntl = None  # type: ignore[assignment]
 
-__all__ = ["COLUMNS", "CONFIG_DEFAULTS", "EPISODE_FIELDS", "INPUTS_FILE", "KEY_FIELDS",
-           "LOCALIZATION_FIELDS", "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey", "EpisodeStore",
-           "EvaluationError", "apply_inputs", "checked_row", "RUNS_FILE",
-           "comparable_lines", "config_input", "file_digest", "in_key_order", "read_episodes",
-           "read_runs", "record_run", "row_key", "stale_rows"]
+__all__ = ["BLAS_KERNELS", "COLUMNS", "CONFIG_DEFAULTS", "EPISODE_FIELDS", "INPUTS_FILE",
+           "KEY_FIELDS", "LOCALIZATION_FIELDS", "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey",
+           "EpisodeStore", "EvaluationError", "apply_inputs", "blas_kernels", "checked_row",
+           "RUNS_FILE", "comparable_lines", "config_input", "file_digest", "in_key_order",
+           "read_episodes", "read_runs", "record_run", "row_key", "stale_rows"]
 
 
 class EvaluationError(ValueError):
@@ -246,11 +246,33 @@ def config_input(method: str) -> str:
     return f"{CONFIG_DEFAULTS} of {method}"
 
 
+#: The input name (:func:`stale_rows`) of the BLAS kernels every row was computed with
+#: (:func:`blas_kernels`).
+BLAS_KERNELS = "BLAS kernels"
+
+
+def blas_kernels() -> str:
+    """The BLAS libraries NumPy and SciPy load in this process and the kernels each picked for
+    the CPU, e.g. ``"openblas SkylakeX"`` (``threadpoolctl``; a library that does not say:
+    its name alone).
+
+    The episodes depend on the last bits of small matrix products (the safety stack's tracker
+    and fuzzy controller, the localizers' least squares), which OpenBLAS sums in an order its
+    kernels set: another CPU, or ``OPENBLAS_CORETYPE``, can move an episode (docs/evaluation.md).
+    """
+    import scipy.linalg  # noqa: F401  (loads SciPy's own BLAS, which the localizers use)
+    from threadpoolctl import threadpool_info
+
+    found = {" ".join(filter(None, (info.get("internal_api"), info.get("architecture"))))
+             for info in threadpool_info() if info.get("user_api") == "blas"}
+    return ", ".join(sorted(found)) or "none"
+
+
 def _input_phrase(name: str) -> str:
     """How an input of :func:`stale_rows` is named in its refusal: "another policy
     checkpoint", "another aoass-adaptive checkpoint", "other config defaults of spiral",
-    "another aoass-rule stack"."""
-    if name.startswith(CONFIG_DEFAULTS):
+    "another aoass-rule stack", "other BLAS kernels"."""
+    if name.startswith(CONFIG_DEFAULTS) or name == BLAS_KERNELS:
         return f"other {name}"
     if name.endswith(" stack"):
         return f"another {name} (the tracker, safety filter or action type of its run record)"
@@ -266,19 +288,19 @@ def stale_rows(store: EpisodeStore, inputs: dict[str, str],
     other checks may refuse the run first.
 
     ``inputs`` maps a name (``"policy"``, ``"olstm-dvhop"``, :func:`config_input` of a
-    method) to the digest (:func:`file_digest`, or :func:`~aoass_env.evaluation.methods.
-    config_defaults_digest`) of what that name stands for; ``scope`` maps a name to the
-    methods whose rows depend on it (a name not in it: every row), and ``localizers`` a name
-    to the one localizer whose rows alone depend on it (a localizer's checkpoint: the other
-    rows of its episodes stay). An input changed for the
-    rows in its scope when the record (:data:`INPUTS_FILE` beside the CSV) gives another
-    digest, or none while such rows exist (they were made by an older evaluate.py that did
-    not record it).
+    method, :data:`BLAS_KERNELS`) to the digest (:func:`file_digest`, or
+    :func:`~aoass_env.evaluation.methods.config_defaults_digest`) or the name
+    (:func:`blas_kernels`) of what that name stands for; ``scope`` maps a name to the methods
+    whose rows depend on it (a name not in it: every row), and ``localizers`` a name to the
+    one localizer whose rows alone depend on it (a localizer's checkpoint: the other rows of
+    its episodes stay). An input changed for the rows in its scope when the record
+    (:data:`INPUTS_FILE` beside the CSV) gives another value, or none while such rows exist
+    (they were made by an older evaluate.py that did not record it).
 
     Raises:
         EvaluationError: without ``discard``, an input changed for some rows, i.e. resuming
-            would mix episodes of two checkpoints or two sets of defaults in one table; an
-            unreadable record.
+            would mix episodes of two checkpoints, two sets of defaults or two BLAS kernels
+            in one table; an unreadable record.
     """
     record_path = store.path.with_name(INPUTS_FILE)
     recorded = _recorded_inputs(store)
@@ -300,9 +322,9 @@ def stale_rows(store: EpisodeStore, inputs: dict[str, str],
         raise EvaluationError(
             f"{store.path} holds episodes of {', '.join(stale)} produced with "
             f"{' and '.join(_input_phrase(n) for n in changed)} than this run's "
-            f"({record_path} records their SHA-256); resuming would mix the two in one "
-            f"table. Run again with --discard-changed to drop those episodes and run them "
-            f"anew, delete {store.path} (or the folder), or choose another --out folder")
+            f"({record_path} records what they were produced with); resuming would mix the "
+            f"two in one table. Run again with --discard-changed to drop those episodes and "
+            f"run them anew, delete {store.path} (or the folder), or choose another --out folder")
     if not changed:
         return None
     return lambda row: any(depends(name, row) for name in changed)

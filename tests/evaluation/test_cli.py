@@ -16,9 +16,11 @@ from aoass_env.config import AOASSConfig
 from aoass_env.evaluation import cli, methods
 from aoass_env.evaluation.methods import DEFAULT_POLICY, METHODS, POLICY_COMMAND
 from aoass_env.evaluation.store import (
+    BLAS_KERNELS,
     COLUMNS,
     NO_LOCALIZER,
     EpisodeStore,
+    blas_kernels,
     comparable_lines,
     config_input,
     read_episodes,
@@ -190,6 +192,28 @@ def test_a_methods_own_checkpoint_is_loaded_before_any_episode(capsys, tmp_path,
     assert not (tmp_path / "out" / "episodes.csv").exists()
 
 
+def test_a_resume_with_other_blas_kernels_is_refused(smoke_run, capsys, tmp_path):
+    """The episodes depend on the BLAS kernels' summation order (docs/evaluation.md): a folder
+    records this machine's kernels, and a resume where OpenBLAS picked others (another CPU, or
+    OPENBLAS_CORETYPE) would have mixed two kernels' episodes in one table unseen."""
+    out, _ = smoke_run
+    assert json.loads((out / "inputs.json").read_text())[BLAS_KERNELS] == blas_kernels()
+    folder = tmp_path / "blas"
+    shutil.copytree(out, folder, ignore=shutil.ignore_patterns("logs"))
+    inputs = folder / "inputs.json"
+    inputs.write_text(json.dumps({**json.loads(inputs.read_text()),
+                                  BLAS_KERNELS: "openblas Prescott"}))
+    before = (folder / "episodes.csv").read_bytes()
+    argv = ["--preset", "smoke", "--methods", "spiral", "--localizers", "dvhop", "--workers",
+            "1", "--out", str(folder), "--no-progress"]
+    err = _usage_error(capsys, argv)
+    assert "episodes of spiral produced with other BLAS kernels than this run's" in err
+    assert (folder / "episodes.csv").read_bytes() == before
+    assert cli.main([*argv, "--discard-changed"]) == 0          # run again, here
+    assert json.loads(inputs.read_text())[BLAS_KERNELS] == blas_kernels()
+    assert len(read_episodes(folder / "episodes.csv")) == 1
+
+
 def test_a_refused_save_logs_run_drops_no_row(smoke_run, capsys, tmp_path):
     """--save-logs --discard-changed refused the run (finished episodes without logs) after it
     had dropped the changed method's rows and rewritten inputs.json."""
@@ -228,7 +252,8 @@ def _policy_copy(folder, *, stored: bool = False):
 def test_resuming_with_another_policy_fails_before_any_work(smoke_run, capsys, tmp_path,
                                                               monkeypatch):
     out, _ = smoke_run
-    shutil.copy(out / "episodes.csv", tmp_path / "episodes.csv")
+    for name in ("episodes.csv", "inputs.json"):     # the spiral's rows and their record
+        shutil.copy(out / name, tmp_path / name)
     first = _policy_copy(tmp_path / "first")
     second = _policy_copy(tmp_path / "second", stored=True)
     argv = ["--preset", "smoke", "--methods", "aoass", "--localizers", "dvhop",

@@ -2,10 +2,12 @@
 
 import json
 import math
+import os
 
 import pytest
 
 from aoass_env.evaluation.store import (
+    BLAS_KERNELS,
     COLUMNS,
     CONFIG_DEFAULTS,
     INPUTS_FILE,
@@ -15,6 +17,7 @@ from aoass_env.evaluation.store import (
     EpisodeStore,
     EvaluationError,
     apply_inputs,
+    blas_kernels,
     comparable_lines,
     config_input,
     file_digest,
@@ -287,6 +290,36 @@ def test_a_record_of_one_digest_for_every_methods_defaults_is_not_resumed(tmp_pa
         with pytest.raises(EvaluationError, match="other config defaults of spiral"):
             check_inputs(store, {config_input("spiral"): "s1"},
                          {config_input("spiral"): ["spiral"]})
+
+
+def test_blas_kernels_name_the_kernels_openblas_picked():
+    """tests/conftest.py pins OpenBLAS's Haswell kernels where the CPU has them (through
+    OPENBLAS_CORETYPE, before NumPy loads); what threadpoolctl reads back must name them."""
+    kernels = blas_kernels().split(", ")
+    assert kernels and all(k.strip() for k in kernels) and kernels != ["none"]
+    forced = os.environ.get("OPENBLAS_CORETYPE")
+    if forced:
+        assert f"openblas {forced}" in kernels
+
+
+def test_rows_of_other_blas_kernels_count_as_changed(tmp_path):
+    """Every row depends on the kernels (no scope): a folder of one machine's episodes is not
+    resumed with another's kernels, nor one made before they were recorded."""
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        check_inputs(store, {})                         # an older evaluate.py: no kernels
+        store.append([row(0), row(0, method="aoass-rule")])
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        with pytest.raises(EvaluationError, match="aoass-rule, spiral produced with other "
+                                                  "BLAS kernels than this run's"):
+            check_inputs(store, {BLAS_KERNELS: "openblas Haswell"})
+        check_inputs(store, {BLAS_KERNELS: "openblas Haswell"}, discard=True)
+        assert store.rows == []
+        store.append([row(1)])
+    with EpisodeStore(tmp_path / "episodes.csv") as store:
+        check_inputs(store, {BLAS_KERNELS: "openblas Haswell"})          # the same: resumes
+        with pytest.raises(EvaluationError, match="other BLAS kernels"):
+            check_inputs(store, {BLAS_KERNELS: "openblas SkylakeX"})
+        assert len(store.rows) == 1
 
 
 def test_a_new_or_empty_store_records_the_inputs_of_its_run(tmp_path):

@@ -49,6 +49,22 @@ def test_the_committed_measured_table_has_the_scripts_row():
     assert [c.strip() for c in committed.strip("|").split("|")][:6] == cells[:6]
 
 
+def test_the_committed_fdpp_budget_table_has_the_scripts_row():
+    """The same for FDPP's budget table (typed in from ``--table fdpp-budget``): its density-0.1
+    row, run again, reads the same but for the two wall-second cells."""
+    script = load("baselines_table")
+    (row,) = script.fdpp_budget_rows((0.1,))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    page = (Path(__file__).parents[2] / "docs" / "baselines.md").read_text(encoding="utf-8")
+    (committed,) = [line.strip() for line in page.splitlines()
+                    if line.strip().startswith(f"| {cells[0]} | ") and " / " in line]
+    committed_cells = [c.strip() for c in committed.strip("|").split("|")]
+    assert len(committed_cells) == len(cells) == 11
+    seconds = (5, 10)
+    assert [c for i, c in enumerate(committed_cells) if i not in seconds] == \
+        [c for i, c in enumerate(cells) if i not in seconds]
+
+
 def test_an_unknown_table_is_refused_in_one_line(capsys, monkeypatch):
     assert refused(capsys, monkeypatch, "baselines_table", "--table", "ohm").startswith(
         "argument --table: invalid choice: 'ohm'")
