@@ -51,10 +51,12 @@ from aoass_env.evaluation.report import (
     robustness_markdown,
 )
 from aoass_env.evaluation.store import (
+    BLAS_KERNELS,
     EpisodeStore,
     EvaluationError,
     in_key_order,
     read_episodes,
+    read_inputs,
     read_runs,
 )
 from aoass_env.evaluation.sweep import PRESETS, ROBUSTNESS_EPISODE_SEED_BASE, episode_jobs
@@ -459,6 +461,22 @@ def robustness_values(rows: Rows | None, runs: list[dict[str, Any]], seeds: int,
             "robustness_energy": energy_table(rows)}
 
 
+def kernels_text(data: Path, presets: list[str]) -> str:
+    """The BLAS kernels the ``presets``' folders in ``data`` record in ``inputs.json``
+    (evaluate.py's :data:`~aoass_env.evaluation.store.BLAS_KERNELS`), as the page states them:
+    one name when every preset agrees, else each preset's; "not recorded" for a folder of an
+    evaluate.py from before 2026-12-01. Exits naming an unreadable record."""
+    found = {}
+    for name in presets:
+        try:
+            found[name] = read_inputs(data / name).get(BLAS_KERNELS, "not recorded")
+        except EvaluationError as exc:
+            sys.exit(str(exc))
+    if len(set(found.values())) == 1:
+        return f"`{next(iter(found.values()))}`"
+    return "; ".join(f"`{name}` `{kernels}`" for name, kernels in found.items())
+
+
 def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any]]],
                 seeds: dict[str, int], figures: dict[str, str], data: Path = DATA
                 ) -> dict[str, str]:
@@ -471,7 +489,8 @@ def page_values(rows: dict[str, Rows | None], runs: dict[str, list[dict[str, Any
         "issue_table": issue_table(Numbers(rows["fig2"]), Numbers(rows["fig4"]),
                                    rows.get("robustness")),
         "paired_table": paired_table({name: rows.get(name) for name in
-                                      ("fig2", "fig3", "fig4", "robustness")})}
+                                      ("fig2", "fig3", "fig4", "robustness")}),
+        "blas_kernels": kernels_text(data, [n for n in SEEDS if rows.get(n) is not None])}
     values.update(robustness_values(rows.get("robustness"), runs.get("robustness", []),
                                     seeds.get("robustness", SEEDS["robustness"]), data))
     for name in FIGURE:

@@ -34,7 +34,7 @@ __all__ = ["BLAS_KERNELS", "COLUMNS", "CONFIG_DEFAULTS", "EPISODE_FIELDS", "INPU
            "KEY_FIELDS", "LOCALIZATION_FIELDS", "NO_LOCALIZER", "TIMING_FIELDS", "EpisodeKey",
            "EpisodeStore", "EvaluationError", "apply_inputs", "blas_kernels", "checked_row",
            "RUNS_FILE", "comparable_lines", "config_input", "file_digest", "in_key_order",
-           "read_episodes", "read_runs", "record_run", "row_key", "stale_rows"]
+           "read_episodes", "read_inputs", "read_runs", "record_run", "row_key", "stale_rows"]
 
 
 class EvaluationError(ValueError):
@@ -303,7 +303,7 @@ def stale_rows(store: EpisodeStore, inputs: dict[str, str],
             in one table; an unreadable record.
     """
     record_path = store.path.with_name(INPUTS_FILE)
-    recorded = _recorded_inputs(store)
+    recorded = read_inputs(store.path.parent)
 
     def depends(name: str, row: dict[str, Any]) -> bool:
         """Does ``row`` depend on the input ``name``?"""
@@ -338,23 +338,28 @@ def apply_inputs(store: EpisodeStore, inputs: dict[str, str],
     if stale is not None:
         store.discard(stale)
     record_path = store.path.with_name(INPUTS_FILE)
+    merged = read_inputs(store.path.parent) | inputs
     try:
-        write_text_atomic(record_path, json.dumps(_recorded_inputs(store) | inputs, indent=1,
-                                                  sort_keys=True) + "\n")
+        write_text_atomic(record_path, json.dumps(merged, indent=1, sort_keys=True) + "\n")
     except OSError as exc:
         raise EvaluationError(f"cannot write {record_path}: {exc.strerror or exc}") from None
 
 
-def _recorded_inputs(store: EpisodeStore) -> dict[str, str]:
-    """The inputs recorded beside ``store``'s CSV ({} without a record)."""
-    record_path = store.path.with_name(INPUTS_FILE)
+def read_inputs(folder: str | os.PathLike[str]) -> dict[str, str]:
+    """The inputs recorded in :data:`INPUTS_FILE` in ``folder`` ({} without a record): what its
+    episodes were produced with (:func:`stale_rows`).
+
+    Raises:
+        EvaluationError: the record is unreadable.
+    """
+    record_path = Path(folder) / INPUTS_FILE
     if not record_path.is_file():
         return {}
     try:
         return dict(json.loads(record_path.read_text(encoding="utf-8")))
     except (OSError, TypeError, ValueError) as exc:
-        raise EvaluationError(f"{record_path} is unreadable ({exc}); delete it and "
-                              f"{store.path}, or choose another --out folder") from None
+        raise EvaluationError(f"{record_path} is unreadable ({exc}); delete it and the "
+                              f"episodes.csv beside it, or choose another --out folder") from None
 
 
 #: The file beside ``episodes.csv`` with one JSON line per run of evaluate.py on the folder:

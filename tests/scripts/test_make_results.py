@@ -1,6 +1,7 @@
 """scripts/make_results.py: the page's values from episodes, and the paper table's verdicts."""
 
 import importlib.util
+import json
 import math
 import string
 from collections import Counter
@@ -8,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from aoass_env.evaluation.store import COLUMNS, NO_LOCALIZER
+from aoass_env.evaluation.store import BLAS_KERNELS, COLUMNS, INPUTS_FILE, NO_LOCALIZER
 from aoass_env.evaluation.sweep import PRESETS, episode_jobs
 
 SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "make_results.py"
@@ -93,6 +94,25 @@ def test_the_template_gets_every_value(values):
     assert values["table_fig3_200"] in page and values["table_fig4_60"] in page
     assert "## Robustness on freshly generated maps" in page
     assert values["robustness_tables"] in page
+
+
+def test_the_page_names_the_blas_kernels_its_presets_record(tmp_path):
+    """The episodes' last bits depend on the BLAS kernels (docs/evaluation.md): the page says
+    which ones its presets ran with, per preset when they differ."""
+    def record(name, **inputs):
+        (tmp_path / name).mkdir(exist_ok=True)
+        (tmp_path / name / INPUTS_FILE).write_text(json.dumps(inputs))
+
+    record("fig2", **{BLAS_KERNELS: "openblas SkylakeX", "policy": "aaa"})
+    record("fig4", **{BLAS_KERNELS: "openblas SkylakeX"})
+    assert make_results.kernels_text(tmp_path, ["fig2", "fig4"]) == "`openblas SkylakeX`"
+    record("fig3", policy="aaa")                            # an older evaluate.py's folder
+    record("quick", **{BLAS_KERNELS: "openblas Haswell"})
+    assert make_results.kernels_text(tmp_path, ["fig2", "fig3", "quick"]) == (
+        "`fig2` `openblas SkylakeX`; `fig3` `not recorded`; `quick` `openblas Haswell`")
+    (tmp_path / "fig4" / INPUTS_FILE).write_text("{")
+    with pytest.raises(SystemExit, match=r"fig4/inputs.json is unreadable"):
+        make_results.kernels_text(tmp_path, ["fig4"])
 
 
 def test_robustness_section_is_computed_from_its_episodes(values):
