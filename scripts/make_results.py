@@ -6,11 +6,14 @@ Run: ``python3 scripts/make_results.py [--workers W] [--skip-runs | [--presets P
 1. Runs ``evaluate.py --preset P --seeds S`` for each preset of :data:`SEEDS` (or only those of
    ``--presets``) into ``docs/results-data/P`` (:data:`DATA`, committed with the page, so that
    the page can be checked and rebuilt without running an episode, and a regeneration that a
-   session could not finish resumes on another machine). The sweeps resume: episodes already in
-   ``P/episodes.csv`` are not run again, so an interrupted regeneration continues where it
-   stopped; the episodes of a method whose config defaults or checkpoints changed since they
-   ran are dropped and run again (``--discard-changed``), those of the other methods kept;
-   ``--rerun M ...`` drops the episodes of methods whose code changed (no digest sees that).
+   session could not finish resumes on another machine whose OpenBLAS picks the same kernels,
+   which ``inputs.json`` records: evaluate.py refuses to mix two kernels' episodes, and this
+   script, which passes ``--discard-changed``, runs such a preset anew). The sweeps resume:
+   episodes already in ``P/episodes.csv`` are not run again, so an interrupted regeneration
+   continues where it stopped; the episodes of a method whose config defaults or checkpoints
+   changed since they ran are dropped and run again (``--discard-changed``), those of the other
+   methods kept; ``--rerun M ...`` drops the episodes of methods whose code changed (no
+   digest sees that).
 2. Reads the episodes back (only the seeds of :data:`SEEDS`, so a folder that holds more seeds
    gives the same page; the figures are drawn from the same rows) and the wall times that
    ``evaluate.py`` recorded in ``P/runs.jsonl``. The ``robustness`` preset is optional: a
