@@ -78,6 +78,7 @@ _SLOP_FRACTION = 0.01   # allowed anchor overlap (pymunk collision_slop) / ancho
 _APPROACH_TOL = 1e-6    # a touched shape stops a disc moving into it faster than this * speed
 _TOUCH_TOL = 1e-9      # a swept disc starting this near (m) a shape touches it (_shape_hit)
 _MAX_BOUNCES = 4        # reflections of one moving obstacle within one physics substep
+_MAX_SLIDES = 2         # faces the anchor's move slides along within one physics substep
 _SPAWN_TRIES = 1000     # random candidates per moving obstacle before giving up
 _SKIP_MARGIN = MARGIN   # slack (m) of the proofs that a skipped query would have missed
 _CERT_REACH = 4.0       # farthest clearance (m) a certificate measures (nearest-shape query)
@@ -545,18 +546,22 @@ class World:
         that shape, and pymunk's solver takes over from the contact. A shape already touched
         stops the anchor only if the solved velocity still points into it (pymunk cannot always
         satisfy a contact with a kinematic moving obstacle and a static one at once, nor two
-        static ones in a wedge); then the move is at most what is left of ``skin`` past the
-        anchor's overlap with that shape (none once the overlap is ``skin`` or more). The
-        shortest of these over every blocking shape is taken, so its own moves never take it
-        deeper than ``skin`` into any. The sweep is skipped when the clearance certificates and
-        the moving obstacles' distances prove it free.
+        static ones in a wedge); then the move slides along that shape's face: its part into the
+        shape is cut to what is left of ``skin`` past the anchor's overlap with it (none once the
+        overlap is ``skin`` or more), its part along the face is kept, and the slid move is
+        checked again against every shape (up to ``_MAX_SLIDES`` faces; pushed into a further
+        touched face after that, as in a wedge, the anchor stays). The shortest allowed move
+        over every shape it would reach is taken, so its own moves never take it deeper than
+        ``skin`` into any. The sweep is skipped when the clearance certificates and the moving
+        obstacles' distances prove it free.
         """
         v = _cp.cpBodyGetVelocity(self._c_anchor)
         vx, vy = v.x, v.y
-        length = math.hypot(vx, vy) * self._sdt
+        sdt = self._sdt
+        length = math.hypot(vx, vy) * sdt
         if length == 0.0:
             return vx, vy
-        r, skin = self.config.anchor_radius, self._skin
+        r = self.config.anchor_radius
         reach = length + r + self._r_moving + _SKIP_MARGIN
         if self._clearance.clear(0, x, y, length + r):
             reach2 = reach * reach
@@ -566,18 +571,46 @@ class World:
                     break
             else:
                 return vx, vy
-        end = (x + vx * self._sdt, y + vy * self._sdt)
-        allowed = length
-        for (alpha, _, _), shape in self._blocking_hits((x, y), end, r, (vx, vy), _SENSED):
-            if alpha > 0.0:
-                allowed = min(allowed, alpha * length + skin)
-            else:       # touching: the overlap is r minus the centre's distance to the shape
-                overlap = r - _cp.cpShapePointQuery(shape, (x, y), self._point_info)
-                allowed = min(allowed, max(skin - overlap, 0.0))
+        wanted = vx, vy
+        for slides in range(_MAX_SLIDES + 1):
+            allowed, face = self._anchor_move_limit(x, y, vx, vy, length)
+            if face is None:
+                break
+            if slides == _MAX_SLIDES:
+                allowed = 0.0                  # still pushed into a touched face: stay
+                break
+            nx, ny, excess = face              # slide: the excess inward speed taken off
+            vx, vy = vx + excess * nx, vy + excess * ny
+            length = math.hypot(vx, vy) * sdt
+            if length == 0.0:
+                break
         if allowed < length:
             vx, vy = vx * allowed / length, vy * allowed / length
+        if (vx, vy) != wanted:
             _cp.cpBodySetVelocity(self._c_anchor, (vx, vy))
         return vx, vy
+
+    def _anchor_move_limit(self, x: float, y: float, vx: float, vy: float, length: float,
+                           ) -> tuple[float, tuple[float, float, float] | None]:
+        """For the anchor at (x, y) (m) moving with (vx, vy) (m/s), ``length`` (m) in the
+        coming substep: the longest move (m) along it that ends at most ``skin`` inside each
+        shape it would reach but does not touch yet, and the touched face it pushes deepest
+        past its room (what is left of ``skin`` past the anchor's overlap with that shape), as
+        (normal x, normal y, excess inward speed in m/s; the normal points out of the shape),
+        or None when no touched face is pushed past its room by more than ``_TOUCH_TOL``."""
+        r, skin, sdt = self.config.anchor_radius, self._skin, self._sdt
+        end = (x + vx * sdt, y + vy * sdt)
+        allowed, face, worst = length, None, _TOUCH_TOL / sdt
+        for (alpha, nx, ny), shape in self._blocking_hits((x, y), end, r, (vx, vy), _SENSED):
+            if alpha > 0.0:
+                allowed = min(allowed, alpha * length + skin)
+                continue
+            # touching: the overlap is r minus the centre's distance to the shape
+            overlap = r - _cp.cpShapePointQuery(shape, (x, y), self._point_info)
+            excess = -(vx * nx + vy * ny) - max(skin - overlap, 0.0) / sdt
+            if excess > worst:
+                worst, face = excess, (nx, ny, excess)
+        return allowed, face
 
     def _static_distance(self, x: float, y: float) -> float:
         """Distance (m) from (x, y) (m) to the nearest static obstacle or wall (negative

@@ -394,6 +394,51 @@ def test_an_anchor_touching_two_shapes_goes_no_deeper_into_either(order):
     assert r - (10.0 - x) <= skin + 1e-12 and r - (y - 6.0) <= skin + 1e-12
 
 
+def test_an_anchor_pushed_into_a_face_it_overlaps_by_the_skin_slides_along_it():
+    """Overlapping a wall by the skin and driven into it at an angle, the anchor slides: the
+    move into the wall is cut, the move along it kept. The whole move was cut, so an anchor
+    that the follower kept driving into the face stood still."""
+    w = make((3.0, 15.0), obstacle_map=ObstacleMap(20.0, 20.0, [[(10, 2), (11, 2), (11, 18),
+                                                                   (10, 18)]]))
+    r, skin = w.config.anchor_radius, 0.5 * slop(w)
+    x, y = 10.0 - r + skin, 10.0
+    w._anchor.position = (x, y)
+    world_module._cp.cpBodySetVelocity(w._c_anchor, (math.cos(1.0), math.sin(1.0)))
+    vx, vy = w._limit_anchor_move(x, y)
+    assert vx == pytest.approx(0.0, abs=1e-12) and vy == math.sin(1.0)
+
+
+def test_an_anchor_pushed_into_a_disc_it_overlaps_by_the_skin_slides_past_it():
+    """The same against a moving obstacle, which stops ``skin`` inside the anchor on meeting
+    it: a disc pinned there (wedged between the anchor and a static obstacle, it kept
+    reflecting in place) and a follower driving past it at an angle held the anchor still for
+    the rest of the episode (the next test)."""
+    config = AOASSConfig(field_size=30.0, obstacle_density=0.0, n_moving_obstacles=1,
+                         physics_substeps=5)
+    w = World(config, ObstacleMap(30.0, 30.0, ()), np.random.default_rng(0), (15.0, 15.0))
+    r_meet = config.anchor_radius + config.moving_obstacle_radius - 0.5 * slop(w)
+    w._mpos[0] = (15.0 + r_meet + 1e-15, 15.0)        # as a bounce leaves it: skin + 1e-15 m
+    w._mbodies[0].position = w._mpos[0]
+    w._space.reindex_shapes_for_body(w._mbodies[0])
+    world_module._cp.cpBodySetVelocity(w._c_anchor, (math.cos(0.8), math.sin(0.8)))
+    vx, vy = w._limit_anchor_move(15.0, 15.0)
+    assert vx == pytest.approx(0.0, abs=1e-12) and vy == math.sin(0.8)
+
+
+def test_a_plain_sweep_past_a_pinned_disc_completes():
+    """The robustness preset's episode where that held the anchor: LMAT on generated map
+    d0.50 r40, seed 760040, ran into its time limit (3739 s) having covered 14 % of the nodes
+    (before the wedge fix of 2026-11-30: complete in 2027.5 s, 91 %)."""
+    from aoass_env.evaluation.episode import run_episode
+    from aoass_env.evaluation.methods import RunOptions
+    from aoass_env.evaluation.store import EpisodeKey
+
+    key = EpisodeKey(method="lmat", map="generated/d0.50_f100_r40", field_size=100.0,
+                     n_nodes=100, obstacle_density=0.5, seed=760040)
+    (row,) = run_episode(key, ("none",), RunOptions())
+    assert row["path_complete"] == 1 and row["coverage"] >= 0.9
+
+
 @pytest.mark.parametrize("way", ["out", "in"])
 def test_a_disc_centred_inside_a_shape_is_free_to_leave_it_only(way):
     """From a start inside a shape Chipmunk's sweep gives a normal pointing into it: the way out

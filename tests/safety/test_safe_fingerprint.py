@@ -34,8 +34,8 @@ REPORT_KEYS = ("intervention", "orca_correction", "flc_turn", "flc_speed", "spee
                "look_ahead_shortfall", "yielding")
 
 EXPECTED: dict[str, dict[str, str]] = {
-    'f50_moving12': {'observation': 'f37284654165b38b', 'reward': '008d37f53850d4e9',
-                     'safety': '7064342a0d5f9c32', 'world': 'b89a40eb0dc3c2be'},
+    'f50_moving12': {'observation': 'c56f67201fcc3c9d', 'reward': 'a3970fa81adc015d',
+                     'safety': 'a499d6dcde40f081', 'world': '9c2b7ea1695c2bad'},
     'f70_d0.2_moving8': {'observation': 'ad9d2a50eae0b7eb', 'reward': '0b62b2223a00d0db',
                          'safety': 'f04402ad948acd9f', 'world': '965b48eac69fc49d'},
 }
@@ -44,8 +44,8 @@ EXPECTED: dict[str, dict[str, str]] = {
 #: to the clearance first (issue 24, third round): the old behaviour stays reachable
 ONE_COST = SafetyConfig(shortfall_tolerance=None, yield_shortfall_tolerance=None)
 EXPECTED_ONE_COST: dict[str, dict[str, str]] = {
-    'f50_moving12': {'observation': '7598ce0d52a2db6e', 'reward': '1539a4136ad1363b',
-                     'safety': '88060e768615902b', 'world': '685f73bcc41d1f55'},
+    'f50_moving12': {'observation': '2422a27ef15c7469', 'reward': '21aec93d5a4c0c41',
+                     'safety': '8de962506222f6be', 'world': 'cb1e3ba98f20e339'},
     'f70_d0.2_moving8': {'observation': '672bb70049685343', 'reward': '3c4183e47d9d24c7',
                          'safety': '28f785b0848f2390', 'world': 'bde015e0e0b3e696'},
 }
