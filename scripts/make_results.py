@@ -30,6 +30,7 @@ Run: ``python3 scripts/make_results.py [--workers W] [--skip-runs | [--presets P
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import re
 import string
@@ -39,12 +40,19 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from aoass_env.atomic import atomic_open, write_text_atomic
-from aoass_env.config import AOASSConfig
-from aoass_env.evaluation import cli
-from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED
-from aoass_env.evaluation.methods import METHODS, select_methods
-from aoass_env.evaluation.report import (
+# evaluate.py pins OpenBLAS's kernels on import, which must come before anything loads NumPy:
+# the presets run in this process (cli.main), with the kernels evaluate.py runs them with
+# (hence the late imports below)
+_EVALUATE = importlib.util.spec_from_file_location(
+    "aoass_evaluate_script", Path(__file__).resolve().parent.parent / "evaluate.py")
+_EVALUATE.loader.exec_module(importlib.util.module_from_spec(_EVALUATE))
+
+from aoass_env.atomic import atomic_open, write_text_atomic  # noqa: E402
+from aoass_env.config import AOASSConfig  # noqa: E402
+from aoass_env.evaluation import cli  # noqa: E402
+from aoass_env.evaluation.episode import ROBUSTNESS_MAP_SEED  # noqa: E402
+from aoass_env.evaluation.methods import METHODS, select_methods  # noqa: E402
+from aoass_env.evaluation.report import (  # noqa: E402
     draw_figures,
     label,
     method_stats,
@@ -53,7 +61,7 @@ from aoass_env.evaluation.report import (
     paired_stats,
     robustness_markdown,
 )
-from aoass_env.evaluation.store import (
+from aoass_env.evaluation.store import (  # noqa: E402
     BLAS_KERNELS,
     EpisodeStore,
     EvaluationError,
@@ -62,8 +70,8 @@ from aoass_env.evaluation.store import (
     read_inputs,
     read_runs,
 )
-from aoass_env.evaluation.sweep import PRESETS, ROBUSTNESS_EPISODE_SEED_BASE, episode_jobs
-from aoass_env.validators import argparse_number
+from aoass_env.evaluation.sweep import PRESETS, ROBUSTNESS_EPISODE_SEED_BASE, episode_jobs  # noqa: E402
+from aoass_env.validators import argparse_number  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATE = Path(__file__).with_name("results_template.md")
