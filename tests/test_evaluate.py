@@ -54,7 +54,7 @@ def test_kernels_the_user_chose_are_kept(unset, tmp_path):
     assert os.environ["OPENBLAS_CORETYPE"] == "SkylakeX"
 
 
-def test_the_script_runs_its_episodes_with_the_pinned_kernels():
+def test_loading_the_script_gives_numpy_the_pinned_kernels():
     """In a fresh interpreter without OPENBLAS_CORETYPE, loading evaluate.py before NumPy gives
     NumPy's OpenBLAS the pinned kernels (what evaluate.py records in inputs.json), whichever the
     CPU would pick; on a machine where nothing is pinned, its own."""
