@@ -45,3 +45,22 @@ def test_a_field_too_small_for_its_episodes_is_one_line_before_the_warm_up(monke
     assert refused(monkeypatch, capsys, "env_throughput", "--field", "10",
                    module=bench).startswith(
         f"--field 10 (density 0.2, seed {bench.WARM_UP_SEED}): could not place moving obstacle")
+
+
+def test_the_repeated_seeds_resets_reuse_their_maps(monkeypatch):
+    """The 'same seeds again and again' figure timed fresh maps once the generator's cache
+    shrank to 4 draws (the warm-up's seed and the first passes evicted each other): every
+    timed reset with given seeds must now draw no map, and more seeds than the cache holds
+    are refused."""
+    bench = load_benchmark("env_throughput")
+    generator = bench.generator
+    generator.clear_cache()
+    drawn = []
+    draw = generator._generate
+    monkeypatch.setattr(generator, "_generate", lambda *a, **k: drawn.append(1) or draw(*a, **k))
+    seeds = list(range(generator._GENERATED_MAX))
+    bench.reset_ms(2 * len(seeds) + 1, seeds, obstacle_density=0.4, field_size=40.0)
+    assert len(drawn) == 1 + len(seeds)     # the warm-up's and the priming pass's, no more
+    with pytest.raises(ValueError, match="cannot all reuse their maps"):
+        bench.reset_ms(1, list(range(generator._GENERATED_MAX + 1)))
+    generator.clear_cache()
