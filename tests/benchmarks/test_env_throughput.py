@@ -59,8 +59,10 @@ def test_the_repeated_seeds_resets_reuse_their_maps(monkeypatch):
     draw = generator._generate
     monkeypatch.setattr(generator, "_generate", lambda *a, **k: drawn.append(1) or draw(*a, **k))
     seeds = list(range(generator._GENERATED_MAX))
-    bench.reset_ms(2 * len(seeds) + 1, seeds, obstacle_density=0.4, field_size=40.0)
+    try:
+        bench.reset_ms(2 * len(seeds) + 1, seeds, obstacle_density=0.4, field_size=40.0)
+    finally:
+        generator.clear_cache()             # no maps of this test left to later ones
     assert len(drawn) == 1 + len(seeds)     # the warm-up's and the priming pass's, no more
     with pytest.raises(ValueError, match="cannot all reuse their maps"):
         bench.reset_ms(1, list(range(generator._GENERATED_MAX + 1)))
-    generator.clear_cache()
